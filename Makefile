@@ -1,0 +1,28 @@
+# The README's two commands are `make demo` and `make test`; both set up .venv first.
+PYTHON ?= python3
+VENV ?= .venv
+BIN := $(VENV)/bin
+
+.PHONY: setup demo test lint bench bench-quick clean
+
+setup:
+	@PYTHON=$(PYTHON) VENV=$(VENV) ./scripts/bootstrap.sh
+
+demo: setup
+	$(BIN)/fourbar demo --params config/antenna.yaml
+
+lint: setup
+	$(BIN)/ruff check fourbar_ros test benchmarks scripts
+	$(BIN)/mypy
+
+test: lint
+	$(BIN)/python -m pytest
+
+bench: setup
+	$(BIN)/python -m benchmarks.run
+
+bench-quick: setup
+	$(BIN)/python -m benchmarks.run --quick
+
+clean:
+	rm -rf $(VENV) build install log .pytest_cache .mypy_cache .ruff_cache

@@ -1,0 +1,38 @@
+"""ament_python build of fourbar_ros (also installable with plain pip)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = 'fourbar_ros'
+
+setup(
+    name=PACKAGE,
+    version='0.1.0',
+    packages=find_packages(exclude=['test', 'test.*']),
+    package_data={PACKAGE: ['py.typed']},
+    data_files=[
+        ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
+        (f'share/{PACKAGE}', ['package.xml']),
+        (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+    ],
+    install_requires=['setuptools', 'numpy', 'PyYAML'],
+    extras_require={
+        'bags': ['rosbags', 'mcap', 'mcap-ros2-support'],
+        'plot': ['matplotlib'],
+        'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
+                 'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py'],
+    },
+    zip_safe=True,
+    maintainer='fourbar_ros developers',
+    maintainer_email='fourbar-ros@example.org',
+    description='Four-bar antenna tilt linkage: kinematics, statics, rclpy node and bag tools.',
+    license='Apache-2.0',
+    python_requires='>=3.10',
+    entry_points={
+        'console_scripts': [
+            'fourbar = fourbar_ros.cli:main',
+            'fourbar_node = fourbar_ros.node:main',
+        ],
+    },
+)
