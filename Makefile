@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup demo test lint bench bench-quick clean
+.PHONY: setup demo test lint bench-deps bench bench-quick clean
 
 setup:
 	@PYTHON=$(PYTHON) VENV=$(VENV) ./scripts/bootstrap.sh
@@ -18,10 +18,13 @@ lint: setup
 test: lint
 	$(BIN)/python -m pytest
 
-bench: setup
+bench-deps: setup
+	$(BIN)/python -m pip install --quiet -c requirements/constraints.txt -r requirements/bench.txt
+
+bench: bench-deps
 	$(BIN)/python -m benchmarks.run
 
-bench-quick: setup
+bench-quick: bench-deps
 	$(BIN)/python -m benchmarks.run --quick
 
 clean:
