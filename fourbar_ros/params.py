@@ -1,0 +1,128 @@
+"""The fourbar_node parameter spec: the single list the node declares and the YAML loader checks.
+
+Lengths in metres, angles in radians, torques in N m, masses in kg, times in seconds.
+Each entry is plain data (no ROS import); ``fourbar_ros.node`` turns it into
+``rcl_interfaces/ParameterDescriptor`` s and ``fourbar_ros.config`` validates files against it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+ParamValue = float | int | str | bool
+
+#: rclpy accepts a double at a range edge when ``math.isclose(value, edge, rel_tol=1e-6)``
+#: (``Node.PARAM_REL_TOL``); the config loader uses the same tolerance at the spec's edges.
+RANGE_REL_TOL = 1e-6
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One node parameter: ROS name, Python type, default, unit, description and allowed values.
+
+    ``minimum``/``maximum`` are inclusive bounds for numbers (``None``: unbounded);
+    ``choices`` lists the allowed strings of an enumeration (empty: any non-empty string).
+    ``read_only`` parameters can only be set at startup.
+    """
+
+    name: str
+    type: type
+    default: ParamValue
+    unit: str
+    description: str
+    minimum: float | None = None
+    maximum: float | None = None
+    choices: tuple[str, ...] = ()
+    read_only: bool = False
+
+    def describe(self) -> str:
+        """One-line description with unit and allowed values (the ROS descriptor's text)."""
+        parts = [self.description]
+        if self.unit:
+            parts.append(f'[{self.unit}]')
+        if self.choices:
+            parts.append('one of: ' + ', '.join(self.choices))
+        return ' '.join(parts)
+
+
+_DEG = math.pi / 180.0
+
+PARAMETERS: tuple[ParamSpec, ...] = (
+    ParamSpec('frame_length', float, 0.180, 'm',
+              'Frame AD: distance between the fixed pivots A and D.', 1e-6, 100.0),
+    ParamSpec('rocker_ab_length', float, 0.060, 'm',
+              'Rocker AB (angle gamma at A, from the frame).', 1e-6, 100.0),
+    ParamSpec('coupler_length', float, 0.102, 'm',
+              'Coupler BC carrying the antenna (angle theta, positive tilts the antenna down).',
+              1e-6, 100.0),
+    ParamSpec('rocker_cd_length', float, 0.060, 'm',
+              'Rocker CD (angle delta at D, from the frame).', 1e-6, 100.0),
+    ParamSpec('theta_min', float, -6.0 * _DEG, 'rad',
+              'Lowest accepted antenna angle command (must be reachable, < theta_max).',
+              -math.pi, math.pi),
+    ParamSpec('theta_max', float, 7.0 * _DEG, 'rad',
+              'Highest accepted antenna angle command (must be reachable, > theta_min).',
+              -math.pi, math.pi),
+    ParamSpec('driven_rocker', str, 'gamma', '',
+              'Rocker driven by the reducer: gamma (AB, at A) or delta (CD, at D).',
+              choices=('gamma', 'delta')),
+    ParamSpec('branch', str, 'upper', '',
+              'Assembly branch: upper (gamma + delta in [0, pi], the Annex A branch) or lower.',
+              choices=('upper', 'lower')),
+    ParamSpec('load_torque', float, 3.5, 'N m',
+              'Constant load torque about the antenna angle theta that the drive must supply '
+              '(positive in the +theta direction); default: design wind load.',
+              -1.0e6, 1.0e6),
+    ParamSpec('antenna_mass', float, 0.0, 'kg',
+              'Antenna mass carried by the coupler, for a gravity load (0: none). '
+              'Gravity acts along -y (frame AD horizontal, rockers pointing up).',
+              0.0, 1.0e4),
+    ParamSpec('com_offset_along', float, 0.0, 'm',
+              'Antenna centre of mass from the coupler midpoint, along B->C.', -100.0, 100.0),
+    ParamSpec('com_offset_normal', float, 0.0, 'm',
+              'Antenna centre of mass from the coupler midpoint, normal to BC '
+              '(positive: away from the frame at theta = 0).', -100.0, 100.0),
+    ParamSpec('gravity', float, 9.80665, 'm/s^2',
+              'Gravitational acceleration for the antenna weight.', 0.0, 100.0),
+    ParamSpec('reducer_ratio', float, 500.0, '',
+              'Reducer ratio motor:rocker (motor turns per rocker turn).', 1e-6, 1.0e7),
+    ParamSpec('reducer_efficiency', float, 1.0, '',
+              'Reducer efficiency in (0, 1]; motor torque = rocker torque / (ratio * efficiency).',
+              1e-6, 1.0),
+    ParamSpec('motor_torque_limit', float, 0.009, 'N m',
+              'Torque the motor can hold/deliver before the reducer.', 1e-12, 1.0e6),
+    ParamSpec('output_torque_limit', float, 5.0, 'N m',
+              'Rated torque of the reducer output at the driven rocker.', 1e-12, 1.0e6),
+    ParamSpec('gamma_joint', str, 'rocker_ab_joint', '',
+              'JointState name of the rocker AB joint (gamma).'),
+    ParamSpec('delta_joint', str, 'rocker_cd_joint', '',
+              'JointState name of the rocker CD joint (delta).'),
+    ParamSpec('frame_id', str, 'fourbar_base', '',
+              'Frame of the markers: origin at pivot A, x along A->D, y up.'),
+    ParamSpec('out_of_limits', str, 'reject', '',
+              'Policy for finite commands outside [theta_min, theta_max]: reject (drop) or '
+              'clamp (to the nearest limit). NaN/inf are always rejected.',
+              choices=('reject', 'clamp')),
+    ParamSpec('velocity_timeout', float, 0.5, 's',
+              'Joint velocities come from successive commands only when they are at most this far '
+              'apart; otherwise JointState.velocity is left empty.', 1e-6, 3600.0),
+    ParamSpec('diagnostics_period', float, 1.0, 's',
+              'Period of the /diagnostics status.', 0.01, 3600.0, read_only=True),
+)
+
+PARAMETERS_BY_NAME: dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}
+
+#: Parameters every rclpy node may receive that are not ours (the loader and the node ignore them).
+FOREIGN_PARAMETERS: frozenset[str] = frozenset({'use_sim_time', 'start_type_description_service'})
+FOREIGN_PREFIXES: tuple[str, ...] = ('qos_overrides.',)
+
+
+def is_foreign(name: str) -> bool:
+    """True for rclpy's own parameters (``use_sim_time``, ``qos_overrides.*``), which we ignore."""
+    return name in FOREIGN_PARAMETERS or name.startswith(FOREIGN_PREFIXES)
+
+
+def defaults() -> dict[str, ParamValue]:
+    """Name -> default value for every parameter."""
+    return {p.name: p.default for p in PARAMETERS}
