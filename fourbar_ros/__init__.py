@@ -1,0 +1,15 @@
+"""fourbar_ros: kinematics and statics of a four-bar antenna tilt linkage, with ROS 2 glue.
+
+The package root imports only the pure core (standard library and numpy); the rclpy node lives in
+fourbar_ros.node and is imported only when used.
+"""
+
+from .antenna import AntennaLinkage, Branch, Driven, InverseSolution, LinkageState, Reach, RockerAngles, RockerRates
+from .errors import DeadPointError, FourBarError, InvalidGeometryError, UnreachableError
+from .general import FourBar, FourBarAngles
+
+__all__ = [
+    'AntennaLinkage', 'Branch', 'DeadPointError', 'Driven', 'FourBar', 'FourBarAngles', 'FourBarError',
+    'InvalidGeometryError', 'InverseSolution', 'LinkageState', 'Reach', 'RockerAngles', 'RockerRates',
+    'UnreachableError',
+]

@@ -1,0 +1,423 @@
+r"""The antenna's tilt linkage (Turnantenna, Annex A): antenna angle theta to rocker angles, rates and torque.
+
+Geometry and sign convention (Annex A, eq. A.2; the second line of A.1 has a sign typo)::
+
+               B ___________ C         theta: angle of the coupler BC (the antenna) against the frame,
+               /   coupler h  \               positive when C is below B (the antenna points down)
+     AB      /                 \  CD   gamma: angle at A between the frame AD and the rocker AB
+           / gamma       delta  \      delta: angle at D between the frame DA and the rocker DC
+         A ----------------------- D
+                  frame H
+
+A is the origin, D = (H, 0), B = A + AB (cos gamma, sin gamma), C = D + CD (-cos delta, sin delta) and
+C - B = h (cos theta, -sin theta). So AB cos gamma + CD cos delta = H - h cos theta and
+AB sin gamma - CD sin delta = h sin theta.
+
+Lengths are in metres (any consistent unit works: only ratios matter), angles in radians, torques in N m.
+Every method takes a Python float (a math-module fast path returning floats) or a numpy array (vectorized,
+returning arrays of the same shape). Angles are periodic: theta and theta + 2 pi are the same pose.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+from typing import Literal, NamedTuple, overload
+
+import numpy as np
+import numpy.typing as npt
+
+from .dyad import DyadConstants, dyad_constants, reach_half_angles
+from .errors import DeadPointError, InvalidGeometryError, UnreachableError
+
+FloatArray = npt.NDArray[np.float64]
+ArrayLike = float | FloatArray
+OnInvalid = Literal['raise', 'nan']
+
+_TWO_PI = 2.0 * math.pi
+
+
+class Branch(enum.IntEnum):
+    """Assembly branch of the forward solve (theta given).
+
+    UPPER is the annex's branch (A.14, A.15): B lies to the left of the diagonal from A to
+    D - h (cos theta, -sin theta), so gamma + delta is in [0, pi]. LOWER is its mirror image across that diagonal.
+    """
+
+    UPPER = 1
+    LOWER = -1
+
+
+class Driven(enum.Enum):
+    """Which rocker the motor drives: GAMMA is AB (pivot A), DELTA is CD (pivot D)."""
+
+    GAMMA = 'gamma'
+    DELTA = 'delta'
+
+
+class RockerAngles(NamedTuple):
+    """Rocker angles in radians (see the module docstring for their definition)."""
+
+    gamma: ArrayLike
+    delta: ArrayLike
+
+
+class RockerRates(NamedTuple):
+    """Rocker rates per unit antenna rate, d gamma/d theta and d delta/d theta (dimensionless)."""
+
+    dgamma_dtheta: ArrayLike
+    ddelta_dtheta: ArrayLike
+
+
+class InverseSolution(NamedTuple):
+    """Antenna angle theta and the other (not measured) rocker's angle, radians, wrapped to [-pi, pi]."""
+
+    theta: ArrayLike
+    other: ArrayLike
+
+
+class LinkageState(NamedTuple):
+    """Everything known at one antenna angle: angles in rad, rates dimensionless, torque in N m.
+
+    mechanical_advantage is d q/d theta of the driven rocker q (signed); input_torque is the torque the driven
+    rocker needs, in the sense of increasing q, to hold the load torque (applied in the sense of increasing theta);
+    transmission_angle is the angle in [0, pi] between the coupler and the non-driven rocker (pi/2 is ideal).
+    """
+
+    theta: ArrayLike
+    gamma: ArrayLike
+    delta: ArrayLike
+    dgamma_dtheta: ArrayLike
+    ddelta_dtheta: ArrayLike
+    mechanical_advantage: ArrayLike
+    input_torque: ArrayLike
+    transmission_angle: ArrayLike
+
+
+@dataclass(frozen=True)
+class Reach:
+    """Reachable antenna angles: theta_gap <= |theta| <= theta_max (radians, modulo 2 pi).
+
+    theta_gap is 0 unless the rockers differ by more than |frame - coupler|; theta_max is pi when the coupler can
+    turn all the way round.
+    """
+
+    theta_gap: float
+    theta_max: float
+
+    def contains(self, theta: float) -> bool:
+        """True if theta (radians, finite) is reachable; NaN and inf are not."""
+        if not math.isfinite(theta):
+            return False
+        t = abs(math.remainder(theta, _TWO_PI))
+        return self.theta_gap <= t <= self.theta_max
+
+    def describe(self) -> str:
+        """The interval(s) in radians and degrees, for messages."""
+        hi = f'{self.theta_max:.12g} rad ({math.degrees(self.theta_max):.6g} deg)'
+        if self.theta_gap == 0.0:
+            return f'[-{hi}, {hi}]'
+        lo = f'{self.theta_gap:.12g} rad ({math.degrees(self.theta_gap):.6g} deg)'
+        return f'{lo} <= |theta| <= {hi}'
+
+
+def _check_length(name: str, value: float) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise InvalidGeometryError(f'{name}={value!r} must be a number (metres)')
+    v = float(value)
+    if not (math.isfinite(v) and v > 0.0):
+        raise InvalidGeometryError(f'{name}={v!r} m must be finite and positive')
+    return v
+
+
+@dataclass(frozen=True)
+class AntennaLinkage:
+    """The antenna's four-bar: frame AD, rockers AB and CD, coupler BC carrying the antenna (lengths in metres).
+
+    rocker_cd defaults to rocker_ab (the annex's equal rockers). Construction validates the geometry and raises
+    InvalidGeometryError if a length is not finite and positive or if the linkage can never assemble.
+    """
+
+    frame: float
+    rocker_ab: float
+    coupler: float
+    rocker_cd: float | None = None
+    _cd: float = field(init=False, repr=False, compare=False)  #: rocker_cd, resolved
+    _k: DyadConstants = field(init=False, repr=False, compare=False)
+    _reach: Reach = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        frame = _check_length('frame', self.frame)
+        ab = _check_length('rocker_ab', self.rocker_ab)
+        coupler = _check_length('coupler', self.coupler)
+        cd = ab if self.rocker_cd is None else _check_length('rocker_cd', self.rocker_cd)
+        object.__setattr__(self, 'rocker_cd', cd)
+        object.__setattr__(self, '_cd', cd)
+        # Angles depend only on length ratios: work in units of the frame so no scale can overflow.
+        k = dyad_constants(1.0, coupler / frame, ab / frame, cd / frame)
+        try:
+            gap, top = reach_half_angles(k)
+        except ValueError:
+            raise InvalidGeometryError(_never_assembles(frame, ab, coupler, cd)) from None
+        object.__setattr__(self, '_k', k)
+        object.__setattr__(self, '_reach', Reach(theta_gap=gap, theta_max=top))
+
+    # ---------------------------------------------------------------- reach
+
+    def reach(self) -> Reach:
+        """The reachable antenna angles of this geometry, in closed form."""
+        return self._reach
+
+    def reachable(self, theta: FloatArray) -> npt.NDArray[np.bool_]:
+        """Element-wise: may theta (radians) be commanded? False for NaN, inf and out-of-reach values."""
+        t = np.abs(np.remainder(np.asarray(theta, dtype=np.float64) + math.pi, _TWO_PI) - math.pi)
+        with np.errstate(invalid='ignore'):
+            return (t >= self._reach.theta_gap) & (t <= self._reach.theta_max)
+
+    def _unreachable(self, theta: float) -> UnreachableError:
+        if math.isnan(theta):
+            return UnreachableError(f'theta={theta} is not a number; reachable: {self._reach.describe()}')
+        if math.isinf(theta):
+            return UnreachableError(f'theta={theta} is not finite; reachable: {self._reach.describe()}')
+        return UnreachableError(
+            f'theta={theta!r} rad ({math.degrees(theta):.6g} deg) is out of reach; '
+            f'reachable: {self._reach.describe()}')
+
+    def _invalid_array(self, theta: FloatArray, bad: npt.NDArray[np.bool_]) -> UnreachableError:
+        first = float(theta[bad].flat[0])
+        return UnreachableError(
+            f'{int(bad.sum())} of {theta.size} angles cannot be solved, the first theta={first!r}; '
+            f'reachable: {self._reach.describe()}')
+
+    # ---------------------------------------------------------------- positions
+
+    @overload
+    def rocker_angles(self, theta: float, branch: Branch = ..., on_invalid: OnInvalid = ...) -> RockerAngles: ...
+    @overload
+    def rocker_angles(self, theta: FloatArray, branch: Branch = ..., on_invalid: OnInvalid = ...) -> RockerAngles: ...
+
+    def rocker_angles(self, theta: ArrayLike, branch: Branch = Branch.UPPER,
+                      on_invalid: OnInvalid = 'raise') -> RockerAngles:
+        """Rocker angles (gamma, delta) in radians for antenna angle theta (radians) on the given branch.
+
+        Scalars raise UnreachableError for NaN, inf or an out-of-reach theta. Arrays raise the same for any such
+        element when on_invalid='raise', or return NaN at exactly those elements when on_invalid='nan' (the
+        validity mask is reachable(theta)). The exact reach limit is solved (the rockers are then straight).
+        """
+        if isinstance(theta, (float, int)):
+            k = self._k
+            half = 0.5 * theta
+            try:
+                s = math.sin(half)
+            except ValueError:  # math.sin(inf)
+                raise self._unreachable(float(theta)) from None
+            c = math.cos(half)
+            w = k.four_l1_l2 * s * s
+            far = k.far - w
+            near = k.near + w
+            if not far * near >= 0.0:
+                far, near = self._clamped(far, near, float(theta))
+            root = math.sqrt(far * near)
+            diag_sq = k.diff * k.diff + w
+            phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
+            alpha = math.atan2(root, diag_sq + k.r_sq_diff)
+            beta = math.atan2(root, diag_sq - k.r_sq_diff) if k.r_sq_diff else alpha
+            if branch is Branch.UPPER:
+                return RockerAngles(phi + alpha, beta - phi)
+            return RockerAngles(phi - alpha, -beta - phi)
+        return self._rocker_angles_array(np.asarray(theta, dtype=np.float64), branch, on_invalid)
+
+    def _clamped(self, far: float, near: float, theta: float) -> tuple[float, float]:
+        """Zero a factor that is negative only by rounding at the reach limit; otherwise raise."""
+        tol = self._k.tol
+        if -tol <= far < 0.0:
+            far = 0.0
+        if -tol <= near < 0.0:
+            near = 0.0
+        if far >= 0.0 and near >= 0.0:
+            return far, near
+        raise self._unreachable(theta)
+
+    def _rocker_angles_array(self, theta: FloatArray, branch: Branch, on_invalid: OnInvalid) -> RockerAngles:
+        k = self._k
+        with np.errstate(invalid='ignore'):
+            half = 0.5 * theta
+            s = np.sin(half)
+            c = np.cos(half)
+        s_sq = s * s
+        w = k.four_l1_l2 * s_sq
+        far = k.far - w
+        near = w + k.near
+        prod = far * near
+        if prod.size and not prod.min() >= 0.0:
+            tol = k.tol
+            far[(far < 0.0) & (far >= -tol)] = 0.0
+            near[(near < 0.0) & (near >= -tol)] = 0.0
+            with np.errstate(invalid='ignore'):
+                bad = ~((far >= 0.0) & (near >= 0.0))
+            if bad.any() and on_invalid == 'raise':
+                raise self._invalid_array(theta, bad)
+            far[bad] = np.nan
+            np.multiply(far, near, out=prod)
+        root = np.sqrt(prod, out=prod)
+        w += k.diff * k.diff  # now the squared diagonal
+        s *= c
+        s *= k.two_l2  # now h sin(theta) in frame units
+        s_sq *= k.two_l2
+        s_sq += k.diff  # now H - h cos(theta) in frame units
+        phi = np.arctan2(s, s_sq, out=s)
+        alpha = np.arctan2(root, w + k.r_sq_diff)
+        if k.r_sq_diff:
+            w -= k.r_sq_diff
+            beta = np.arctan2(root, w, out=w)
+        else:
+            beta = alpha
+        if branch is Branch.UPPER:
+            return RockerAngles(np.add(phi, alpha, out=alpha if beta is not alpha else None), beta - phi)
+        return RockerAngles(phi - alpha, np.negative(beta) - phi)
+
+    # ---------------------------------------------------------------- rates
+
+    def rocker_rates(self, theta: ArrayLike, branch: Branch = Branch.UPPER,
+                     on_invalid: OnInvalid = 'raise') -> RockerRates:
+        """d gamma/d theta and d delta/d theta at theta (radians) on the given branch.
+
+        From differentiating the loop: d gamma/d theta = h sin(delta - theta) / (AB sin(gamma + delta)) and
+        d delta/d theta = -h sin(gamma + theta) / (CD sin(gamma + delta)). Both are unbounded at the reach limit,
+        where gamma + delta is 0 or pi: scalars raise UnreachableError there; arrays give inf.
+        """
+        g, d = self.rocker_angles(theta, branch, on_invalid)
+        return self.rates_at(theta, g, d)
+
+    def rates_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike) -> RockerRates:
+        """Rocker rates from an already solved pose (theta, gamma, delta in radians)."""
+        h = self.coupler
+        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+            den = math.sin(gamma + delta)
+            if den == 0.0:
+                raise UnreachableError(
+                    f'theta={theta!r} rad is at the reach limit: the rocker rates are unbounded there')
+            return RockerRates(h * math.sin(delta - theta) / (self.rocker_ab * den),
+                               -h * math.sin(gamma + theta) / (self._cd * den))
+        with np.errstate(divide='ignore', invalid='ignore'):
+            den_a = np.sin(np.add(gamma, delta))
+            return RockerRates(h * np.sin(np.subtract(delta, theta)) / (self.rocker_ab * den_a),
+                               -h * np.sin(np.add(gamma, theta)) / (self._cd * den_a))
+
+    def rocker_velocities(self, theta: ArrayLike, theta_rate: ArrayLike,
+                          branch: Branch = Branch.UPPER) -> RockerRates:
+        """Rocker angular velocities (rad/s) for an antenna angular velocity theta_rate (rad/s) at theta (rad)."""
+        r = self.rocker_rates(theta, branch)
+        return RockerRates(r.dgamma_dtheta * theta_rate, r.ddelta_dtheta * theta_rate)
+
+    # ---------------------------------------------------------------- statics
+
+    def mechanical_advantage(self, theta: ArrayLike, driven: Driven = Driven.GAMMA,
+                             branch: Branch = Branch.UPPER) -> ArrayLike:
+        """d q/d theta of the driven rocker q: the antenna torque held per unit torque at the rocker (signed).
+
+        Positive for gamma, negative for delta (the rockers turn in opposite senses). Unbounded at the reach
+        limit (scalars raise UnreachableError there), zero at a dead point.
+        """
+        rates = self.rocker_rates(theta, branch)
+        return rates.dgamma_dtheta if driven is Driven.GAMMA else rates.ddelta_dtheta
+
+    def input_torque(self, theta: ArrayLike, load_torque: ArrayLike, driven: Driven = Driven.GAMMA,
+                     branch: Branch = Branch.UPPER) -> ArrayLike:
+        """Torque in N m the driven rocker needs (in the sense of increasing q) to hold load_torque.
+
+        load_torque (N m) acts on the antenna in the sense of increasing theta. By power balance
+        tau_in dq = tau_load dtheta, so tau_in = tau_load dtheta/dq. At a dead point (the non-driven rocker in
+        line with the coupler) no torque can hold the antenna: scalars raise DeadPointError; arrays give inf or
+        NaN there (check with np.isfinite).
+        """
+        g, d = self.rocker_angles(theta, branch)
+        return self.torque_at(theta, g, d, load_torque, driven)
+
+    def torque_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike, load_torque: ArrayLike,
+                  driven: Driven = Driven.GAMMA) -> ArrayLike:
+        """Input torque (N m) from an already solved pose; see input_torque.
+
+        Driving gamma: tau_load AB sin(gamma + delta) / (h sin(delta - theta)); driving delta:
+        -tau_load CD sin(gamma + delta) / (h sin(gamma + theta)).
+        """
+        gamma_driven = driven is Driven.GAMMA
+        lever = (self.rocker_ab if gamma_driven else -self._cd) / self.coupler
+        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+            q_rate = math.sin(delta - theta if gamma_driven else gamma + theta)
+            if q_rate == 0.0:
+                raise DeadPointError(
+                    f'theta={theta!r} rad is a dead point for the {driven.value} rocker: the {_other(driven)} '
+                    f'rocker is in line with the coupler, so no finite torque holds the antenna')
+            return float(load_torque) * lever * math.sin(gamma + delta) / q_rate
+        with np.errstate(divide='ignore', invalid='ignore'):
+            q_rate_a = np.sin(np.subtract(delta, theta) if gamma_driven else np.add(gamma, theta))
+            return np.multiply(load_torque, lever * np.sin(np.add(gamma, delta))) / q_rate_a
+
+    def transmission_angle(self, theta: ArrayLike, driven: Driven = Driven.GAMMA,
+                           branch: Branch = Branch.UPPER) -> ArrayLike:
+        """Angle in [0, pi] (rad) at the joint between the coupler and the non-driven rocker.
+
+        Driving gamma, this is the angle at C between CB and CD; driving delta, the angle at B between BA and BC.
+        pi/2 transmits best; 0 or pi is a dead point.
+        """
+        g, d = self.rocker_angles(theta, branch)
+        return self.transmission_angle_at(theta, g, d, driven)
+
+    def transmission_angle_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
+                              driven: Driven = Driven.GAMMA) -> ArrayLike:
+        """Transmission angle (rad) from an already solved pose; see transmission_angle."""
+        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+            x = delta - theta if driven is Driven.GAMMA else gamma + theta
+            return math.atan2(abs(math.sin(x)), -math.cos(x))
+        xa = np.subtract(delta, theta) if driven is Driven.GAMMA else np.add(gamma, theta)
+        return np.arctan2(np.abs(np.sin(xa)), -np.cos(xa))
+
+    def state(self, theta: ArrayLike, load_torque: ArrayLike = 0.0, driven: Driven = Driven.GAMMA,
+              branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> LinkageState:
+        """Pose, rates, mechanical advantage, input torque (N m) and transmission angle, solving the pose once."""
+        g, d = self.rocker_angles(theta, branch, on_invalid)
+        rates = self.rates_at(theta, g, d)
+        ma = rates.dgamma_dtheta if driven is Driven.GAMMA else rates.ddelta_dtheta
+        return LinkageState(theta, g, d, rates.dgamma_dtheta, rates.ddelta_dtheta, ma,
+                            self.torque_at(theta, g, d, load_torque, driven),
+                            self.transmission_angle_at(theta, g, d, driven))
+
+    # ---------------------------------------------------------------- inverse
+
+    def from_rocker(self, q: ArrayLike, driven: Driven = Driven.GAMMA, assembly: int = 1) -> InverseSolution:
+        """Antenna angle and the other rocker's angle (radians) from a measured rocker angle q (radians).
+
+        The motor side knows its rocker; this is the four-bar with that rocker as the crank. assembly=+1 puts C
+        to the left of the line from B to D when gamma is measured (B to the left of C to A when delta is), which
+        is the annex's working pose; -1 is the crossed pose. Raises UnreachableError if the rocker cannot take q.
+        """
+        from .general import FourBar  # local: general imports nothing from here, but keep the hot path lean
+
+        if driven is Driven.GAMMA:
+            fb = FourBar(self.frame, self.rocker_ab, self.coupler, self._cd)
+            t3, t4 = fb.angles(q, assembly)
+            return InverseSolution(_wrap(-t3), _wrap(math.pi - t4 if isinstance(t4, float) else np.pi - t4))
+        fb = FourBar(self.frame, self._cd, self.coupler, self.rocker_ab)
+        t3, t4 = fb.angles(q, assembly)
+        return InverseSolution(_wrap(t3), _wrap(math.pi - t4 if isinstance(t4, float) else np.pi - t4))
+
+
+def _wrap(x: ArrayLike) -> ArrayLike:
+    """Wrap an angle (radians) to [-pi, pi]."""
+    if isinstance(x, float):
+        return math.remainder(x, _TWO_PI)
+    return np.remainder(x + np.pi, _TWO_PI) - np.pi
+
+
+def _other(driven: Driven) -> str:
+    return 'delta' if driven is Driven.GAMMA else 'gamma'
+
+
+def _never_assembles(frame: float, ab: float, coupler: float, cd: float) -> str:
+    if ab + cd <= abs(frame - coupler):
+        return (f'the linkage never assembles: rockers AB + CD = {ab + cd:.6g} m cannot span '
+                f'|frame - coupler| = {abs(frame - coupler):.6g} m')
+    return (f'the linkage never assembles: frame + coupler = {frame + coupler:.6g} m is shorter than '
+            f'|AB - CD| = {abs(ab - cd):.6g} m')

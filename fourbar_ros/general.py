@@ -1,0 +1,187 @@
+"""The general four-bar of the lecture notes: crank angle to coupler and rocker angles, velocity ratio, statics.
+
+Ground O2 O4 of length l1 along +x (O2 at the origin), crank O2 B of length l2 at angle t2, coupler B C of length l3
+at angle t3, rocker O4 C of length l4 at angle t4; all angles in radians from +x, counter-clockwise. Loop closure:
+l2 e^(i t2) + l3 e^(i t3) = l1 + l4 e^(i t4). Freudenstein's equation, in the standard form (the notes' D3 misses
+the l4^2 term):
+
+    K1 cos t4 - K2 cos t2 + K3 = cos(t2 - t4),   K1 = l1/l2,  K2 = l1/l4,  K3 = (l1^2 + l2^2 - l3^2 + l4^2)/(2 l2 l4).
+
+Positions are solved by the same cancellation-free dyad closure as the antenna (no acos); Freudenstein's
+equation is kept as an independent residual check.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+
+from .antenna import ArrayLike, FloatArray, OnInvalid, _check_length
+from .dyad import DyadConstants, dyad_constants, reach_half_angles
+from .errors import DeadPointError, InvalidGeometryError, UnreachableError
+
+
+class FourBarAngles(NamedTuple):
+    """Coupler angle t3 and rocker angle t4 in radians (from +x, counter-clockwise)."""
+
+    t3: ArrayLike
+    t4: ArrayLike
+
+
+@dataclass(frozen=True)
+class FourBar:
+    """A general planar four-bar (lengths in metres, any consistent unit); validated on construction.
+
+    Assembly branch (``branch``) of every solve: +1 puts C to the left of the diagonal from B to O4 (the usual
+    'open' drawing of a crank-rocker with everything above the ground), -1 to the right ('crossed').
+    """
+
+    ground: float
+    crank: float
+    coupler: float
+    rocker: float
+    _k: DyadConstants = field(init=False, repr=False, compare=False)
+    crank_gap: float = field(init=False, compare=False)  #: the crank closes the loop iff gap <= |t2| <= max
+    crank_max: float = field(init=False, compare=False)
+
+    def __post_init__(self) -> None:
+        l1 = _check_length('ground', self.ground)
+        l2 = _check_length('crank', self.crank)
+        l3 = _check_length('coupler', self.coupler)
+        l4 = _check_length('rocker', self.rocker)
+        k = dyad_constants(1.0, l2 / l1, l3 / l1, l4 / l1)  # in units of the ground
+        try:
+            gap, top = reach_half_angles(k)
+        except ValueError:
+            raise InvalidGeometryError(
+                f'the four-bar ground={l1:.6g}, crank={l2:.6g}, coupler={l3:.6g}, rocker={l4:.6g} never '
+                f'assembles: no crank angle lets the coupler and rocker close the loop') from None
+        object.__setattr__(self, '_k', k)
+        object.__setattr__(self, 'crank_gap', gap)
+        object.__setattr__(self, 'crank_max', top)
+
+    def freudenstein_constants(self) -> tuple[float, float, float]:
+        """(K1, K2, K3) of Freudenstein's equation (dimensionless), in the standard form above."""
+        l1, l2, l3, l4 = self.ground, self.crank, self.coupler, self.rocker
+        return l1 / l2, l1 / l4, (l1 * l1 + l2 * l2 - l3 * l3 + l4 * l4) / (2.0 * l2 * l4)
+
+    def freudenstein_residual(self, t2: ArrayLike, t4: ArrayLike) -> ArrayLike:
+        """K1 cos t4 - K2 cos t2 + K3 - cos(t2 - t4): zero on any closed pose (an independent check)."""
+        k1, k2, k3 = self.freudenstein_constants()
+        return k1 * np.cos(t4) - k2 * np.cos(t2) + k3 - np.cos(np.subtract(t2, t4))
+
+    def is_grashof(self) -> bool:
+        """Grashof's condition: shortest + longest <= sum of the other two (some link turns fully)."""
+        links = sorted((self.ground, self.crank, self.coupler, self.rocker))
+        return links[0] + links[3] <= links[1] + links[2]
+
+    def angles(self, t2: ArrayLike, branch: int = 1, on_invalid: OnInvalid = 'raise') -> FourBarAngles:
+        """Coupler and rocker angles (t3, t4) in radians for crank angle t2 (radians) on the given branch.
+
+        Raises UnreachableError where the loop cannot close (for arrays, or NaN there with on_invalid='nan').
+        """
+        k = self._k
+        if isinstance(t2, (float, int)):
+            half = -0.5 * t2  # the diagonal B -> O4 is the dyad's P -> Q with x = -t2
+            try:
+                s = math.sin(half)
+            except ValueError:
+                raise self._unreachable(float(t2)) from None
+            c = math.cos(half)
+            w = k.four_l1_l2 * s * s
+            far = k.far - w
+            near = k.near + w
+            if not far * near >= 0.0:
+                tol = k.tol
+                far = 0.0 if -tol <= far < 0.0 else far
+                near = 0.0 if -tol <= near < 0.0 else near
+                if not (far >= 0.0 and near >= 0.0):
+                    raise self._unreachable(float(t2))
+            root = math.sqrt(far * near)
+            diag_sq = k.diff * k.diff + w
+            phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
+            alpha = math.atan2(root, diag_sq + k.r_sq_diff)
+            beta = math.atan2(root, diag_sq - k.r_sq_diff)
+            if branch >= 0:
+                return FourBarAngles(phi + alpha, phi + math.pi - beta)
+            return FourBarAngles(phi - alpha, phi + math.pi + beta)
+        t = np.asarray(t2, dtype=np.float64)
+        with np.errstate(invalid='ignore'):
+            s_a = np.sin(-0.5 * t)
+            c_a = np.cos(-0.5 * t)
+        w_a = k.four_l1_l2 * s_a * s_a
+        far_a = k.far - w_a
+        near_a = k.near + w_a
+        return self._angles_array(t, s_a, c_a, w_a, far_a, near_a, branch, on_invalid)
+
+    def _angles_array(self, t: FloatArray, s: FloatArray, c: FloatArray, w: FloatArray, far: FloatArray,
+                      near: FloatArray, branch: int, on_invalid: OnInvalid) -> FourBarAngles:
+        k = self._k
+        tol = k.tol
+        far[(far < 0.0) & (far >= -tol)] = 0.0
+        near[(near < 0.0) & (near >= -tol)] = 0.0
+        with np.errstate(invalid='ignore'):
+            bad = ~((far >= 0.0) & (near >= 0.0))
+        if bad.any():
+            if on_invalid == 'raise':
+                raise UnreachableError(
+                    f'{int(bad.sum())} of {t.size} crank angles cannot close the loop, the first '
+                    f't2={float(t[bad].flat[0])!r}; closes for {self._describe_range()}')
+            far[bad] = np.nan
+        root = np.sqrt(far * near)
+        diag_sq = k.diff * k.diff + w
+        phi = np.arctan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
+        alpha = np.arctan2(root, diag_sq + k.r_sq_diff)
+        beta = np.arctan2(root, diag_sq - k.r_sq_diff)
+        if branch >= 0:
+            return FourBarAngles(phi + alpha, phi + np.pi - beta)
+        return FourBarAngles(phi - alpha, phi + np.pi + beta)
+
+    def rocker_angle(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
+        """Rocker angle t4 (radians) for crank angle t2 (radians): the solution of Freudenstein's equation."""
+        return self.angles(t2, branch).t4
+
+    def velocity_ratio(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
+        """dt4/dt2 = l2 sin(t2 - t3) / (l4 sin(t4 - t3)) (dimensionless, signed).
+
+        Unbounded where the rocker is in line with the coupler (scalars raise DeadPointError there).
+        """
+        t3, t4 = self.angles(t2, branch)
+        if isinstance(t3, float) and isinstance(t4, float):
+            den = self.rocker * math.sin(t4 - t3)
+            if den == 0.0:
+                raise DeadPointError(f't2={t2!r} rad: the rocker is in line with the coupler; dt4/dt2 is unbounded')
+            return self.crank * math.sin(float(t2) - t3) / den
+        with np.errstate(divide='ignore', invalid='ignore'):
+            return self.crank * np.sin(np.subtract(t2, t3)) / (self.rocker * np.sin(np.subtract(t4, t3)))
+
+    def mechanical_advantage(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
+        """tau4/tau2 = dt2/dt4 = l4 sin(t4 - t3) / (l2 sin(t2 - t3)) by power balance (signed).
+
+        Unbounded at the toggle where the crank is in line with the coupler (scalars raise DeadPointError there).
+        """
+        t3, t4 = self.angles(t2, branch)
+        if isinstance(t3, float) and isinstance(t4, float):
+            den = self.crank * math.sin(float(t2) - t3)
+            if den == 0.0:
+                raise DeadPointError(
+                    f't2={t2!r} rad: the crank is in line with the coupler; the mechanical advantage is unbounded')
+            return self.rocker * math.sin(t4 - t3) / den
+        with np.errstate(divide='ignore', invalid='ignore'):
+            return self.rocker * np.sin(np.subtract(t4, t3)) / (self.crank * np.sin(np.subtract(t2, t3)))
+
+    def _describe_range(self) -> str:
+        if self.crank_gap == 0.0:
+            return f'|t2| <= {self.crank_max:.12g} rad'
+        return f'{self.crank_gap:.12g} <= |t2| <= {self.crank_max:.12g} rad'
+
+    def _unreachable(self, t2: float) -> UnreachableError:
+        if not math.isfinite(t2):
+            return UnreachableError(f't2={t2} is not a finite angle; the loop closes for {self._describe_range()}')
+        return UnreachableError(f't2={t2!r} rad cannot close the loop; it closes for {self._describe_range()}')
+
+
+__all__ = ['FloatArray', 'FourBar', 'FourBarAngles']
