@@ -5,11 +5,12 @@ fourbar_ros.node and is imported only when used.
 """
 
 from .antenna import AntennaLinkage, Branch, Driven, InverseSolution, LinkageState, Reach, RockerAngles, RockerRates
-from .errors import DeadPointError, FourBarError, InvalidGeometryError, UnreachableError
+from .errors import DeadPointError, FourBarError, InvalidGeometryError, SingularPositionError, UnreachableError
 from .general import FourBar, FourBarAngles
 
 __all__ = [
     'AntennaLinkage', 'Branch', 'DeadPointError', 'Driven', 'FourBar', 'FourBarAngles', 'FourBarError',
     'InvalidGeometryError', 'InverseSolution', 'LinkageState', 'Reach', 'RockerAngles', 'RockerRates',
+    'SingularPositionError',
     'UnreachableError',
 ]

@@ -15,7 +15,9 @@ AB sin gamma - CD sin delta = h sin theta.
 
 Lengths are in metres (any consistent unit works: only ratios matter), angles in radians, torques in N m.
 Every method takes a Python float (a math-module fast path returning floats) or a numpy array (vectorized,
-returning arrays of the same shape). Angles are periodic: theta and theta + 2 pi are the same pose.
+returning arrays of the same shape). theta is periodic (theta and theta + 2 pi are the same pose); the rocker
+angles are not wrapped but continuous in theta over the reachable interval (with a coupler longer than the frame
+gamma lies beyond pi).
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .dyad import DyadConstants, dyad_constants, reach_half_angles
-from .errors import DeadPointError, InvalidGeometryError, UnreachableError
+from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = float | FloatArray
@@ -115,11 +117,12 @@ class Reach:
 
     def describe(self) -> str:
         """The interval(s) in radians and degrees, for messages."""
-        hi = f'{self.theta_max:.12g} rad ({math.degrees(self.theta_max):.6g} deg)'
+        def fmt(x: float) -> str:
+            return f'{x:.12g} rad ({math.degrees(x):.6g} deg)'
+
         if self.theta_gap == 0.0:
-            return f'[-{hi}, {hi}]'
-        lo = f'{self.theta_gap:.12g} rad ({math.degrees(self.theta_gap):.6g} deg)'
-        return f'{lo} <= |theta| <= {hi}'
+            return f'[{fmt(-self.theta_max)}, {fmt(self.theta_max)}]'
+        return f'{fmt(self.theta_gap)} <= |theta| <= {fmt(self.theta_max)}'
 
 
 def _check_length(name: str, value: float) -> float:
@@ -184,6 +187,11 @@ class AntennaLinkage:
             f'theta={theta!r} rad ({math.degrees(theta):.6g} deg) is out of reach; '
             f'reachable: {self._reach.describe()}')
 
+    def _change_point(self, theta: float) -> SingularPositionError:
+        return SingularPositionError(
+            f'theta={theta!r} rad is a change point of this linkage (frame = coupler and AB = CD make a '
+            f'parallelogram there): the rocker angles are undetermined')
+
     def _invalid_array(self, theta: FloatArray, bad: npt.NDArray[np.bool_]) -> UnreachableError:
         first = float(theta[bad].flat[0])
         return UnreachableError(
@@ -201,9 +209,11 @@ class AntennaLinkage:
                       on_invalid: OnInvalid = 'raise') -> RockerAngles:
         """Rocker angles (gamma, delta) in radians for antenna angle theta (radians) on the given branch.
 
-        Scalars raise UnreachableError for NaN, inf or an out-of-reach theta. Arrays raise the same for any such
-        element when on_invalid='raise', or return NaN at exactly those elements when on_invalid='nan' (the
-        validity mask is reachable(theta)). The exact reach limit is solved (the rockers are then straight).
+        Scalars raise UnreachableError for NaN, inf or an out-of-reach theta, and SingularPositionError at a
+        change point (frame = coupler, AB = CD, theta = 0: a parallelogram whose rocker angle is undetermined).
+        Arrays raise the same for any such element when on_invalid='raise', or return NaN at exactly those
+        elements when on_invalid='nan' (reachable(theta) is the validity mask, change points aside). The exact
+        reach limit is solved (the rockers are then in line).
         """
         if isinstance(theta, (float, int)):
             k = self._k
@@ -220,7 +230,12 @@ class AntennaLinkage:
                 far, near = self._clamped(far, near, float(theta))
             root = math.sqrt(far * near)
             diag_sq = k.diff * k.diff + w
-            phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
+            if diag_sq == 0.0:
+                raise self._change_point(float(theta))
+            if k.diff >= 0.0:
+                phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
+            else:  # coupler longer than frame: keep atan2's cut away from theta = 0
+                phi = math.pi + math.atan2(-k.two_l2 * s * c, -k.diff - k.two_l2 * s * s)
             alpha = math.atan2(root, diag_sq + k.r_sq_diff)
             beta = math.atan2(root, diag_sq - k.r_sq_diff) if k.r_sq_diff else alpha
             if branch is Branch.UPPER:
@@ -260,13 +275,22 @@ class AntennaLinkage:
                 raise self._invalid_array(theta, bad)
             far[bad] = np.nan
             np.multiply(far, near, out=prod)
+        if k.diff == 0.0 and (w == 0.0).any():  # only a parallelogram-capable geometry pays for this check
+            change = w == 0.0
+            if on_invalid == 'raise':
+                raise self._change_point(float(theta[change].flat[0]))
+            prod[change] = np.nan
         root = np.sqrt(prod, out=prod)
         w += k.diff * k.diff  # now the squared diagonal
         s *= c
         s *= k.two_l2  # now h sin(theta) in frame units
         s_sq *= k.two_l2
         s_sq += k.diff  # now H - h cos(theta) in frame units
-        phi = np.arctan2(s, s_sq, out=s)
+        if k.diff >= 0.0:
+            phi = np.arctan2(s, s_sq, out=s)
+        else:  # coupler longer than frame: keep arctan2's cut away from theta = 0
+            phi = np.arctan2(np.negative(s, out=s), np.negative(s_sq, out=s_sq), out=s)
+            phi += math.pi
         alpha = np.arctan2(root, w + k.r_sq_diff)
         if k.r_sq_diff:
             w -= k.r_sq_diff
@@ -285,7 +309,7 @@ class AntennaLinkage:
 
         From differentiating the loop: d gamma/d theta = h sin(delta - theta) / (AB sin(gamma + delta)) and
         d delta/d theta = -h sin(gamma + theta) / (CD sin(gamma + delta)). Both are unbounded at the reach limit,
-        where gamma + delta is 0 or pi: scalars raise UnreachableError there; arrays give inf.
+        where gamma + delta is 0 or pi: scalars raise SingularPositionError there; arrays give inf.
         """
         g, d = self.rocker_angles(theta, branch, on_invalid)
         return self.rates_at(theta, g, d)
@@ -296,7 +320,7 @@ class AntennaLinkage:
         if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
             den = math.sin(gamma + delta)
             if den == 0.0:
-                raise UnreachableError(
+                raise SingularPositionError(
                     f'theta={theta!r} rad is at the reach limit: the rocker rates are unbounded there')
             return RockerRates(h * math.sin(delta - theta) / (self.rocker_ab * den),
                                -h * math.sin(gamma + theta) / (self._cd * den))
@@ -318,7 +342,7 @@ class AntennaLinkage:
         """d q/d theta of the driven rocker q: the antenna torque held per unit torque at the rocker (signed).
 
         Positive for gamma, negative for delta (the rockers turn in opposite senses). Unbounded at the reach
-        limit (scalars raise UnreachableError there), zero at a dead point.
+        limit (scalars raise SingularPositionError there), zero at a dead point.
         """
         rates = self.rocker_rates(theta, branch)
         return rates.dgamma_dtheta if driven is Driven.GAMMA else rates.ddelta_dtheta

@@ -11,6 +11,7 @@ Units: metres, radians, N m, kg, seconds.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -226,7 +227,84 @@ def default_config() -> AntennaConfig:
     return config_from_values({})
 
 
-def _flatten(prefix: str, mapping: Mapping[Any, Any], out: dict[str, object]) -> None:
+_TRUE = frozenset({'Y', 'y', 'yes', 'Yes', 'YES', 'true', 'True', 'TRUE', 'on', 'On', 'ON'})
+_FALSE = frozenset({'N', 'n', 'no', 'No', 'NO', 'false', 'False', 'FALSE', 'off', 'Off', 'OFF'})
+_INT_RE = re.compile(r'\s*([+-]?)(0[xX][0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)')
+_DEC_RE = re.compile(r'\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?')
+_HEX_RE = re.compile(r'\s*[+-]?0[xX]([0-9a-fA-F]+\.?[0-9a-fA-F]*|\.[0-9a-fA-F]+)([pP][+-]?\d+)?')
+_SPECIAL_RE = re.compile(r'\s*[+-]?(inf|infinity|nan(\([0-9A-Za-z_]*\))?)', re.IGNORECASE)
+_YAML_SPECIAL = {'.nan': math.nan, '.NaN': math.nan, '.NAN': math.nan}
+_YAML_SPECIAL.update({f'{sign}.{inf}': (-math.inf if sign == '-' else math.inf)
+                      for sign in ('', '+', '-') for inf in ('inf', 'Inf', 'INF')})
+
+
+def _nonzero_mantissa(text: str) -> bool:
+    """True if a decimal or hex float literal has a non-zero digit before its exponent."""
+    body = text.strip().lstrip('+-')
+    if body[:2] in ('0x', '0X'):
+        return any(c in '123456789abcdefABCDEF' for c in re.split('[pP]', body[2:])[0])
+    return any(c in '123456789' for c in re.split('[eE]', body)[0])
+
+
+def rcl_scalar(text: str, quoted: bool) -> bool | int | float | str:
+    """The value rcl's YAML parameter parser gives a scalar (``get_value`` in rcl_yaml_param_parser).
+
+    Quoted scalars are strings. Plain ones are tried as a bool word (true/yes/on/y ...), a C ``strtol``
+    integer (base prefix 0x or 0 for octal), a C ``strtod`` double (also 1e-3, inf, nan, hex floats,
+    .nan/.inf), else a string. This differs from PyYAML's YAML 1.1 rules (``1e-3`` and ``1_000``).
+    """
+    if quoted:
+        return text
+    if text in _TRUE:
+        return True
+    if text in _FALSE:
+        return False
+    m = _INT_RE.fullmatch(text)
+    if m:
+        digits = m.group(2)
+        if digits[:2] in ('0x', '0X'):
+            value = int(digits, 16)
+        elif len(digits) > 1 and digits[0] == '0':
+            value = int(digits, 8)
+        else:
+            value = int(digits)
+        value = -value if m.group(1) == '-' else value
+        if -(2**63) <= value < 2**63:  # otherwise strtol sets ERANGE and rcl tries a double
+            return value
+    if text in _YAML_SPECIAL:
+        return _YAML_SPECIAL[text]
+    if _DEC_RE.fullmatch(text) or _SPECIAL_RE.fullmatch(text):
+        number = float(text.strip())
+    elif _HEX_RE.fullmatch(text):
+        stripped = text.strip()
+        sign = -1.0 if stripped.startswith('-') else 1.0
+        body = stripped.lstrip('+-')
+        number = sign * float.fromhex(body if 'p' in body.lower() else body + 'p0')
+    else:
+        return text
+    if not _SPECIAL_RE.fullmatch(text) and (
+            math.isinf(number) or (number == 0.0 and _nonzero_mantissa(text))):
+        return text  # strtod overflow or underflow: ERANGE, so rcl keeps the string
+    return number
+
+
+def _plain_values(node: Any, source: str) -> Any:
+    """Convert a composed PyYAML node tree to Python values with rcl's scalar rules."""
+    import yaml
+
+    if isinstance(node, yaml.MappingNode):
+        out: dict[str, Any] = {}
+        for key_node, value_node in node.value:
+            out[str(key_node.value)] = _plain_values(value_node, source)
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        return [_plain_values(item, source) for item in node.value]
+    if node.style not in ("'", '"') and node.value == '':
+        raise ConfigError(f'{source}: no value at line {node.start_mark.line + 1}')
+    return rcl_scalar(node.value, quoted=node.style in ("'", '"'))
+
+
+def _flatten(prefix: str, mapping: Mapping[str, Any], out: dict[str, object]) -> None:
     """rcl's nesting rule: ``a: {b: 1}`` under ros__parameters is the parameter ``a.b``."""
     for key, value in mapping.items():
         name = f'{prefix}{key}'
@@ -247,21 +325,23 @@ def _matches_node(key: str, node_name: str) -> bool:
 def values_from_yaml(text: str, source: str = '<string>', node_name: str = NODE_NAME) -> dict[str, object]:
     """The parameter values a node called ``node_name`` receives from a ROS 2 parameter file.
 
-    Sections apply in file order (a later one overrides an earlier one), as rcl does.
+    Scalars are typed as rcl types them (see ``rcl_scalar``); sections apply in file order (a later
+    one overrides an earlier one).
     """
-    import yaml  # PyYAML; a declared dependency, imported here to keep `import fourbar_ros.config` light
+    import yaml  # PyYAML, only for its parser; imported here to keep `import fourbar_ros.config` light
 
     try:
-        doc = yaml.safe_load(text)
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else 'syntax error'
         raise ConfigError(f'{source}: not valid YAML: {first}') from None
+    doc = _plain_values(root, source) if root is not None else None
     if not isinstance(doc, dict):
         raise ConfigError(f"{source}: expected a mapping with a '/**:' or '{node_name}:' section")
     values: dict[str, object] = {}
     found = False
     for key, section in doc.items():
-        if not isinstance(key, str) or not _matches_node(key, node_name):
+        if not _matches_node(key, node_name):
             continue
         if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
             raise ConfigError(f"{source}: section {key!r} has no 'ros__parameters:' mapping")

@@ -15,5 +15,9 @@ class UnreachableError(FourBarError):
     """An angle (NaN, inf, or outside the reachable interval) the linkage cannot take."""
 
 
-class DeadPointError(FourBarError):
+class SingularPositionError(FourBarError):
+    """A pose where the answer is undetermined (a change point) or a derivative is unbounded."""
+
+
+class DeadPointError(SingularPositionError):
     """A dead point: the driven rocker cannot move the antenna there, so the required torque is unbounded."""

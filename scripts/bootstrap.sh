@@ -21,7 +21,8 @@ else
   ros_reqs=(-r requirements/ros-jazzy.txt)
 fi
 "$VENV/bin/python" -m pip install --quiet --upgrade pip==25.3 setuptools==80.9.0 wheel==0.45.1
-"$VENV/bin/python" -m pip install --quiet -c requirements/constraints.txt "${ros_reqs[@]}" -e '.[bags,plot,test]'
+"$VENV/bin/python" -m pip install --quiet -c requirements/constraints.txt "${ros_reqs[@]}" \
+  --config-settings editable_mode=compat -e '.[bags,plot,test]'
 "$VENV/bin/python" -c 'import rclpy, numpy, rosbags'  # fail here, not later, if the environment is incomplete
 echo "$want" > "$stamp"
 echo "bootstrap: $VENV ready"
