@@ -1,0 +1,343 @@
+"""Freudenstein function-generator synthesis: link lengths from (crank angle, rocker angle) pairs.
+
+Linkage and angles follow :class:`fourbar_ros.general.FourBar`: ground pivot O2 at the origin, O4 at (l1, 0),
+crank l2 at O2 (angle t2 from +x), coupler l3, rocker l4 at O4 (angle t4 from +x); lengths in metres, angles in
+radians. Loop closure ``|l2 e^{i t2} - l1 - l4 e^{i t4}| = l3`` squared and divided by ``2 l2 l4`` is Freudenstein's
+equation
+
+    K1 cos t4 - K2 cos t2 + K3 = cos(t2 - t4),
+    K1 = l1/l2,  K2 = l1/l4,  K3 = (l1^2 + l2^2 - l3^2 + l4^2) / (2 l2 l4).
+
+(The lecture notes write the last constant as (l1^2 + l2^2 - l3^2)/(l2 l4); that is wrong, see NOTES.) Each pair
+gives one equation linear in (K1, K2, K3): three pairs give a 3x3 system, more give a least-squares problem.
+
+Signs: a negative K1 gives l2 = l1/K1 < 0. A link of length -a at angle t is the same vector as a link of length a
+at t + pi, so such a design *is* a linkage, but its crank points opposite to the requested angles (the input datum
+is shifted by pi). By default that is refused as unbuildable; with ``allow_flip=True`` the link is reported with
+its positive length and ``crank_flipped`` (``rocker_flipped`` for K2 < 0) set, and the verification runs the
+physical linkage at t2 + pi (t4 + pi). K1 = 0 or K2 = 0 (an infinitely long link) and l3^2 <= 0 (no real coupler)
+are always unbuildable.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from fourbar_ros.errors import FourBarError, UnreachableError
+from fourbar_ros.general import FourBar
+
+FloatArray = npt.NDArray[np.float64]
+
+#: Default limit on the 2-norm condition number of the Freudenstein system. Beyond about 1/sqrt(eps) = 6.7e7 more
+#: than half of the double-precision digits of the constants can be lost to rounding alone.
+MAX_CONDITION = 1e8
+
+#: Two branch solutions closer than this (rad) are one toggle position (C on the line B-O4): branch reported as 0.
+TOGGLE_TOL = 1e-9
+
+
+class DesignError(FourBarError):
+    """A synthesis request that yields no linkage. The message is one line and names the value."""
+
+
+class DegenerateDesignError(DesignError):
+    """The positions do not determine the constants: the system is singular or badly conditioned."""
+
+
+class UnbuildableDesignError(DesignError):
+    """The constants exist but give a zero, negative, infinite or imaginary link length."""
+
+
+@dataclass(frozen=True)
+class PairCheck:
+    """How the designed linkage passes one requested pair (angles in rad, as requested: before any flip).
+
+    ``branch`` is +1 (open) or -1 (crossed) in the sense of :meth:`FourBar.angles`, 0 when the two branches meet
+    there (a toggle: C on the line B-O4), None when the designed linkage cannot be assembled at that crank angle.
+    ``t4_linkage`` is the rocker angle the linkage takes on that branch (None if unreachable) and ``t4_error`` its
+    wrapped difference to the requested t4 (rad). ``equation_residual`` is the pair's Freudenstein residual
+    ``K1 cos t4 - K2 cos t2 + K3 - cos(t2 - t4)`` (dimensionless).
+    """
+
+    t2: float
+    t4: float
+    branch: int | None
+    t4_linkage: float | None
+    t4_error: float | None
+    equation_residual: float
+
+
+@dataclass(frozen=True)
+class Design:
+    """A synthesized linkage. Lengths in metres (all > 0), angles in rad, K1..K3 and residuals dimensionless.
+
+    ``residual`` is the 2-norm of the Freudenstein residuals over all pairs (rounding-level for three pairs, the
+    least-squares misfit for more). ``condition_number`` is the 2-norm condition number of the system matrix.
+    """
+
+    k1: float
+    k2: float
+    k3: float
+    ground: float
+    crank: float
+    coupler: float
+    rocker: float
+    crank_flipped: bool
+    rocker_flipped: bool
+    condition_number: float
+    residual: float
+    pairs: tuple[PairCheck, ...]
+
+    @property
+    def branch(self) -> int | None:
+        """The branch (+1 or -1) shared by every pair, or None when they differ, a pair is unreachable or a toggle."""
+        branches = {p.branch for p in self.pairs}
+        if len(branches) == 1:
+            (b,) = branches
+            if b in (1, -1):
+                return b
+        return None
+
+    @property
+    def mixed_branches(self) -> bool:
+        """True when reachable pairs lie on both branches (+1 and -1)."""
+        branches = {p.branch for p in self.pairs}
+        return 1 in branches and -1 in branches
+
+    @property
+    def max_t4_error(self) -> float | None:
+        """Largest rocker-angle error (rad) over the pairs, None if any pair is unreachable."""
+        errors = [p.t4_error for p in self.pairs]
+        if any(e is None for e in errors):
+            return None
+        return max(e for e in errors if e is not None)
+
+    @property
+    def grashof_type(self) -> str:
+        """Grashof classification of the designed lengths (which link is shortest decides the motion)."""
+        return grashof_type(self.ground, self.crank, self.coupler, self.rocker)
+
+    def linkage(self) -> FourBar:
+        """The designed linkage (positive lengths; flipped links are at requested angle + pi)."""
+        return FourBar(self.ground, self.crank, self.coupler, self.rocker)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready summary; keys K1, K2, K3, ground, crank, coupler, rocker plus diagnostics."""
+        return {
+            'K1': self.k1, 'K2': self.k2, 'K3': self.k3,
+            'ground': self.ground, 'crank': self.crank, 'coupler': self.coupler, 'rocker': self.rocker,
+            'crank_flipped': self.crank_flipped, 'rocker_flipped': self.rocker_flipped,
+            'condition_number': self.condition_number,
+            'residual': self.residual,
+            'max_t4_error': self.max_t4_error,
+            'branch': self.branch,
+            'mixed_branches': self.mixed_branches,
+            'grashof_type': self.grashof_type,
+            'pairs': [
+                {'t2': p.t2, 't4': p.t4, 'branch': p.branch, 't4_linkage': p.t4_linkage,
+                 't4_error': p.t4_error, 'equation_residual': p.equation_residual}
+                for p in self.pairs
+            ],
+        }
+
+
+def _as_pairs(pairs: Iterable[Sequence[float]]) -> FloatArray:
+    """Validate pairs into an (n, 2) float array of finite angles (rad); at least three."""
+    try:
+        arr = np.array([tuple(p) for p in pairs], dtype=np.float64)
+    except (TypeError, ValueError) as exc:
+        raise DesignError(f'pairs must be (t2, t4) numbers: {exc}') from None
+    if arr.ndim != 2 or arr.shape[1] != 2:
+        raise DesignError(f'each pair must hold exactly two angles (t2, t4), got shape {arr.shape}')
+    if arr.shape[0] < 3:
+        raise DesignError(f'need at least 3 (t2, t4) pairs for three constants, got {arr.shape[0]}')
+    bad = ~np.isfinite(arr).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise DesignError(f'pair {i + 1} is not finite: ({arr[i, 0]}, {arr[i, 1]})')
+    return arr
+
+
+def freudenstein_system(pairs: Iterable[Sequence[float]]) -> tuple[FloatArray, FloatArray]:
+    """Matrix A (n x 3) and right side b (n) with A @ (K1, K2, K3) = b for (t2, t4) pairs in rad.
+
+    Row i is (cos t4_i, -cos t2_i, 1) and b_i = cos(t2_i - t4_i).
+    """
+    arr = _as_pairs(pairs)
+    t2, t4 = arr[:, 0], arr[:, 1]
+    a = np.column_stack([np.cos(t4), -np.cos(t2), np.ones_like(t2)])
+    return a, np.cos(t2 - t4)
+
+
+def _cos_diff(x: FloatArray, y: float) -> FloatArray:
+    """cos x - cos y without cancellation: -2 sin((x + y)/2) sin((x - y)/2)."""
+    return -2.0 * np.sin(0.5 * (x + y)) * np.sin(0.5 * (x - y))
+
+
+def relative_system(pairs: Iterable[Sequence[float]]) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """The system actually solved: Freudenstein's equations relative to the first pair (a, b).
+
+    Subtracting K1 cos b - K2 cos a + K3 = cos(a - b) from each equation gives rows
+    (cos t4 - cos b, -(cos t2 - cos a), 1) . (K1, K2, C) = cos(t2 - t4) - cos(a - b), with the new constant
+    C = K3 + K1 cos b - K2 cos a - cos(a - b). Each residual equals the original one exactly, so the exact and
+    least-squares solutions are unchanged, but the cosine differences are formed as products of sines: near
+    t = 0 or pi, where cos t is flat, the textbook matrix keeps only the absolute digits of cos t and loses the
+    angle's information; this form keeps it. Columns are scaled to unit 2-norm (returned as ``scale``, solve
+    for y and take K = y / scale) so the condition number does not depend on the columns' units.
+    Returns (scaled matrix, right side, scale).
+    """
+    arr = _as_pairs(pairs)
+    t2, t4 = arr[:, 0], arr[:, 1]
+    a, b = float(t2[0]), float(t4[0])
+    m = np.column_stack([_cos_diff(t4, b), -_cos_diff(t2, a), np.ones_like(t2)])
+    rhs = _cos_diff(t2 - t4, a - b)
+    scale = np.linalg.norm(m, axis=0)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        return m / scale, rhs, scale
+
+
+def solve_constants(
+    pairs: Iterable[Sequence[float]], max_condition: float = MAX_CONDITION,
+) -> tuple[tuple[float, float, float], float, FloatArray]:
+    """Solve for (K1, K2, K3); exact for three pairs, least squares for more.
+
+    Returns (constants, condition number, per-pair residuals). The condition number is the 2-norm one of the
+    column-scaled :func:`relative_system` (the matrix actually solved). Raises DegenerateDesignError when that
+    matrix is rank-deficient (singular) or its condition number exceeds ``max_condition``.
+    """
+    arr = _as_pairs(pairs)
+    m, rhs, scale = relative_system(arr)
+    if not np.all(scale > 0.0):
+        which = 't4' if scale[0] == 0.0 else 't2'
+        raise DegenerateDesignError(
+            f'degenerate positions: cos({which}) is the same at every pair, so the Freudenstein system is singular '
+            '(condition number inf); choose pairs with distinct cos(t2) and cos(t4)')
+    cond = float(np.linalg.cond(m))
+    if np.linalg.matrix_rank(m) < 3 or not math.isfinite(cond):
+        raise DegenerateDesignError(
+            f'degenerate positions: the Freudenstein system is singular (condition number {cond:.3g}); '
+            'choose pairs with distinct cos(t2) and cos(t4) that are not all on one line')
+    if cond > max_condition:
+        raise DegenerateDesignError(
+            f'degenerate positions: the Freudenstein system is badly conditioned (condition number {cond:.3g} '
+            f'> limit {max_condition:.3g}); spread the positions further apart')
+    y = np.linalg.solve(m, rhs) if m.shape[0] == 3 else np.linalg.lstsq(m, rhs, rcond=None)[0]
+    residuals = m @ y - rhs
+    k1, k2, c = (float(v) for v in y / scale)
+    a, b = float(arr[0, 0]), float(arr[0, 1])
+    k3 = c - k1 * math.cos(b) + k2 * math.cos(a) + math.cos(a - b)
+    return (k1, k2, k3), cond, residuals
+
+
+def lengths_from_constants(
+    k1: float, k2: float, k3: float, ground: float = 1.0, allow_flip: bool = False,
+    pairs: Iterable[Sequence[float]] | None = None,
+) -> tuple[float, float, float, bool, bool]:
+    """Link lengths (crank, coupler, rocker) in the unit of ``ground`` from the constants, plus the flip flags.
+
+    Returns (crank, coupler, rocker, crank_flipped, rocker_flipped); lengths are positive. Raises
+    UnbuildableDesignError for K1 or K2 zero, a negative one without ``allow_flip``, or a zero coupler.
+
+    Without ``pairs`` the coupler is sqrt(l1^2 + l2^2 + l4^2 - 2 l2 l4 K3). With the (t2, t4) pairs the constants
+    were solved from, it is sqrt(mean_i |l2 e^(i t2_i) - l1 - l4 e^(i t4_i)|^2), the root mean square of the
+    B-C distances: the same number in exact arithmetic (the exact or least-squares residuals of Freudenstein's
+    equation sum to zero, and each is (d_i^2 - l3^2) / (2 l2 l4)), but free of the cancellation in K3 that costs
+    a short coupler its digits (the rounding of K3 alone is amplified by about l2 l4 K3 / l3^2).
+    """
+    if not (math.isfinite(ground) and ground > 0.0):
+        raise DesignError(f'ground length must be finite and > 0, got {ground}')
+    for name, link, kv in (('K1', 'crank', k1), ('K2', 'rocker', k2)):
+        if kv == 0.0 or not math.isfinite(ground / kv):
+            raise UnbuildableDesignError(f'unbuildable: {name} = {kv:.6g} gives an infinitely long {link}')
+        if kv < 0.0 and not allow_flip:
+            raise UnbuildableDesignError(
+                f'unbuildable: {name} = {kv:.6g} < 0 gives {link} length {ground / kv:.6g}; the {link} would point '
+                'opposite (angle + pi) to the requested angles (allow a flipped link to accept it)')
+    l2 = ground / k1  # signed: the sign is the flip
+    l4 = ground / k2
+    if pairs is None:
+        coupler_sq = ground * ground + l2 * l2 + l4 * l4 - 2.0 * l2 * l4 * k3
+    else:
+        arr = _as_pairs(pairs)
+        t2, t4 = arr[:, 0], arr[:, 1]
+        dx = l2 * np.cos(t2) - ground - l4 * np.cos(t4)
+        dy = l2 * np.sin(t2) - l4 * np.sin(t4)
+        coupler_sq = float(np.mean(dx * dx + dy * dy))
+    if not coupler_sq > 0.0 or not math.isfinite(coupler_sq):
+        raise UnbuildableDesignError(
+            f'unbuildable: K3 = {k3:.6g} gives coupler length squared {coupler_sq:.6g} (no coupler: B and C '
+            'coincide)')
+    return abs(l2), math.sqrt(coupler_sq), abs(l4), l2 < 0.0, l4 < 0.0
+
+
+def _wrap(angle: float) -> float:
+    """Angle wrapped into (-pi, pi] (rad)."""
+    return math.atan2(math.sin(angle), math.cos(angle))
+
+
+def _check_pair(fb: FourBar, t2: float, t4: float, crank_flipped: bool, rocker_flipped: bool,
+                residual: float) -> PairCheck:
+    """Run the linkage at the pair's crank angle on both branches and find which one gives the requested t4."""
+    t2_phys = t2 + math.pi if crank_flipped else t2
+    shift = math.pi if rocker_flipped else 0.0
+    found: dict[int, tuple[float, float]] = {}  # branch -> (t4 in the request's convention, |error|)
+    for branch in (1, -1):
+        try:
+            t4_branch = float(fb.angles(t2_phys, branch=branch)[1]) - shift
+        except UnreachableError:
+            continue
+        found[branch] = (t4_branch, abs(_wrap(t4_branch - t4)))
+    if not found:
+        return PairCheck(t2, t4, None, None, None, residual)
+    best = min(found, key=lambda b: found[b][1])
+    t4_lin, err = found[best]
+    if len(found) == 2 and abs(_wrap(found[1][0] - found[-1][0])) <= TOGGLE_TOL:
+        best = 0
+    return PairCheck(t2, t4, best, _wrap(t4_lin), err, residual)
+
+
+def grashof_type(ground: float, crank: float, coupler: float, rocker: float) -> str:
+    """Grashof class: 'crank-rocker', 'double-crank', 'rocker-crank', 'double-rocker' (Grashof),
+    'change-point' (s + l = p + q, to rounding) or 'triple-rocker' (non-Grashof)."""
+    links = {'ground': ground, 'crank': crank, 'coupler': coupler, 'rocker': rocker}
+    ordered = sorted(links.values())
+    lhs, rhs = ordered[0] + ordered[3], ordered[1] + ordered[2]
+    if abs(lhs - rhs) <= 8.0 * np.finfo(float).eps * rhs:
+        return 'change-point'
+    if lhs > rhs:
+        return 'triple-rocker'
+    shortest = min(links, key=lambda name: links[name])
+    return {'ground': 'double-crank', 'crank': 'crank-rocker', 'rocker': 'rocker-crank',
+            'coupler': 'double-rocker'}[shortest]
+
+
+def synthesize(
+    pairs: Iterable[Sequence[float]], ground: float = 1.0, *, max_condition: float = MAX_CONDITION,
+    allow_flip: bool = False,
+) -> Design:
+    """Design a four-bar whose rocker takes angle t4 when the crank is at t2, for each (t2, t4) pair (rad).
+
+    Three pairs: exact solution. More: least squares, misfit in ``Design.residual``. ``ground`` sets the scale
+    (metres). The result is verified by running the designed linkage through :meth:`FourBar.angles` on both
+    branches at every pair (see :class:`PairCheck`). Raises DegenerateDesignError or UnbuildableDesignError
+    (both DesignError, a FourBarError) with a one-line message.
+    """
+    arr = _as_pairs(pairs)
+    (k1, k2, k3), cond, residuals = solve_constants(arr, max_condition)
+    crank, coupler, rocker, crank_flip, rocker_flip = lengths_from_constants(k1, k2, k3, ground, allow_flip, arr)
+    fb = FourBar(ground, crank, coupler, rocker)
+    checks = tuple(
+        _check_pair(fb, float(t2), float(t4), crank_flip, rocker_flip, float(r))
+        for (t2, t4), r in zip(arr, residuals, strict=True)
+    )
+    return Design(
+        k1=k1, k2=k2, k3=k3, ground=float(ground), crank=crank, coupler=coupler, rocker=rocker,
+        crank_flipped=crank_flip, rocker_flipped=rocker_flip, condition_number=cond,
+        residual=float(np.linalg.norm(residuals)), pairs=checks,
+    )
