@@ -38,6 +38,7 @@ ArrayLike = float | FloatArray
 OnInvalid = Literal['raise', 'nan']
 
 _TWO_PI = 2.0 * math.pi
+_DEAD_TOL = 4.0 * math.ulp(1.0)  #: |sin| below this many ulps of the angles counts as zero (a dead point)
 
 
 class Branch(enum.IntEnum):
@@ -158,7 +159,7 @@ class AntennaLinkage:
         object.__setattr__(self, 'rocker_cd', cd)
         object.__setattr__(self, '_cd', cd)
         # Angles depend only on length ratios: work in units of the frame so no scale can overflow.
-        k = dyad_constants(1.0, coupler / frame, ab / frame, cd / frame)
+        k = dyad_constants(frame, coupler, ab, cd, unit=frame)
         try:
             gap, top = reach_half_angles(k)
         except ValueError:
@@ -174,8 +175,8 @@ class AntennaLinkage:
 
     def reachable(self, theta: FloatArray) -> npt.NDArray[np.bool_]:
         """Element-wise: may theta (radians) be commanded? False for NaN, inf and out-of-reach values."""
-        t = np.abs(np.remainder(np.asarray(theta, dtype=np.float64) + math.pi, _TWO_PI) - math.pi)
         with np.errstate(invalid='ignore'):
+            t = np.abs(np.remainder(np.asarray(theta, dtype=np.float64) + math.pi, _TWO_PI) - math.pi)
             return (t >= self._reach.theta_gap) & (t <= self._reach.theta_max)
 
     def _unreachable(self, theta: float) -> UnreachableError:
@@ -353,8 +354,8 @@ class AntennaLinkage:
 
         load_torque (N m) acts on the antenna in the sense of increasing theta. By power balance
         tau_in dq = tau_load dtheta, so tau_in = tau_load dtheta/dq. At a dead point (the non-driven rocker in
-        line with the coupler) no torque can hold the antenna: scalars raise DeadPointError; arrays give inf or
-        NaN there (check with np.isfinite).
+        line with the coupler) no torque can hold the antenna: scalars raise DeadPointError; arrays give NaN
+        exactly there (np.isfinite is the validity mask).
         """
         g, d = self.rocker_angles(theta, branch)
         return self.torque_at(theta, g, d, load_torque, driven)
@@ -364,19 +365,23 @@ class AntennaLinkage:
         """Input torque (N m) from an already solved pose; see input_torque.
 
         Driving gamma: tau_load AB sin(gamma + delta) / (h sin(delta - theta)); driving delta:
-        -tau_load CD sin(gamma + delta) / (h sin(gamma + theta)).
+        -tau_load CD sin(gamma + delta) / (h sin(gamma + theta)). A dead point is where that sine is zero to
+        within its own rounding (a few ulps of the angles): the torque has no correct digit there.
         """
         gamma_driven = driven is Driven.GAMMA
         lever = (self.rocker_ab if gamma_driven else -self._cd) / self.coupler
         if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
-            q_rate = math.sin(delta - theta if gamma_driven else gamma + theta)
-            if q_rate == 0.0:
+            q = delta if gamma_driven else gamma
+            q_rate = math.sin(q - theta if gamma_driven else q + theta)
+            if abs(q_rate) <= _DEAD_TOL * (1.0 + abs(q) + abs(theta)):
                 raise DeadPointError(
                     f'theta={theta!r} rad is a dead point for the {driven.value} rocker: the {_other(driven)} '
                     f'rocker is in line with the coupler, so no finite torque holds the antenna')
             return float(load_torque) * lever * math.sin(gamma + delta) / q_rate
+        q_a = np.asarray(delta if gamma_driven else gamma)
         with np.errstate(divide='ignore', invalid='ignore'):
-            q_rate_a = np.sin(np.subtract(delta, theta) if gamma_driven else np.add(gamma, theta))
+            q_rate_a = np.sin(np.subtract(q_a, theta) if gamma_driven else np.add(q_a, theta))
+            q_rate_a[np.abs(q_rate_a) <= _DEAD_TOL * (1.0 + np.abs(q_a) + np.abs(theta))] = np.nan
             return np.multiply(load_torque, lever * np.sin(np.add(gamma, delta))) / q_rate_a
 
     def transmission_angle(self, theta: ArrayLike, driven: Driven = Driven.GAMMA,

@@ -35,15 +35,21 @@ class DyadConstants(NamedTuple):
     tol: float  #: rounding allowance on the area factors (a few ulps of their terms)
 
 
-def dyad_constants(l1: float, l2: float, r1: float, r2: float) -> DyadConstants:
-    """Precompute the geometry's length combinations in factored (cancellation-free) form."""
+def dyad_constants(l1: float, l2: float, r1: float, r2: float, unit: float = 1.0) -> DyadConstants:
+    """Precompute the geometry's length combinations in factored (cancellation-free) form, in units of ``unit``.
+
+    Sums and differences are formed from the given lengths before scaling, so a near-parallelogram (L1 close to
+    L2) keeps L1 - L2 to full relative precision.
+    """
     diff = l1 - l2
-    far = (r1 + r2 - diff) * (r1 + r2 + diff)
-    near = (diff - (r1 - r2)) * (diff + (r1 - r2))
+    far = (r1 + r2 - diff) / unit * ((r1 + r2 + diff) / unit)
+    near = (diff - (r1 - r2)) / unit * ((diff + (r1 - r2)) / unit)
+    r_sq_diff = (r1 - r2) / unit * ((r1 + r2) / unit)
+    l1, l2, r1, r2, diff = l1 / unit, l2 / unit, r1 / unit, r2 / unit, diff / unit
     scale = max((r1 + r2) ** 2, diff * diff, 4.0 * l1 * l2)
     return DyadConstants(
         l1=l1, l2=l2, r1=r1, r2=r2, diff=diff, four_l1_l2=4.0 * l1 * l2, two_l2=2.0 * l2,
-        far=far, near=near, r_sq_diff=(r1 - r2) * (r1 + r2), tol=8.0 * 2.220446049250313e-16 * scale,
+        far=far, near=near, r_sq_diff=r_sq_diff, tol=8.0 * 2.220446049250313e-16 * scale,
     )
 
 

@@ -52,7 +52,7 @@ class FourBar:
         l2 = _check_length('crank', self.crank)
         l3 = _check_length('coupler', self.coupler)
         l4 = _check_length('rocker', self.rocker)
-        k = dyad_constants(1.0, l2 / l1, l3 / l1, l4 / l1)  # in units of the ground
+        k = dyad_constants(l1, l2, l3, l4, unit=l1)
         try:
             gap, top = reach_half_angles(k)
         except ValueError:
