@@ -1,0 +1,125 @@
+"""The node's diagnostic status as plain values: level, message and key/value pairs. No ROS.
+
+Levels use diagnostic_msgs/DiagnosticStatus numbering: ERROR when the drive cannot hold the load at the
+served angle (a torque margin below zero), WARN when the last command was rejected or clamped or the
+transmission angle is poor (outside [40, 140] deg), OK otherwise. Floats are written with ``repr``
+(shortest round-trip form), so a reader recovers them exactly.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import asdict, dataclass
+from typing import NamedTuple
+
+from fourbar_ros.antenna import LinkageState
+from fourbar_ros.command_policy import Decision, Outcome
+from fourbar_ros.config import AntennaConfig
+from fourbar_ros.loads import motor_torque
+
+#: Transmission angles (rad) farther than this from pi/2 give a WARN.
+TRANSMISSION_TOLERANCE = math.radians(50.0)
+
+
+class Level(enum.IntEnum):
+    """diagnostic_msgs/DiagnosticStatus levels."""
+
+    OK = 0
+    WARN = 1
+    ERROR = 2
+
+
+@dataclass
+class Counters:
+    """Running counts the node reports; they prove which work was done or skipped."""
+
+    commands_received: int = 0
+    commands_accepted: int = 0
+    commands_clamped: int = 0
+    commands_rejected_not_finite: int = 0
+    commands_rejected_out_of_limits: int = 0
+    commands_rejected_out_of_reach: int = 0
+    commands_not_solved: int = 0  # served, but nobody subscribed to joint_states or input_torque
+    joint_states_published: int = 0
+    input_torque_published: int = 0
+    input_torque_skipped: int = 0
+    markers_published: int = 0
+    markers_skipped: int = 0
+    diagnostics_published: int = 0
+    diagnostics_skipped: int = 0
+    parameter_changes_accepted: int = 0
+    parameter_changes_rejected: int = 0
+
+    def record(self, outcome: Outcome) -> None:
+        """Count one command by its outcome."""
+        self.commands_received += 1
+        if outcome is Outcome.ACCEPTED:
+            self.commands_accepted += 1
+        elif outcome is Outcome.CLAMPED:
+            self.commands_clamped += 1
+        elif outcome is Outcome.REJECTED_NOT_FINITE:
+            self.commands_rejected_not_finite += 1
+        elif outcome is Outcome.REJECTED_OUT_OF_REACH:
+            self.commands_rejected_out_of_reach += 1
+        else:
+            self.commands_rejected_out_of_limits += 1
+
+    def as_dict(self) -> dict[str, int]:
+        """Counter name -> value."""
+        return asdict(self)
+
+
+class Summary(NamedTuple):
+    """One diagnostic status: level, one-line message, (key, value) pairs."""
+
+    level: Level
+    message: str
+    values: list[tuple[str, str]]
+
+
+def summarize(cfg: AntennaConfig, last: Decision | None, last_command: float | None,
+              state: LinkageState | None, counters: Counters, states_computed: int,
+              states_reused: int) -> Summary:
+    """Build the status from the last command (raw, rad), its decision, the state at the served angle."""
+    values: list[tuple[str, str]] = []
+    level, message = Level.OK, 'waiting for the first command'
+    if last is not None and last_command is not None:
+        values += [('last_command_rad', repr(last_command)), ('last_command_outcome', last.outcome.value)]
+        if last.outcome is not Outcome.ACCEPTED:
+            level, message = Level.WARN, last.reason
+    if state is not None:
+        theta = float(state.theta)
+        tau_in = float(state.input_torque)
+        tau_motor = motor_torque(cfg, tau_in)
+        reach = cfg.linkage.reach()
+        reach_margin = reach.theta_max - abs(theta)
+        if reach.theta_gap > 0.0:
+            reach_margin = min(reach_margin, abs(theta) - reach.theta_gap)
+        out_margin = cfg.output_torque_limit - abs(tau_in)
+        motor_margin = cfg.motor_torque_limit - abs(tau_motor)
+        transmission = float(state.transmission_angle)
+        values += [
+            ('theta_rad', repr(theta)), ('theta_deg', repr(math.degrees(theta))),
+            ('gamma_rad', repr(float(state.gamma))), ('delta_rad', repr(float(state.delta))),
+            ('theta_min_margin_rad', repr(theta - cfg.theta_min)),
+            ('theta_max_margin_rad', repr(cfg.theta_max - theta)),
+            ('reach_margin_rad', repr(reach_margin)),
+            ('transmission_angle_deg', repr(math.degrees(transmission))),
+            ('mechanical_advantage', repr(float(state.mechanical_advantage))),
+            ('input_torque_nm', repr(tau_in)), ('motor_torque_nm', repr(tau_motor)),
+            ('output_torque_margin_nm', repr(out_margin)), ('motor_torque_margin_nm', repr(motor_margin)),
+        ]
+        if out_margin < 0.0 or motor_margin < 0.0:
+            level = Level.ERROR
+            message = (f'drive cannot hold the load at theta={theta:.6g} rad: rocker torque {tau_in:.6g} N m '
+                       f'(limit {cfg.output_torque_limit:g}), motor torque {tau_motor:.6g} N m '
+                       f'(limit {cfg.motor_torque_limit:g})')
+        elif level is Level.OK and abs(transmission - 0.5 * math.pi) > TRANSMISSION_TOLERANCE:
+            level = Level.WARN
+            message = f'poor transmission angle {math.degrees(transmission):.4g} deg'
+        elif level is Level.OK:
+            message = 'ok'
+    values += [(k, str(v)) for k, v in counters.as_dict().items()]
+    values += [('states_computed', str(states_computed)), ('states_reused', str(states_reused))]
+    return Summary(level, message, values)

@@ -1,0 +1,63 @@
+"""Loads on the antenna and torques along the drive: constant torque plus the antenna's weight. No ROS.
+
+Sign convention: a load torque (N m) is what the drive must supply about the antenna angle theta,
+positive in the sense of increasing theta (antenna tilting down); ``AntennaLinkage.input_torque``
+maps it to the driven rocker by power balance (tau_in dq = tau_load dtheta).
+
+Gravity: the frame AD is horizontal with +y up (the rockers point up on the upper branch).
+The antenna's centre of mass sits at B + (h/2 + along) u + normal n on the coupler, with
+u = (cos theta, -sin theta) along B->C and n = (sin theta, cos theta). Holding it takes the
+generalized torque m g dy/dtheta (virtual work), with
+dy/dtheta = AB cos(gamma) dgamma/dtheta - (h/2 + along) cos(theta) - normal sin(theta).
+"""
+
+from __future__ import annotations
+
+import math
+
+from fourbar_ros.antenna import Driven, LinkageState
+from fourbar_ros.config import AntennaConfig
+
+
+def com_height_rate(cfg: AntennaConfig, theta: float, gamma: float, dgamma_dtheta: float) -> float:
+    """d y_com / d theta (m/rad): how fast the antenna's centre of mass rises as theta grows."""
+    along = 0.5 * cfg.coupler_length + cfg.com_offset_along
+    return (cfg.rocker_ab_length * math.cos(gamma) * dgamma_dtheta
+            - along * math.cos(theta) - cfg.com_offset_normal * math.sin(theta))
+
+
+def gravity_torque(cfg: AntennaConfig, theta: float, gamma: float, dgamma_dtheta: float) -> float:
+    """Torque (N m, about theta, +theta sense) that holds the antenna's weight at this pose."""
+    if not cfg.has_gravity_load:
+        return 0.0
+    return cfg.antenna_mass * cfg.gravity * com_height_rate(cfg, theta, gamma, dgamma_dtheta)
+
+
+def load_torque(cfg: AntennaConfig, theta: float, gamma: float, dgamma_dtheta: float) -> float:
+    """Total load torque about theta (N m): the constant ``load_torque`` plus the gravity term."""
+    return cfg.load_torque + gravity_torque(cfg, theta, gamma, dgamma_dtheta)
+
+
+def solve(cfg: AntennaConfig, theta: float) -> LinkageState:
+    """The linkage state at antenna angle theta (rad) under the configured load.
+
+    Without an antenna mass this is exactly ``cfg.linkage.state(theta, cfg.load_torque, cfg.driven,
+    cfg.branch)``; with one, the load is evaluated at the solved pose. Raises the core's
+    ``UnreachableError``/``DeadPointError`` for an angle the linkage cannot serve.
+    """
+    link = cfg.linkage
+    if not cfg.has_gravity_load:
+        return link.state(theta, cfg.load_torque, cfg.driven, cfg.branch)
+    gamma, delta = link.rocker_angles(theta, cfg.branch)
+    rates = link.rates_at(theta, gamma, delta)
+    load = load_torque(cfg, theta, float(gamma), float(rates.dgamma_dtheta))
+    advantage = rates.dgamma_dtheta if cfg.driven is Driven.GAMMA else rates.ddelta_dtheta
+    return LinkageState(theta, gamma, delta, rates.dgamma_dtheta, rates.ddelta_dtheta, advantage,
+                        link.torque_at(theta, gamma, delta, load, cfg.driven),
+                        link.transmission_angle_at(theta, gamma, delta, cfg.driven))
+
+
+def motor_torque(cfg: AntennaConfig, input_torque: float) -> float:
+    """Motor-side torque (N m) for a driven-rocker torque, driving through the reducer:
+    input_torque / (reducer_ratio * reducer_efficiency). (Back-driven, the motor would need less.)"""
+    return input_torque / (cfg.reducer_ratio * cfg.reducer_efficiency)

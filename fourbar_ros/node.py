@@ -1,0 +1,264 @@
+"""fourbar_node: antenna angle commands in, rocker joint states, input torque, diagnostics and markers out.
+
+Interface (relative names, so namespaces and remapping apply):
+  sub  antenna_angle_cmd  std_msgs/Float64           commanded antenna angle theta, rad (+ tilts down)
+  pub  joint_states       sensor_msgs/JointState     position [gamma, delta] rad; velocity rad/s by finite
+                                                     difference of successive published positions (empty
+                                                     when not meaningful); effort N m: driven rocker's torque,
+                                                     0.0 for the other rocker
+  pub  input_torque       std_msgs/Float64           torque the driven rocker needs, N m (+ in the sense of q)
+  pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
+  pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow
+QoS: the ROS default profile (reliable, volatile, keep-last) with depth 1000 for the command and the
+per-command outputs (a burst of a thousand commands is queued, not dropped) and depth 10 for markers and
+diagnostics. Each can be overridden with
+``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
+The node only adapts messages and parameters; the math is in fourbar_ros.antenna/loads and the
+decisions in the pure modules command_policy, state_cache, joint_velocity, diagnostic_values.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from functools import partial
+from typing import Any
+
+import rclpy
+import rclpy.utilities
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.executors import ExternalShutdownException
+from rclpy.impl.rcutils_logger import RcutilsLogger
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos_overriding_options import QoSOverridingOptions
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from visualization_msgs.msg import MarkerArray
+
+from fourbar_ros.antenna import Driven, LinkageState
+from fourbar_ros.command_policy import Decision, Outcome, Policy, decide
+from fourbar_ros.config import AntennaConfig, ConfigError, config_from_values
+from fourbar_ros.diagnostic_values import Counters, summarize
+from fourbar_ros.errors import FourBarError
+from fourbar_ros.joint_velocity import Sample, finite_difference
+from fourbar_ros.loads import solve
+from fourbar_ros.marker_geometry import linkage_points
+from fourbar_ros.params import is_foreign
+from fourbar_ros.ros_markers import LinkageMarkers
+from fourbar_ros.ros_params import declarations
+from fourbar_ros.state_cache import StateCache
+
+NODE_NAME = 'fourbar_node'
+#: Keep-last depth of the command subscription and the per-command outputs.
+STREAM_DEPTH = 1000
+#: Keep-last depth of markers and diagnostics (latest state only matters).
+STATUS_DEPTH = 10
+WARN_THROTTLE_S = 1.0
+
+
+
+class FourBarNode(Node):
+    """The antenna tilt node. Raises ConfigError from the constructor if its parameters are invalid."""
+
+    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+        super().__init__(node_name, **kwargs)
+        # rclpy's logger and destroy_node are unannotated: bind them to typed names once.
+        get_logger: Callable[[], RcutilsLogger] = self.get_logger
+        logger = get_logger()
+        self._warn: Callable[..., object] = logger.warning
+        self._error: Callable[..., object] = logger.error
+        try:
+            self._config = self._validated_overrides()
+        except ConfigError:
+            _destroy(self)
+            raise
+        self.declare_parameters('', list(declarations(self._config.as_values())))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.add_post_set_parameters_callback(self._after_set_parameters)
+        self._pending: AntennaConfig | None = None
+
+        self.counters = Counters()
+        self.cache = StateCache(partial(solve, self._config))
+        self._last_command: float | None = None
+        self._last_decision: Decision | None = None
+        self._served: float | None = None
+        self._last_sample: Sample | None = None
+        self._apply(self._config)
+
+        qos_options = QoSOverridingOptions.with_default_policies()
+        self._joint_pub = self.create_publisher(JointState, 'joint_states', STREAM_DEPTH,
+                                                qos_overriding_options=qos_options)
+        self._torque_pub = self.create_publisher(Float64, 'input_torque', STREAM_DEPTH,
+                                                 qos_overriding_options=qos_options)
+        self._marker_pub = self.create_publisher(MarkerArray, 'linkage_markers', STATUS_DEPTH,
+                                                 qos_overriding_options=qos_options)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATUS_DEPTH)
+        self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd', self._on_command,
+                                                     STREAM_DEPTH, qos_overriding_options=qos_options)
+        self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
+
+    # ------------------------------------------------------------------ configuration
+
+    def _validated_overrides(self) -> AntennaConfig:
+        """Validate the startup values (params file, --param, constructor overrides) before declaring."""
+        overrides = {name: p.value for name, p in self._parameter_overrides.items()}
+        return config_from_values(overrides)
+
+    @property
+    def config(self) -> AntennaConfig:
+        """The running configuration."""
+        return self._config
+
+    def _apply(self, cfg: AntennaConfig) -> None:
+        self._config = cfg
+        self._policy = Policy(cfg.out_of_limits)
+        self._reach = cfg.linkage.reach()
+        self._driven_first = cfg.driven is Driven.GAMMA
+        self._names = list(cfg.joint_names)
+        self._markers = LinkageMarkers(cfg.frame_id)
+        self.cache.reset(partial(solve, cfg))
+        self._last_sample = None  # a velocity across a configuration change means nothing
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """Validate the running configuration with the proposed changes, as a whole."""
+        proposed: dict[str, object] = dict(self._config.as_values())
+        for p in params:
+            if not is_foreign(p.name):
+                proposed[p.name] = p.value
+        try:
+            self._pending = config_from_values(proposed)
+        except ConfigError as exc:
+            self._pending = None
+            self.counters.parameter_changes_rejected += 1
+            self._warn(f'parameter change rejected: {exc}')
+            return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _after_set_parameters(self, params: list[Parameter]) -> None:
+        if self._pending is not None and any(not is_foreign(p.name) for p in params):
+            self._apply(self._pending)
+            self.counters.parameter_changes_accepted += 1
+        self._pending = None
+
+    # ------------------------------------------------------------------ commands
+
+    def _on_command(self, msg: Float64) -> None:
+        command = msg.data
+        cfg = self._config
+        decision = decide(command, cfg.theta_min, cfg.theta_max, self._policy, self._reach)
+        self.counters.record(decision.outcome)
+        self._last_command, self._last_decision = command, decision
+        theta = decision.theta
+        if theta is None:
+            self._warn(decision.reason, throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        if decision.outcome is Outcome.CLAMPED:
+            self._warn(decision.reason, throttle_duration_sec=WARN_THROTTLE_S)
+        self._served = theta
+        want_joints = self._joint_pub.get_subscription_count() > 0
+        want_torque = self._torque_pub.get_subscription_count() > 0
+        want_markers = self._marker_pub.get_subscription_count() > 0
+        if not want_torque:
+            self.counters.input_torque_skipped += 1
+        if not want_markers:
+            self.counters.markers_skipped += 1
+        if not (want_joints or want_torque or want_markers):
+            self.counters.commands_not_solved += 1
+            return
+        try:
+            state = self.cache.get(theta)
+        except FourBarError as exc:  # limits lie inside the reach, so only a core bug gets here
+            self._error(f'cannot solve theta={theta!r}: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        now = self.get_clock().now()
+        stamp = now.to_msg()
+        if want_joints:
+            self._publish_joints(state, stamp, now.nanoseconds)
+        if want_torque:
+            self._torque_pub.publish(Float64(data=float(state.input_torque)))
+            self.counters.input_torque_published += 1
+        if want_markers:
+            pts = linkage_points(cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length,
+                                 cfg.rocker_cd_length, theta, float(state.gamma), float(state.delta))
+            self._marker_pub.publish(self._markers.update(pts, stamp))
+            self.counters.markers_published += 1
+
+    def _publish_joints(self, state: LinkageState, stamp: Any, stamp_ns: int) -> None:
+        gamma, delta, torque = float(state.gamma), float(state.delta), float(state.input_torque)
+        sample = Sample(stamp_ns, (gamma, delta))
+        msg = JointState()
+        msg.header.stamp = stamp
+        msg.name = self._names
+        msg.position = [gamma, delta]
+        msg.velocity = finite_difference(self._last_sample, sample, self._config.velocity_timeout)
+        msg.effort = [torque, 0.0] if self._driven_first else [0.0, torque]
+        self._last_sample = sample
+        self._joint_pub.publish(msg)
+        self.counters.joint_states_published += 1
+
+    # ------------------------------------------------------------------ diagnostics
+
+    def diagnostic_status(self) -> DiagnosticStatus:
+        """The current status message (also what the timer publishes)."""
+        state: LinkageState | None = None
+        if self._served is not None:
+            try:
+                state = self.cache.get(self._served)
+            except FourBarError:
+                state = None
+        summary = summarize(self._config, self._last_decision, self._last_command, state, self.counters,
+                            self.cache.computed, self.cache.reused)
+        return DiagnosticStatus(
+            level=bytes([int(summary.level)]), name=f'{self.get_name()}: antenna tilt linkage',
+            message=summary.message, hardware_id=self._config.frame_id,
+            values=[KeyValue(key=k, value=v) for k, v in summary.values])
+
+    def _on_diagnostics_timer(self) -> None:
+        if self._diag_pub.get_subscription_count() == 0:
+            self.counters.diagnostics_skipped += 1
+            return
+        self.counters.diagnostics_published += 1
+        msg = DiagnosticArray(status=[self.diagnostic_status()])
+        msg.header.stamp = self.get_clock().now().to_msg()
+        self._diag_pub.publish(msg)
+
+
+def _destroy(node: Node) -> None:
+    destroy: Callable[[], object] = node.destroy_node
+    destroy()
+
+
+def _one_line(exc: BaseException) -> str:
+    text = ' '.join(str(exc).split())
+    return text or exc.__class__.__name__
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``fourbar_node``: exit 0 on Ctrl-C/SIGTERM, 2 with one line on bad parameters."""
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+
+    try:
+        rclpy.init(args=args)
+    except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
+        print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
+        return 2
+    node: FourBarNode | None = None
+    try:
+        node = FourBarNode()
+        rclpy.spin(node)
+    except (ConfigError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
+        print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
+        return 2
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            _destroy(node)
+        rclpy.utilities.try_shutdown()
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

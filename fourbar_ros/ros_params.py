@@ -1,0 +1,29 @@
+"""ROS parameter descriptors built from ``fourbar_ros.params.PARAMETERS`` (declaration only)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
+
+from fourbar_ros.params import PARAMETERS, ParamSpec, ParamValue
+
+_TYPES = {float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING,
+          int: ParameterType.PARAMETER_INTEGER, bool: ParameterType.PARAMETER_BOOL}
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """The descriptor rclpy enforces (type, inclusive range, read-only) and shows (description, unit)."""
+    d = ParameterDescriptor(name=spec.name, type=_TYPES[spec.type], description=spec.describe(),
+                            read_only=spec.read_only)
+    if spec.type is float and spec.minimum is not None and spec.maximum is not None:
+        d.floating_point_range = [FloatingPointRange(from_value=float(spec.minimum),
+                                                     to_value=float(spec.maximum), step=0.0)]
+    if spec.choices:
+        d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
+    return d
+
+
+def declarations(values: dict[str, ParamValue]) -> list[tuple[str, Any, Any]]:
+    """(name, value, descriptor) for ``Node.declare_parameters('', ...)``, values from a validated config."""
+    return [(spec.name, values[spec.name], descriptor(spec)) for spec in PARAMETERS]
