@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .antenna import ArrayLike, FloatArray, OnInvalid, _check_length
+from .antenna import _DEAD_TOL, ArrayLike, FloatArray, OnInvalid, _check_length
 from .dyad import DyadConstants, dyad_constants, reach_half_angles
 from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
 
@@ -155,31 +155,36 @@ class FourBar:
     def velocity_ratio(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
         """dt4/dt2 = l2 sin(t2 - t3) / (l4 sin(t4 - t3)) (dimensionless, signed).
 
-        Unbounded where the rocker is in line with the coupler (scalars raise DeadPointError there).
+        Unbounded where the rocker is in line with the coupler (the sine is zero to within its rounding):
+        scalars raise DeadPointError there, arrays give NaN.
         """
         t3, t4 = self.angles(t2, branch)
-        if isinstance(t3, float) and isinstance(t4, float):
-            den = self.rocker * math.sin(t4 - t3)
-            if den == 0.0:
-                raise DeadPointError(f't2={t2!r} rad: the rocker is in line with the coupler; dt4/dt2 is unbounded')
-            return self.crank * math.sin(float(t2) - t3) / den
-        with np.errstate(divide='ignore', invalid='ignore'):
-            return self.crank * np.sin(np.subtract(t2, t3)) / (self.rocker * np.sin(np.subtract(t4, t3)))
+        return self._ratio(t2, t3, t4, self.crank, self.rocker, 'the rocker is in line with the coupler; '
+                           'dt4/dt2 is unbounded', invert=False)
 
     def mechanical_advantage(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
         """tau4/tau2 = dt2/dt4 = l4 sin(t4 - t3) / (l2 sin(t2 - t3)) by power balance (signed).
 
-        Unbounded at the toggle where the crank is in line with the coupler (scalars raise DeadPointError there).
+        Unbounded at the toggle where the crank is in line with the coupler: scalars raise DeadPointError there,
+        arrays give NaN.
         """
         t3, t4 = self.angles(t2, branch)
-        if isinstance(t3, float) and isinstance(t4, float):
-            den = self.crank * math.sin(float(t2) - t3)
-            if den == 0.0:
-                raise DeadPointError(
-                    f't2={t2!r} rad: the crank is in line with the coupler; the mechanical advantage is unbounded')
-            return self.rocker * math.sin(t4 - t3) / den
+        return self._ratio(t2, t3, t4, self.rocker, self.crank, 'the crank is in line with the coupler; '
+                           'the mechanical advantage is unbounded', invert=True)
+
+    def _ratio(self, t2: ArrayLike, t3: ArrayLike, t4: ArrayLike, num_len: float, den_len: float, why: str,
+               invert: bool) -> ArrayLike:
+        """num_len sin(a - t3) / (den_len sin(b - t3)) with (a, b) = (t2, t4), or (t4, t2) when invert."""
+        a, b = (t4, t2) if invert else (t2, t4)
+        if isinstance(a, (float, int)) and isinstance(b, (float, int)) and isinstance(t3, float):
+            den = math.sin(b - t3)
+            if abs(den) <= _DEAD_TOL * (1.0 + abs(b) + abs(t3)):
+                raise DeadPointError(f't2={t2!r} rad: {why}')
+            return num_len * math.sin(a - t3) / (den_len * den)
         with np.errstate(divide='ignore', invalid='ignore'):
-            return self.rocker * np.sin(np.subtract(t4, t3)) / (self.crank * np.sin(np.subtract(t2, t3)))
+            den_a = np.sin(np.subtract(b, t3))
+            den_a[np.abs(den_a) <= _DEAD_TOL * (1.0 + np.abs(b) + np.abs(t3))] = np.nan
+            return num_len * np.sin(np.subtract(a, t3)) / (den_len * den_a)
 
     def _describe_range(self) -> str:
         if self.crank_gap == 0.0:

@@ -28,7 +28,8 @@ def antenna_angles(frame: float, ab: float, coupler: float, cd: float, theta: fl
         p = (a * a - c * c + e2) / (2 * e)
         q2 = a * a - p * p
         if q2 < 0:
-            if q2 < -mpf(10) ** (-DIGITS + 10) * a * a:
+            # The package solves an angle out of reach by no more than rounding as the limit pose; so does this.
+            if q2 < -mpf(10) ** -12 * a * a:
                 raise ValueError(f'theta={theta!r} is out of reach')
             q2 = mpf(0)
         q = branch * mpmath.sqrt(q2)

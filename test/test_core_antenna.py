@@ -7,8 +7,16 @@ import math
 import numpy as np
 import pytest
 
-from fourbar_ros import (AntennaLinkage, Branch, DeadPointError, Driven, FourBarError, InvalidGeometryError,
-                         SingularPositionError, UnreachableError)
+from fourbar_ros import (
+    AntennaLinkage,
+    Branch,
+    DeadPointError,
+    Driven,
+    FourBarError,
+    InvalidGeometryError,
+    SingularPositionError,
+    UnreachableError,
+)
 from fourbar_ros.transforms import antenna_joint_positions
 
 TURNANTENNA = AntennaLinkage(frame=0.180, rocker_ab=0.060, coupler=0.102)
@@ -225,7 +233,7 @@ def test_transmission_angle_definition() -> None:
 def _dead_point(link: AntennaLinkage) -> float:
     """Bisect sin(delta - theta) to the last float: the gamma rocker's dead point."""
     t = sweep(link, 0.999, 2001)
-    g, d = link.rocker_angles(t)
+    d = link.rocker_angles(t).delta
     f = np.sin(d - t)
     i = int(np.nonzero(np.sign(f[1:]) != np.sign(f[:-1]))[0][0])
     lo, hi = float(t[i]), float(t[i + 1])
