@@ -67,6 +67,7 @@ class AntennaConfig:
     joint_names: tuple[str, str]
     frame_id: str
     out_of_limits: str
+    transmission_angle_min: float
     velocity_timeout: float
     diagnostics_period: float
     linkage: AntennaLinkage = field(compare=False, repr=False)
@@ -100,6 +101,7 @@ class AntennaConfig:
             'delta_joint': self.joint_names[1],
             'frame_id': self.frame_id,
             'out_of_limits': self.out_of_limits,
+            'transmission_angle_min': self.transmission_angle_min,
             'velocity_timeout': self.velocity_timeout,
             'diagnostics_period': self.diagnostics_period,
         }
@@ -218,7 +220,8 @@ def config_from_values(values: Mapping[str, object]) -> AntennaConfig:
         reducer_efficiency=v['reducer_efficiency'], motor_torque_limit=v['motor_torque_limit'],
         output_torque_limit=v['output_torque_limit'],
         joint_names=(v['gamma_joint'], v['delta_joint']), frame_id=v['frame_id'],
-        out_of_limits=v['out_of_limits'], velocity_timeout=v['velocity_timeout'],
+        out_of_limits=v['out_of_limits'], transmission_angle_min=v['transmission_angle_min'],
+        velocity_timeout=v['velocity_timeout'],
         diagnostics_period=v['diagnostics_period'], linkage=linkage)
 
 

@@ -2,8 +2,8 @@
 
 Levels use diagnostic_msgs/DiagnosticStatus numbering: ERROR when the drive cannot hold the load at the
 served angle (a torque margin below zero), WARN when the last command was rejected or clamped or the
-transmission angle is poor (outside [40, 140] deg), OK otherwise. Floats are written with ``repr``
-(shortest round-trip form), so a reader recovers them exactly.
+transmission angle is poor (outside [transmission_angle_min, pi - transmission_angle_min]), OK otherwise.
+Floats are written with ``repr`` (shortest round-trip form), so a reader recovers them exactly.
 """
 
 from __future__ import annotations
@@ -17,9 +17,6 @@ from fourbar_ros.antenna import LinkageState
 from fourbar_ros.command_policy import Decision, Outcome
 from fourbar_ros.config import AntennaConfig
 from fourbar_ros.loads import motor_torque
-
-#: Transmission angles (rad) farther than this from pi/2 give a WARN.
-TRANSMISSION_TOLERANCE = math.radians(50.0)
 
 
 class Level(enum.IntEnum):
@@ -115,7 +112,7 @@ def summarize(cfg: AntennaConfig, last: Decision | None, last_command: float | N
             message = (f'drive cannot hold the load at theta={theta:.6g} rad: rocker torque {tau_in:.6g} N m '
                        f'(limit {cfg.output_torque_limit:g}), motor torque {tau_motor:.6g} N m '
                        f'(limit {cfg.motor_torque_limit:g})')
-        elif level is Level.OK and abs(transmission - 0.5 * math.pi) > TRANSMISSION_TOLERANCE:
+        elif level is Level.OK and abs(transmission - 0.5 * math.pi) > 0.5 * math.pi - cfg.transmission_angle_min:
             level = Level.WARN
             message = f'poor transmission angle {math.degrees(transmission):.4g} deg'
         elif level is Level.OK:

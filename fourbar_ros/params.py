@@ -46,8 +46,8 @@ class ParamSpec:
         return ' '.join(parts)
 
 
-_DEG = math.pi / 180.0
 
+# Angle defaults are the correctly rounded doubles of -6, +7 and 30 degrees.
 PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('frame_length', float, 0.180, 'm',
               'Frame AD: distance between the fixed pivots A and D.', 1e-6, 100.0),
@@ -58,10 +58,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               1e-6, 100.0),
     ParamSpec('rocker_cd_length', float, 0.060, 'm',
               'Rocker CD (angle delta at D, from the frame).', 1e-6, 100.0),
-    ParamSpec('theta_min', float, -6.0 * _DEG, 'rad',
+    ParamSpec('theta_min', float, -0.10471975511965978, 'rad',
               'Lowest accepted antenna angle command (must be reachable, < theta_max).',
               -math.pi, math.pi),
-    ParamSpec('theta_max', float, 7.0 * _DEG, 'rad',
+    ParamSpec('theta_max', float, 0.12217304763960307, 'rad',
               'Highest accepted antenna angle command (must be reachable, > theta_min).',
               -math.pi, math.pi),
     ParamSpec('driven_rocker', str, 'gamma', '',
@@ -104,6 +104,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Policy for finite commands outside [theta_min, theta_max]: reject (drop) or '
               'clamp (to the nearest limit). NaN/inf are always rejected.',
               choices=('reject', 'clamp')),
+    ParamSpec('transmission_angle_min', float, 0.5235987755982989, 'rad',
+              'Diagnostics warn when the transmission angle leaves [this, pi - this] '
+              '(the classical guideline is 40 deg; Turnantenna reaches 147.6 deg at +7 deg).',
+              0.0, 0.5 * math.pi),
     ParamSpec('velocity_timeout', float, 0.5, 's',
               'Joint velocities come from successive commands only when they are at most this far '
               'apart; otherwise JointState.velocity is left empty.', 1e-6, 3600.0),
