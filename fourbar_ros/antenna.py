@@ -230,15 +230,14 @@ class AntennaLinkage:
             if not far * near >= 0.0:
                 far, near = self._clamped(far, near, float(theta))
             root = math.sqrt(far * near)
-            diag_sq = k.diff * k.diff + w
-            if diag_sq == 0.0:
+            if k.diff_sq + w == 0.0:
                 raise self._change_point(float(theta))
             if k.diff >= 0.0:
                 phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
             else:  # coupler longer than frame: keep atan2's cut away from theta = 0
                 phi = math.pi + math.atan2(-k.two_l2 * s * c, -k.diff - k.two_l2 * s * s)
-            alpha = math.atan2(root, diag_sq + k.r_sq_diff)
-            beta = math.atan2(root, diag_sq - k.r_sq_diff) if k.r_sq_diff else alpha
+            alpha = math.atan2(root, k.cos_p + w)
+            beta = alpha if k.equal_links else math.atan2(root, k.cos_q + w)
             if branch is Branch.UPPER:
                 return RockerAngles(phi + alpha, beta - phi)
             return RockerAngles(phi - alpha, -beta - phi)
@@ -282,7 +281,6 @@ class AntennaLinkage:
                 raise self._change_point(float(theta[change].flat[0]))
             prod[change] = np.nan
         root = np.sqrt(prod, out=prod)
-        w += k.diff * k.diff  # now the squared diagonal
         s *= c
         s *= k.two_l2  # now h sin(theta) in frame units
         s_sq *= k.two_l2
@@ -292,12 +290,12 @@ class AntennaLinkage:
         else:  # coupler longer than frame: keep arctan2's cut away from theta = 0
             phi = np.arctan2(np.negative(s, out=s), np.negative(s_sq, out=s_sq), out=s)
             phi += math.pi
-        alpha = np.arctan2(root, w + k.r_sq_diff)
-        if k.r_sq_diff:
-            w -= k.r_sq_diff
-            beta = np.arctan2(root, w, out=w)
-        else:
+        alpha = np.arctan2(root, w + k.cos_p)
+        if k.equal_links:
             beta = alpha
+        else:
+            w += k.cos_q
+            beta = np.arctan2(root, w, out=w)
         if branch is Branch.UPPER:
             return RockerAngles(np.add(phi, alpha, out=alpha if beta is not alpha else None), beta - phi)
         return RockerAngles(phi - alpha, np.negative(beta) - phi)
@@ -382,7 +380,8 @@ class AntennaLinkage:
         with np.errstate(divide='ignore', invalid='ignore'):
             q_rate_a = np.sin(np.subtract(q_a, theta) if gamma_driven else np.add(q_a, theta))
             q_rate_a[np.abs(q_rate_a) <= _DEAD_TOL * (1.0 + np.abs(q_a) + np.abs(theta))] = np.nan
-            return np.multiply(load_torque, lever * np.sin(np.add(gamma, delta))) / q_rate_a
+            tau: FloatArray = np.multiply(load_torque, lever * np.sin(np.add(gamma, delta))) / q_rate_a
+        return tau
 
     def transmission_angle(self, theta: ArrayLike, driven: Driven = Driven.GAMMA,
                            branch: Branch = Branch.UPPER) -> ArrayLike:

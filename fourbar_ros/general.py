@@ -101,13 +101,12 @@ class FourBar:
                 if not (far >= 0.0 and near >= 0.0):
                     raise self._unreachable(float(t2))
             root = math.sqrt(far * near)
-            diag_sq = k.diff * k.diff + w
-            if diag_sq == 0.0:
+            if k.diff_sq + w == 0.0:
                 raise SingularPositionError(
                     f't2={t2!r} rad is a change point (ground = crank puts B on O4): the rocker angle is undetermined')
             phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
-            alpha = math.atan2(root, diag_sq + k.r_sq_diff)
-            beta = math.atan2(root, diag_sq - k.r_sq_diff)
+            alpha = math.atan2(root, k.cos_p + w)
+            beta = math.atan2(root, k.cos_q + w)
             if branch >= 0:
                 return FourBarAngles(phi + alpha, phi + math.pi - beta)
             return FourBarAngles(phi - alpha, phi + math.pi + beta)
@@ -134,16 +133,15 @@ class FourBar:
                     f'{int(bad.sum())} of {t.size} crank angles cannot close the loop, the first '
                     f't2={float(t[bad].flat[0])!r}; closes for {self._describe_range()}')
             far[bad] = np.nan
-        diag_sq = k.diff * k.diff + w
-        if k.diff == 0.0 and (diag_sq == 0.0).any():
+        if k.diff == 0.0 and (w == 0.0).any():
             if on_invalid == 'raise':
                 raise SingularPositionError('a crank angle t2 = 0 is a change point (ground = crank puts B on O4): '
                                             'the rocker angle is undetermined')
-            far[diag_sq == 0.0] = np.nan
+            far[w == 0.0] = np.nan
         root = np.sqrt(far * near)
         phi = np.arctan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
-        alpha = np.arctan2(root, diag_sq + k.r_sq_diff)
-        beta = np.arctan2(root, diag_sq - k.r_sq_diff)
+        alpha = np.arctan2(root, k.cos_p + w)
+        beta = np.arctan2(root, k.cos_q + w)
         if branch >= 0:
             return FourBarAngles(phi + alpha, phi + np.pi - beta)
         return FourBarAngles(phi - alpha, phi + np.pi + beta)
