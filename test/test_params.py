@@ -1,0 +1,81 @@
+"""The parameter spec: one source for the node's declarations, the loader, the YAML and the docs."""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+import pytest
+
+from fourbar_ros.config import ConfigError, check_value, default_config, values_from_yaml
+from fourbar_ros.params import PARAMETERS, PARAMETERS_BY_NAME, ParamSpec, defaults, is_foreign
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def test_names_unique_and_valid() -> None:
+    names = [p.name for p in PARAMETERS]
+    assert len(names) == len(set(names)) == len(PARAMETERS_BY_NAME)
+    for name in names:
+        assert re.fullmatch(r'[a-z][a-z0-9_]*', name), name
+
+
+@pytest.mark.parametrize('spec', PARAMETERS, ids=lambda p: p.name)
+def test_each_default_passes_its_own_check(spec: ParamSpec) -> None:
+    assert check_value(spec, spec.default) == spec.default
+    assert isinstance(spec.default, spec.type)
+    assert spec.description.strip()
+
+
+@pytest.mark.parametrize('spec', [p for p in PARAMETERS if p.type is float], ids=lambda p: p.name)
+def test_doubles_are_bounded_and_reject_outside(spec: ParamSpec) -> None:
+    assert spec.minimum is not None and spec.maximum is not None and spec.minimum < spec.maximum
+    assert spec.minimum <= spec.default <= spec.maximum
+    for bad in (spec.minimum - 1.0 - abs(spec.minimum), spec.maximum + 1.0 + abs(spec.maximum), math.nan):
+        with pytest.raises(ConfigError, match=f'^{spec.name}: '):
+            check_value(spec, bad)
+
+
+@pytest.mark.parametrize('spec', [p for p in PARAMETERS if p.choices], ids=lambda p: p.name)
+def test_enumerations(spec: ParamSpec) -> None:
+    assert spec.default in spec.choices
+    for choice in spec.choices:
+        assert check_value(spec, choice) == choice
+    with pytest.raises(ConfigError, match=f'^{spec.name}: '):
+        check_value(spec, 'no-such-choice')
+
+
+def test_units_are_stated_for_physical_quantities() -> None:
+    units = {p.name: p.unit for p in PARAMETERS}
+    for name in ('frame_length', 'rocker_ab_length', 'coupler_length', 'rocker_cd_length', 'com_offset_along',
+                 'com_offset_normal'):
+        assert units[name] == 'm'
+    for name in ('theta_min', 'theta_max', 'transmission_angle_min'):
+        assert units[name] == 'rad'
+    for name in ('load_torque', 'motor_torque_limit', 'output_torque_limit'):
+        assert units[name] == 'N m'
+    assert units['antenna_mass'] == 'kg'
+    for p in PARAMETERS:
+        assert (f'[{p.unit}]' in p.describe()) == bool(p.unit)
+
+
+def test_shipped_yaml_sets_every_parameter() -> None:
+    values = values_from_yaml((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8'))
+    assert set(values) == set(PARAMETERS_BY_NAME)
+    assert values == defaults()
+
+
+def test_defaults_build_the_default_config() -> None:
+    assert default_config().as_values() == defaults()
+
+
+def test_foreign_parameters() -> None:
+    assert is_foreign('use_sim_time') and is_foreign('qos_overrides./joint_states.publisher.depth')
+    assert not any(is_foreign(p.name) for p in PARAMETERS)
+
+
+def test_docs_table_lists_every_parameter() -> None:
+    doc = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
+    for p in PARAMETERS:
+        assert f'| `{p.name}` |' in doc, p.name
