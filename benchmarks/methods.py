@@ -1,0 +1,396 @@
+r"""The position solvers compared by the benchmark: theta (rad) -> (gamma, delta) (rad), upper branch.
+
+Every method is a :class:`Method` whose ``build(geometry, interval)`` returns a :class:`Solver` bound to one
+geometry: a scalar callable (Python float in, two floats out) and/or a vectorized one (float64 array in, two
+arrays out). ``interval`` is the (lo, hi) range of theta the method is asked to serve; only the tables use it.
+
+- ``annex``: Annex A as written, A.13-A.15: gamma = (2 atan P + acos Q)/2, delta = (acos Q - 2 atan P)/2.
+  Valid for equal rockers only; wrong by pi where H - h cos(theta) < 0; acos fails when rounding puts Q past 1.
+- ``annex-atan2``: the same with atan2(h sin t, H - h cos t) for atan P: isolates the acos(Q) weakness.
+- ``shipped``: the core, ``fourbar_ros.antenna.AntennaLinkage.rocker_angles`` (both paths).
+- ``stable-f32``: the core's stable form (half-angle diagonal, factored Heron root, atan2) transcribed in float32.
+- ``newton-K``: K Newton steps on the two loop-closure equations (the translation parts of
+  R(g) T(a) R(-t-g) T(h) [0 0 1]^T = T(H) R(pi-d) T(b) [0 0 1]^T), cold-started from the solution at the middle
+  of the interval.
+- ``lut-linear-N``, ``lut-hermite-N``: tables of N uniformly spaced angles over the interval, built once with the
+  core, interpolated linearly or by cubic Hermite (slopes from the core's rates); ``-f32`` stores and computes in
+  float32, as a small controller would.
+- ``lut-linear-N+newton1``: a linear table as the starting guess for one Newton step.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from fourbar_ros.antenna import AntennaLinkage
+
+from .reference import Geometry
+
+FloatArray = npt.NDArray[np.float64]
+ScalarFn = Callable[[float], tuple[float, float]]
+VectorFn = Callable[[FloatArray], tuple[npt.NDArray[np.floating], npt.NDArray[np.floating]]]
+
+
+class NotApplicableError(Exception):
+    """The method does not apply to this geometry (e.g. the annex formula with unequal rockers)."""
+
+
+@dataclass(frozen=True)
+class Solver:
+    """One method bound to one geometry. Either callable may be None when the method has no such path."""
+
+    scalar: ScalarFn | None
+    vector: VectorFn | None
+
+
+@dataclass(frozen=True)
+class Method:
+    """A named position solver: ``build(geometry, (lo, hi))`` -> Solver (may raise NotApplicableError)."""
+
+    name: str
+    family: str
+    dtype: str
+    description: str
+    build: Callable[[Geometry, tuple[float, float]], Solver]
+
+
+def linkage(g: Geometry) -> AntennaLinkage:
+    """The core's linkage object for a benchmark geometry."""
+    return AntennaLinkage(frame=g.frame, rocker_ab=g.rocker_ab, coupler=g.coupler, rocker_cd=g.rocker_cd)
+
+
+# ---------------------------------------------------------------------------------------------- annex formula
+
+def _annex(g: Geometry, _interval: tuple[float, float]) -> Solver:
+    if not g.equal_rockers:
+        raise NotApplicableError('the annex formula assumes equal rockers')
+    H, h, ll = g.frame, g.coupler, g.rocker_ab
+    hh = H * H + h * h
+    two_hh = 2.0 * H * h
+    two_l2 = 2.0 * ll * ll
+    atan, acos, sin, cos = math.atan, math.acos, math.sin, math.cos
+
+    def scalar(theta: float) -> tuple[float, float]:
+        c = cos(theta)
+        p = h * sin(theta) / (H - h * c)
+        q = (hh - two_hh * c) / two_l2 - 1.0
+        a = acos(q)
+        t = 2.0 * atan(p)
+        return 0.5 * (t + a), 0.5 * (a - t)
+
+    def vector(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
+        with np.errstate(invalid='ignore', divide='ignore'):
+            c = np.cos(theta)
+            p = h * np.sin(theta) / (H - h * c)
+            q = (hh - two_hh * c) / two_l2 - 1.0
+            a = np.arccos(q)
+            t = 2.0 * np.arctan(p)
+        return 0.5 * (t + a), 0.5 * (a - t)
+
+    return Solver(scalar, vector)
+
+
+def _annex_atan2(g: Geometry, _interval: tuple[float, float]) -> Solver:
+    if not g.equal_rockers:
+        raise NotApplicableError('the annex formula assumes equal rockers')
+    H, h, ll = g.frame, g.coupler, g.rocker_ab
+    hh = H * H + h * h
+    two_hh = 2.0 * H * h
+    two_l2 = 2.0 * ll * ll
+    atan2, acos, sin, cos = math.atan2, math.acos, math.sin, math.cos
+
+    def scalar(theta: float) -> tuple[float, float]:
+        c = cos(theta)
+        a = acos((hh - two_hh * c) / two_l2 - 1.0)
+        t = 2.0 * atan2(h * sin(theta), H - h * c)
+        return 0.5 * (t + a), 0.5 * (a - t)
+
+    def vector(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
+        with np.errstate(invalid='ignore'):
+            c = np.cos(theta)
+            a = np.arccos((hh - two_hh * c) / two_l2 - 1.0)
+            t = 2.0 * np.arctan2(h * np.sin(theta), H - h * c)
+        return 0.5 * (t + a), 0.5 * (a - t)
+
+    return Solver(scalar, vector)
+
+
+def _annex_f32(g: Geometry, _interval: tuple[float, float]) -> Solver:
+    if not g.equal_rockers:
+        raise NotApplicableError('the annex formula assumes equal rockers')
+    f = np.float32
+    H, h, ll = f(g.frame), f(g.coupler), f(g.rocker_ab)
+    hh = H * H + h * h
+    two_hh = f(2) * H * h
+    two_l2 = f(2) * ll * ll
+    one, half, two = f(1), f(0.5), f(2)
+
+    def vector(theta: FloatArray) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        t32 = theta.astype(np.float32)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            c = np.cos(t32)
+            p = h * np.sin(t32) / (H - h * c)
+            a = np.arccos((hh - two_hh * c) / two_l2 - one)
+            t = two * np.arctan(p)
+        return half * (t + a), half * (a - t)
+
+    return Solver(None, vector)
+
+
+# ---------------------------------------------------------------------------------------------- the core
+
+def _shipped(g: Geometry, _interval: tuple[float, float]) -> Solver:
+    link = linkage(g)
+    solve = link.rocker_angles
+    return Solver(solve, solve)  # type: ignore[arg-type]
+
+
+def _stable_f32(g: Geometry, _interval: tuple[float, float]) -> Solver:
+    """The half-angle / factored-Heron / atan2 form, every operation in float32 (lengths in frame units)."""
+    f = np.float32
+    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
+    diff = f(1.0 - ch)
+    four_l1_l2 = f(4.0 * ch)
+    two_l2 = f(2.0 * ch)
+    far = f((a + b - (1.0 - ch)) * (a + b + (1.0 - ch)))
+    near = f(((1.0 - ch) - (a - b)) * ((1.0 - ch) + (a - b)))
+    r_sq_diff = f((a - b) * (a + b))
+    half = f(0.5)
+
+    def vector(theta: FloatArray) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
+        t = theta.astype(np.float32) * half
+        s, c = np.sin(t), np.cos(t)
+        w = four_l1_l2 * s * s
+        prod = np.maximum(far - w, f(0)) * np.maximum(near + w, f(0))
+        root = np.sqrt(prod)
+        diag = diff * diff + w
+        phi = np.arctan2(two_l2 * s * c, diff + two_l2 * s * s)
+        alpha = np.arctan2(root, diag + r_sq_diff)
+        beta = np.arctan2(root, diag - r_sq_diff)
+        return phi + alpha, beta - phi
+
+    return Solver(None, vector)
+
+
+# ---------------------------------------------------------------------------------------------- Newton
+
+def _newton(iterations: int) -> Callable[[Geometry, tuple[float, float]], Solver]:
+    def build(g: Geometry, interval: tuple[float, float]) -> Solver:
+        H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
+        g0, d0 = (float(v) for v in linkage(g).rocker_angles(0.5 * (interval[0] + interval[1])))
+        sin, cos = math.sin, math.cos
+        ab = a * b
+
+        def scalar(theta: float) -> tuple[float, float]:
+            hc, hs = h * cos(theta), h * sin(theta)
+            gam, dlt = g0, d0
+            for _ in range(iterations):
+                cg, sg, cd, sd = cos(gam), sin(gam), cos(dlt), sin(dlt)
+                f1 = a * cg + hc + b * cd - H
+                f2 = a * sg - hs - b * sd
+                det = ab * (sg * cd + cg * sd)
+                gam += b * (cd * f1 - sd * f2) / det
+                dlt += a * (cg * f1 + sg * f2) / det
+            return gam, dlt
+
+        def vector(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
+            hc, hs = h * np.cos(theta), h * np.sin(theta)
+            gam = np.full_like(theta, g0)
+            dlt = np.full_like(theta, d0)
+            for _ in range(iterations):
+                cg, sg, cd, sd = np.cos(gam), np.sin(gam), np.cos(dlt), np.sin(dlt)
+                f1 = a * cg + hc + b * cd - H
+                f2 = a * sg - hs - b * sd
+                det = ab * (sg * cd + cg * sd)
+                gam += b * (cd * f1 - sd * f2) / det
+                dlt += a * (cg * f1 + sg * f2) / det
+            return gam, dlt
+
+        return Solver(scalar, vector)
+
+    return build
+
+
+def newton_step_vector(g: Geometry, theta: FloatArray, gam: FloatArray,
+                       dlt: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """One Newton step on the loop-closure equations from (gam, dlt) (radians), vectorized."""
+    H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
+    cg, sg, cd, sd = np.cos(gam), np.sin(gam), np.cos(dlt), np.sin(dlt)
+    f1 = a * cg + h * np.cos(theta) + b * cd - H
+    f2 = a * sg - h * np.sin(theta) - b * sd
+    det = (a * b) * (sg * cd + cg * sd)
+    return gam + b * (cd * f1 - sd * f2) / det, dlt + a * (cg * f1 + sg * f2) / det
+
+
+def loop_residual(g: Geometry, theta: FloatArray, gam: FloatArray, dlt: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The two loop-closure equations Newton drives to zero (metres): x and y of C(left chain) - C(right chain)."""
+    H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
+    return (a * np.cos(gam) + h * np.cos(theta) + b * np.cos(dlt) - H,
+            a * np.sin(gam) - h * np.sin(theta) - b * np.sin(dlt))
+
+
+# ---------------------------------------------------------------------------------------------- tables
+
+@dataclass(frozen=True)
+class Table:
+    """Uniform table over [lo, hi]: per-interval cubic coefficients c0 + f (c1 + f (c2 + f c3)), f in [0, 1]."""
+
+    lo: float
+    inv_step: float
+    n: int
+    gamma: npt.NDArray[np.floating]  #: shape (n - 1, 4)
+    delta: npt.NDArray[np.floating]
+
+
+def build_table(g: Geometry, interval: tuple[float, float], n: int, hermite: bool,
+                dtype: type[np.floating] = np.float64) -> Table:
+    """Tabulate the core's solution at n angles; linear tables leave c2 = c3 = 0."""
+    lo, hi = interval
+    grid = np.linspace(lo, hi, n)
+    link = linkage(g)
+    gam, dlt = (np.asarray(v) for v in link.rocker_angles(grid))
+    step = (hi - lo) / (n - 1)
+
+    def coefficients(y: FloatArray, dy: FloatArray | None) -> FloatArray:
+        c = np.zeros((n - 1, 4))
+        y0, y1 = y[:-1], y[1:]
+        c[:, 0] = y0
+        if dy is None:
+            c[:, 1] = y1 - y0
+            return c
+        m0, m1 = dy[:-1] * step, dy[1:] * step
+        c[:, 1] = m0
+        c[:, 2] = 3.0 * (y1 - y0) - 2.0 * m0 - m1
+        c[:, 3] = 2.0 * (y0 - y1) + m0 + m1
+        return c
+
+    if hermite:
+        rates = link.rates_at(grid, gam, dlt)
+        cg = coefficients(gam, np.asarray(rates.dgamma_dtheta))
+        cd = coefficients(dlt, np.asarray(rates.ddelta_dtheta))
+    else:
+        cg, cd = coefficients(gam, None), coefficients(dlt, None)
+    return Table(lo, 1.0 / step, n, cg.astype(dtype), cd.astype(dtype))
+
+
+def _lut(n: int, hermite: bool, dtype: type[np.floating] = np.float64,
+         polish: bool = False) -> Callable[[Geometry, tuple[float, float]], Solver]:
+    def build(g: Geometry, interval: tuple[float, float]) -> Solver:
+        tab = build_table(g, interval, n, hermite, dtype)
+        last = n - 2
+        cg_list = tab.gamma.astype(np.float64).tolist()
+        cd_list = tab.delta.astype(np.float64).tolist()
+        lo, inv = tab.lo, tab.inv_step
+        is64 = dtype is np.float64
+
+        def scalar(theta: float) -> tuple[float, float]:
+            u = (theta - lo) * inv
+            i = int(u)
+            if i < 0:
+                i = 0
+            elif i > last:
+                i = last
+            f = u - i
+            g0, g1, g2, g3 = cg_list[i]
+            d0, d1, d2, d3 = cd_list[i]
+            if hermite:
+                return g0 + f * (g1 + f * (g2 + f * g3)), d0 + f * (d1 + f * (d2 + f * d3))
+            return g0 + f * g1, d0 + f * d1
+
+        lo_t, inv_t = dtype(lo), dtype(inv)
+        cols_g = [np.ascontiguousarray(tab.gamma[:, j]) for j in range(4)]
+        cols_d = [np.ascontiguousarray(tab.delta[:, j]) for j in range(4)]
+        grid = lo + np.arange(n) / inv
+        ends_g = np.append(cols_g[0], cols_g[0][-1] + cols_g[1][-1])
+        ends_d = np.append(cols_d[0], cols_d[0][-1] + cols_d[1][-1])
+
+        def poly(cols: list[npt.NDArray[np.floating]], i: npt.NDArray[np.intp],
+                 f: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
+            r = np.take(cols[3], i)
+            r *= f
+            r += np.take(cols[2], i)
+            r *= f
+            r += np.take(cols[1], i)
+            r *= f
+            r += np.take(cols[0], i)
+            return r
+
+        def vector(theta: FloatArray) -> tuple[npt.NDArray[np.floating], npt.NDArray[np.floating]]:
+            if is64 and not hermite:  # numpy's own linear interpolation is the fastest float64 table here
+                gam, dlt = np.interp(theta, grid, ends_g), np.interp(theta, grid, ends_d)
+            else:
+                u = theta.astype(dtype)
+                u -= lo_t
+                u *= inv_t
+                i = u.astype(np.intp)
+                np.clip(i, 0, last, out=i)
+                u -= i
+                if hermite:
+                    gam, dlt = poly(cols_g, i, u), poly(cols_d, i, u)
+                else:
+                    gam = np.take(cols_g[1], i)
+                    gam *= u
+                    gam += np.take(cols_g[0], i)
+                    dlt = np.take(cols_d[1], i)
+                    dlt *= u
+                    dlt += np.take(cols_d[0], i)
+            if polish:
+                return newton_step_vector(g, theta, gam, dlt)
+            return gam, dlt
+
+        if polish:
+            H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
+            sin, cos = math.sin, math.cos
+
+            def scalar_polished(theta: float) -> tuple[float, float]:
+                gam, dlt = scalar(theta)
+                cg_, sg_, cd_, sd_ = cos(gam), sin(gam), cos(dlt), sin(dlt)
+                f1 = a * cg_ + h * cos(theta) + b * cd_ - H
+                f2 = a * sg_ - h * sin(theta) - b * sd_
+                det = a * b * (sg_ * cd_ + cg_ * sd_)
+                return gam + b * (cd_ * f1 - sd_ * f2) / det, dlt + a * (cg_ * f1 + sg_ * f2) / det
+
+            return Solver(scalar_polished, vector)
+        return Solver(scalar if is64 else None, vector)
+
+    return build
+
+
+# ---------------------------------------------------------------------------------------------- the list
+
+SHIPPED = 'shipped'
+NEWTON_ITERATIONS = (1, 2, 3, 4, 5, 6, 8)
+LINEAR_SIZES = (64, 256, 1024, 4096, 16384, 65536)
+HERMITE_SIZES = (16, 64, 256, 1024, 4096)
+
+
+def all_methods(quick: bool = False) -> list[Method]:
+    """Every method of the common sweep (ours and the formula of the annex; peers are in benchmarks.peers)."""
+    methods = [
+        Method('annex', 'annex', 'float64', 'Annex A.13-A.15 as written (atan P, acos Q)', _annex),
+        Method('annex-atan2', 'annex', 'float64', 'annex with atan2 for atan P (acos Q kept)', _annex_atan2),
+        Method('annex-f32', 'annex', 'float32', 'annex as written, float32 arrays', _annex_f32),
+        Method(SHIPPED, 'shipped', 'float64', 'fourbar_ros AntennaLinkage.rocker_angles', _shipped),
+        Method('stable-f32', 'stable', 'float32', "the core's stable form transcribed in float32", _stable_f32),
+    ]
+    for k in NEWTON_ITERATIONS if not quick else (1, 2, 4, 8):
+        methods.append(Method(f'newton-{k}', 'newton', 'float64',
+                              f'{k} Newton step(s) on the loop closure, cold start at mid-interval', _newton(k)))
+    for n in LINEAR_SIZES if not quick else (256, 4096, 65536):
+        methods.append(Method(f'lut-linear-{n}', 'lut', 'float64', f'{n}-point table, linear', _lut(n, False)))
+    for n in HERMITE_SIZES if not quick else (64, 1024):
+        methods.append(Method(f'lut-hermite-{n}', 'lut', 'float64', f'{n}-point table, cubic Hermite',
+                              _lut(n, True)))
+    for n in (256, 4096) if not quick else (4096,):
+        methods.append(Method(f'lut-linear-{n}-f32', 'lut', 'float32', f'{n}-point float32 table, linear',
+                              _lut(n, False, np.float32)))
+    methods.append(Method('lut-hermite-256-f32', 'lut', 'float32', '256-point float32 table, cubic Hermite',
+                          _lut(256, True, np.float32)))
+    methods.append(Method('lut-linear-256+newton1', 'hybrid', 'float64',
+                          '256-point linear table, then one Newton step', _lut(256, False, polish=True)))
+    return methods

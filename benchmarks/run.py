@@ -1,0 +1,139 @@
+"""Entry point: ``python -m benchmarks.run [--quick] [--out docs/bench] [--doc docs/benchmarks.md]``.
+
+Runs the common sweep (accuracy of every method against the 50-digit reference), the timings (scalar and
+vectorized, interleaved medians on the Turnantenna geometry, with the ufunc floor and the Python call overhead
+as same-run baselines), the numerical stress suite, and the node and bag benchmarks when their modules exist;
+writes results.json, markdown tables and PNG plots under --out and the README section --doc.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from . import report, stress
+from .methods import SHIPPED, all_methods
+from .peers import peer_methods, peer_versions
+from .sweep import accuracy, dominators, pareto_front, timings
+from .timing import machine_info
+
+
+def agent_bench(module: str, quick: bool) -> dict[str, Any] | None:
+    """Figures from benchmarks.<module>.run(quick) (node/bag agents' modules); None if the module is absent."""
+    name = f'benchmarks.{module}'
+    try:
+        mod = importlib.import_module(name)
+    except ModuleNotFoundError as exc:
+        if exc.name == name:
+            return None
+        return {'error': f'import failed: {type(exc).__name__}: {exc}'}
+    try:
+        out = mod.run(quick)
+    except Exception as exc:  # report, do not hide: their failure must not take the whole report down
+        return {'error': f'{type(exc).__name__}: {exc}'}
+    return dict(out) if isinstance(out, dict) else {'error': f'run() returned {type(out).__name__}, not dict'}
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run everything and write the report; exit status 0 (1 if the shipped method is off the Pareto front)."""
+    parser = argparse.ArgumentParser(prog='python -m benchmarks.run', description=__doc__)
+    parser.add_argument('--quick', action='store_true', help='smaller sizes and fewer repeats (under a minute)')
+    parser.add_argument('--out', type=Path, default=Path('docs/bench'), help='directory for tables, PNGs, JSON')
+    parser.add_argument('--doc', type=Path, default=Path('docs/benchmarks.md'), help='the README section to write')
+    parser.add_argument('--skip-agents', action='store_true', help='do not run the node and bag benchmarks')
+    args = parser.parse_args(argv)
+    quick: bool = args.quick
+    started = time.perf_counter()
+    info = machine_info()
+
+    methods = all_methods(quick) + peer_methods()
+    n_angles, n_scalar, n_vector, repeats = (401, 500, 100_000, 5) if quick else (2001, 2000, 1_000_000, 9)
+    print(f'common sweep: {len(methods)} methods x 4 geometries x {n_angles} angles', flush=True)
+    results, sweep_info = accuracy(methods, n_angles)
+    print(f'timing: scalar loop of {n_scalar}, arrays of {n_vector}, {repeats} interleaved repeats', flush=True)
+    baselines = timings(methods, results, n_scalar, n_vector, repeats)
+
+    front_v = pareto_front([(r.name, r.seconds_per_solve_vector, r.max_error) for r in results])
+    front_s = pareto_front([(r.name, r.seconds_per_solve_scalar, r.max_error) for r in results])
+    for r in results:
+        r.pareto = r.name in front_v
+        r.pareto_scalar = r.name in front_s
+    by = {r.name: r for r in results}
+    shipped = by[SHIPPED]
+
+    print('stress suite', flush=True)
+    stress_out = stress.run(quick)
+    agents = {} if args.skip_agents else {
+        'node': agent_bench('node_bench', quick), 'bag': agent_bench('bag_bench', quick)}
+
+    def ratio(a: float | None, b: float | None) -> float | None:
+        return None if a is None or b is None or b == 0 else a / b
+
+    annex = by.get('annex')
+    headline: dict[str, Any] = {
+        'floor_ratio': ratio(shipped.seconds_per_solve_vector, baselines['floor']),
+        'floor_ratio_target': 1.3,
+        'scalar_ratio_to_annex': ratio(shipped.seconds_per_solve_scalar,
+                                       annex.seconds_per_solve_scalar if annex else None),
+        'vector_ratio_to_annex': ratio(shipped.seconds_per_solve_vector,
+                                       annex.seconds_per_solve_vector if annex else None),
+        'error_ratio_annex_to_shipped': ratio(annex.max_error if annex else None, shipped.max_error),
+        'shipped_on_pareto_front_vector': shipped.pareto,
+        'shipped_on_pareto_front_scalar': shipped.pareto_scalar,
+        'shipped_dominated_by_vector': dominators(results, SHIPPED, vector=True),
+        'shipped_dominated_by_scalar': dominators(results, SHIPPED, vector=False),
+    }
+    peers = {}
+    for name in ('pylinkage', 'mechanism'):
+        p = by.get(name)
+        if p is None:
+            continue
+        peers[name] = {
+            'version': peer_versions().get(name),
+            'scalar_time_ratio': ratio(p.seconds_per_solve_scalar, shipped.seconds_per_solve_scalar),
+            'vector_time_ratio': ratio(p.seconds_per_solve_vector, shipped.seconds_per_solve_vector),
+            'error_ratio': ratio(p.max_error, shipped.max_error),
+            'error_ratio_turnantenna': ratio(p.per_geometry.get('turnantenna'),
+                                             shipped.per_geometry.get('turnantenna')),
+            'not_applicable': p.not_applicable,
+        }
+    info['load_average_1min_end'] = machine_info()['load_average_1min']
+    results_json: dict[str, Any] = {
+        'shipped': SHIPPED,
+        'floor_ratio': headline['floor_ratio'],
+        'methods': [report.method_row(r) for r in results],
+        'headline': headline,
+        'baselines_seconds': {'floor_per_element': baselines['floor'],
+                              'python_call_per_call': baselines['python_call']},
+        'peers': peers,
+        'sweep': sweep_info,
+        'timing': {'geometry': 'turnantenna', 'n_scalar': n_scalar, 'n_vector': n_vector, 'repeats': repeats,
+                   'statistic': 'median of interleaved repeats'},
+        'stress': stress_out,
+        'node': agents.get('node'),
+        'bag': agents.get('bag'),
+        'machine': info,
+        'quick': quick,
+        'command': 'python -m benchmarks.run' + (' --quick' if quick else ''),
+        'elapsed_seconds': None,
+    }
+    results_json['elapsed_seconds'] = round(time.perf_counter() - started, 1)
+    args.out.mkdir(parents=True, exist_ok=True)
+    report.write_all(results_json, results, args.out, args.doc)
+    (args.out / 'results.json').write_text(json.dumps(report.sanitize(results_json), indent=1, allow_nan=False,
+                                                      default=report.json_default) + '\n', encoding='utf-8')
+    print(report.summary(results_json), flush=True)
+    if not shipped.pareto:
+        print(f'WARNING: shipped is off the vectorized Pareto front; dominated by: '
+              f'{", ".join(headline["shipped_dominated_by_vector"])}', file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,214 @@
+"""Accuracy over the common sweep, and time per solve on the Turnantenna geometry, for every method.
+
+Error: max over gamma and delta, over every geometry of :mod:`benchmarks.cases`, over both the scalar and the
+vectorized path, of |method - reference| (radians, modulo 2 pi). A NaN or an exception on a reachable angle makes
+the error infinite (the method failed on an input it must serve).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import numpy.typing as npt
+
+from .cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
+from .methods import Method, NotApplicableError, Solver
+from .reference import ReferenceArrays, angle_error, reference_arrays
+from .timing import Case, interleaved, pilot, scalar_loop
+
+FloatArray = npt.NDArray[np.float64]
+
+
+@dataclass
+class MethodResult:
+    """Figures of one method; None where the method has no such path or does not apply."""
+
+    name: str
+    family: str
+    dtype: str
+    description: str
+    max_error_scalar: float | None = None
+    max_error_vector: float | None = None
+    per_geometry: dict[str, float | None] = field(default_factory=dict)
+    nan_count: int = 0
+    exception_count: int = 0
+    not_applicable: list[str] = field(default_factory=list)
+    seconds_per_solve_scalar: float | None = None
+    seconds_per_solve_vector: float | None = None
+    n_scalar: int = 0
+    n_vector: int = 0
+    pareto: bool = False
+    pareto_scalar: bool = False
+
+    @property
+    def max_error(self) -> float | None:
+        """Worst of the two paths (None if the method produced nothing)."""
+        vals = [v for v in (self.max_error_scalar, self.max_error_vector) if v is not None]
+        return max(vals) if vals else None
+
+
+def _error(out: tuple[object, object], ref: ReferenceArrays) -> tuple[float, int]:
+    g = np.asarray(out[0], dtype=np.float64)
+    d = np.asarray(out[1], dtype=np.float64)
+    eg = angle_error(g, ref.gamma_hi, ref.gamma_lo)
+    ed = angle_error(d, ref.delta_hi, ref.delta_lo)
+    nans = int(np.count_nonzero(np.isnan(eg) | np.isnan(ed)))
+    if nans:
+        return math.inf, nans
+    return float(max(eg.max(), ed.max())), 0
+
+
+def _scalar_outputs(solver: Solver, thetas: FloatArray) -> tuple[tuple[FloatArray, FloatArray], int]:
+    assert solver.scalar is not None
+    gs = np.empty(thetas.size)
+    ds = np.empty(thetas.size)
+    exceptions = 0
+    for i, t in enumerate(thetas.tolist()):
+        try:
+            gs[i], ds[i] = solver.scalar(t)
+        except (ValueError, ZeroDivisionError, ArithmeticError):
+            exceptions += 1
+            gs[i] = ds[i] = math.nan
+    return (gs, ds), exceptions
+
+
+def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], dict[str, object]]:
+    """Errors of every method over the common sweep; also returns a description of the sweep."""
+    refs: dict[str, tuple[FloatArray, ReferenceArrays]] = {}
+    for g in COMMON_GEOMETRIES:
+        th = np.sort(sweep_angles(g, n_angles))
+        refs[g.name] = (th, reference_arrays(g, th))
+    results = []
+    for m in methods:
+        r = MethodResult(m.name, m.family, m.dtype, m.description)
+        worst_s: list[float] = []
+        worst_v: list[float] = []
+        for g in COMMON_GEOMETRIES:
+            th, ref = refs[g.name]
+            try:
+                solver = m.build(g, sweep_interval(g))
+            except NotApplicableError as exc:
+                r.not_applicable.append(f'{g.name}: {exc}')
+                r.per_geometry[g.name] = None
+                continue
+            errs = []
+            if solver.scalar is not None:
+                out, exc_count = _scalar_outputs(solver, th)
+                e, nans = _error(out, ref)
+                r.exception_count += exc_count
+                r.nan_count += nans - exc_count
+                worst_s.append(e)
+                errs.append(e)
+            if solver.vector is not None:
+                try:
+                    e, nans = _error(solver.vector(th), ref)
+                except (ValueError, ArithmeticError):
+                    e, nans = math.inf, 0
+                    r.exception_count += 1
+                r.nan_count += nans
+                worst_v.append(e)
+                errs.append(e)
+            r.per_geometry[g.name] = max(errs) if errs else None
+        r.max_error_scalar = max(worst_s) if worst_s else None
+        r.max_error_vector = max(worst_v) if worst_v else None
+        results.append(r)
+    info = {
+        'geometries': [
+            {'name': g.name, 'frame': g.frame, 'rocker_ab': g.rocker_ab, 'coupler': g.coupler,
+             'rocker_cd': g.rocker_cd, 'interval_rad': list(sweep_interval(g))}
+            for g in COMMON_GEOMETRIES],
+        'angles_per_geometry': n_angles,
+        'order': 'ascending (an ascending sweep, as a controller traces a trajectory)',
+    }
+    return results, info
+
+
+def floor_ufuncs(theta: FloatArray) -> object:
+    """The numpy ufuncs the stable form cannot avoid for equal rockers, each on a full array.
+
+    sin and cos (of the half angle), one square root (the factored Heron root) and two atan2 (the diagonal's
+    direction and the triangle's angle): nothing else, no arithmetic between them.
+    """
+    s = np.sin(theta)
+    c = np.cos(theta)
+    r = np.sqrt(c)
+    return np.arctan2(s, c), np.arctan2(r, c)
+
+
+def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n_vector: int,
+            repeats: int) -> dict[str, float]:
+    """Fill seconds_per_solve_* on the Turnantenna geometry; returns the baselines measured in the same rounds.
+
+    Baselines: ``floor`` (see :func:`floor_ufuncs`, per element of the n_vector array) and ``python_call`` (the
+    scalar loop calling a function that returns a tuple, per call).
+    """
+    g = TURNANTENNA
+    interval = sweep_interval(g)
+    thetas = np.sort(sweep_angles(g, n_vector, seed=7))
+    scalar_thetas = np.sort(sweep_angles(g, n_scalar, seed=8)).tolist()
+    by_name = {r.name: r for r in results}
+    scalar_cases = [Case('python_call', scalar_loop(lambda t: (t, t), scalar_thetas), n_scalar)]
+    vector_cases = [Case('floor', lambda: floor_ufuncs(thetas), n_vector)]
+    for m in methods:
+        try:
+            solver = m.build(g, interval)
+        except NotApplicableError:
+            continue
+        if solver.scalar is not None:
+            fn = solver.scalar
+            per = pilot(lambda fn=fn: fn(scalar_thetas[1]))  # type: ignore[misc]
+            n = max(20, min(n_scalar, int(0.02 / max(per, 1e-9))))
+            sub = scalar_thetas[:: max(1, n_scalar // n)][:n]
+            scalar_cases.append(Case(m.name, scalar_loop(fn, sub), len(sub)))
+            by_name[m.name].n_scalar = len(sub)
+        if solver.vector is not None:
+            vec = solver.vector
+            small = thetas[:: max(1, n_vector // 1000)]
+            per = pilot(lambda vec=vec, small=small: vec(small)) / small.size  # type: ignore[misc]
+            n = max(1000, min(n_vector, int(0.25 / max(per, 1e-12))))
+            arr = thetas if n >= n_vector else np.ascontiguousarray(thetas[:: n_vector // n][:n])
+            vector_cases.append(Case(m.name, lambda vec=vec, arr=arr: vec(arr), arr.size))  # type: ignore[misc]
+            by_name[m.name].n_vector = arr.size
+    s_times = interleaved(scalar_cases, repeats)
+    v_times = interleaved(vector_cases, repeats)
+    for name, t in s_times.items():
+        if name in by_name:
+            by_name[name].seconds_per_solve_scalar = t
+    for name, t in v_times.items():
+        if name in by_name:
+            by_name[name].seconds_per_solve_vector = t
+    return {'floor': v_times['floor'], 'python_call': s_times['python_call']}
+
+
+def pareto_front(points: list[tuple[str, float | None, float | None]]) -> set[str]:
+    """Names of the non-dominated (time, error) points; points with a None or non-finite value are excluded.
+
+    A point is dominated if another is no slower and no less accurate, and strictly better in one of the two.
+    """
+    valid = [(n, t, e) for n, t, e in points if t is not None and e is not None and math.isfinite(t)
+             and math.isfinite(e)]
+    front = set()
+    for n, t, e in valid:
+        dominated = any((t2 <= t and e2 <= e) and (t2 < t or e2 < e) for n2, t2, e2 in valid if n2 != n)
+        if not dominated:
+            front.add(n)
+    return front
+
+
+def dominators(results: list[MethodResult], name: str, vector: bool = True) -> list[str]:
+    """Methods that dominate ``name`` (used to explain a shipped method off the front)."""
+    by = {r.name: r for r in results}
+    me = by[name]
+    t0 = me.seconds_per_solve_vector if vector else me.seconds_per_solve_scalar
+    e0 = me.max_error
+    out = []
+    for r in results:
+        t = r.seconds_per_solve_vector if vector else r.seconds_per_solve_scalar
+        e = r.max_error
+        if r.name == name or t is None or e is None or t0 is None or e0 is None:
+            continue
+        if t <= t0 and e <= e0 and (t < t0 or e < e0):
+            out.append(f'{r.name} ({t:.3g} s, {e:.3g} rad)')
+    return out

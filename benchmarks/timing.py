@@ -1,0 +1,83 @@
+"""Timing on a shared, noisy machine: interleaved repeats, medians, ratios against baselines of the same run.
+
+Each repeat round times every case once, in the same order, so a burst of load from another process hits all cases
+of that round alike; the reported figure is the median over rounds. Sizes are adapted per case from a pilot call so
+that slow peers do not take minutes (the size used is reported with the figure).
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import statistics
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Case:
+    """A timed case: ``run()`` performs ``count`` solves."""
+
+    name: str
+    run: Callable[[], object]
+    count: int
+
+
+def pilot(fn: Callable[[], object]) -> float:
+    """Seconds for one call (the fastest of three, after one warm-up)."""
+    fn()
+    best = float('inf')
+    for _ in range(3):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
+def interleaved(cases: list[Case], repeats: int) -> dict[str, float]:
+    """Median seconds per solve of each case over ``repeats`` interleaved rounds (one warm-up round first)."""
+    samples: dict[str, list[float]] = {c.name: [] for c in cases}
+    for c in cases:
+        c.run()
+    for _ in range(repeats):
+        for c in cases:
+            t0 = time.perf_counter()
+            c.run()
+            samples[c.name].append((time.perf_counter() - t0) / c.count)
+    return {name: statistics.median(v) for name, v in samples.items()}
+
+
+def scalar_loop(fn: Callable[[float], object], thetas: list[float]) -> Callable[[], object]:
+    """A closure calling fn on every angle of a Python list (the loop overhead is in every scalar figure alike)."""
+
+    def run() -> None:
+        for t in thetas:
+            fn(t)
+
+    return run
+
+
+def machine_info() -> dict[str, object]:
+    """What the figures were measured on: the interpreter, numpy, CPU, load, and BLAS-related variables."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open('/proc/cpuinfo', encoding='utf-8') as fh:
+            for line in fh:
+                if line.startswith('model name'):
+                    cpu = line.split(':', 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    return {
+        'python': platform.python_version(),
+        'numpy': np.__version__,
+        'cpu': cpu,
+        'cores': os.cpu_count(),
+        'load_average_1min': os.getloadavg()[0] if hasattr(os, 'getloadavg') else None,
+        'env': {k: os.environ.get(k) for k in ('OPENBLAS_CORETYPE', 'OPENBLAS_L2_SIZE', 'OMP_NUM_THREADS')},
+        'note': 'shared machine (2 cores; other agents were running); figures are medians of interleaved repeats '
+                'and only ratios measured in the same run are meaningful',
+    }
