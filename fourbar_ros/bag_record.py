@@ -1,0 +1,207 @@
+"""Record topics to a rosbag2 bag (rclpy + rosbags), atomically.
+
+Like ``ros2 bag record``: each topic is subscribed with the reliability and durability every
+publisher offers, messages are stored as received (raw CDR, receive time from the node clock),
+and the bag stores each topic's message definition, type hash and the offered QoS profiles as
+the ROS graph reports them, so ``ros2 bag info``/``play`` on a full ROS install and the ``mcap``
+reader accept it. The bag appears at its path only when closed (``bag_io.AtomicBagWriter``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Any
+
+from rclpy.executors import Executor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
+
+from fourbar_ros.bag_io import AtomicBagWriter, BagError, jazzy_typestore, time_from_ns
+from fourbar_ros.bag_replay import ReplayError, handshake, make_qos, publisher_nodes, spin_until, wait_for_node_names
+
+#: History depth of the recording subscriptions: how far the recorder may fall behind a burst.
+RECORD_DEPTH = 1000
+
+
+def rosbags_qos(profile: Any) -> Qos:
+    """An rclpy ``QoSProfile`` (as the graph reports an endpoint) as a rosbags ``Qos``."""
+    return Qos(
+        QosHistory(int(profile.history)), int(profile.depth),
+        QosReliability(int(profile.reliability)), QosDurability(int(profile.durability)),
+        time_from_ns(profile.deadline.nanoseconds), time_from_ns(profile.lifespan.nanoseconds),
+        QosLiveliness(int(profile.liveliness)),
+        time_from_ns(profile.liveliness_lease_duration.nanoseconds),
+        bool(profile.avoid_ros_namespace_conventions))
+
+
+def request_qos(offered: Sequence[Qos]) -> QoSProfile:
+    """Subscription QoS that connects to every offer (rosbag2's rule): reliable only if all
+    publishers are, transient-local only if all are; keep-last ``RECORD_DEPTH``."""
+    reliable = bool(offered) and all(q.reliability == QosReliability.RELIABLE for q in offered)
+    transient = bool(offered) and all(q.durability == QosDurability.TRANSIENT_LOCAL for q in offered)
+    return make_qos(
+        history=HistoryPolicy.KEEP_LAST, depth=RECORD_DEPTH,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if transient else DurabilityPolicy.VOLATILE)
+
+
+def _import_type(msgtype: str) -> Any:
+    """The rclpy message class of ``pkg/msg/Name``."""
+    import importlib
+
+    pkg, kind, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{pkg}.{kind}'), name)
+
+
+def _msgdef(msgtype: str) -> tuple[str, str]:
+    """(message definition, RIHS01 hash) of a type from the Jazzy typestore, or the installed .msg."""
+    store = jazzy_typestore()
+    if msgtype not in store.fielddefs:
+        from ament_index_python.packages import PackageNotFoundError, get_package_share_directory
+        from rosbags.typesys import get_types_from_msg
+
+        pkg, kind, name = msgtype.split('/')
+        try:
+            text = (Path(get_package_share_directory(pkg)) / kind / f'{name}.msg').read_text()
+        except (PackageNotFoundError, OSError) as exc:
+            raise BagError(f'cannot find the definition of {msgtype} ({exc})') from None
+        store.register(get_types_from_msg(text, msgtype))
+    msgdef, _ = store.generate_msgdef(msgtype, ros_version=2)
+    return msgdef, store.hash_rihs01(msgtype)
+
+
+@dataclass
+class TopicPlan:
+    """One topic to record: resolved name, type, offered QoS profiles, graph type hash."""
+
+    name: str
+    msgtype: str
+    offered: list[Qos]
+    type_hash: str
+
+
+def discover(node: Node, executor: Executor, topics: Sequence[str], timeout_s: float,
+             stop: Callable[[], bool] = lambda: False) -> list[TopicPlan]:
+    """Wait until every topic has a publisher; return name, type and offered QoS of each.
+
+    Raises BagError naming the topics still without a publisher after ``timeout_s``; returns
+    an empty list if ``stop()`` turns true first.
+    """
+    names = [node.resolve_topic_name(t) for t in topics]
+    if len(set(names)) != len(names):
+        raise BagError(f'topics listed twice: {" ".join(names)}')
+
+    def ready() -> bool:
+        return all(node.get_publishers_info_by_topic(n) for n in names)
+    if not spin_until(executor, lambda: stop() or ready(), timeout_s):
+        missing = [n for n in names if not node.get_publishers_info_by_topic(n)]
+        raise BagError(f'no publisher on {", ".join(missing)} within {timeout_s:g} s')
+    if stop():
+        return []
+    plans = []
+    for name in names:
+        infos = node.get_publishers_info_by_topic(name)
+        types = sorted({i.topic_type for i in infos})
+        if len(types) != 1:
+            raise BagError(f'{name} is published with several types: {", ".join(types)}')
+        plans.append(TopicPlan(name, types[0], [rosbags_qos(i.qos_profile) for i in infos],
+                               str(infos[0].topic_type_hash)))
+    return plans
+
+
+class Recorder:
+    """Records the planned topics from ``node`` into an atomic bag at ``out``.
+
+    Call ``close()`` to finish the bag (it appears at ``out``) or ``abort()`` to drop it.
+    """
+
+    def __init__(self, node: Node, out: Path, plans: Sequence[TopicPlan], storage: str = 'mcap',
+                 on_message: Callable[[str, int], None] | None = None) -> None:
+        self.node = node
+        self.out = Path(out)
+        self.plans = list(plans)
+        self.bag = AtomicBagWriter(self.out, storage)
+        self.counts: dict[str, int] = {p.name: 0 for p in self.plans}
+        self.on_message = on_message
+        self._subs: list[Any] = []
+        self.bag.open()
+        try:
+            for plan in self.plans:
+                msgdef, rihs01 = _msgdef(plan.msgtype)
+                if plan.type_hash.startswith('RIHS01_') and plan.type_hash != rihs01:
+                    raise BagError(f'{plan.name}: the publisher\'s {plan.msgtype} (hash {plan.type_hash}) '
+                                   'is not the ROS 2 Jazzy definition; cannot store its definition')
+                conn = self.bag.add_topic(plan.name, plan.msgtype, plan.offered,
+                                          msgdef=msgdef, rihs01=rihs01)
+                self._subs.append(node.create_subscription(
+                    _import_type(plan.msgtype), plan.name, self._writer_for(conn, plan.name),
+                    request_qos(plan.offered), raw=True))
+        except BaseException:
+            self.abort()
+            raise
+
+    def _writer_for(self, conn: Any, name: str) -> Callable[[bytes], None]:
+        clock = self.node.get_clock()
+
+        def write(data: bytes) -> None:
+            self.bag.write(conn, clock.now().nanoseconds, data)
+            self.counts[name] += 1
+            if self.on_message is not None:
+                self.on_message(name, self.counts[name])
+        return write
+
+    def matched(self) -> bool:
+        """True once every subscription has matched at least one publisher."""
+        return all(s.get_publisher_count() >= 1 for s in self._subs)
+
+    def handshake(self, executor: Executor, timeout_s: float) -> list[str]:
+        """Wait until every publishing node has discovered this recorder's subscriptions.
+
+        A parameter-service round trip with each publishing node (see ``bag_replay.fetch_parameters``):
+        without it, the first messages could go out before a publisher has matched the new
+        subscription, and be lost. Returns the nodes that could not be asked (no parameter services).
+        """
+        names: list[str] = []
+        for plan in self.plans:
+            for fqn in wait_for_node_names(self.node, executor, partial(publisher_nodes, self.node, plan.name),
+                                           timeout_s, f'publishing {plan.name}'):
+                if fqn not in names:
+                    names.append(fqn)
+        unreachable = []
+        for fqn in names:
+            try:
+                handshake(self.node, executor, [fqn], timeout_s)
+            except ReplayError:
+                unreachable.append(fqn)
+        return unreachable
+
+    def _unsubscribe(self) -> None:
+        for sub in self._subs:
+            self.node.destroy_subscription(sub)
+        self._subs = []
+
+    def close(self) -> Path:
+        """Stop recording and publish the complete bag at ``out``."""
+        self._unsubscribe()
+        return self.bag.commit()
+
+    def abort(self) -> None:
+        """Stop recording and leave nothing behind."""
+        self._unsubscribe()
+        self.bag.abort()
+
+
+def record_until(executor: Executor, recorder: Recorder, stop: Callable[[], bool],
+                 max_seconds: float | None = None) -> float:
+    """Run callbacks until ``stop()`` or ``max_seconds``; return the seconds recorded."""
+    start = time.monotonic()
+    while not stop():
+        if max_seconds is not None and time.monotonic() - start >= max_seconds:
+            break
+        executor.spin_once(timeout_sec=0.1)
+    return time.monotonic() - start

@@ -1,0 +1,112 @@
+"""`fourbar record OUT`: record topics to a rosbag2 bag, written atomically; Ctrl-C stops it cleanly."""
+
+from __future__ import annotations
+
+import argparse
+import signal
+import sys
+from pathlib import Path
+from types import FrameType
+
+HELP = 'record topics (default: the node outputs) to a rosbag2 bag, mcap by default; Ctrl-C stops it cleanly'
+
+DEFAULT_TOPICS = ('joint_states', 'input_torque', '/diagnostics')
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `fourbar record`."""
+    parser.add_argument('out', type=Path, metavar='OUT', help='bag directory to create (must not exist)')
+    parser.add_argument('--topics', nargs='+', metavar='TOPIC', default=list(DEFAULT_TOPICS),
+                        help='topics to record; relative names resolve in the root namespace '
+                        f'(default: {" ".join(DEFAULT_TOPICS)})')
+    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
+                        help='storage plugin (default: mcap)')
+    parser.add_argument('--wait', type=float, default=10.0, metavar='S',
+                        help='seconds to wait for a publisher on every topic (default: 10)')
+    parser.add_argument('--duration', type=float, metavar='S', help='stop after S seconds of recording')
+    parser.add_argument('--stop-after', action='append', default=[], metavar='TOPIC=N',
+                        help='stop once TOPIC has N messages (repeatable: all must be reached)')
+
+
+def _parse_stop_after(items: list[str]) -> dict[str, int]:
+    from ..bag_io import BagError
+
+    out: dict[str, int] = {}
+    for item in items:
+        topic, sep, count = item.rpartition('=')
+        try:
+            n = int(count)
+        except ValueError:
+            n = -1
+        if not sep or not topic or n < 1:
+            raise BagError(f'--stop-after wants TOPIC=N with N >= 1, got {item!r}')
+        out[topic] = n
+    return out
+
+
+def run(args: argparse.Namespace) -> int:
+    """Record until Ctrl-C/SIGTERM, --duration or --stop-after; exit 0 with a complete bag."""
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from ..bag_io import AtomicBagWriter, BagError
+    from ..bag_record import Recorder, discover, record_until
+    from ..bag_replay import close_context, init_context, spin_until
+
+    prog = 'fourbar record'
+    if args.wait <= 0 or (args.duration is not None and not args.duration > 0):
+        print(f'{prog}: error: --wait and --duration must be positive', file=sys.stderr)
+        return 2
+    stop_after = _parse_stop_after(args.stop_after)
+    AtomicBagWriter(args.out, args.storage)  # checks OUT before touching ROS; writes nothing
+
+    stopping: list[int] = []
+
+    def on_signal(signum: int, _frame: FrameType | None) -> None:
+        stopping.append(signum)
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    context = init_context(handle_signals=False)
+    node = Node('fourbar_record', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    recorder: Recorder | None = None
+    try:
+        try:
+            plans = discover(node, executor, args.topics, args.wait, stop=lambda: bool(stopping))
+        except BagError as exc:
+            print(f'{prog}: error: {exc}', file=sys.stderr)
+            return 1
+        if stopping:
+            print(f'{prog}: interrupted before recording started; no bag written', file=sys.stderr)
+            return 130
+        wanted = {node.resolve_topic_name(t): n for t, n in stop_after.items()}
+        unknown = sorted(set(wanted) - {p.name for p in plans})
+        if unknown:
+            print(f'{prog}: error: --stop-after names a topic not recorded: {unknown[0]}', file=sys.stderr)
+            return 2
+        recorder = Recorder(node, args.out, plans, args.storage)
+        rec = recorder
+        spin_until(executor, lambda: rec.matched() or bool(stopping), args.wait)
+        for fqn in rec.handshake(executor, args.wait):
+            print(f'{prog}: warning: {fqn} has no parameter services; its first messages may be missed',
+                  file=sys.stderr)
+        names = ' '.join(p.name for p in plans)
+        print(f'{prog}: recording {names} to {args.out} (Ctrl-C to stop)', file=sys.stderr, flush=True)
+
+        def done() -> bool:
+            return bool(stopping) or (bool(wanted) and all(rec.counts[t] >= n for t, n in wanted.items()))
+        seconds = record_until(executor, rec, done, args.duration)
+        recorder = None
+        path = rec.close()
+        total = sum(rec.counts.values())
+        per_topic = ', '.join(f'{t}: {n}' for t, n in rec.counts.items())
+        print(f'{prog}: wrote {path}: {total} messages in {seconds:.1f} s ({per_topic})', file=sys.stderr)
+        return 0
+    finally:
+        if recorder is not None:
+            recorder.abort()
+        executor.shutdown()
+        close_context(context, node)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
