@@ -211,7 +211,7 @@ class FourBarNode(Node):
         summary = summarize(self._config, self._last_decision, self._last_command, state, self.counters,
                             self.cache.computed, self.cache.reused)
         return DiagnosticStatus(
-            level=bytes([int(summary.level)]), name=f'{self.get_name()}: antenna tilt linkage',
+            level=bytes([int(summary.level)]), name=f'{self.get_fully_qualified_name()}: antenna tilt linkage',
             message=summary.message, hardware_id=self._config.frame_id,
             values=[KeyValue(key=k, value=v) for k, v in summary.values])
 

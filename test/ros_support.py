@@ -385,3 +385,9 @@ def node_process(args: Sequence[str], env: dict[str, str]) -> Iterator[NodeProce
         yield proc
     finally:
         proc.kill()
+
+
+def wait_future(future: Any, timeout: float = TIMEOUT, what: str = 'a service response') -> Any:
+    """Wait for an rclpy Future completed by the executor thread; return its result."""
+    wait_for(future.done, timeout, what)
+    return future.result()
