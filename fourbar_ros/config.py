@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Mapping
+import sys
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -286,8 +287,8 @@ def rcl_scalar(text: str, quoted: bool) -> bool | int | float | str:
     else:
         return text
     if not _SPECIAL_RE.fullmatch(text) and (
-            math.isinf(number) or (number == 0.0 and _nonzero_mantissa(text))):
-        return text  # strtod overflow or underflow: ERANGE, so rcl keeps the string
+            math.isinf(number) or (abs(number) < sys.float_info.min and (number != 0.0 or _nonzero_mantissa(text)))):
+        return text  # strtod overflow or underflow (also to a subnormal): ERANGE, so rcl keeps the string
     return number
 
 
@@ -317,19 +318,40 @@ def _flatten(prefix: str, mapping: Mapping[str, Any], out: dict[str, object]) ->
             out[name] = value
 
 
-def _matches_node(key: str, node_name: str) -> bool:
-    """True for the section keys rcl applies to a node called ``node_name`` in any namespace."""
-    key = key.strip()
-    if key in ('/**', '**'):
-        return True
-    return key.rstrip('/').rsplit('/', 1)[-1] == node_name
+def _matches_node(key: str, fqn: str) -> bool:
+    """rcl's rule: does section ``key`` (``/**``, ``/ns/name``, ``name`` = ``/name``, ``/*/name``,
+    ``/**/name``) apply to the node with fully qualified name ``fqn``? ``*`` is one namespace level,
+    ``**`` any number of them."""
+    pattern = [t for t in ('/' + key.strip().lstrip('/')).split('/') if t]
+    target = [t for t in fqn.split('/') if t]
+
+    def match(p: list[str], t: list[str]) -> bool:
+        if not p:
+            return not t
+        if p[0] == '**':
+            return any(match(p[1:], t[i:]) for i in range(len(t) + 1))
+        return bool(t) and (p[0] == '*' or p[0] == t[0]) and match(p[1:], t[1:])
+
+    return match(pattern, target)
 
 
-def values_from_yaml(text: str, source: str = '<string>', node_name: str = NODE_NAME) -> dict[str, object]:
-    """The parameter values a node called ``node_name`` receives from a ROS 2 parameter file.
+def _node_sections(doc: Mapping[str, Any], prefix: str = '') -> Iterator[tuple[str, Any]]:
+    """(node key, section) in file order; nested mappings without ros__parameters are namespace levels."""
+    for key, section in doc.items():
+        name = f'{prefix}/{key.strip("/")}' if prefix else key
+        if isinstance(section, dict) and 'ros__parameters' not in section and all(
+                isinstance(v, dict) for v in section.values()) and section:
+            yield from _node_sections(section, name)
+        else:
+            yield name, section
 
-    Scalars are typed as rcl types them (see ``rcl_scalar``); sections apply in file order (a later
-    one overrides an earlier one).
+
+def values_from_yaml(text: str, source: str = '<string>', node_name: str = NODE_NAME,
+                     namespace: str = '/') -> dict[str, object]:
+    """The parameter values the node ``namespace``/``node_name`` receives from a ROS 2 parameter file.
+
+    Scalars are typed as rcl types them (see ``rcl_scalar``); the sections that apply to the node
+    (``/**``, its name, wildcards) are merged in file order, a later one overriding an earlier one.
     """
     import yaml  # PyYAML, only for its parser; imported here to keep `import fourbar_ros.config` light
 
@@ -341,22 +363,24 @@ def values_from_yaml(text: str, source: str = '<string>', node_name: str = NODE_
     doc = _plain_values(root, source) if root is not None else None
     if not isinstance(doc, dict):
         raise ConfigError(f"{source}: expected a mapping with a '/**:' or '{node_name}:' section")
+    fqn = f"{namespace.rstrip('/')}/{node_name}"
     values: dict[str, object] = {}
     found = False
-    for key, section in doc.items():
-        if not _matches_node(key, node_name):
+    for key, section in _node_sections(doc):
+        if not _matches_node(key, fqn):
             continue
         if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
             raise ConfigError(f"{source}: section {key!r} has no 'ros__parameters:' mapping")
         found = True
         _flatten('', section['ros__parameters'], values)
     if not found:
-        raise ConfigError(f"{source}: no '/**:' or '{node_name}:' section with 'ros__parameters:'")
+        raise ConfigError(f"{source}: no '/**:' or '{fqn}' section with 'ros__parameters:'")
     return values
 
 
-def load_config(path: str | Path, node_name: str = NODE_NAME) -> AntennaConfig:
-    """Read and validate a ROS 2 parameter file (``/**:`` or ``<node_name>:`` -> ``ros__parameters:``).
+def load_config(path: str | Path, node_name: str = NODE_NAME, namespace: str = '/') -> AntennaConfig:
+    """Read and validate a ROS 2 parameter file (``/**:`` or ``<node_name>:`` -> ``ros__parameters:``)
+    as the node ``namespace``/``node_name`` would receive it.
 
     Raises ``ConfigError`` with a one-line message naming the parameter (or the file) and why.
     """
@@ -365,7 +389,7 @@ def load_config(path: str | Path, node_name: str = NODE_NAME) -> AntennaConfig:
         text = path.read_text(encoding='utf-8')
     except (OSError, UnicodeDecodeError) as exc:
         raise ConfigError(f'{path}: cannot read: {exc.__class__.__name__}: {exc}'.splitlines()[0]) from None
-    values = values_from_yaml(text, str(path), node_name)
+    values = values_from_yaml(text, str(path), node_name, namespace)
     try:
         return config_from_values(values)
     except ConfigError as exc:

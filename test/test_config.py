@@ -66,9 +66,31 @@ def test_node_name_section_and_later_sections_override(tmp_path: Path) -> None:
         '/**:\n  ros__parameters:\n    load_torque: 1.0\n    out_of_limits: clamp\n'
         'other_node:\n  ros__parameters:\n    load_torque: 9.0\n'
         '/robot/fourbar_node:\n  ros__parameters:\n    load_torque: 2.0\n'))
-    cfg = load_config(path)
-    assert cfg.load_torque == 2.0 and cfg.out_of_limits == 'clamp'
+    cfg = load_config(path)  # /fourbar_node: the namespaced section does not apply
+    assert cfg.load_torque == 1.0 and cfg.out_of_limits == 'clamp'
+    in_robot = load_config(path, namespace='/robot')
+    assert in_robot.load_torque == 2.0 and in_robot.out_of_limits == 'clamp'
     assert load_config(path, node_name='other_node').load_torque == 9.0
+
+
+@pytest.mark.parametrize(('key', 'namespace', 'applies'), [
+    ('/**', '/', True), ('/**', '/a/b', True), ('fourbar_node', '/', True), ('fourbar_node', '/ns', False),
+    ('/fourbar_node', '/', True), ('/ns/fourbar_node', '/ns', True), ('/ns/fourbar_node', '/', False),
+    ('/*/fourbar_node', '/ns', True), ('/*/fourbar_node', '/', False), ('/**/fourbar_node', '/a/b', True),
+    ('/**/fourbar_node', '/', True), ('/**/other', '/', False),
+])
+def test_section_keys_follow_rcl(key: str, namespace: str, applies: bool) -> None:
+    text = f'{key}:\n  ros__parameters:\n    load_torque: 1.0\n'
+    if applies:
+        assert values_from_yaml(text, namespace=namespace) == {'load_torque': 1.0}
+    else:
+        with pytest.raises(ConfigError, match=r'no .* section'):
+            values_from_yaml(text, namespace=namespace)
+
+
+def test_nested_namespace_levels() -> None:
+    text = 'ns:\n  fourbar_node:\n    ros__parameters:\n      load_torque: 4.0\n'
+    assert values_from_yaml(text, namespace='/ns') == {'load_torque': 4.0}
 
 
 def test_nested_parameters_flatten_to_dotted_names() -> None:
@@ -169,7 +191,8 @@ def test_missing_file(tmp_path: Path) -> None:
     ('inf', False, math.inf), ('-.inf', False, -math.inf), ('Infinity', False, math.inf),
     ('0x1p3', False, 8.0), ('yes', False, True), ('Off', False, False), ('y', False, True),
     ('1_000', False, '1_000'), ('~', False, '~'), ('null', False, 'null'), ('1e999', False, '1e999'),
-    ('1e-400', False, '1e-400'), ('0.0e-400', False, 0.0), ('abc', False, 'abc'),
+    ('1e-400', False, '1e-400'), ('5e-324', False, '5e-324'), ('1.5\n', False, '1.5\n'),
+    ('0.0e-400', False, 0.0), ('abc', False, 'abc'),
     ('1.5', True, '1.5'), ('true', True, 'true'), ('9223372036854775807', False, 9223372036854775807),
     ('9223372036854775808', False, 9.223372036854775808e18),
 ])
