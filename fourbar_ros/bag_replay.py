@@ -24,6 +24,7 @@ import signal
 import socket
 import subprocess
 import sys
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -385,21 +386,25 @@ def domain_in_use(domain_id: int, participants: int = 8) -> bool:
     return not all(_port_free(base + 2 * i) for i in range(participants))
 
 
+#: Domain ids a fourbar run may take: safe on Linux (discovery ports outside the ephemeral range) and
+#: clear of the ranges developers use by hand; the test suite leases from the same ids and lock files.
+FREE_DOMAIN_IDS: tuple[int, ...] = (*range(90, 102), *range(215, 233))
+DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / 'fourbar_ros_domain_locks'
+
+
 @contextlib.contextmanager
-def free_domain_id(candidates: Sequence[int] = tuple(range(101, 0, -1)),
-                   lock_dir: str | None = None) -> Iterator[int]:
+def free_domain_id(candidates: Sequence[int] = FREE_DOMAIN_IDS,
+                   lock_dir: Path = DOMAIN_LOCK_DIR) -> Iterator[int]:
     """Reserve a ROS_DOMAIN_ID nobody on this host uses, for the duration of the ``with`` block.
 
-    A domain is free when no participant holds its discovery ports and no other fourbar run holds
-    its lock file (``/tmp/fourbar_ros-domain-<id>.lock``, flock). Default candidates: 101 down to 1
-    (0, the default domain, is never taken; above 101 the ports reach Linux's ephemeral range).
+    A domain is free when no other fourbar run holds its lock file (``<lock_dir>/<id>.lock``,
+    flock, shared with the test suite) and no DDS participant holds its discovery ports.
     """
-    lock_root = Path(lock_dir or os.environ.get('TMPDIR', '/tmp'))
+    lock_dir.mkdir(parents=True, exist_ok=True)
     start = os.getpid() % len(candidates)
     for domain in list(candidates[start:]) + list(candidates[:start]):
-        path = lock_root / f'fourbar_ros-domain-{domain}.lock'
         try:
-            fd = os.open(path, os.O_CREAT | os.O_RDWR, 0o666)
+            fd = os.open(lock_dir / f'{domain}.lock', os.O_CREAT | os.O_RDWR, 0o666)
         except OSError:
             continue
         try:
@@ -413,9 +418,8 @@ def free_domain_id(candidates: Sequence[int] = tuple(range(101, 0, -1)),
             yield domain
             return
         finally:
-            fcntl.flock(fd, fcntl.LOCK_UN)
-            os.close(fd)
-    raise ReplayError('no free ROS_DOMAIN_ID among the candidates')
+            os.close(fd)  # drops the flock
+    raise ReplayError(f'no free ROS_DOMAIN_ID among {candidates[0]}..{candidates[-1]}')
 
 
 NODE_MAIN = 'import sys; from fourbar_ros.node import main; sys.exit(main())'

@@ -1,0 +1,162 @@
+"""`fourbar demo`: start fourbar_node, replay the bundled sweep into it, record its outputs, summarize, plot.
+
+Runs on a ROS_DOMAIN_ID nobody on this host uses (or --domain-id) with discovery limited to this
+host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so it neither sees nor disturbs other ROS traffic.
+The node process is stopped on every path (done, error, Ctrl-C).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+HELP = ('the main job: start fourbar_node with a parameter file, replay the bundled sweep, record the '
+        'outputs, print a summary and write a PNG plot')
+
+BUNDLED_SWEEP = Path(__file__).resolve().parent.parent / 'data' / 'demo_sweep'
+OUTPUT_TOPICS = ('joint_states', 'input_torque', '/diagnostics')
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `fourbar demo`."""
+    parser.add_argument('--params', type=Path, default=Path('config/antenna.yaml'), metavar='YAML',
+                        help='node parameter file (default: config/antenna.yaml)')
+    parser.add_argument('--bag', type=Path, default=BUNDLED_SWEEP, metavar='BAG',
+                        help='command bag to replay (default: the bundled sweep over the tilt range)')
+    parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
+                        help='output directory: outputs bag, demo.png, node.log (default: out/demo)')
+    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
+                        help='storage of the recorded outputs bag (default: mcap)')
+    parser.add_argument('--domain-id', type=int, metavar='N',
+                        help='ROS_DOMAIN_ID to use (default: a free one, 101 down to 1)')
+    parser.add_argument('--timeout', type=float, default=30.0, metavar='S',
+                        help='deadline for the node to come up and for each wait (default: 30)')
+
+
+def _diag_values(msg: object) -> dict[str, str]:
+    status = getattr(msg, 'status', [])
+    return {kv.key: kv.value for kv in status[0].values} if status else {}
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the demo; exit 0 with the summary on stdout and the plot written."""
+    import contextlib
+    import shutil
+
+    from ..bag_demo import core_deviation, pair, plot, summary_lines
+    from ..bag_io import read_commands, read_messages
+    from ..bag_replay import free_domain_id, predictor
+    from ..config import load_config
+
+    prog = 'fourbar demo'
+    start = time.monotonic()
+    cfg = load_config(args.params)  # one-line ConfigError -> status 2
+    stream = read_commands(args.bag)  # one-line BagError -> status 2
+    if args.domain_id is not None and not 0 <= args.domain_id <= 232:
+        print(f'{prog}: error: --domain-id must be in 0..232, got {args.domain_id}', file=sys.stderr)
+        return 2
+    out: Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    outputs = out / 'outputs'
+    if outputs.exists():  # the previous demo's recording: ours to replace
+        shutil.rmtree(outputs)
+
+    domain = (contextlib.nullcontext(args.domain_id) if args.domain_id is not None else free_domain_id())
+    with domain as domain_id:
+        print(f'{prog}: fourbar_node with {args.params} on ROS_DOMAIN_ID {domain_id} (this host only); '
+              f'replaying {len(stream)} commands from {args.bag}', flush=True)
+        recorded = _run_ros(args, stream, domain_id, outputs, predictor(cfg.theta_min, cfg.theta_max,
+                                                                         cfg.out_of_limits))
+        if recorded is None:
+            return 1
+        replay_seconds, diagnostics = recorded
+
+    topics = read_messages(outputs, ['/joint_states', '/input_torque'])  # read back with rosbags
+    data = pair(stream.values, cfg, [m for _, m in topics['/joint_states']],
+                [m for _, m in topics['/input_torque']])
+    angle_err, torque_err = core_deviation(data, cfg)
+    png = plot(data, cfg, out / 'demo.png',
+               f'fourbar demo: {args.bag.name} replayed through fourbar_node ({args.params})\n'
+               f'frame {cfg.frame_length:g} m, rockers {cfg.rocker_ab_length:g}/{cfg.rocker_cd_length:g} m, '
+               f'coupler {cfg.coupler_length:g} m, load {cfg.load_torque:g} N m, driven rocker {cfg.driven.value}')
+    for line in summary_lines(data, cfg, diagnostics):
+        print(line)
+    print(f'check    node vs core: max |d angle| = {angle_err:.3g} rad, max |d torque| = {torque_err:.3g} N m')
+    print(f'replay   {len(stream)} commands lock-step in {replay_seconds:.2f} s; outputs bag {outputs} '
+          f'({args.storage})')
+    print(f'plot     {png}')
+    print(f'{prog}: done in {time.monotonic() - start:.1f} s')
+    return 0
+
+
+def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: Path,
+             answers: object) -> tuple[float, dict[str, str]] | None:
+    """Node process + in-process replay and recording. Returns (replay seconds, last diagnostics)."""
+    import os
+
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from ..bag_io import BagError, CommandStream
+    from ..bag_record import Recorder, discover
+    from ..bag_replay import NodeProcess, Progress, Replayer, ReplayError, close_context, init_context, spin_until
+
+    assert isinstance(stream, CommandStream)
+    prog = 'fourbar demo'
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read by the middleware at init
+    env = dict(os.environ)
+    proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env)
+    proc.start()
+    context = init_context(domain_id=domain_id)
+    node = Node('fourbar_demo', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    recorder: Recorder | None = None
+    diagnostics: list[dict[str, str]] = []
+    try:
+        replayer = Replayer(node, stream, answer_topic='/joint_states')
+        node.create_subscription(DiagnosticArray, '/diagnostics',
+                                 lambda m: diagnostics.append(_diag_values(m)), 10)
+        plans = discover(node, executor, OUTPUT_TOPICS, args.timeout, stop=lambda: not proc.alive())
+        if not proc.alive():
+            raise ReplayError(f'fourbar_node exited with status {proc.proc.poll() if proc.proc else "?"}: '
+                              f'{proc.last_log_line()}')
+        recorder = Recorder(node, outputs, plans, args.storage)
+        replayer.wait_for_node(executor, args.timeout)
+        predicted = replayer.prepare_lockstep(executor, args.timeout, answers)  # type: ignore[arg-type]
+        progress = Progress(len(stream), 'replay')
+        stats = replayer.run_lockstep(executor, predicted, 5.0, progress)
+        progress.close(stats.published)
+        rec = recorder
+        want = stats.expected_answers
+        if not spin_until(executor, lambda: rec.counts['/joint_states'] >= want
+                          and rec.counts['/input_torque'] >= want, args.timeout):
+            raise ReplayError(f'recorded {rec.counts} of {want} answers')
+        # The first status that counts every command (published every diagnostics_period s).
+        total = len(stream)
+        seen = len(diagnostics)
+        if not spin_until(executor, lambda: any(d.get('commands_received') == str(total)
+                                                for d in diagnostics[seen:]), args.timeout):
+            raise ReplayError(f'no diagnostics counting all {total} commands within {args.timeout:g} s')
+        final = next(d for d in diagnostics[seen:] if d.get('commands_received') == str(total))
+        recorder = None
+        rec.close()
+        return stats.seconds, final
+    except (ReplayError, BagError) as exc:
+        print(f'{prog}: error: {exc}', file=sys.stderr)
+        return None
+    except (KeyboardInterrupt, ExternalShutdownException):
+        print(f'\n{prog}: interrupted; no outputs bag written', file=sys.stderr)
+        raise KeyboardInterrupt from None
+    finally:
+        if recorder is not None:
+            recorder.abort()
+        executor.shutdown()
+        close_context(context, node)
+        status = proc.stop()
+        if status not in (0, None):
+            print(f'{prog}: warning: fourbar_node exited with status {status} (see {proc.log_path})',
+                  file=sys.stderr)
