@@ -19,6 +19,7 @@ decisions in the pure modules command_policy, state_cache, joint_velocity, diagn
 
 from __future__ import annotations
 
+import itertools
 import sys
 from collections.abc import Callable
 from functools import partial
@@ -235,10 +236,34 @@ def _one_line(exc: BaseException) -> str:
     return text or exc.__class__.__name__
 
 
+def params_file_problem(argv: list[str]) -> str | None:
+    """One line if a ``--params-file`` argument cannot be read or is not YAML, else None.
+
+    Checked before rclpy.init, because rcl would log its own multi-line error first.
+    """
+    import yaml
+
+    for flag, path in itertools.pairwise(argv):
+        if flag != '--params-file':
+            continue
+        try:
+            with open(path, encoding='utf-8') as f:
+                yaml.compose(f, Loader=yaml.SafeLoader)
+        except OSError as exc:
+            return f'{path}: cannot read: {exc.strerror or exc}'
+        except (yaml.YAMLError, UnicodeDecodeError) as exc:
+            return f'{path}: not valid YAML: {_one_line(exc)}'
+    return None
+
+
 def main(args: list[str] | None = None) -> int:
     """Console script ``fourbar_node``: exit 0 on Ctrl-C/SIGTERM, 2 with one line on bad parameters."""
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 
+    problem = params_file_problem(sys.argv if args is None else args)
+    if problem is not None:
+        print(f'fourbar_node: error: {problem}', file=sys.stderr)
+        return 2
     try:
         rclpy.init(args=args)
     except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
