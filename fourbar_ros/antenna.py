@@ -66,6 +66,11 @@ class RockerAngles(NamedTuple):
     delta: ArrayLike
 
 
+_angles = RockerAngles._make
+_UPPER = Branch.UPPER
+_sin, _cos, _sqrt, _atan2, _PI = math.sin, math.cos, math.sqrt, math.atan2, math.pi
+
+
 class RockerRates(NamedTuple):
     """Rocker rates per unit antenna rate, d gamma/d theta and d delta/d theta (dimensionless)."""
 
@@ -216,31 +221,34 @@ class AntennaLinkage:
         elements when on_invalid='nan' (reachable(theta) is the validity mask, change points aside). The exact
         reach limit is solved (the rockers are then in line).
         """
-        if isinstance(theta, (float, int)):
-            k = self._k
+        tp = type(theta)
+        if tp is float or tp is int or isinstance(theta, float):
+            # The scalar hot path: locals only, module-level math bindings, no numpy.
+            diff, diff_sq, _, two_l2, far0, near0, cos_p, cos_q, equal_links, _ = self._k
             half = 0.5 * theta
             try:
-                s = math.sin(half)
+                s = _sin(half)
             except ValueError:  # math.sin(inf)
                 raise self._unreachable(float(theta)) from None
-            c = math.cos(half)
-            w = k.four_l1_l2 * s * s
-            far = k.far - w
-            near = k.near + w
+            hs = two_l2 * s  # h sin(theta/2) in frame units
+            w = 2.0 * hs * s  # 4 H h sin^2(theta/2) in frame units
+            far = far0 - w
+            near = near0 + w
             if not far * near >= 0.0:
                 far, near = self._clamped(far, near, float(theta))
-            root = math.sqrt(far * near)
-            if k.diff_sq + w == 0.0:
+            if diff_sq + w == 0.0:
                 raise self._change_point(float(theta))
-            if k.diff >= 0.0:
-                phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
+            root = _sqrt(far * near)
+            c = _cos(half)
+            if diff >= 0.0:
+                phi = _atan2(hs * c, diff + hs * s)
             else:  # coupler longer than frame: keep atan2's cut away from theta = 0
-                phi = math.pi + math.atan2(-k.two_l2 * s * c, -k.diff - k.two_l2 * s * s)
-            alpha = math.atan2(root, k.cos_p + w)
-            beta = alpha if k.equal_links else math.atan2(root, k.cos_q + w)
-            if branch is Branch.UPPER:
-                return RockerAngles(phi + alpha, beta - phi)
-            return RockerAngles(phi - alpha, -beta - phi)
+                phi = _PI + _atan2(-hs * c, -diff - hs * s)
+            alpha = _atan2(root, cos_p + w)
+            beta = alpha if equal_links else _atan2(root, cos_q + w)
+            if branch is _UPPER:
+                return _angles((phi + alpha, beta - phi))
+            return _angles((phi - alpha, -beta - phi))
         return self._rocker_angles_array(np.asarray(theta, dtype=np.float64), branch, on_invalid)
 
     def _clamped(self, far: float, near: float, theta: float) -> tuple[float, float]:
