@@ -361,6 +361,18 @@ def _lut(n: int, hermite: bool, dtype: type[np.floating] = np.float64,
     return build
 
 
+def _lookup(tolerance: float) -> Callable[[Geometry, tuple[float, float]], Solver]:
+    """The offered fourbar_ros.lookup.RockerTable, built over the interval to the given tolerance (radians)."""
+
+    def build(g: Geometry, interval: tuple[float, float]) -> Solver:
+        from fourbar_ros.lookup import RockerTable
+
+        table = RockerTable.build(linkage(g), interval[0], interval[1], tolerance=tolerance)
+        return Solver(table.rocker_angles, table.rocker_angles)  # type: ignore[arg-type]
+
+    return build
+
+
 # ---------------------------------------------------------------------------------------------- the list
 
 SHIPPED = 'shipped'
@@ -391,6 +403,9 @@ def all_methods(quick: bool = False) -> list[Method]:
                               _lut(n, False, np.float32)))
     methods.append(Method('lut-hermite-256-f32', 'lut', 'float32', '256-point float32 table, cubic Hermite',
                           _lut(256, True, np.float32)))
+    for tol in (1e-6, 1e-9):
+        methods.append(Method(f'lookup-{tol:g}', 'lookup', 'float64',
+                              f'fourbar_ros.lookup.RockerTable built to {tol:g} rad', _lookup(tol)))
     methods.append(Method('lut-linear-256+newton1', 'hybrid', 'float64',
                           '256-point linear table, then one Newton step', _lut(256, False, polish=True)))
     return methods

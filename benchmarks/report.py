@@ -48,6 +48,8 @@ def method_row(r: MethodResult) -> dict[str, Any]:
         'not_applicable': r.not_applicable,
         'n_scalar': r.n_scalar,
         'n_vector': r.n_vector,
+        'wall_seconds_per_solve_scalar': r.wall_seconds_per_solve_scalar,
+        'wall_seconds_per_solve_vector': r.wall_seconds_per_solve_vector,
     })
     return row
 
@@ -129,7 +131,7 @@ def plot(data: dict[str, Any], path: Path) -> None:
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
     colors = {'annex': 'tab:red', 'shipped': 'tab:green', 'stable': 'tab:olive', 'newton': 'tab:blue',
-              'lut': 'tab:purple', 'hybrid': 'tab:cyan', 'peer': 'tab:gray'}
+              'lut': 'tab:purple', 'hybrid': 'tab:cyan', 'peer': 'tab:gray', 'lookup': 'tab:orange'}
     for ax, key, front_key, title in ((axes[0], 'seconds_per_solve_vector', 'pareto', 'vectorized (numpy arrays)'),
                                       (axes[1], 'seconds_per_solve_scalar', 'pareto_scalar', 'scalar (Python float)')):
         pts = [m for m in data['methods'] if m[key] is not None and m['max_error_rad'] is not None]
@@ -296,9 +298,10 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         'far below one ulp.',
         '- Same inputs: every method sees the same ascending angles per geometry; tables are built over the '
         'same interval they are asked about; Newton and mechanism start from the same mid-interval pose.',
-        '- Timing: `time.perf_counter` around whole loops/calls, every case once per round, medians over rounds; '
-        'baselines (floor, Python call) are timed in the same rounds. OPENBLAS variables are left as the machine '
-        'sets them (no BLAS is used on these paths).',
+        '- Timing: the process\'s CPU time (`time.process_time`, so time the scheduler gives other jobs is left '
+        'out) around whole loops/calls, every case once per round, medians over rounds; wall-clock medians are in '
+        'results.json beside them. Baselines (floor, Python call) are timed in the same rounds. OPENBLAS variables '
+        'are left as the machine sets them (no BLAS is used on these paths).',
         '',
     ]
     return '\n'.join(lines)

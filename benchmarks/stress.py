@@ -372,8 +372,8 @@ def _singular_row(c: StressCase, scalars: dict[str, Scalar | None]) -> dict[str,
 def all_cases(quick: bool) -> list[StressCase]:
     """Every stress case, in family order."""
     spec, beyond = scale_cases(quick)
-    return [*reach_limit_cases(quick), *exact_limit_cases(quick), *parallelogram_cases(quick), *ratio_cases(quick), *spec, *beyond,
-            *wrapped_cases(quick), *subnormal_cases(quick)]
+    return [*reach_limit_cases(quick), *exact_limit_cases(quick), *parallelogram_cases(quick), *ratio_cases(quick),
+            *spec, *beyond, *wrapped_cases(quick), *subnormal_cases(quick)]
 
 
 def run(quick: bool) -> dict[str, object]:

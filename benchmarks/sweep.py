@@ -15,7 +15,7 @@ import numpy.typing as npt
 
 from .cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
 from .methods import Method, NotApplicableError, Solver
-from .reference import ReferenceArrays, angle_error, reference_arrays
+from .reference import Geometry, ReferenceArrays, angle_error, reference_arrays
 from .timing import Case, interleaved, pilot, scalar_loop
 
 FloatArray = npt.NDArray[np.float64]
@@ -37,6 +37,8 @@ class MethodResult:
     not_applicable: list[str] = field(default_factory=list)
     seconds_per_solve_scalar: float | None = None
     seconds_per_solve_vector: float | None = None
+    wall_seconds_per_solve_scalar: float | None = None
+    wall_seconds_per_solve_vector: float | None = None
     n_scalar: int = 0
     n_vector: int = 0
     pareto: bool = False
@@ -125,16 +127,32 @@ def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], 
     return results, info
 
 
-def floor_ufuncs(theta: FloatArray) -> object:
-    """The numpy ufuncs the stable form cannot avoid for equal rockers, each on a full array.
+def floor_inputs(g: Geometry, theta: FloatArray) -> tuple[FloatArray, ...]:
+    """The arrays the stable form feeds to its unavoidable ufuncs, computed here once, outside any timing.
 
-    sin and cos (of the half angle), one square root (the factored Heron root) and two atan2 (the diagonal's
-    direction and the triangle's angle): nothing else, no arithmetic between them.
+    half = theta/2; prod = far * near (the factored Heron product, >= 0 inside the reach); (y, x) of the
+    diagonal's direction phi; (root, x) of the triangle's angle alpha. Equal rockers: alpha serves both rockers.
     """
-    s = np.sin(theta)
-    c = np.cos(theta)
-    r = np.sqrt(c)
-    return np.arctan2(s, c), np.arctan2(r, c)
+    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
+    half = 0.5 * theta
+    s, c = np.sin(half), np.cos(half)
+    w = 4.0 * ch * s * s
+    prod = np.maximum(((a + b) ** 2 - (1.0 - ch) ** 2) - w, 0.0) * np.maximum(((1.0 - ch) ** 2 - (a - b) ** 2) + w,
+                                                                               0.0)
+    y_phi, x_phi = 2.0 * ch * s * c, (1.0 - ch) + 2.0 * ch * s * s
+    x_alpha = (1.0 - ch) ** 2 + w + (a - b) * (a + b)
+    return half, prod, y_phi, x_phi, np.sqrt(prod), x_alpha
+
+
+def floor_ufuncs(inputs: tuple[FloatArray, ...]) -> object:
+    """The numpy ufuncs the stable form cannot avoid for equal rockers, each once on its full-size input array.
+
+    sin and cos of the half angle, one square root (the factored Heron root) and two atan2 (the diagonal's
+    direction and the triangle's angle), on the very values the stable form computes (atan2's speed depends on
+    its arguments); nothing else, no arithmetic between them. Outputs are freshly allocated, as a method's are.
+    """
+    half, prod, y_phi, x_phi, root, x_alpha = inputs
+    return np.sin(half), np.cos(half), np.sqrt(prod), np.arctan2(y_phi, x_phi), np.arctan2(root, x_alpha)
 
 
 def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n_vector: int,
@@ -142,7 +160,7 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
     """Fill seconds_per_solve_* on the Turnantenna geometry; returns the baselines measured in the same rounds.
 
     Baselines: ``floor`` (see :func:`floor_ufuncs`, per element of the n_vector array) and ``python_call`` (the
-    scalar loop calling a function that returns a tuple, per call).
+    scalar loop calling a function that returns a tuple, per call); CPU-time medians, with ``*_wall`` beside.
     """
     g = TURNANTENNA
     interval = sweep_interval(g)
@@ -150,7 +168,8 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
     scalar_thetas = np.sort(sweep_angles(g, n_scalar, seed=8)).tolist()
     by_name = {r.name: r for r in results}
     scalar_cases = [Case('python_call', scalar_loop(lambda t: (t, t), scalar_thetas), n_scalar)]
-    vector_cases = [Case('floor', lambda: floor_ufuncs(thetas), n_vector)]
+    inputs = floor_inputs(g, thetas)
+    vector_cases = [Case('floor', lambda: floor_ufuncs(inputs), n_vector)]
     for m in methods:
         try:
             solver = m.build(g, interval)
@@ -173,13 +192,16 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
             by_name[m.name].n_vector = arr.size
     s_times = interleaved(scalar_cases, repeats)
     v_times = interleaved(vector_cases, repeats)
-    for name, t in s_times.items():
+    for name, (cpu, wall) in s_times.items():
         if name in by_name:
-            by_name[name].seconds_per_solve_scalar = t
-    for name, t in v_times.items():
+            by_name[name].seconds_per_solve_scalar = cpu
+            by_name[name].wall_seconds_per_solve_scalar = wall
+    for name, (cpu, wall) in v_times.items():
         if name in by_name:
-            by_name[name].seconds_per_solve_vector = t
-    return {'floor': v_times['floor'], 'python_call': s_times['python_call']}
+            by_name[name].seconds_per_solve_vector = cpu
+            by_name[name].wall_seconds_per_solve_vector = wall
+    return {'floor': v_times['floor'][0], 'python_call': s_times['python_call'][0],
+            'floor_wall': v_times['floor'][1], 'python_call_wall': s_times['python_call'][1]}
 
 
 def pareto_front(points: list[tuple[str, float | None, float | None]]) -> set[str]:
