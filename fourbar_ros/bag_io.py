@@ -227,6 +227,8 @@ def read_messages(path: str | os.PathLike[str],
                   topics: Sequence[str] = ()) -> dict[str, list[tuple[int, Any]]]:
     """Decode every message of ``topics`` (default: all) as ``topic -> [(stamp_ns, msg), ...]``.
 
+    Every requested topic (default: every topic of the bag) has an entry, empty without messages.
+
     Raises BagError (one line) for unreadable bags or messages.
     """
     p = Path(path)
@@ -234,6 +236,8 @@ def read_messages(path: str | os.PathLike[str],
     out: dict[str, list[tuple[int, Any]]] = {t: [] for t in topics}
     with open_bag(p) as reader:
         conns = [c for c in reader.connections if not topics or c.topic in topics]
+        for c in conns:
+            out.setdefault(c.topic, [])
         try:
             for conn, stamp, data in reader.messages(connections=conns):
                 out.setdefault(conn.topic, []).append(

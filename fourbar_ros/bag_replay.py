@@ -71,9 +71,11 @@ class Progress:
         self._last = 0.0
         self._start = time.monotonic()
         self._drawn = False
+        self._done = 0
 
     def update(self, done: int, force: bool = False) -> None:
         """Redraw with ``done`` of ``total`` items finished."""
+        self._done = done
         if not self.enabled:
             return
         now = time.monotonic()
@@ -88,13 +90,12 @@ class Progress:
         self.stream.flush()
         self._drawn = True
 
-    def close(self, done: int) -> None:
-        """Draw the final state and end the line."""
-        if self.enabled:
-            self.update(done, force=True)
-            if self._drawn:
-                self.stream.write('\n')
-                self.stream.flush()
+    def end(self) -> None:
+        """Redraw the last state and end the line (if anything was drawn)."""
+        if self.enabled and self._drawn:
+            self.update(self._done, force=True)
+            self.stream.write('\n')
+            self.stream.flush()
 
 
 # --------------------------------------------------------------------------- topics and QoS
@@ -503,6 +504,22 @@ def init_context(domain_id: int | None = None, handle_signals: bool = True) -> C
     rclpy.init(context=context, domain_id=domain_id,
                signal_handler_options=SignalHandlerOptions.ALL if handle_signals else SignalHandlerOptions.NO)
     return context
+
+
+@contextlib.contextmanager
+def interrupt_on_sigterm() -> Iterator[None]:
+    """Turn SIGTERM into KeyboardInterrupt (like Ctrl-C) inside the block, so cleanup code runs.
+
+    Use with ``init_context(handle_signals=False)``: rclpy's own handlers would invalidate the
+    context under a running publisher instead of interrupting the program.
+    """
+    def raise_interrupt(_signum: int, _frame: object) -> None:
+        raise KeyboardInterrupt
+    previous = signal.signal(signal.SIGTERM, raise_interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def close_context(context: Context, *nodes: Node) -> None:

@@ -83,41 +83,43 @@ def fourbar_command() -> list[str]:
 
 
 class Tool:
-    """``fourbar ARGS`` as a child process (own session); its stderr lines can be waited for."""
+    """``fourbar ARGS`` as a child process (own session); its output lines can be waited for."""
 
     def __init__(self, args: Sequence[str | os.PathLike[str]], env: dict[str, str]) -> None:
         self.args = [str(a) for a in args]
         self.proc = subprocess.Popen([*fourbar_command(), *self.args], env=env, cwd=REPO,
                                      stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                      stderr=subprocess.PIPE, text=True, start_new_session=True)
-        self.lines: list[str] = []
-        self.stdout = ''
+        self.lines: list[str] = []  # stderr
+        self.out_lines: list[str] = []  # stdout
         self._cond = threading.Condition()
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-        self._out_reader = threading.Thread(target=self._read_stdout, daemon=True)
-        self._out_reader.start()
+        self._readers = [threading.Thread(target=self._read, args=(self.proc.stderr, self.lines), daemon=True),
+                         threading.Thread(target=self._read, args=(self.proc.stdout, self.out_lines), daemon=True)]
+        for reader in self._readers:
+            reader.start()
 
-    def _read(self) -> None:
-        assert self.proc.stderr is not None
-        for line in self.proc.stderr:
+    def _read(self, stream: Any, lines: list[str]) -> None:
+        for line in stream:
             with self._cond:
-                self.lines.append(line.rstrip('\n'))
+                lines.append(line.rstrip('\n'))
                 self._cond.notify_all()
 
-    def _read_stdout(self) -> None:
-        assert self.proc.stdout is not None
-        self.stdout = self.proc.stdout.read()
+    @property
+    def stdout(self) -> str:
+        """Everything written to stdout so far."""
+        with self._cond:
+            return ''.join(f'{line}\n' for line in self.out_lines)
 
-    def wait_line(self, text: str, timeout: float = TIMEOUT) -> str:
-        """Block until a stderr line contains ``text``; fail if the process exits first."""
+    def wait_line(self, text: str, timeout: float = TIMEOUT, stdout: bool = False) -> str:
+        """Block until a stderr (or stdout) line contains ``text``; fail if the process exits first."""
+        lines = self.out_lines if stdout else self.lines
         deadline = time.monotonic() + timeout
         with self._cond:
             while True:
-                for line in self.lines:
+                for line in lines:
                     if text in line:
                         return line
-                if self.proc.poll() is not None and not self._reader.is_alive():
+                if self.proc.poll() is not None and not any(r.is_alive() for r in self._readers):
                     raise AssertionError(f'fourbar {" ".join(self.args)} exited {self.proc.returncode} '
                                          f'without {text!r}: {self.lines}')
                 left = deadline - time.monotonic()
@@ -132,8 +134,8 @@ class Tool:
         except subprocess.TimeoutExpired:
             self.kill()
             raise AssertionError(f'fourbar {self.args} did not finish within {timeout} s: {self.lines}') from None
-        self._reader.join(timeout=5)
-        self._out_reader.join(timeout=5)
+        for reader in self._readers:
+            reader.join(timeout=5)
         return rc
 
     def signal(self, sig: int) -> None:

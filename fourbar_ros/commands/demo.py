@@ -94,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
 def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: Path,
              answers: object) -> tuple[float, dict[str, str]] | None:
     """Node process + in-process replay and recording. Returns (replay seconds, last diagnostics)."""
+    import contextlib
     import os
 
     from diagnostic_msgs.msg import DiagnosticArray
@@ -102,15 +103,27 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
 
     from ..bag_io import BagError, CommandStream
     from ..bag_record import Recorder, discover
-    from ..bag_replay import NodeProcess, Progress, Replayer, ReplayError, close_context, init_context, spin_until
+    from ..bag_replay import (
+        NodeProcess,
+        Progress,
+        Replayer,
+        ReplayError,
+        close_context,
+        init_context,
+        interrupt_on_sigterm,
+        spin_until,
+    )
 
     assert isinstance(stream, CommandStream)
     prog = 'fourbar demo'
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read by the middleware at init
     env = dict(os.environ)
     proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env)
+    stack = contextlib.ExitStack()
+    stack.enter_context(interrupt_on_sigterm())
+    stack.callback(_stop_node, proc)  # on every path, last
     proc.start()
-    context = init_context(domain_id=domain_id)
+    context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt
     node = Node('fourbar_demo', context=context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -127,9 +140,11 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         recorder = Recorder(node, outputs, plans, args.storage)
         replayer.wait_for_node(executor, args.timeout)
         predicted = replayer.prepare_lockstep(executor, args.timeout, answers)  # type: ignore[arg-type]
+        pid = proc.proc.pid if proc.proc else '?'
+        print(f'{prog}: fourbar_node (pid {pid}) is up; replaying lock-step', file=sys.stderr, flush=True)
         progress = Progress(len(stream), 'replay')
         stats = replayer.run_lockstep(executor, predicted, 5.0, progress)
-        progress.close(stats.published)
+        progress.end()
         rec = recorder
         want = stats.expected_answers
         if not spin_until(executor, lambda: rec.counts['/joint_states'] >= want
@@ -149,14 +164,24 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         print(f'{prog}: error: {exc}', file=sys.stderr)
         return None
     except (KeyboardInterrupt, ExternalShutdownException):
-        print(f'\n{prog}: interrupted; no outputs bag written', file=sys.stderr)
+        print(f'{prog}: interrupted; no outputs bag written', file=sys.stderr)
         raise KeyboardInterrupt from None
     finally:
-        if recorder is not None:
-            recorder.abort()
-        executor.shutdown()
-        close_context(context, node)
-        status = proc.stop()
-        if status not in (0, None):
-            print(f'{prog}: warning: fourbar_node exited with status {status} (see {proc.log_path})',
-                  file=sys.stderr)
+        try:
+            if recorder is not None:
+                recorder.abort()
+            executor.shutdown()
+            close_context(context, node)
+        finally:
+            stack.close()
+
+
+def _stop_node(proc: object) -> None:
+    """Stop the node process; say so if it did not exit cleanly."""
+    from ..bag_replay import NodeProcess
+
+    assert isinstance(proc, NodeProcess)
+    status = proc.stop()
+    if status not in (0, None):
+        print(f'fourbar demo: warning: fourbar_node exited with status {status} (see {proc.log_path})',
+              file=sys.stderr)

@@ -49,6 +49,7 @@ def run(args: argparse.Namespace) -> int:
         ReplayError,
         close_context,
         init_context,
+        interrupt_on_sigterm,
         predictor,
         sibling_topic,
     )
@@ -67,40 +68,41 @@ def run(args: argparse.Namespace) -> int:
         cfg = load_config(args.params)
         answers_from_file = predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits)
 
-    context = init_context()
-    node = Node('fourbar_replay', context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    progress = Progress(len(stream), 'replay', enabled=False if args.no_progress else None)
-    replayer: Replayer | None = None
-    try:
-        topic = args.topic or stream.topic
-        answer_topic = None
-        if args.lockstep:
-            answer_topic = args.answer_topic or sibling_topic(node.resolve_topic_name(topic), 'joint_states')
-        replayer = Replayer(node, stream, topic, answer_topic)
-        replayer.wait_for_node(executor, args.wait)
-        if args.lockstep:
-            answers = replayer.prepare_lockstep(executor, args.wait, answers_from_file)
-            stats = replayer.run_lockstep(executor, answers, args.deadline, progress)
-            progress.close(stats.published)
-            print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s '
-                  f'({stats.rate_hz:.0f}/s) lock-step; {stats.answers} answers on {answer_topic}, '
-                  f'{stats.published - stats.expected_answers} commands rejected by the node\'s limits',
-                  file=sys.stderr)
-        else:
-            stats = replayer.run_timed(executor, args.rate, progress)
-            progress.close(stats.published)
-            print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s at rate {args.rate:g} '
-                  f'on {replayer.publisher.topic_name}', file=sys.stderr)
-        return 0
-    except ReplayError as exc:
-        progress.close(0)
-        print(f'{prog}: error: {exc}', file=sys.stderr)
-        return 1
-    except (KeyboardInterrupt, ExternalShutdownException):
-        print(f'\n{prog}: interrupted', file=sys.stderr)
-        return 130
-    finally:
-        executor.shutdown()
-        close_context(context, node)
+    with interrupt_on_sigterm():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt: cleanup runs
+        context = init_context(handle_signals=False)
+        node = Node('fourbar_replay', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
+        progress = Progress(len(stream), 'replay', enabled=False if args.no_progress else None)
+        try:
+            topic = args.topic or stream.topic
+            answer_topic = None
+            if args.lockstep:
+                answer_topic = args.answer_topic or sibling_topic(node.resolve_topic_name(topic), 'joint_states')
+            replayer = Replayer(node, stream, topic, answer_topic)
+            replayer.wait_for_node(executor, args.wait)
+            if args.lockstep:
+                answers = replayer.prepare_lockstep(executor, args.wait, answers_from_file)
+                stats = replayer.run_lockstep(executor, answers, args.deadline, progress)
+                progress.end()
+                print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s '
+                      f'({stats.rate_hz:.0f}/s) lock-step; {stats.answers} answers on {answer_topic}, '
+                      f'{stats.published - stats.expected_answers} commands rejected by the node\'s limits',
+                      file=sys.stderr)
+            else:
+                stats = replayer.run_timed(executor, args.rate, progress)
+                progress.end()
+                print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s at rate {args.rate:g} '
+                      f'on {replayer.publisher.topic_name}', file=sys.stderr)
+            return 0
+        except ReplayError as exc:
+            progress.end()
+            print(f'{prog}: error: {exc}', file=sys.stderr)
+            return 1
+        except (KeyboardInterrupt, ExternalShutdownException):
+            progress.end()
+            print(f'{prog}: interrupted', file=sys.stderr)
+            return 130
+        finally:
+            executor.shutdown()
+            close_context(context, node)

@@ -1,0 +1,79 @@
+"""`fourbar demo` (the README's main job) end to end: node process, lock-step replay of the bundled sweep,
+recording, summary, PNG; it finishes by itself and leaves no node behind, also when interrupted."""
+
+from __future__ import annotations
+
+import re
+import signal
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+from bag_support import CONFIG, DEMO_BAG, Tool
+from ros_support import DomainLease, lease_domain_id
+
+from fourbar_ros.bag_io import read_commands, read_messages
+from fourbar_ros.bag_replay import domain_in_use
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+@pytest.fixture
+def lease() -> Iterator[DomainLease]:
+    lease = lease_domain_id()
+    try:
+        yield lease
+    finally:
+        lease.release()
+
+
+def _env() -> dict[str, str]:
+    import os
+
+    return {k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'}
+
+
+def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
+    out = tmp_path / 'demo'
+    with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
+        rc = demo.wait(120.0)  # a deadline against hangs; the demo takes a few seconds here
+        assert rc == 0, demo.lines
+        stdout = demo.stdout
+    assert not domain_in_use(lease.domain_id)  # the node process is gone
+    lines = {line.split()[0]: line for line in stdout.splitlines() if line.strip()}
+    for key in ('theta', 'gamma', 'delta', 'torque', 'motor', 'rejected', 'check', 'replay', 'plot'):
+        assert key in lines, stdout
+    assert lines['gamma'].startswith('gamma    +40.92 deg .. +57.33 deg')  # NOTES: 40.921..57.328 deg
+    assert lines['delta'].startswith('delta    +39.39 deg .. +56.38 deg')
+    assert 'rejected 0 commands' in lines['rejected'] and '521 received' in lines['rejected']
+    deviations = [float(x) for x in re.findall(r'= ([0-9.e+-]+) ', lines['check'] + ' ')]
+    assert len(deviations) == 2 and max(deviations) <= 1e-12
+    png = out / 'demo.png'
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 20_000
+    recorded = read_messages(out / 'outputs')
+    n = len(read_commands(DEMO_BAG))
+    assert len(recorded['/joint_states']) == len(recorded['/input_torque']) == n
+
+
+@pytest.mark.parametrize('when', ['starting', 'replaying'])
+def test_demo_interrupted_cleans_up(when: str, lease: DomainLease, tmp_path: Path) -> None:
+    out = tmp_path / 'demo'
+    with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
+        if when == 'starting':
+            demo.wait_line('fourbar demo: fourbar_node with', 60.0, stdout=True)  # before the node starts
+        else:
+            demo.wait_line('is up; replaying lock-step', 60.0)
+        demo.signal(signal.SIGINT)
+        assert demo.wait(60.0) == 130, demo.lines
+    assert not domain_in_use(lease.domain_id)  # the node process is gone
+    if (out / 'outputs').exists():  # interrupted after the recording was complete (while plotting)
+        assert len(read_messages(out / 'outputs')['/joint_states']) == len(read_commands(DEMO_BAG))
+
+
+def test_demo_bad_params_is_one_line(tmp_path: Path) -> None:
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text(CONFIG.read_text().replace('theta_max: 0.', 'theta_max: 1.'))
+    with Tool(['demo', '--params', bad, '--out', tmp_path / 'demo'], _env()) as demo:
+        assert demo.wait(60.0) == 2
+    assert len(demo.lines) == 1 and demo.lines[0].startswith('fourbar demo: error: ')
+    assert not (tmp_path / 'demo').exists()
