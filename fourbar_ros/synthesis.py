@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.errors import FourBarError, UnreachableError
+from fourbar_ros.errors import FourBarError, SingularPositionError, UnreachableError
 from fourbar_ros.general import FourBar
 
 FloatArray = npt.NDArray[np.float64]
@@ -39,7 +39,13 @@ FloatArray = npt.NDArray[np.float64]
 MAX_CONDITION = 1e8
 
 #: Two branch solutions closer than this (rad) are one toggle position (C on the line B-O4): branch reported as 0.
-TOGGLE_TOL = 1e-9
+#: Near a toggle t4 moves like the square root of a length change, so rounding of the lengths (~eps) alone moves
+#: it by ~sqrt(eps) = 1.5e-8 rad (more for extreme length ratios): branch solutions closer than this cannot be
+#: told apart.
+TOGGLE_TOL = 1e-6
+
+#: Safety factor on the first-order rounding bound cond * eps * |K| below which K1 or K2 counts as zero.
+_ROUNDING_FACTOR = 16.0
 
 
 class DesignError(FourBarError):
@@ -59,7 +65,8 @@ class PairCheck:
     """How the designed linkage passes one requested pair (angles in rad, as requested: before any flip).
 
     ``branch`` is +1 (open) or -1 (crossed) in the sense of :meth:`FourBar.angles`, 0 when the two branches meet
-    there (a toggle: C on the line B-O4), None when the designed linkage cannot be assembled at that crank angle.
+    there (a toggle: C on the line B-O4; or a change point, then t4_linkage and t4_error are None), None when the
+    designed linkage cannot be assembled at that crank angle.
     ``t4_linkage`` is the rocker angle the linkage takes on that branch (None if unreachable) and ``t4_error`` its
     wrapped difference to the requested t4 (rad). ``equation_residual`` is the pair's Freudenstein residual
     ``K1 cos t4 - K2 cos t2 + K3 - cos(t2 - t4)`` (dimensionless).
@@ -78,7 +85,10 @@ class Design:
     """A synthesized linkage. Lengths in metres (all > 0), angles in rad, K1..K3 and residuals dimensionless.
 
     ``residual`` is the 2-norm of the Freudenstein residuals over all pairs (rounding-level for three pairs, the
-    least-squares misfit for more). ``condition_number`` is the 2-norm condition number of the system matrix.
+    least-squares misfit for more). ``condition_number`` is the 2-norm condition number of the textbook matrix
+    (cos t4_i, -cos t2_i, 1). ``sensitivity`` (1/rad) bounds, to first order, the relative change of any length per
+    radian of error in the input angles (see :func:`length_sensitivity`): with angles good to e rad, the lengths
+    are good to about ``sensitivity * e`` relative.
     """
 
     k1: float
@@ -91,13 +101,15 @@ class Design:
     crank_flipped: bool
     rocker_flipped: bool
     condition_number: float
+    sensitivity: float
     residual: float
     pairs: tuple[PairCheck, ...]
 
     @property
     def branch(self) -> int | None:
-        """The branch (+1 or -1) shared by every pair, or None when they differ, a pair is unreachable or a toggle."""
-        branches = {p.branch for p in self.pairs}
+        """The branch (+1 or -1) of every pair, toggle pairs (on both) aside; None when the pairs use both
+        branches, one is unreachable, or all are toggles."""
+        branches = {p.branch for p in self.pairs} - {0}
         if len(branches) == 1:
             (b,) = branches
             if b in (1, -1):
@@ -134,6 +146,7 @@ class Design:
             'ground': self.ground, 'crank': self.crank, 'coupler': self.coupler, 'rocker': self.rocker,
             'crank_flipped': self.crank_flipped, 'rocker_flipped': self.rocker_flipped,
             'condition_number': self.condition_number,
+            'sensitivity': self.sensitivity,
             'residual': self.residual,
             'max_t4_error': self.max_t4_error,
             'branch': self.branch,
@@ -183,13 +196,13 @@ def _cos_diff(x: FloatArray, y: float) -> FloatArray:
 def relative_system(pairs: Iterable[Sequence[float]]) -> tuple[FloatArray, FloatArray, FloatArray]:
     """The system actually solved: Freudenstein's equations relative to the first pair (a, b).
 
-    Subtracting K1 cos b - K2 cos a + K3 = cos(a - b) from each equation gives rows
-    (cos t4 - cos b, -(cos t2 - cos a), 1) . (K1, K2, C) = cos(t2 - t4) - cos(a - b), with the new constant
-    C = K3 + K1 cos b - K2 cos a - cos(a - b). Each residual equals the original one exactly, so the exact and
-    least-squares solutions are unchanged, but the cosine differences are formed as products of sines: near
-    t = 0 or pi, where cos t is flat, the textbook matrix keeps only the absolute digits of cos t and loses the
-    angle's information; this form keeps it. Columns are scaled to unit 2-norm (returned as ``scale``, solve
-    for y and take K = y / scale) so the condition number does not depend on the columns' units.
+    Writing cos t = (cos t - cos a) + cos a (and likewise for t4 and t2 - t4) and collecting the constant terms
+    into C = K3 + K1 cos b - K2 cos a - cos(a - b) gives rows
+    (cos t4 - cos b, -(cos t2 - cos a), 1) . (K1, K2, C) = cos(t2 - t4) - cos(a - b).
+    Each residual equals the textbook one exactly, so the exact and least-squares solutions are unchanged, but
+    the cosine differences are formed as products of sines: near t = 0 or pi, where cos t is flat, the textbook
+    matrix keeps only the absolute digits of cos t and loses angle information that this form keeps. Columns
+    are scaled to unit 2-norm (returned as ``scale``; solve for y and take K = y / scale).
     Returns (scaled matrix, right side, scale).
     """
     arr = _as_pairs(pairs)
@@ -208,18 +221,21 @@ def solve_constants(
     """Solve for (K1, K2, K3); exact for three pairs, least squares for more.
 
     Returns (constants, condition number, per-pair residuals). The condition number is the 2-norm one of the
-    column-scaled :func:`relative_system` (the matrix actually solved). Raises DegenerateDesignError when that
-    matrix is rank-deficient (singular) or its condition number exceeds ``max_condition``.
+    textbook matrix of :func:`freudenstein_system`; the solve itself uses :func:`relative_system`. Raises
+    DegenerateDesignError when the matrix is rank-deficient (singular) or its condition number exceeds
+    ``max_condition``, and UnbuildableDesignError when K1 or K2 is zero within the solve's rounding (an
+    infinitely long link).
     """
     arr = _as_pairs(pairs)
+    a, _ = freudenstein_system(arr)
+    cond = float(np.linalg.cond(a))
     m, rhs, scale = relative_system(arr)
     if not np.all(scale > 0.0):
         which = 't4' if scale[0] == 0.0 else 't2'
         raise DegenerateDesignError(
             f'degenerate positions: cos({which}) is the same at every pair, so the Freudenstein system is singular '
-            '(condition number inf); choose pairs with distinct cos(t2) and cos(t4)')
-    cond = float(np.linalg.cond(m))
-    if np.linalg.matrix_rank(m) < 3 or not math.isfinite(cond):
+            f'(condition number {cond:.3g}); choose pairs with distinct cos(t2) and cos(t4)')
+    if np.linalg.matrix_rank(a) < 3 or np.linalg.matrix_rank(m) < 3 or not math.isfinite(cond):
         raise DegenerateDesignError(
             f'degenerate positions: the Freudenstein system is singular (condition number {cond:.3g}); '
             'choose pairs with distinct cos(t2) and cos(t4) that are not all on one line')
@@ -230,9 +246,46 @@ def solve_constants(
     y = np.linalg.solve(m, rhs) if m.shape[0] == 3 else np.linalg.lstsq(m, rhs, rcond=None)[0]
     residuals = m @ y - rhs
     k1, k2, c = (float(v) for v in y / scale)
-    a, b = float(arr[0, 0]), float(arr[0, 1])
-    k3 = c - k1 * math.cos(b) + k2 * math.cos(a) + math.cos(a - b)
+    # The solve perturbs y by about cond(m) * eps * |y|: a K1 or K2 below that has no meaningful sign or size.
+    floor = _ROUNDING_FACTOR * np.finfo(float).eps * float(np.linalg.cond(m)) * float(np.linalg.norm(y)) / scale[:2]
+    for name, link, kv, fl in (('K1', 'crank', k1, floor[0]), ('K2', 'rocker', k2, floor[1])):
+        if abs(kv) <= fl:
+            raise UnbuildableDesignError(
+                f'unbuildable: {name} = {kv:.3g} is zero within rounding (+-{fl:.2g}): an infinitely long {link}')
+    a0, b0 = float(arr[0, 0]), float(arr[0, 1])
+    k3 = c - k1 * math.cos(b0) + k2 * math.cos(a0) + math.cos(a0 - b0)
     return (k1, k2, k3), cond, residuals
+
+
+def length_sensitivity(pairs: Iterable[Sequence[float]], k1: float, k2: float, k3: float,
+                       ground: float = 1.0) -> float:
+    """Worst-case first-order relative change of a designed length per radian of error in the input angles.
+
+    max over crank, coupler, rocker of sum_i |d l / d angle_i| / l (1/rad): an angle error of at most e rad in
+    every t2 and t4 moves a length by at most about ``sensitivity * e`` relative. From the normal equations,
+    A'A dK = -A_i' dr_i - dA_i' r_i for a change of one angle in row i (r: residuals; exact for three pairs, where
+    it is -A^-1 e_i dr_i); then l2 = l1/K1, l4 = l1/K2 and l3^2 = l1^2 + l2^2 + l4^2 - 2 l2 l4 K3.
+    """
+    arr = _as_pairs(pairs)
+    a, b = freudenstein_system(arr)
+    k = np.array([k1, k2, k3])
+    r = a @ k - b
+    pinv = np.linalg.pinv(a)
+    gram_inv = pinv @ pinv.T
+    t2, t4 = arr[:, 0], arr[:, 1]
+    s24 = np.sin(t2 - t4)
+    columns = []
+    for i in range(arr.shape[0]):
+        # d/dt2 and d/dt4 of row i: (dA_i, dr_i with K held)
+        for da, dr in ((np.array([0.0, math.sin(t2[i]), 0.0]), k2 * math.sin(t2[i]) + s24[i]),
+                       (np.array([-math.sin(t4[i]), 0.0, 0.0]), -k1 * math.sin(t4[i]) - s24[i])):
+            columns.append(-pinv[:, i] * dr - gram_inv @ da * r[i])
+    dk1, dk2, dk3 = np.array(columns).T
+    l2, l4 = ground / k1, ground / k2
+    l3 = math.sqrt(max(ground * ground + l2 * l2 + l4 * l4 - 2.0 * l2 * l4 * k3, np.finfo(float).tiny))
+    dl2, dl4 = -l2 * dk1 / k1, -l4 * dk2 / k2
+    dl3 = (l2 * dl2 + l4 * dl4 - k3 * (l4 * dl2 + l2 * dl4) - l2 * l4 * dk3) / l3
+    return float(max(np.abs(dl2 / l2).sum(), np.abs(dl3 / l3).sum(), np.abs(dl4 / l4).sum()))
 
 
 def lengths_from_constants(
@@ -243,6 +296,7 @@ def lengths_from_constants(
 
     Returns (crank, coupler, rocker, crank_flipped, rocker_flipped); lengths are positive. Raises
     UnbuildableDesignError for K1 or K2 zero, a negative one without ``allow_flip``, or a zero coupler.
+    (:func:`solve_constants` already refuses a K1 or K2 that is zero within the solve's rounding.)
 
     Without ``pairs`` the coupler is sqrt(l1^2 + l2^2 + l4^2 - 2 l2 l4 K3). With the (t2, t4) pairs the constants
     were solved from, it is sqrt(mean_i |l2 e^(i t2_i) - l1 - l4 e^(i t4_i)|^2), the root mean square of the
@@ -292,6 +346,8 @@ def _check_pair(fb: FourBar, t2: float, t4: float, crank_flipped: bool, rocker_f
             t4_branch = float(fb.angles(t2_phys, branch=branch)[1]) - shift
         except UnreachableError:
             continue
+        except SingularPositionError:  # change point: B on O4, the rocker angle is undetermined
+            return PairCheck(t2, t4, 0, None, None, residual)
         found[branch] = (t4_branch, abs(_wrap(t4_branch - t4)))
     if not found:
         return PairCheck(t2, t4, None, None, None, residual)
@@ -339,5 +395,6 @@ def synthesize(
     return Design(
         k1=k1, k2=k2, k3=k3, ground=float(ground), crank=crank, coupler=coupler, rocker=rocker,
         crank_flipped=crank_flip, rocker_flipped=rocker_flip, condition_number=cond,
+        sensitivity=length_sensitivity(arr, k1, k2, k3, ground),
         residual=float(np.linalg.norm(residuals)), pairs=checks,
     )

@@ -60,6 +60,8 @@ def _text(design: Design, deg: bool) -> str:
     lines = [
         f'Freudenstein constants: K1 = {design.k1!r}, K2 = {design.k2!r}, K3 = {design.k3!r}',
         f'condition number: {design.condition_number:.6g}',
+        f'sensitivity: {design.sensitivity:.4g} per rad (an error of 0.01 deg in the angles moves a length by up '
+        f'to {100.0 * design.sensitivity * math.radians(0.01):.3g} %)',
         f'lengths (m): ground {design.ground!r}, crank {design.crank!r}, coupler {design.coupler!r}, '
         f'rocker {design.rocker!r}',
         *flips,
