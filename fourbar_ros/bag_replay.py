@@ -335,28 +335,43 @@ class Replayer:
         return stats
 
     def run_lockstep(self, executor: Executor, answers: Predictor, deadline_s: float = 5.0,
-                     progress: Progress | None = None) -> ReplayStats:
-        """Publish each command, then wait (at most ``deadline_s``) for the node's answer to it."""
+                     progress: Progress | None = None, window: int = 1) -> ReplayStats:
+        """Publish the commands, keeping at most ``window`` expected answers outstanding.
+
+        ``window=1`` is strict lock-step: each answered command waits (at most ``deadline_s``) for
+        its answer before the next command goes out. A larger window pipelines; it stays lossless
+        while ``window`` is below the node's command queue depth (1000 for fourbar_node).
+        """
         if self.subscription is None:
             raise ReplayError('lock-step replay needs an answer topic')
+        if window < 1:
+            raise ReplayError(f'window must be at least 1, got {window}')
+        topic = self.subscription.topic_name
         stats = ReplayStats()
         base = self.answers
+        waiting: list[tuple[int, float]] = []  # (command index, theta) of each expected answer
+
+        def wait_until_outstanding(limit: int) -> None:
+            target = base + stats.expected_answers - limit
+
+            def done() -> bool:
+                return self.answers >= target
+            if not spin_until(executor, done, deadline_s):
+                i, theta = waiting[self.answers - base]
+                raise ReplayError(f'no answer on {topic} to command {i} (theta = {theta!r} rad) within '
+                                  f'{deadline_s:g} s: the node lost it or stopped')
+
         start = time.monotonic()
         for i, (raw, theta) in enumerate(zip(self.stream.raw, self.stream.values, strict=True)):
             self.publisher.publish(raw)
             stats.published += 1
             if answers(theta):
                 stats.expected_answers += 1
-                target = base + stats.expected_answers
-
-                def answered(t: int = target) -> bool:
-                    return self.answers >= t
-                if not spin_until(executor, answered, deadline_s):
-                    raise ReplayError(
-                        f'no answer on {self.subscription.topic_name} to command {i} '
-                        f'(theta = {theta!r} rad) within {deadline_s:g} s: the node lost it or stopped')
+                waiting.append((i, theta))
+                wait_until_outstanding(window - 1)
             if progress:
                 progress.update(stats.published)
+        wait_until_outstanding(0)
         stats.seconds = time.monotonic() - start
         if not (self.stream.values and answers(self.stream.values[-1])):
             # Unanswered commands at the end: make sure they reached the node's reader (the last

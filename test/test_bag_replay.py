@@ -132,6 +132,12 @@ def test_timed_replay_loses_nothing(name: str, rate: float, ros: RosSession, cfg
     replay_through_node(ros, bag, tmp_path / 'outputs', cfg, [], ['--rate', str(rate)])
 
 
+def test_pipelined_lockstep_loses_nothing(ros: RosSession, cfg: AntennaConfig, tmp_path: Path) -> None:
+    """Up to 32 answers outstanding (below the node's queue of 1000): still exactly one answer per command."""
+    bag = committed_bags()[0].parent / 'jitter_sqlite3'
+    replay_through_node(ros, bag, tmp_path / 'outputs', cfg, [], ['--as-fast-as-node-keeps-up', '--window', '32'])
+
+
 def test_replay_without_a_node_fails_in_one_line(ros: RosSession) -> None:
     rc, lines, out = run_tool(['replay', committed_bags()[0], '--wait', '1', '--no-progress'], ros.env())
     assert rc == 1 and out == ''

@@ -124,7 +124,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     stack.callback(_stop_node, proc)  # on every path, last
     proc.start()
     context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt
-    node = Node('fourbar_demo', context=context)
+    node = Node('fourbar_demo', context=context, start_parameter_services=False)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     recorder: Recorder | None = None

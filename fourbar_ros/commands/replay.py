@@ -32,6 +32,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='seconds to wait for the node to appear (default: 10)')
     parser.add_argument('--deadline', type=float, default=5.0, metavar='S',
                         help='lock-step: seconds to wait for each answer (default: 5)')
+    parser.add_argument('--window', type=int, default=1, metavar='N',
+                        help='lock-step: let up to N answers be outstanding (pipelining; default 1: strict '
+                        'lock-step; keep N below the node\'s queue depth, 1000)')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar (it is off when '
                         'stderr is not a terminal)')
 
@@ -60,6 +63,9 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(value) and value > 0):
             print(f'{prog}: error: --{name} must be a positive number, got {value}', file=sys.stderr)
             return 2
+    if not 1 <= args.window <= 1000:
+        print(f'{prog}: error: --window must be in 1..1000, got {args.window}', file=sys.stderr)
+        return 2
     stream = read_commands(args.bag)  # BagError: one line, status 2 (cli)
     answers_from_file: Predictor | None = None
     if args.params is not None:
@@ -70,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
 
     with interrupt_on_sigterm():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt: cleanup runs
         context = init_context(handle_signals=False)
-        node = Node('fourbar_replay', context=context)
+        node = Node('fourbar_replay', context=context, start_parameter_services=False)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
         progress = Progress(len(stream), 'replay', enabled=False if args.no_progress else None)
@@ -83,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
             replayer.wait_for_node(executor, args.wait)
             if args.lockstep:
                 answers = replayer.prepare_lockstep(executor, args.wait, answers_from_file)
-                stats = replayer.run_lockstep(executor, answers, args.deadline, progress)
+                stats = replayer.run_lockstep(executor, answers, args.deadline, progress, args.window)
                 progress.end()
                 print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s '
                       f'({stats.rate_hz:.0f}/s) lock-step; {stats.answers} answers on {answer_topic}, '
