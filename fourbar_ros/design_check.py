@@ -12,9 +12,10 @@ For ``[theta_min, theta_max]`` (rad) of an :class:`~fourbar_ros.config.AntennaCo
   (tau / (ratio * efficiency)), against the motor's limit;
 - the worst-case sensitivity of the rocker angles to theta, max |dq/dtheta| (dimensionless), and its inverse for
   the driven rocker, max |dtheta/dq|: the antenna-angle error per unit of rocker-angle error (backlash, encoder);
-- a verdict: FAIL when a configured limit is exceeded (reducer rating, motor limit, reach margin, and the
-  transmission-angle limit if one is given); otherwise PASS, with warnings (e.g. the 40 deg rule of thumb for the
-  transmission angle, which is a recommendation, not a limit of the configuration).
+- a verdict: FAIL when one of the configuration's own limits is exceeded over the range (reducer rating
+  ``output_torque_limit``, motor limit ``motor_torque_limit``, ``transmission_angle_min`` -- below it the node's
+  diagnostics warn in normal use -- and a required reach margin, 0 by default); otherwise PASS, with a warning
+  below the classical 40 deg guideline for the transmission angle (a recommendation, not a configured limit).
 
 Extrema are found on a uniform grid (``samples`` + 1 points including both ends) and refined by golden-section
 search in the grid cell around the best sample.
@@ -52,8 +53,8 @@ class CheckLimits:
     """Limits the verdict enforces besides the configuration's own torque limits (angles in rad).
 
     ``min_reach_margin``: required margin to the reach limit at both ends of the tilt range (rad).
-    ``min_transmission_angle``: if set, a hard limit on min(mu, pi - mu) (rad); if None, only a warning below
-    :data:`TRANSMISSION_RULE_OF_THUMB`.
+    ``min_transmission_angle``: limit on min(mu, pi - mu) (rad); None takes the configuration's
+    ``transmission_angle_min``.
     """
 
     min_reach_margin: float = 0.0
@@ -94,6 +95,7 @@ class DesignReport:
     max_rocker_rate: Extremum
     max_other_rate: Extremum
     max_theta_per_rocker: Extremum
+    transmission_limit: float
     limits: CheckLimits
     failures: tuple[str, ...]
     warnings: tuple[str, ...]
@@ -133,7 +135,7 @@ class DesignReport:
             'max_rocker_rate': ext(self.max_rocker_rate), 'max_other_rocker_rate': ext(self.max_other_rate),
             'max_theta_per_rocker': ext(self.max_theta_per_rocker),
             'min_reach_margin': self.limits.min_reach_margin,
-            'min_transmission_limit': self.limits.min_transmission_angle,
+            'transmission_angle_limit': self.transmission_limit,
             'samples': self.samples,
         }
 
@@ -258,11 +260,10 @@ def check_design(cfg: AntennaConfig, limits: CheckLimits | None = None,
         if margin < limits.min_reach_margin:
             failures.append(f'reach margin at {end} {math.degrees(margin):.3f} deg is below the required '
                             f'{math.degrees(limits.min_reach_margin):.3f} deg')
-    if limits.min_transmission_angle is not None:
-        if min_mu.value < limits.min_transmission_angle:
-            failures.append(f'minimum transmission angle {math.degrees(min_mu.value):.2f} deg at theta '
-                            f'{_deg(min_mu.theta)} is below the limit '
-                            f'{math.degrees(limits.min_transmission_angle):.2f} deg')
+    mu_limit = cfg.transmission_angle_min if limits.min_transmission_angle is None else limits.min_transmission_angle
+    if min_mu.value < mu_limit:
+        failures.append(f'minimum transmission angle {math.degrees(min_mu.value):.2f} deg at theta '
+                        f'{_deg(min_mu.theta)} is below the limit {math.degrees(mu_limit):.2f} deg')
     elif min_mu.value < TRANSMISSION_RULE_OF_THUMB:
         warnings.append(f'minimum transmission angle {math.degrees(min_mu.value):.2f} deg at theta '
                         f'{_deg(min_mu.theta)} is below the {math.degrees(TRANSMISSION_RULE_OF_THUMB):.0f} deg '
@@ -273,7 +274,8 @@ def check_design(cfg: AntennaConfig, limits: CheckLimits | None = None,
         reach_theta_gap=r.theta_gap, reach_theta_max=r.theta_max, reach_margin_low=low, reach_margin_high=high,
         min_transmission=min_mu, peak_input_torque=peak_tau, peak_motor_torque=peak_motor,
         output_torque_limit=cfg.output_torque_limit, motor_torque_limit=cfg.motor_torque_limit,
-        max_rocker_rate=rate, max_other_rate=other, max_theta_per_rocker=theta_per_q, limits=limits,
+        max_rocker_rate=rate, max_other_rate=other, max_theta_per_rocker=theta_per_q,
+        transmission_limit=mu_limit, limits=limits,
         failures=tuple(failures), warnings=tuple(warnings), samples=samples,
     )
 
@@ -293,7 +295,7 @@ def format_report(report: DesignReport) -> str:
         f'reach margin: below theta_min {margin(report.reach_margin_low)}, above theta_max '
         f'{margin(report.reach_margin_high)}',
         f'min transmission angle (from dead point): {math.degrees(report.min_transmission.value):.3f} deg at '
-        f'theta {_deg(report.min_transmission.theta)}',
+        f'theta {_deg(report.min_transmission.theta)} (limit {math.degrees(report.transmission_limit):.2f} deg)',
         f'peak input torque at the driven rocker: {ext(report.peak_input_torque, " N m")} '
         f'(reducer rating {report.output_torque_limit:g} N m, '
         f'{_ratio(report.peak_input_torque.value, report.output_torque_limit)})',

@@ -27,8 +27,9 @@ _OVERRIDES = {
     'load_torque': 'load_torque', 'driven': 'driven_rocker', 'branch': 'branch',
     'reducer_ratio': 'reducer_ratio', 'reducer_efficiency': 'reducer_efficiency',
     'motor_torque_limit': 'motor_torque_limit', 'output_torque_limit': 'output_torque_limit',
+    'min_transmission_angle': 'transmission_angle_min',
 }
-_ANGLE_FLAGS = ('theta_min', 'theta_max')
+_ANGLE_FLAGS = ('theta_min', 'theta_max', 'min_transmission_angle')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -52,7 +53,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help='reducer rating at the driven rocker (N m)')
     lim = parser.add_argument_group('check limits')
     lim.add_argument('--min-transmission-angle', type=float, metavar='ANGLE',
-                     help='fail below this transmission angle (rad; deg with --deg); default: only warn below 40 deg')
+                     help='fail where the transmission angle comes closer than this to a dead point (rad; deg with '
+                     '--deg); default: the configuration\'s transmission_angle_min')
     lim.add_argument('--min-reach-margin', type=float, default=0.0, metavar='ANGLE',
                      help='fail when an end of the tilt range is closer than this to the reach limit '
                      '(rad; deg with --deg; default 0)')
@@ -88,13 +90,10 @@ def configuration(args: argparse.Namespace) -> AntennaConfig:
 
 
 def _limits(args: argparse.Namespace) -> CheckLimits:
-    conv = math.radians if args.deg else float
-    margin = conv(args.min_reach_margin)
-    mu = None if args.min_transmission_angle is None else conv(args.min_transmission_angle)
-    for flag, value in (('--min-reach-margin', margin), ('--min-transmission-angle', mu)):
-        if value is not None and not math.isfinite(value):
-            raise FourBarError(f'{flag}={value} must be finite')
-    return CheckLimits(min_reach_margin=margin, min_transmission_angle=mu)
+    margin = math.radians(args.min_reach_margin) if args.deg else args.min_reach_margin
+    if not math.isfinite(margin):
+        raise FourBarError(f'--min-reach-margin={args.min_reach_margin} must be finite')
+    return CheckLimits(min_reach_margin=margin)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -190,8 +189,8 @@ def _plot(cfg: AntennaConfig, report: DesignReport, path: str, samples: int) -> 
     mu = [math.degrees(min(m, math.pi - m)) for m in curves.transmission_angle]
     ax_mu.plot(deg, mu, color='tab:green', label='min(mu, 180 - mu)')
     ax_mu.axhline(math.degrees(TRANSMISSION_RULE_OF_THUMB), color='tab:orange', ls=':', label='40 deg rule of thumb')
-    if report.limits.min_transmission_angle is not None:
-        ax_mu.axhline(math.degrees(report.limits.min_transmission_angle), color='tab:red', ls='--', label='limit')
+    ax_mu.axhline(math.degrees(report.transmission_limit), color='tab:red', ls='--',
+                  label=f'limit {math.degrees(report.transmission_limit):.4g} deg')
     ax_mu.plot([math.degrees(report.min_transmission.theta)], [math.degrees(report.min_transmission.value)], 'kx')
     ax_mu.set_xlabel('theta (deg)')
     ax_mu.set_ylabel('transmission angle from dead point (deg)')
