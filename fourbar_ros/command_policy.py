@@ -51,10 +51,10 @@ def _fmt(theta: float) -> str:
 
 def decide(command: float, theta_min: float, theta_max: float, policy: Policy, reach: Reach) -> Decision:
     """Apply the policy to one command (rad). ``reach`` only classifies out-of-limit commands."""
+    if theta_min <= command <= theta_max:  # the common case first; NaN and inf fail here (finite limits)
+        return Decision(command, Outcome.ACCEPTED, '')
     if not math.isfinite(command):
         return Decision(None, Outcome.REJECTED_NOT_FINITE, f'command {command} rad is not finite')
-    if theta_min <= command <= theta_max:
-        return Decision(command, Outcome.ACCEPTED, '')
     limit = theta_min if command < theta_min else theta_max
     where = 'out of reach' if not reach.contains(command) else 'outside the limits'
     reason = (f'command {_fmt(command)} is {where} [{_fmt(theta_min)}, {_fmt(theta_max)}]')

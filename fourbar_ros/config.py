@@ -70,6 +70,7 @@ class AntennaConfig:
     out_of_limits: str
     transmission_angle_min: float
     velocity_timeout: float
+    marker_period: float
     diagnostics_period: float
     linkage: AntennaLinkage = field(compare=False, repr=False)
 
@@ -104,6 +105,7 @@ class AntennaConfig:
             'out_of_limits': self.out_of_limits,
             'transmission_angle_min': self.transmission_angle_min,
             'velocity_timeout': self.velocity_timeout,
+            'marker_period': self.marker_period,
             'diagnostics_period': self.diagnostics_period,
         }
 
@@ -222,7 +224,7 @@ def config_from_values(values: Mapping[str, object]) -> AntennaConfig:
         output_torque_limit=v['output_torque_limit'],
         joint_names=(v['gamma_joint'], v['delta_joint']), frame_id=v['frame_id'],
         out_of_limits=v['out_of_limits'], transmission_angle_min=v['transmission_angle_min'],
-        velocity_timeout=v['velocity_timeout'],
+        velocity_timeout=v['velocity_timeout'], marker_period=v['marker_period'],
         diagnostics_period=v['diagnostics_period'], linkage=linkage)
 
 

@@ -42,7 +42,7 @@ class Counters:
     input_torque_published: int = 0
     input_torque_skipped: int = 0
     markers_published: int = 0
-    markers_skipped: int = 0
+    markers_skipped: int = 0  # marker timer ticks with no subscriber or nothing new to draw
     diagnostics_published: int = 0
     diagnostics_skipped: int = 0
     parameter_changes_accepted: int = 0

@@ -24,4 +24,5 @@ def finite_difference(previous: Sample | None, current: Sample, timeout: float) 
     dt = (current.stamp_ns - previous.stamp_ns) * 1e-9
     if not 0.0 < dt <= timeout:
         return []
-    return [(q - p) / dt for q, p in zip(current.positions, previous.positions, strict=True)]
+    prev = previous.positions
+    return [(q - prev[i]) / dt for i, q in enumerate(current.positions)]

@@ -8,10 +8,12 @@ Interface (relative names, so namespaces and remapping apply):
                                                      0.0 for the other rocker
   pub  input_torque       std_msgs/Float64           torque the driven rocker needs, N m (+ in the sense of q)
   pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
-  pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow
+  pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
+                                                     every marker_period s, only when subscribed and changed
 QoS: the ROS default profile (reliable, volatile, keep-last) with depth 1000 for the command and the
 per-command outputs (a burst of a thousand commands is queued, not dropped) and depth 10 for markers and
-diagnostics. Each can be overridden with
+diagnostics. Markers are not per command (drawing them costs more than the rest of a command): a timer
+publishes them at most every marker_period s. Each can be overridden with
 ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
 The node only adapts messages and parameters; the math is in fourbar_ros.antenna/loads and the
 decisions in the pure modules command_policy, state_cache, joint_velocity, diagnostic_values.
@@ -86,6 +88,8 @@ class FourBarNode(Node):
         self._last_decision: Decision | None = None
         self._served: float | None = None
         self._last_sample: Sample | None = None
+        self._generation = 0  # bumped by every configuration change
+        self._marker_key: tuple[float, int, int] | None = None
         self._apply(self._config)
 
         qos_options = QoSOverridingOptions.with_default_policies()
@@ -99,6 +103,7 @@ class FourBarNode(Node):
         self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd', self._on_command,
                                                      STREAM_DEPTH, qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
+        self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
 
     # ------------------------------------------------------------------ configuration
 
@@ -121,6 +126,7 @@ class FourBarNode(Node):
         self._markers = LinkageMarkers(cfg.frame_id)
         self.cache.reset(partial(solve, cfg))
         self._last_sample = None  # a velocity across a configuration change means nothing
+        self._generation += 1
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Validate the running configuration with the proposed changes, as a whole."""
@@ -160,12 +166,9 @@ class FourBarNode(Node):
         self._served = theta
         want_joints = self._joint_pub.get_subscription_count() > 0
         want_torque = self._torque_pub.get_subscription_count() > 0
-        want_markers = self._marker_pub.get_subscription_count() > 0
         if not want_torque:
             self.counters.input_torque_skipped += 1
-        if not want_markers:
-            self.counters.markers_skipped += 1
-        if not (want_joints or want_torque or want_markers):
+        if not (want_joints or want_torque):
             self.counters.commands_not_solved += 1
             return
         try:
@@ -173,18 +176,12 @@ class FourBarNode(Node):
         except FourBarError as exc:  # limits lie inside the reach, so only a core bug gets here
             self._error(f'cannot solve theta={theta!r}: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
             return
-        now = self.get_clock().now()
-        stamp = now.to_msg()
         if want_joints:
-            self._publish_joints(state, stamp, now.nanoseconds)
+            now = self.get_clock().now()
+            self._publish_joints(state, now.to_msg(), now.nanoseconds)
         if want_torque:
             self._torque_pub.publish(Float64(data=float(state.input_torque)))
             self.counters.input_torque_published += 1
-        if want_markers:
-            pts = linkage_points(cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length,
-                                 cfg.rocker_cd_length, theta, float(state.gamma), float(state.delta))
-            self._marker_pub.publish(self._markers.update(pts, stamp))
-            self.counters.markers_published += 1
 
     def _publish_joints(self, state: LinkageState, stamp: Any, stamp_ns: int) -> None:
         gamma, delta, torque = float(state.gamma), float(state.delta), float(state.input_torque)
@@ -198,6 +195,31 @@ class FourBarNode(Node):
         self._last_sample = sample
         self._joint_pub.publish(msg)
         self.counters.joint_states_published += 1
+
+    # ------------------------------------------------------------------ markers
+
+    def _on_marker_timer(self) -> None:
+        """Publish the drawing if someone listens and the pose, configuration or audience changed."""
+        subscribers = self._marker_pub.get_subscription_count()
+        served = self._served
+        if subscribers == 0 or served is None:
+            self.counters.markers_skipped += 1
+            return
+        key = (served, self._generation, subscribers)
+        if key == self._marker_key:
+            self.counters.markers_skipped += 1
+            return
+        try:
+            state = self.cache.get(served)
+        except FourBarError:  # the served angle is invalid under a newer configuration
+            self.counters.markers_skipped += 1
+            return
+        cfg = self._config
+        pts = linkage_points(cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length, cfg.rocker_cd_length,
+                             served, float(state.gamma), float(state.delta))
+        self._marker_pub.publish(self._markers.update(pts, self.get_clock().now().to_msg()))
+        self._marker_key = key
+        self.counters.markers_published += 1
 
     # ------------------------------------------------------------------ diagnostics
 

@@ -111,6 +111,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('velocity_timeout', float, 0.5, 's',
               'Joint velocities come from successive commands only when they are at most this far '
               'apart; otherwise JointState.velocity is left empty.', 1e-6, 3600.0),
+    ParamSpec('marker_period', float, 0.1, 's',
+              'Period of the linkage_markers check: markers are published when someone subscribes and the '
+              'pose (or the subscriber count) changed since the last ones.', 0.001, 3600.0, read_only=True),
     ParamSpec('diagnostics_period', float, 1.0, 's',
               'Period of the /diagnostics status.', 0.01, 3600.0, read_only=True),
 )

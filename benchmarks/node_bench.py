@@ -1,0 +1,444 @@
+"""fourbar_node against a bare rclpy relay, measured in the same run: ``python -m benchmarks.node_bench [--quick]``.
+
+Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py):
+- latency: command (std_msgs/Float64) to JointState round trip seen by a client, median and p99, for the node and
+  for a relay process (Float64 in, JointState out with the same fields filled, no math, same QoS),
+  alternating ping by ping so machine load hits both alike. Commands cycle through distinct angles, so the
+  node's repeat cache never helps. Measured with only joint_states subscribed (the other outputs are then
+  skipped) and again with every output subscribed.
+- rate: the highest command rate each sustains without loss: every command of a trial (``duration`` s at that
+  rate) answered, and the last answer within 0.25 s of the last command (a backlog that grows over the trial
+  shows up as lag). Doubling from 250 Hz to the first failure, then bisection; the full run alternates two
+  rounds and keeps each side's best.
+- skipped work: the node's command callback timed in-process (per call, microseconds) with subscribers (in a
+  separate process) on joint_states only, on both per-command outputs (joint_states, input_torque), and on
+  none; and the marker and diagnostics timer callbacks with and without a subscriber.
+Targets (issue 3): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is asserted by any test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import fcntl
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+REPO = Path(__file__).resolve().parent.parent
+YAML = REPO / 'config' / 'antenna.yaml'
+DEPTH = 1000
+LAG_S = 0.25  # a rate is sustained if the last answer comes at most this long after the last command
+# Same lock files as test/ros_support.py, so a benchmark never shares a domain with a concurrent test run.
+LOCK_DIR = Path(tempfile.gettempdir()) / 'fourbar_ros_domain_locks'
+DOMAIN_IDS = (*range(90, 102), *range(215, 233))
+
+
+# --------------------------------------------------------------------------- helper processes
+
+def relay_main(argv: Sequence[str]) -> int:
+    """The baseline: subscribe Float64, publish a JointState per message with the node's message shape (stamp,
+    two names, two positions, two velocities, two efforts), all copies of the command: no math."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+
+    rclpy.init(args=list(argv))
+    node = Node('relay')
+    pub = node.create_publisher(JointState, 'joint_states', DEPTH)
+    names = ['rocker_ab_joint', 'rocker_cd_joint']
+    clock = node.get_clock()
+
+    def relay(msg: Float64) -> None:
+        out = JointState()
+        out.header.stamp = clock.now().to_msg()
+        out.name = names
+        out.position = [msg.data, msg.data]
+        out.velocity = [msg.data, msg.data]
+        out.effort = [msg.data, 0.0]
+        pub.publish(out)
+
+    node.create_subscription(Float64, 'antenna_angle_cmd', relay, DEPTH)
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def sink_main(argv: Sequence[str]) -> int:
+    """Subscribe to the given topics (``name:Type``) and spin: a consumer in another process."""
+    import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.executors import ExternalShutdownException
+    from rclpy.node import Node
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+    from visualization_msgs.msg import MarkerArray
+
+    types = {'JointState': JointState, 'Float64': Float64, 'MarkerArray': MarkerArray,
+             'DiagnosticArray': DiagnosticArray}
+    split = list(argv).index('--ros-args') if '--ros-args' in argv else len(argv)
+    rclpy.init(args=list(argv[split:]))
+    node = Node('sink')
+    for spec in argv[:split]:
+        topic, type_name = spec.split(':')
+        node.create_subscription(types[type_name], topic, lambda _m: None, DEPTH)
+    try:
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+class Child:
+    """A helper process, terminated then killed on exit."""
+
+    def __init__(self, cmd: list[str], env: dict[str, str]) -> None:
+        self.proc = subprocess.Popen(cmd, env=env, cwd=REPO, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                                     start_new_session=True)
+
+    def close(self) -> None:
+        for send, wait in ((self.proc.terminate, 5.0), (self.proc.kill, 10.0)):
+            if self.proc.poll() is not None:
+                return
+            send()
+            try:
+                self.proc.wait(timeout=wait)
+                return
+            except subprocess.TimeoutExpired:
+                continue
+
+
+def lease_domain() -> tuple[int, int]:
+    """(domain id, lock fd): an id no concurrent test or benchmark run holds."""
+    LOCK_DIR.mkdir(parents=True, exist_ok=True)
+    for domain_id in DOMAIN_IDS[::-1]:
+        fd = os.open(LOCK_DIR / f'{domain_id}.lock', os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            os.close(fd)
+            continue
+        return domain_id, fd
+    raise RuntimeError('no free ROS domain id')
+
+
+def node_script() -> list[str]:
+    script = Path(sys.executable).parent / 'fourbar_node'
+    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.node']
+
+
+def wait_until(predicate: Callable[[], bool], timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise RuntimeError(f'timed out waiting for {what}')
+        time.sleep(0.01)
+
+
+# --------------------------------------------------------------------------- measurements
+
+def commands(n: int, lo: float, hi: float) -> list[float]:
+    """n distinct angles spread over [lo, hi] (golden-ratio sequence), so no command repeats."""
+    return [lo + (hi - lo) * ((0.5 + i * 0.6180339887498949) % 1.0) for i in range(n)]
+
+
+class Target:
+    """One system under test as the client sees it: a command publisher and a JointState counter."""
+
+    def __init__(self, client: Any, ns: str) -> None:
+        from sensor_msgs.msg import JointState
+        from std_msgs.msg import Float64
+
+        self.Float64 = Float64
+        self.pub = client.create_publisher(Float64, f'{ns}/antenna_angle_cmd', DEPTH)
+        self.count = 0
+        self.last_arrival = 0.0
+        self.sub = client.create_subscription(JointState, f'{ns}/joint_states', self._on_reply, DEPTH)
+
+    def _on_reply(self, _msg: Any) -> None:
+        self.last_arrival = time.perf_counter()
+        self.count += 1
+
+    def send(self, theta: float) -> None:
+        self.pub.publish(self.Float64(data=theta))
+
+
+def ping(executor: Any, target: Target, theta: float, timeout: float = 2.0) -> float | None:
+    """One round trip in seconds (None if no answer within timeout)."""
+    before = target.count
+    t0 = time.perf_counter()
+    target.send(theta)
+    deadline = t0 + timeout
+    while target.count == before:
+        if time.perf_counter() > deadline:
+            return None
+        executor.spin_once(timeout_sec=0.05)
+    return target.last_arrival - t0
+
+
+def connect(executor: Any, target: Target, theta: float, timeout: float = 30.0) -> None:
+    """Ping until answered (discovery is asymmetric), then let stragglers arrive."""
+    deadline = time.monotonic() + timeout
+    while ping(executor, target, theta, timeout=0.2) is None:
+        if time.monotonic() > deadline:
+            raise RuntimeError(f'no answer on {target.sub.topic_name}')
+    end = time.monotonic() + 0.3
+    while time.monotonic() < end:
+        executor.spin_once(timeout_sec=0.05)
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+
+def latency(executor: Any, targets: dict[str, Target], thetas: list[float]) -> dict[str, dict[str, float]]:
+    """Pings alternating between the targets (order flipped every round, so load hits both alike);
+    median and p99 in microseconds, and lost pings."""
+    rtts: dict[str, list[float]] = {k: [] for k in targets}
+    lost = dict.fromkeys(targets, 0)
+    names = list(targets)
+    for i, theta in enumerate(thetas):
+        for name in names if i % 2 == 0 else names[::-1]:
+            rtt = ping(executor, targets[name], theta)
+            if rtt is None:
+                lost[name] += 1
+            else:
+                rtts[name].append(rtt)
+    return {k: {'median_us': 1e6 * statistics.median(v), 'p99_us': 1e6 * percentile(v, 0.99),
+                'samples': len(v), 'lost': lost[k]} for k, v in rtts.items()}
+
+
+def sustains(executor: Any, target: Target, rate: float, duration: float, thetas: list[float]) -> tuple[bool, float]:
+    """Send at ``rate`` for ``duration`` s; (all answered without backlog, achieved send rate)."""
+    n = max(10, int(rate * duration))
+    before = target.count
+    stop = threading.Event()
+
+    def spin() -> None:
+        while not stop.is_set():
+            executor.spin_once(timeout_sec=0.01)
+
+    spinner = threading.Thread(target=spin, daemon=True)
+    spinner.start()
+    try:
+        t0 = time.perf_counter()
+        sent = 0
+        while sent < n:  # publish whatever is due, then sleep a little: paced on average, light on the CPU
+            due = min(n, int((time.perf_counter() - t0) * rate) + 1)
+            while sent < due:
+                target.send(thetas[sent % len(thetas)])
+                sent += 1
+            time.sleep(0.0005)
+        t_last = time.perf_counter()
+        achieved = n / max(t_last - t0, 1e-9)
+        allowed = LAG_S
+        deadline = t_last + allowed
+        while target.count - before < n and time.perf_counter() < deadline:
+            time.sleep(0.001)
+        ok = target.count - before == n and target.last_arrival - t_last <= allowed
+        # Let any late answers drain so the next trial starts clean.
+        settle = time.perf_counter() + 1.0
+        while target.count - before < n and time.perf_counter() < settle:
+            time.sleep(0.005)
+    finally:
+        stop.set()
+        spinner.join()
+    return ok and target.count - before == n, achieved
+
+
+def max_rate(executor: Any, target: Target, thetas: list[float], duration: float, bisections: int,
+             start: float = 250.0, cap: float = 32000.0) -> dict[str, float]:
+    """Highest sustained rate (Hz): doubling from ``start`` to the first failure, then bisection."""
+    good, bad = 0.0, 0.0
+    rate = start
+    client_limited = False
+    while rate <= cap:
+        ok, achieved = sustains(executor, target, rate, duration, thetas)
+        if achieved < 0.95 * rate:
+            client_limited = True
+        if not ok:
+            bad = rate
+            break
+        good = rate
+        rate *= 2.0
+    if bad:
+        lo, hi = good, bad
+        for _ in range(bisections):
+            mid = 0.5 * (lo + hi) if lo else 0.5 * hi
+            ok, achieved = sustains(executor, target, mid, duration, thetas)
+            if achieved < 0.95 * mid:
+                client_limited = True
+            lo, hi = (mid, hi) if ok else (lo, mid)
+        good = lo
+    return {'rate_hz': good, 'client_limited': float(client_limited)}
+
+
+def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> dict[str, Any]:
+    """Per-call cost (us) of the node's command and diagnostics callbacks, by which outputs have subscribers."""
+    from rclpy.parameter import Parameter
+    from std_msgs.msg import Float64
+
+    from fourbar_ros.node import FourBarNode
+
+    node = FourBarNode(context=context, namespace='/cost', cli_args=['--ros-args', '--params-file', str(YAML)],
+                       parameter_overrides=[Parameter('diagnostics_period', value=3600.0)])
+    cfg = node.config
+    msgs = [Float64(data=t) for t in commands(256, cfg.theta_min, cfg.theta_max)]
+    scenarios = {
+        'none': [],
+        'joint_states_only': ['/cost/joint_states:JointState'],
+        'all_outputs': ['/cost/joint_states:JointState', '/cost/input_torque:Float64'],
+    }
+    pubs = {'joint_states': node._joint_pub, 'input_torque': node._torque_pub}
+    out: dict[str, Any] = {}
+    try:
+        for name, topics in scenarios.items():
+            sink = Child([sys.executable, '-m', 'benchmarks.node_bench', 'sink', *topics], domain_env)
+            try:
+                wanted = {t.split(':')[0].rsplit('/', 1)[1] for t in topics}
+                wait_until(lambda w=wanted: all((pub.get_subscription_count() > 0) == (k in w)  # type: ignore[misc]
+                                                for k, pub in pubs.items()), 30.0, f'subscribers for {name}')
+                samples = []
+                for _ in range(repeats):
+                    t0 = time.perf_counter()
+                    for m in msgs:
+                        node._on_command(m)
+                    samples.append((time.perf_counter() - t0) / len(msgs))
+                out[name] = 1e6 * statistics.median(samples)
+            finally:
+                sink.close()
+        timers: dict[str, dict[str, float]] = {'markers': {}, 'diagnostics': {}}
+        served = [m.data for m in msgs]
+        for kind, pub, topic, tick in (
+                ('markers', node._marker_pub, '/cost/linkage_markers:MarkerArray', node._on_marker_timer),
+                ('diagnostics', node._diag_pub, '/diagnostics:DiagnosticArray', node._on_diagnostics_timer)):
+            for name, topics in (('skipped', []), ('subscribed', [topic])):
+                sink = Child([sys.executable, '-m', 'benchmarks.node_bench', 'sink', *topics], domain_env)
+                try:
+                    wait_until(lambda p=pub, t=topics: (p.get_subscription_count() > 0) == bool(t),  # type: ignore[misc]
+                               30.0, f'{kind} subscriber')
+                    samples = []
+                    for _ in range(repeats):
+                        t0 = time.perf_counter()
+                        for i in range(50):
+                            node._served = served[i]  # a new pose each tick, so markers are redrawn
+                            tick()
+                        samples.append((time.perf_counter() - t0) / 50)
+                    timers[kind][name] = 1e6 * statistics.median(samples)
+                finally:
+                    sink.close()
+    finally:
+        node.destroy_node()
+    return {'command_callback_us': out, 'saved_us_per_command': out['all_outputs'] - out['joint_states_only'],
+            'saved_fraction': 1.0 - out['joint_states_only'] / out['all_outputs'],
+            'timer_callback_us': timers}
+
+
+# --------------------------------------------------------------------------- entry points
+
+def run(quick: bool) -> dict[str, Any]:
+    """Measure everything once; JSON-serialisable figures (times in microseconds, rates in Hz)."""
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    from fourbar_ros.config import load_config
+
+    cfg = load_config(YAML)
+    n_lat, duration, bisections, repeats, rounds = (300, 1.0, 2, 5, 1) if quick else (2000, 2.0, 4, 15, 2)
+    domain_id, lock_fd = lease_domain()
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
+    children: list[Child] = []
+    context = Context()
+    result: dict[str, Any] = {'quick': quick, 'domain_id': domain_id}
+    try:
+        children.append(Child([sys.executable, '-m', 'benchmarks.node_bench', 'relay', '--ros-args', '-r',
+                               '__ns:=/relay'], env))
+        children.append(Child([*node_script(), '--ros-args', '--params-file', str(YAML), '-r', '__ns:=/node'], env))
+        rclpy.init(context=context, domain_id=domain_id)
+        client = Node('bench_client', context=context)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(client)
+        targets = {'relay': Target(client, '/relay'), 'node': Target(client, '/node')}
+        thetas = commands(max(n_lat, 4096), cfg.theta_min, cfg.theta_max)
+        for target in targets.values():
+            connect(executor, target, thetas[0])
+        lat = latency(executor, targets, thetas[:n_lat])
+        # The same with every output of the node subscribed.
+        from std_msgs.msg import Float64
+        from visualization_msgs.msg import MarkerArray
+        extra = [client.create_subscription(Float64, '/node/input_torque', lambda _m: None, DEPTH),
+                 client.create_subscription(MarkerArray, '/node/linkage_markers', lambda _m: None, DEPTH)]
+        wait_until(lambda: all(s.get_publisher_count() > 0 for s in extra), 30.0, 'node outputs')
+        connect(executor, targets['node'], thetas[1])
+        lat_all = latency(executor, targets, thetas[:n_lat // 2])
+        lat_all_ratio = lat_all['node']['median_us'] / lat_all['relay']['median_us']
+        for s in extra:
+            client.destroy_subscription(s)
+        rates: dict[str, dict[str, float]] = {}
+        for _ in range(rounds):  # alternate, keep each side's best round
+            for name in ('relay', 'node'):
+                got = max_rate(executor, targets[name], thetas, duration, bisections)
+                if name not in rates or got['rate_hz'] > rates[name]['rate_hz']:
+                    rates[name] = got
+        result.update({
+            'latency': {'relay': lat['relay'], 'node': lat['node'], 'node_all_outputs': lat_all['node'],
+                        'relay_during_all_outputs': lat_all['relay']},
+            'latency_ratio_median': lat['node']['median_us'] / lat['relay']['median_us'],
+            'latency_ratio_p99': lat['node']['p99_us'] / lat['relay']['p99_us'],
+            'latency_ratio_median_all_outputs': lat_all_ratio,
+            'rate': rates,
+            'rate_ratio': rates['node']['rate_hz'] / rates['relay']['rate_hz'] if rates['relay']['rate_hz'] else None,
+        })
+        executor.remove_node(client)
+        client.destroy_node()
+        result['skipped_work'] = callback_costs(context, env, repeats)
+    finally:
+        for child in children:
+            child.close()
+        context.try_shutdown()
+        os.close(lock_fd)
+    result['targets'] = {'latency_ratio_max': 1.10, 'rate_ratio_min': 0.9}
+    result['meets_targets'] = {
+        'latency': result['latency_ratio_median'] <= 1.10,
+        'rate': result['rate_ratio'] is not None and result['rate_ratio'] >= 0.9,
+    }
+    result['command'] = 'python -m benchmarks.node_bench' + (' --quick' if quick else '')
+    return result
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``relay``/``sink`` run a helper process; otherwise measure and print JSON."""
+    argv = sys.argv[1:] if argv is None else argv
+    if argv and argv[0] == 'relay':
+        return relay_main(argv[1:])
+    if argv and argv[0] == 'sink':
+        return sink_main(argv[1:])
+    parser = argparse.ArgumentParser(prog='python -m benchmarks.node_bench', description=__doc__)
+    parser.add_argument('--quick', action='store_true', help='fewer samples, shorter rate trials')
+    args = parser.parse_args(argv)
+    print(json.dumps(run(args.quick), indent=2))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
