@@ -312,7 +312,7 @@ def lengths_from_constants(
         if kv < 0.0 and not allow_flip:
             raise UnbuildableDesignError(
                 f'unbuildable: {name} = {kv:.6g} < 0 gives {link} length {ground / kv:.6g}; the {link} would point '
-                'opposite (angle + pi) to the requested angles (allow a flipped link to accept it)')
+                'opposite (angle + pi) to the requested angles (allow_flip / --allow-flip accepts that)')
     l2 = ground / k1  # signed: the sign is the flip
     l4 = ground / k2
     if pairs is None:

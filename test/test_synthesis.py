@@ -94,6 +94,22 @@ def test_three_positions_recover_known_linkage(name: str, branch: int) -> None:
         assert math.copysign(1, side_of_b_o4((d.ground, d.crank, d.coupler, d.rocker), p.t2, p.t4)) == p.branch
 
 
+def test_turnantenna_linkage_from_the_notes_table() -> None:
+    """The antenna linkage is a four-bar with ground AD, crank AB (t2 = gamma) and rocker DC (t4 = pi - delta).
+    Three rows of the independent 60-digit table in NOTES.md (-6, 0, +7 deg) must give back Turnantenna's
+    60 / 102 / 60 mm, to within what the table's 12 decimals of a degree allow (sensitivity * 0.5e-12 deg)."""
+    rows = [(40.921022829819, 56.378807215667), (49.458398126495, 49.458398126495),
+            (57.328038082382, 39.390113547656)]
+    pairs = [(math.radians(g), math.pi - math.radians(d)) for g, d in rows]
+    d = synthesize(pairs, ground=0.180)
+    bound = d.sensitivity * math.radians(0.5e-12)
+    assert 1e-13 < bound < 1e-11  # the table, not double precision, limits this check
+    assert rel_err((d.crank, d.coupler, d.rocker), (0.060, 0.102, 0.060)) <= bound
+    assert d.k1 == pytest.approx(3.0, rel=bound) and d.k2 == pytest.approx(3.0, rel=bound)
+    assert d.k3 == pytest.approx((0.18**2 + 0.06**2 - 0.102**2 + 0.06**2) / (2 * 0.06 * 0.06), rel=2 * bound)
+    assert d.branch == 1 and d.grashof_type == 'triple-rocker'
+
+
 def test_ground_sets_the_scale_only() -> None:
     fb = FourBar(*LINKAGES['crank-rocker'])
     pairs = pairs_of(fb, [0.4, 1.2, 2.1], [1, 1, 1])

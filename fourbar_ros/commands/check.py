@@ -7,6 +7,7 @@ import json
 import math
 import os
 import sys
+import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -199,7 +200,7 @@ def _plot(cfg: AntennaConfig, report: DesignReport, path: str, samples: int) -> 
     ax_mu.legend(fontsize=8, loc='lower left')
     ax_mu.grid(alpha=0.3)
 
-    fig.suptitle(f'fourbar check: {report.verdict}', fontsize=11,
+    fig.suptitle(textwrap.fill(f'fourbar check: {report.verdict}', 130), fontsize=10,
                  color='tab:green' if report.passed else 'tab:red')
     fig.tight_layout()
     target = Path(path)
