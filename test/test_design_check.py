@@ -79,7 +79,10 @@ def test_extrema_match_a_dense_brute_force_scan() -> None:
 
 def test_extremum_is_refined_between_grid_points() -> None:
     theta = np.linspace(0.0, 1.0, 11)
-    f = lambda t: 2.0 - (t - 0.3141592653589793) ** 2  # noqa: E731
+
+    def f(t: float) -> float:
+        return 2.0 - (t - 0.3141592653589793) ** 2
+
     e = _extremum(theta, np.array([f(float(t)) for t in theta]), f)
     assert e.theta == pytest.approx(0.3141592653589793, abs=1e-7)
     assert e.value == pytest.approx(2.0, abs=1e-14)
