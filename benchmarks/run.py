@@ -78,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
     headline: dict[str, Any] = {
         'floor_ratio': ratio(shipped.seconds_per_solve_vector, baselines['floor']),
         'floor_ratio_target': 1.3,
+        'scalar_ratio_to_stable_plain': ratio(shipped.seconds_per_solve_scalar, baselines['stable_plain']),
+        'annex_scalar_ratio_to_stable_plain': ratio(annex.seconds_per_solve_scalar if annex else None,
+                                                    baselines['stable_plain']),
         'scalar_ratio_to_annex': ratio(shipped.seconds_per_solve_scalar,
                                        annex.seconds_per_solve_scalar if annex else None),
         'vector_ratio_to_annex': ratio(shipped.seconds_per_solve_vector,
@@ -110,6 +113,7 @@ def main(argv: list[str] | None = None) -> int:
         'headline': headline,
         'baselines_seconds': {'floor_per_element': baselines['floor'],
                               'python_call_per_call': baselines['python_call'],
+                              'stable_plain_scalar_per_call': baselines['stable_plain'],
                               'floor_per_element_wall': baselines['floor_wall'],
                               'python_call_per_call_wall': baselines['python_call_wall']},
         'peers': peers,

@@ -8,6 +8,7 @@ the error infinite (the method failed on an input it must serve).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -155,6 +156,36 @@ def floor_ufuncs(inputs: tuple[FloatArray, ...]) -> object:
     return np.sin(half), np.cos(half), np.sqrt(prod), np.arctan2(y_phi, x_phi), np.arctan2(root, x_alpha)
 
 
+def stable_plain_scalar(g: Geometry) -> Callable[[float], tuple[float, float]]:
+    """The stable form's math for equal or unequal rockers (upper branch) as a bare closure returning a plain tuple.
+
+    No validation, no clamping, no NamedTuple: a lower bound for any scalar path that evaluates the stable form
+    in CPython (sin, cos, sqrt and two or three atan2 of the half-angle diagonal and the factored Heron root).
+    """
+    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
+    diff = 1.0 - ch
+    two_l2 = 2.0 * ch
+    far0 = (a + b - diff) * (a + b + diff)
+    near0 = (diff - (a - b)) * (diff + (a - b))
+    cos_p = diff * diff + (a - b) * (a + b)
+    cos_q = diff * diff - (a - b) * (a + b)
+    equal = a == b
+    sin, cos, sqrt, atan2 = math.sin, math.cos, math.sqrt, math.atan2
+
+    def solve(theta: float) -> tuple[float, float]:
+        half = 0.5 * theta
+        s = sin(half)
+        hs = two_l2 * s
+        w = 2.0 * hs * s
+        root = sqrt((far0 - w) * (near0 + w))
+        phi = atan2(hs * cos(half), diff + hs * s)
+        alpha = atan2(root, cos_p + w)
+        beta = alpha if equal else atan2(root, cos_q + w)
+        return phi + alpha, beta - phi
+
+    return solve
+
+
 def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n_vector: int,
             repeats: int) -> dict[str, float]:
     """Fill seconds_per_solve_* on the Turnantenna geometry; returns the baselines measured in the same rounds.
@@ -167,7 +198,8 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
     thetas = np.sort(sweep_angles(g, n_vector, seed=7))
     scalar_thetas = np.sort(sweep_angles(g, n_scalar, seed=8)).tolist()
     by_name = {r.name: r for r in results}
-    scalar_cases = [Case('python_call', scalar_loop(lambda t: (t, t), scalar_thetas), n_scalar)]
+    scalar_cases = [Case('python_call', scalar_loop(lambda t: (t, t), scalar_thetas), n_scalar),
+                    Case('stable_plain', scalar_loop(stable_plain_scalar(g), scalar_thetas), n_scalar)]
     inputs = floor_inputs(g, thetas)
     vector_cases = [Case('floor', lambda: floor_ufuncs(inputs), n_vector)]
     for m in methods:
@@ -201,6 +233,7 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
             by_name[name].seconds_per_solve_vector = cpu
             by_name[name].wall_seconds_per_solve_vector = wall
     return {'floor': v_times['floor'][0], 'python_call': s_times['python_call'][0],
+            'stable_plain': s_times['stable_plain'][0], 'stable_plain_wall': s_times['stable_plain'][1],
             'floor_wall': v_times['floor'][1], 'python_call_wall': s_times['python_call'][1]}
 
 

@@ -51,6 +51,13 @@ class RockerTable:
     _delta: FloatArray = field(repr=False, compare=False)
     _rows: tuple[tuple[tuple[float, float, float, float], tuple[float, float, float, float]], ...] = field(
         repr=False, compare=False)
+    _inv_step: float = field(init=False, repr=False, compare=False)
+    _columns: tuple[FloatArray, ...] = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, '_inv_step', (self.points - 1) / (self.theta_max - self.theta_min))
+        cols = tuple(np.ascontiguousarray(c[:, j]) for c in (self._gamma, self._delta) for j in range(4))
+        object.__setattr__(self, '_columns', cols)
 
     @classmethod
     def build(cls, linkage: AntennaLinkage, theta_min: float, theta_max: float, tolerance: float = 1e-6,
@@ -112,11 +119,13 @@ class RockerTable:
         """
         lo, hi = self.theta_min, self.theta_max
         if type(theta) is float or isinstance(theta, (float, int)):
-            t = float(theta)
+            t = theta if type(theta) is float else float(theta)
             if not lo <= t <= hi:
                 raise self._outside(t)
-            u = (t - lo) / self.step
-            i = min(int(u), self.points - 2)
+            u = (t - lo) * self._inv_step
+            i = int(u)
+            if i >= len(self._rows):
+                i -= 1
             f = u - i
             (g0, g1, g2, g3), (d0, d1, d2, d3) = self._rows[i]
             # tuple.__new__ skips NamedTuple's Python-level __new__ (about half the cost of this call).
@@ -130,11 +139,14 @@ class RockerTable:
                 raise UnreachableError(f'{int(bad.sum())} of {th.size} angles lie outside the table, the first '
                                        f'theta={first!r}; table: [{lo!r}, {hi!r}] rad')
             th = np.where(bad, lo, th)
-        ua = (th - lo) / self.step
-        ia = np.minimum(ua.astype(np.intp), self.points - 2)
-        fa = ua - ia
-        gam = _horner(self._gamma, ia, fa)
-        dlt = _horner(self._delta, ia, fa)
+        ua = th - lo
+        ua *= self._inv_step
+        ia = ua.astype(np.intp)
+        np.minimum(ia, self.points - 2, out=ia)
+        ua -= ia  # now the fraction within the interval
+        cols = self._columns
+        gam = _horner_columns(cols[:4], ia, ua)
+        dlt = _horner_columns(cols[4:], ia, ua)
         if bad.any():
             gam[bad] = np.nan
             dlt[bad] = np.nan
@@ -185,6 +197,18 @@ def _hermite(y: FloatArray, m: FloatArray) -> FloatArray:
 
 def _horner(c: npt.NDArray[np.floating], i: npt.NDArray[np.intp], f: npt.NDArray[np.floating]) -> FloatArray:
     return np.asarray(c[i, 0] + f * (c[i, 1] + f * (c[i, 2] + f * c[i, 3])))
+
+
+def _horner_columns(cols: tuple[FloatArray, ...], i: npt.NDArray[np.intp], f: FloatArray) -> FloatArray:
+    """c0 + f (c1 + f (c2 + f c3)) with each coefficient gathered from its own contiguous column."""
+    r = np.take(cols[3], i)
+    r *= f
+    r += np.take(cols[2], i)
+    r *= f
+    r += np.take(cols[1], i)
+    r *= f
+    r += np.take(cols[0], i)
+    return r
 
 
 def _measure(linkage: AntennaLinkage, branch: Branch, lo: float, step: float, cg: FloatArray,

@@ -171,3 +171,17 @@ def test_floor_inputs_are_the_stable_forms_own_values() -> None:
     core = linkage(TURNANTENNA).rocker_angles(th)
     np.testing.assert_allclose(gamma, core.gamma, rtol=0, atol=1e-14)
     np.testing.assert_allclose(delta, core.delta, rtol=0, atol=1e-14)
+
+
+@pytest.mark.parametrize('geo', [TURNANTENNA, COUPLER_LONG, Geometry('u', 0.2, 0.05, 0.1, 0.07)])
+def test_stable_plain_baseline_is_the_shipped_math(geo: Geometry) -> None:
+    from benchmarks.sweep import stable_plain_scalar
+
+    solve = stable_plain_scalar(geo)
+    link = linkage(geo)
+    top = link.reach().theta_max
+    for t in np.linspace(-0.99 * top, 0.99 * top, 41).tolist():
+        g, d = solve(t)
+        cg, cd = link.rocker_angles(t)
+        assert abs(math.remainder(g - cg, 2 * math.pi)) < 1e-14
+        assert abs(math.remainder(d - cd, 2 * math.pi)) < 1e-14
