@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.command_policy import Policy, decide
+from fourbar_ros.command_policy import Outcome, Policy, decide
 from fourbar_ros.config import AntennaConfig
 from fourbar_ros.errors import FourBarError
 from fourbar_ros.loads import motor_torque, solve
@@ -51,7 +51,8 @@ def served_angles(commands: Sequence[float], cfg: AntennaConfig) -> tuple[list[f
         if decision.theta is None:
             rejected += 1
             continue
-        clamped += decision.outcome.value == 'clamped'
+        if decision.outcome is Outcome.CLAMPED:
+            clamped += 1
         served.append(decision.theta)
     return served, rejected, clamped
 

@@ -433,3 +433,23 @@ def test_record_cli_bad_input(args: list[str], words: str, tmp_path: Path,
     assert out == '' and len(lines) == 1 and lines[0].startswith('fourbar record: error: ') and words in lines[0]
     assert _listing(tmp_path) == before
     assert (tmp_path / 'EXISTS' / 'keep').read_text() == 'untouched'
+
+
+def test_progress_bar_draws_only_on_a_terminal() -> None:
+    import io
+
+    from fourbar_ros.bag_replay import Progress
+
+    quiet = io.StringIO()  # not a TTY: silent by default
+    bar = Progress(10, 'replay', stream=quiet)
+    bar.update(5, force=True)
+    bar.end()
+    assert quiet.getvalue() == ''
+    shown = io.StringIO()
+    bar = Progress(10, 'replay', stream=shown, enabled=True)
+    bar.update(5, force=True)
+    bar.update(10)  # throttled: not drawn yet
+    bar.end()  # draws the last state and ends the line
+    text = shown.getvalue()
+    assert text.count('\r') == 2 and text.endswith('\n')
+    assert 'replay [' + '#' * 15 + '.' * 15 + '] 5/10' in text and '10/10' in text.splitlines()[-1]
