@@ -103,23 +103,54 @@ def stress_table(stress: dict[str, Any]) -> str:
     return '\n'.join(rows) + '\n'
 
 
+def lookup_text(lk: dict[str, Any] | None) -> str:
+    """What the offered table costs and saves, from the same run."""
+    if not lk:
+        return 'Not measured in this run.\n'
+    lines = ['Users who accept a bounded error (a small controller with no fast trigonometry, or a vectorized '
+             'batch where 1e-6 rad is plenty) can tabulate the linkage once: `RockerTable.build(link, theta_min, '
+             'theta_max, tolerance)` doubles a cubic-Hermite grid until the error, checked against the exact solver '
+             'at 16 points per interval, is within half the tolerance; `to_c()` emits float32 C. The exact solve '
+             'stays the default everywhere.', '']
+    for t in lk['tables']:
+        lines.append(f'- Turnantenna tilt range [-6, +7] deg at {t["tolerance_rad"]:g} rad: **{t["points"]} points**, '
+                     f'max error {_fmt(t["max_error_rad"])} rad (float64), {_fmt(t["max_error_float32_rad"])} rad in '
+                     f'float32 C ({t["float32_bytes"]} bytes of coefficients).')
+    if lk.get('time_ratio_to_shipped_vector'):
+        lines.append(f'- Built to 1e-6 rad over the whole common sweep (99% of the reach, so many more points): '
+                     f'{_fmt(lk["time_ratio_to_shipped_vector"])}x the shipped vectorized time, '
+                     f'{_fmt(lk["time_ratio_to_shipped_scalar"])}x its scalar time (in CPython the per-call overhead '
+                     f'dominates a scalar lookup), max error {_fmt(lk["sweep_max_error_rad"])} rad.')
+    return '\n'.join(lines) + '\n'
+
+
 def agent_table(title: str, figures: dict[str, Any] | None) -> str:
     """Render a node/bag agent's dict (flattened one level) as a two-column table."""
     if figures is None:
         return f'{title}: module not present in this checkout, not measured.\n'
     if 'error' in figures and len(figures) == 1:
         return f'{title}: its benchmark failed in this run: `{figures["error"]}`.\n'
-    rows = [f'| {title} | value |', '|---|---:|']
+    flat: list[tuple[str, Any]] = []
 
     def add(prefix: str, d: dict[str, Any]) -> None:
         for k, v in d.items():
             if isinstance(v, dict):
                 add(f'{prefix}{k}.', v)
             else:
-                rows.append(f'| {prefix}{k} | {_fmt(v) if isinstance(v, float) else v} |')
+                flat.append((f'{prefix}{k}', v))
 
     add('', figures)
-    return '\n'.join(rows) + '\n'
+    markers = ('ratio', '_over_', 'fraction', 'saved', 'meets', 'lost')
+    head = [(k, v) for k, v in flat if any(m in k for m in markers)]
+    rest = [(k, v) for k, v in flat if (k, v) not in head]
+
+    def table(items: list[tuple[str, Any]], label: str) -> list[str]:
+        return [f'| {label} | value |', '|---|---:|'] + [
+            f'| {k} | {_fmt(v) if isinstance(v, float) else v} |' for k, v in items]
+
+    lines = table(head, f'{title}: ratios to same-run baselines')
+    lines += ['', '<details><summary>all figures</summary>', '', *table(rest, title), '', '</details>']
+    return '\n'.join(lines) + '\n'
 
 
 def plot(data: dict[str, Any], path: Path) -> None:
@@ -145,13 +176,16 @@ def plot(data: dict[str, Any], path: Path) -> None:
         if front:
             ax.step([p[0] for p in front], [p[1] for p in front], where='post', color='k', lw=0.8, ls='--',
                     label='Pareto front', zorder=2)
+        ax.axhspan(0.5, 20.0, color='tab:red', alpha=0.07, zorder=0,
+                   label='wrong assembly branch on some geometry (error ~ pi)')
         ax.set_xscale('log')
         ax.set_yscale('log')
+        ax.set_ylim(5e-17, 20.0)
         ax.set_xlabel('time per solve (ns), median, Turnantenna geometry')
         ax.set_ylabel('max error over the common sweep (rad)')
         ax.set_title(title)
         ax.grid(True, which='both', alpha=0.3)
-        ax.legend(loc='upper right', fontsize=8)
+        ax.legend(loc='lower right', fontsize=7)
     fig.suptitle(f'time against error ({data["command"]}); shipped = star; outlined = on the front', fontsize=10)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
@@ -193,7 +227,8 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         '',
         'Regenerate everything below with `make bench` (`python -m benchmarks.run` in the venv; a few minutes) or '
         '`make bench-quick` (`--quick`: smaller sizes, under a minute). '
-        f'The figures here come from `{data["command"]}` ({data["elapsed_seconds"]:.0f} s). '
+        f'The figures here come from `{data["command"]}` ({data["elapsed_seconds"]:.0f} s; by part: '
+        + ', '.join(f'{k} {v:.0f} s' for k, v in data.get('elapsed_seconds_parts', {}).items()) + '). '
         f'This file, `{rel}/methods.md`, `{rel}/stress.md`, `{rel}/pareto.png` and `{rel}/results.json` are '
         'written by that command; do not edit them by hand.',
         '',
@@ -288,6 +323,9 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
                          '; '.join(f'{k}: {v}' for k, v in rest.items()))
         lines.append('')
     lines += [
+        '## A cheaper method for some users: `fourbar_ros.lookup.RockerTable`',
+        '',
+        lookup_text(data.get('lookup')),
         '## Node and bag figures',
         '',
         agent_table('node (benchmarks/node_bench.py)', data.get('node')),

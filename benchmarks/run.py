@@ -39,6 +39,31 @@ def agent_bench(module: str, quick: bool) -> dict[str, Any] | None:
     return dict(out) if isinstance(out, dict) else {'error': f'run() returned {type(out).__name__}, not dict'}
 
 
+def lookup_summary(by: dict[str, Any]) -> dict[str, Any]:
+    """The offered table (fourbar_ros.lookup) on Turnantenna's tilt range, and its sweep figures against shipped."""
+    import math
+
+    from fourbar_ros.lookup import RockerTable
+
+    from .cases import TURNANTENNA
+    from .methods import linkage
+
+    tilt = (math.radians(-6.0), math.radians(7.0))
+    tables = []
+    for tol in (1e-6, 1e-9):
+        t = RockerTable.build(linkage(TURNANTENNA), *tilt, tolerance=tol)
+        tables.append({'tolerance_rad': tol, 'points': t.points, 'max_error_rad': t.max_error,
+                       'max_error_float32_rad': t.max_error_float32, 'float32_bytes': 2 * 4 * 4 * (t.points - 1)})
+    ship, lk = by[SHIPPED], by.get('lookup-1e-06')
+    out: dict[str, Any] = {'tilt_range_rad': list(tilt), 'tables': tables}
+    if lk is not None:
+        for key in ('seconds_per_solve_scalar', 'seconds_per_solve_vector'):
+            a, b = getattr(lk, key), getattr(ship, key)
+            out[key.replace('seconds_per_solve', 'time_ratio_to_shipped')] = None if not a or not b else a / b
+        out['sweep_max_error_rad'] = lk.max_error
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run everything and write the report; exit status 0 (1 if the shipped method is off the Pareto front)."""
     parser = argparse.ArgumentParser(prog='python -m benchmarks.run', description=__doc__)
@@ -66,10 +91,18 @@ def main(argv: list[str] | None = None) -> int:
     by = {r.name: r for r in results}
     shipped = by[SHIPPED]
 
+    parts = {'sweep_and_timing': time.perf_counter() - started}
     print('stress suite', flush=True)
+    t0 = time.perf_counter()
     stress_out = stress.run(quick)
-    agents = {} if args.skip_agents else {
-        'node': agent_bench('node_bench', quick), 'bag': agent_bench('bag_bench', quick)}
+    parts['stress'] = time.perf_counter() - t0
+    agents: dict[str, dict[str, Any] | None] = {}
+    if not args.skip_agents:
+        for key, module in (('node', 'node_bench'), ('bag', 'bag_bench')):
+            print(f'{key} benchmark (benchmarks/{module}.py)', flush=True)
+            t0 = time.perf_counter()
+            agents[key] = agent_bench(module, quick)
+            parts[key] = time.perf_counter() - t0
 
     def ratio(a: float | None, b: float | None) -> float | None:
         return None if a is None or b is None or b == 0 else a / b
@@ -121,6 +154,7 @@ def main(argv: list[str] | None = None) -> int:
         'timing': {'geometry': 'turnantenna', 'n_scalar': n_scalar, 'n_vector': n_vector, 'repeats': repeats,
                    'statistic': 'median of interleaved repeats, process CPU time (wall time in *_wall keys)'},
         'stress': stress_out,
+        'lookup': lookup_summary(by),
         'node': agents.get('node'),
         'bag': agents.get('bag'),
         'machine': info,
@@ -129,6 +163,7 @@ def main(argv: list[str] | None = None) -> int:
         'elapsed_seconds': None,
     }
     results_json['elapsed_seconds'] = round(time.perf_counter() - started, 1)
+    results_json['elapsed_seconds_parts'] = {k: round(v, 1) for k, v in parts.items()}
     args.out.mkdir(parents=True, exist_ok=True)
     report.write_all(results_json, results, args.out, args.doc)
     (args.out / 'results.json').write_text(json.dumps(report.sanitize(results_json), indent=1, allow_nan=False,
