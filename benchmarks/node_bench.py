@@ -12,7 +12,9 @@ Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py):
   rounds and keeps each side's best.
 - skipped work: the node's command callback timed in-process (per call, microseconds) with subscribers (in a
   separate process) on joint_states only, on both per-command outputs (joint_states, input_torque), and on
-  none; and the marker and diagnostics timer callbacks with and without a subscriber.
+  none, interleaved call by call with the relay's callback (so the node's extra CPU per command is measured
+  even when machine load blurs the round trips); and the marker and diagnostics timer callbacks with and
+  without a subscriber.
 Targets (issue 3): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is asserted by any test.
 """
 
@@ -43,9 +45,28 @@ DOMAIN_IDS = (*range(90, 102), *range(215, 233))
 
 # --------------------------------------------------------------------------- helper processes
 
+def relay_callback(node: Any, pub: Any) -> Callable[[Any], None]:
+    """The baseline's work per command: a JointState with the node's message shape (stamp, two names, two
+    positions, two velocities, two efforts), all copies of the command: no math."""
+    from sensor_msgs.msg import JointState
+
+    names = ['rocker_ab_joint', 'rocker_cd_joint']
+    clock = node.get_clock()
+
+    def relay(msg: Any) -> None:
+        out = JointState()
+        out.header.stamp = clock.now().to_msg()
+        out.name = names
+        out.position = [msg.data, msg.data]
+        out.velocity = [msg.data, msg.data]
+        out.effort = [msg.data, 0.0]
+        pub.publish(out)
+
+    return relay
+
+
 def relay_main(argv: Sequence[str]) -> int:
-    """The baseline: subscribe Float64, publish a JointState per message with the node's message shape (stamp,
-    two names, two positions, two velocities, two efforts), all copies of the command: no math."""
+    """The baseline process: subscribe Float64 ``antenna_angle_cmd``, publish ``joint_states`` (relay_callback)."""
     import rclpy
     from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
@@ -55,19 +76,7 @@ def relay_main(argv: Sequence[str]) -> int:
     rclpy.init(args=list(argv))
     node = Node('relay')
     pub = node.create_publisher(JointState, 'joint_states', DEPTH)
-    names = ['rocker_ab_joint', 'rocker_cd_joint']
-    clock = node.get_clock()
-
-    def relay(msg: Float64) -> None:
-        out = JointState()
-        out.header.stamp = clock.now().to_msg()
-        out.name = names
-        out.position = [msg.data, msg.data]
-        out.velocity = [msg.data, msg.data]
-        out.effort = [msg.data, 0.0]
-        pub.publish(out)
-
-    node.create_subscription(Float64, 'antenna_angle_cmd', relay, DEPTH)
+    node.create_subscription(Float64, 'antenna_angle_cmd', relay_callback(node, pub), DEPTH)
     try:
         rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -292,8 +301,10 @@ def max_rate(executor: Any, target: Target, thetas: list[float], duration: float
 
 
 def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> dict[str, Any]:
-    """Per-call cost (us) of the node's command and diagnostics callbacks, by which outputs have subscribers."""
+    """Per-call cost (us) of the node's command callback, by which outputs have subscribers, interleaved call by
+    call with the relay's callback (its JointState also subscribed); and of the marker and diagnostics timers."""
     from rclpy.parameter import Parameter
+    from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
     from fourbar_ros.node import FourBarNode
@@ -307,22 +318,32 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
         'joint_states_only': ['/cost/joint_states:JointState'],
         'all_outputs': ['/cost/joint_states:JointState', '/cost/input_torque:Float64'],
     }
+    relay_pub = node.create_publisher(JointState, '/cost/relay_joint_states', DEPTH)
+    relay = relay_callback(node, relay_pub)
     pubs = {'joint_states': node._joint_pub, 'input_torque': node._torque_pub}
     out: dict[str, Any] = {}
+    relay_us: list[float] = []
+    clock = time.perf_counter
     try:
         for name, topics in scenarios.items():
-            sink = Child([sys.executable, '-m', 'benchmarks.node_bench', 'sink', *topics], domain_env)
+            sink = Child([sys.executable, '-m', 'benchmarks.node_bench', 'sink', '/cost/relay_joint_states:JointState',
+                          *topics], domain_env)
             try:
                 wanted = {t.split(':')[0].rsplit('/', 1)[1] for t in topics}
-                wait_until(lambda w=wanted: all((pub.get_subscription_count() > 0) == (k in w)  # type: ignore[misc]
-                                                for k, pub in pubs.items()), 30.0, f'subscribers for {name}')
-                samples = []
+                wait_until(lambda w=wanted: relay_pub.get_subscription_count() > 0 and all(  # type: ignore[misc]
+                    (pub.get_subscription_count() > 0) == (k in w) for k, pub in pubs.items()),
+                    30.0, f'subscribers for {name}')
+                node_calls, relay_calls = [], []
                 for _ in range(repeats):
-                    t0 = time.perf_counter()
                     for m in msgs:
+                        t0 = clock()
                         node._on_command(m)
-                    samples.append((time.perf_counter() - t0) / len(msgs))
-                out[name] = 1e6 * statistics.median(samples)
+                        t1 = clock()
+                        relay(m)
+                        relay_calls.append(clock() - t1)
+                        node_calls.append(t1 - t0)
+                out[name] = 1e6 * statistics.median(node_calls)
+                relay_us.append(1e6 * statistics.median(relay_calls))
             finally:
                 sink.close()
         timers: dict[str, dict[str, float]] = {'markers': {}, 'diagnostics': {}}
@@ -347,7 +368,10 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
                     sink.close()
     finally:
         node.destroy_node()
-    return {'command_callback_us': out, 'saved_us_per_command': out['all_outputs'] - out['joint_states_only'],
+    relay_median = statistics.median(relay_us)
+    return {'command_callback_us': out, 'relay_callback_us': relay_median,
+            'node_extra_us_per_command': out['joint_states_only'] - relay_median,
+            'saved_us_per_command': out['all_outputs'] - out['joint_states_only'],
             'saved_fraction': 1.0 - out['joint_states_only'] / out['all_outputs'],
             'timer_callback_us': timers}
 

@@ -14,6 +14,8 @@ dy/dtheta = AB cos(gamma) dgamma/dtheta - (h/2 + along) cos(theta) - normal sin(
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
+from functools import partial
 
 from fourbar_ros.antenna import Driven, LinkageState
 from fourbar_ros.config import AntennaConfig
@@ -55,6 +57,13 @@ def solve(cfg: AntennaConfig, theta: float) -> LinkageState:
     return LinkageState(theta, gamma, delta, rates.dgamma_dtheta, rates.ddelta_dtheta, advantage,
                         link.torque_at(theta, gamma, delta, load, cfg.driven),
                         link.transmission_angle_at(theta, gamma, delta, cfg.driven))
+
+
+def solver(cfg: AntennaConfig) -> Callable[[float], LinkageState]:
+    """``theta -> solve(cfg, theta)``, bound once: the core's ``state`` directly when there is no mass."""
+    if cfg.has_gravity_load:
+        return partial(solve, cfg)
+    return partial(cfg.linkage.state, load_torque=cfg.load_torque, driven=cfg.driven, branch=cfg.branch)
 
 
 def motor_torque(cfg: AntennaConfig, input_torque: float) -> float:

@@ -24,7 +24,6 @@ from __future__ import annotations
 import itertools
 import sys
 from collections.abc import Callable
-from functools import partial
 from typing import Any
 
 import rclpy
@@ -46,7 +45,7 @@ from fourbar_ros.config import AntennaConfig, ConfigError, config_from_values
 from fourbar_ros.diagnostic_values import Counters, summarize
 from fourbar_ros.errors import FourBarError
 from fourbar_ros.joint_velocity import Sample, finite_difference
-from fourbar_ros.loads import solve
+from fourbar_ros.loads import solver
 from fourbar_ros.marker_geometry import linkage_points
 from fourbar_ros.params import is_foreign
 from fourbar_ros.ros_markers import LinkageMarkers
@@ -70,6 +69,7 @@ class FourBarNode(Node):
         # rclpy's logger and destroy_node are unannotated: bind them to typed names once.
         get_logger: Callable[[], RcutilsLogger] = self.get_logger
         logger = get_logger()
+        self._ros_clock = self.get_clock()
         self._warn: Callable[..., object] = logger.warning
         self._error: Callable[..., object] = logger.error
         try:
@@ -83,7 +83,7 @@ class FourBarNode(Node):
         self._pending: AntennaConfig | None = None
 
         self.counters = Counters()
-        self.cache = StateCache(partial(solve, self._config))
+        self.cache = StateCache(solver(self._config))
         self._last_command: float | None = None
         self._last_decision: Decision | None = None
         self._served: float | None = None
@@ -119,12 +119,14 @@ class FourBarNode(Node):
 
     def _apply(self, cfg: AntennaConfig) -> None:
         self._config = cfg
+        self._theta_min, self._theta_max = cfg.theta_min, cfg.theta_max
+        self._velocity_timeout = cfg.velocity_timeout
         self._policy = Policy(cfg.out_of_limits)
         self._reach = cfg.linkage.reach()
         self._driven_first = cfg.driven is Driven.GAMMA
         self._names = list(cfg.joint_names)
         self._markers = LinkageMarkers(cfg.frame_id)
-        self.cache.reset(partial(solve, cfg))
+        self.cache.reset(solver(cfg))
         self._last_sample = None  # a velocity across a configuration change means nothing
         self._generation += 1
 
@@ -152,48 +154,61 @@ class FourBarNode(Node):
     # ------------------------------------------------------------------ commands
 
     def _on_command(self, msg: Float64) -> None:
+        # Latency-critical path first (check, solve, publish joint_states); bookkeeping after.
         command = msg.data
-        cfg = self._config
-        decision = decide(command, cfg.theta_min, cfg.theta_max, self._policy, self._reach)
-        self.counters.record(decision.outcome)
-        self._last_command, self._last_decision = command, decision
-        theta = decision.theta
-        if theta is None:
+        counters = self.counters
+        self._last_command = command
+        if self._theta_min <= command <= self._theta_max:  # accepted as is (NaN and inf fail here)
+            theta = command
+            self._last_decision = None
+            clamped = None
+        else:
+            decision = decide(command, self._theta_min, self._theta_max, self._policy, self._reach)
+            self._last_decision = decision
+            counters.record(decision.outcome)
             self._warn(decision.reason, throttle_duration_sec=WARN_THROTTLE_S)
-            return
-        if decision.outcome is Outcome.CLAMPED:
-            self._warn(decision.reason, throttle_duration_sec=WARN_THROTTLE_S)
+            if decision.theta is None:
+                return
+            theta, clamped = decision.theta, decision
         self._served = theta
-        want_joints = self._joint_pub.get_subscription_count() > 0
-        want_torque = self._torque_pub.get_subscription_count() > 0
-        if not want_torque:
-            self.counters.input_torque_skipped += 1
-        if not (want_joints or want_torque):
-            self.counters.commands_not_solved += 1
-            return
+        state: LinkageState | None = None
+        if self._joint_pub.get_subscription_count() > 0:
+            state = self._solve(theta)
+            if state is not None:
+                self._publish_joints(state)
+        if clamped is None:
+            counters.commands_received += 1
+            counters.commands_accepted += 1
+        if self._torque_pub.get_subscription_count() > 0:
+            if state is None:
+                state = self._solve(theta)
+            if state is not None:
+                self._torque_pub.publish(Float64(data=float(state.input_torque)))
+                counters.input_torque_published += 1
+        else:
+            counters.input_torque_skipped += 1
+            if state is None:
+                counters.commands_not_solved += 1
+
+    def _solve(self, theta: float) -> LinkageState | None:
         try:
-            state = self.cache.get(theta)
+            return self.cache.get(theta)
         except FourBarError as exc:  # limits lie inside the reach, so only a core bug gets here
             self._error(f'cannot solve theta={theta!r}: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
-            return
-        if want_joints:
-            now = self.get_clock().now()
-            self._publish_joints(state, now.to_msg(), now.nanoseconds)
-        if want_torque:
-            self._torque_pub.publish(Float64(data=float(state.input_torque)))
-            self.counters.input_torque_published += 1
+            return None
 
-    def _publish_joints(self, state: LinkageState, stamp: Any, stamp_ns: int) -> None:
+    def _publish_joints(self, state: LinkageState) -> None:
+        now = self._ros_clock.now()
         gamma, delta, torque = float(state.gamma), float(state.delta), float(state.input_torque)
-        sample = Sample(stamp_ns, (gamma, delta))
+        sample = Sample(now.nanoseconds, (gamma, delta))
         msg = JointState()
-        msg.header.stamp = stamp
+        msg.header.stamp = now.to_msg()
         msg.name = self._names
         msg.position = [gamma, delta]
-        msg.velocity = finite_difference(self._last_sample, sample, self._config.velocity_timeout)
+        msg.velocity = finite_difference(self._last_sample, sample, self._velocity_timeout)
         msg.effort = [torque, 0.0] if self._driven_first else [0.0, torque]
-        self._last_sample = sample
         self._joint_pub.publish(msg)
+        self._last_sample = sample
         self.counters.joint_states_published += 1
 
     # ------------------------------------------------------------------ markers
@@ -231,7 +246,10 @@ class FourBarNode(Node):
                 state = self.cache.get(self._served)
             except FourBarError:
                 state = None
-        summary = summarize(self._config, self._last_decision, self._last_command, state, self.counters,
+        last = self._last_decision
+        if last is None and self._last_command is not None:  # the fast path stores no Decision
+            last = Decision(self._last_command, Outcome.ACCEPTED, '')
+        summary = summarize(self._config, last, self._last_command, state, self.counters,
                             self.cache.computed, self.cache.reused)
         return DiagnosticStatus(
             level=bytes([int(summary.level)]), name=f'{self.get_fully_qualified_name()}: antenna tilt linkage',
