@@ -304,7 +304,8 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         'Every input is reachable according to the reference. nu = error / (u (kappa + |f|)), u = 2^-53, '
         'kappa = sum over the inputs x of |df/dx| |x| (the absolute condition number for relative input '
         'perturbations, from the implicit-function derivatives of the loop equations): a backward-stable method '
-        'keeps nu of order 1. "beyond-spec" scales (1e+-150, 1e+-300 m) lie outside the specified 1e-6..1e6 m.',
+        'keeps nu of order 1. "beyond-spec" scales (1e+-150, 1e+-300 m and subnormal lengths, 1e-310) lie outside the '
+        'specified 1e-6..1e6 m.',
         '',
         stress_table(st),
     ]

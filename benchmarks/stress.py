@@ -8,8 +8,8 @@ A backward-stable method keeps nu of order 1-10; a case with nu > NU_FLAG is rep
 
 Families: reach limit (relative distance 1e-1 .. 1e-16 and the last float inside; and the last float inside on
 random equal-rocker geometries, where acos(Q) of the annex meets rounding), H -> h (parallelogram),
-extreme link ratios, scales 1e-6 .. 1e6 m (and, beyond the specification, 1e+-150 and 1e+-300), large and wrapped
-angles (theta + 2 pi k up to |k| = 1e15), subnormal and signed-zero angles.
+extreme link ratios, scales 1e-6 .. 1e6 m (and, beyond the specification, 1e+-150, 1e+-300 and subnormal lengths
+at 1e-310), large and wrapped angles (theta + 2 pi k up to |k| = 1e15), subnormal and signed-zero angles.
 """
 
 from __future__ import annotations
@@ -173,9 +173,10 @@ def ratio_cases(quick: bool) -> list[StressCase]:
 
 
 def scale_cases(quick: bool) -> tuple[list[StressCase], list[StressCase]]:
-    """Turnantenna scaled by 1e-6 .. 1e6 (specified) and by 1e+-150, 1e+-300 (beyond the specification)."""
+    """Turnantenna scaled by 1e-6 .. 1e6 (specified) and by 1e+-150, 1e+-300, 1e-310 (subnormal lengths; beyond
+    the specification)."""
     inside = [10.0**k for k in range(-6, 7, 1 if not quick else 3)]
-    beyond = [1e-300, 1e-150, 1e150, 1e300]
+    beyond = [1e-310, 1e-300, 1e-150, 1e150, 1e300]
     n = 3 if quick else 8
     spec = [c for s in inside for c in _sample_cases('scales', TURNANTENNA.scaled(s), n, (1e-12,))]
     far = [c for s in beyond for c in _sample_cases('scales-beyond-spec', TURNANTENNA.scaled(s), n, (1e-12,))]
