@@ -8,7 +8,7 @@ the error infinite (the method failed on an input it must serve).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -237,7 +237,7 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
             'floor_wall': v_times['floor'][1], 'python_call_wall': s_times['python_call'][1]}
 
 
-def pareto_front(points: list[tuple[str, float | None, float | None]]) -> set[str]:
+def pareto_front(points: Sequence[tuple[str, float | None, float | None]]) -> set[str]:
     """Names of the non-dominated (time, error) points; points with a None or non-finite value are excluded.
 
     A point is dominated if another is no slower and no less accurate, and strictly better in one of the two.

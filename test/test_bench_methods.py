@@ -30,9 +30,11 @@ COUPLER_LONG = COMMON_GEOMETRIES[1]
 def max_error(solver: Solver, geo: Geometry, n: int = 201, scalar: bool = False) -> float:
     th = np.sort(sweep_angles(geo, n))
     ref = reference_arrays(geo, th)
+    out: tuple[object, object]
     if scalar:
         assert solver.scalar is not None
-        out = np.array([solver.scalar(t) for t in th.tolist()]).T
+        pairs = np.array([solver.scalar(t) for t in th.tolist()])
+        out = (pairs[:, 0], pairs[:, 1])
     else:
         assert solver.vector is not None
         out = solver.vector(th)
