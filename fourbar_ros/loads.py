@@ -16,6 +16,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from functools import partial
+from typing import NamedTuple
 
 from fourbar_ros.antenna import Driven, LinkageState
 from fourbar_ros.config import AntennaConfig
@@ -59,11 +60,30 @@ def solve(cfg: AntennaConfig, theta: float) -> LinkageState:
                         link.transmission_angle_at(theta, gamma, delta, cfg.driven))
 
 
-def solver(cfg: AntennaConfig) -> Callable[[float], LinkageState]:
-    """``theta -> solve(cfg, theta)``, bound once: the core's ``state`` directly when there is no mass."""
+class Pose(NamedTuple):
+    """What a command publishes: rocker angles gamma, delta (rad) and the driven rocker's torque (N m)."""
+
+    gamma: float
+    delta: float
+    input_torque: float
+
+
+def pose(cfg: AntennaConfig, theta: float) -> Pose:
+    """Rocker angles and input torque at theta (rad) under the configured load, without the rates and the
+    transmission angle when the load does not need them. Same floats as ``solve`` (the same core calls)."""
+    link = cfg.linkage
+    gamma, delta = link.rocker_angles(theta, cfg.branch)
     if cfg.has_gravity_load:
-        return partial(solve, cfg)
-    return partial(cfg.linkage.state, load_torque=cfg.load_torque, driven=cfg.driven, branch=cfg.branch)
+        rates = link.rates_at(theta, gamma, delta)
+        load = load_torque(cfg, theta, float(gamma), float(rates.dgamma_dtheta))
+    else:
+        load = cfg.load_torque
+    return Pose(float(gamma), float(delta), float(link.torque_at(theta, gamma, delta, load, cfg.driven)))
+
+
+def pose_solver(cfg: AntennaConfig) -> Callable[[float], Pose]:
+    """``theta -> pose(cfg, theta)`` bound once."""
+    return partial(pose, cfg)
 
 
 def motor_torque(cfg: AntennaConfig, input_torque: float) -> float:

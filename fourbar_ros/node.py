@@ -45,7 +45,7 @@ from fourbar_ros.config import AntennaConfig, ConfigError, config_from_values
 from fourbar_ros.diagnostic_values import Counters, summarize
 from fourbar_ros.errors import FourBarError
 from fourbar_ros.joint_velocity import Sample, finite_difference
-from fourbar_ros.loads import solver
+from fourbar_ros.loads import Pose, pose_solver, solve
 from fourbar_ros.marker_geometry import linkage_points
 from fourbar_ros.params import is_foreign
 from fourbar_ros.ros_markers import LinkageMarkers
@@ -58,7 +58,6 @@ STREAM_DEPTH = 1000
 #: Keep-last depth of markers and diagnostics (latest state only matters).
 STATUS_DEPTH = 10
 WARN_THROTTLE_S = 1.0
-
 
 
 class FourBarNode(Node):
@@ -83,7 +82,7 @@ class FourBarNode(Node):
         self._pending: AntennaConfig | None = None
 
         self.counters = Counters()
-        self.cache = StateCache(solver(self._config))
+        self.cache: StateCache[Pose] = StateCache(pose_solver(self._config))
         self._last_command: float | None = None
         self._last_decision: Decision | None = None
         self._served: float | None = None
@@ -126,7 +125,7 @@ class FourBarNode(Node):
         self._driven_first = cfg.driven is Driven.GAMMA
         self._names = list(cfg.joint_names)
         self._markers = LinkageMarkers(cfg.frame_id)
-        self.cache.reset(solver(cfg))
+        self.cache.reset(pose_solver(cfg))
         self._last_sample = None  # a velocity across a configuration change means nothing
         self._generation += 1
 
@@ -171,7 +170,7 @@ class FourBarNode(Node):
                 return
             theta, clamped = decision.theta, decision
         self._served = theta
-        state: LinkageState | None = None
+        state: Pose | None = None
         if self._joint_pub.get_subscription_count() > 0:
             state = self._solve(theta)
             if state is not None:
@@ -183,23 +182,23 @@ class FourBarNode(Node):
             if state is None:
                 state = self._solve(theta)
             if state is not None:
-                self._torque_pub.publish(Float64(data=float(state.input_torque)))
+                self._torque_pub.publish(Float64(data=state.input_torque))
                 counters.input_torque_published += 1
         else:
             counters.input_torque_skipped += 1
             if state is None:
                 counters.commands_not_solved += 1
 
-    def _solve(self, theta: float) -> LinkageState | None:
+    def _solve(self, theta: float) -> Pose | None:
         try:
             return self.cache.get(theta)
         except FourBarError as exc:  # limits lie inside the reach, so only a core bug gets here
             self._error(f'cannot solve theta={theta!r}: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
             return None
 
-    def _publish_joints(self, state: LinkageState) -> None:
+    def _publish_joints(self, state: Pose) -> None:
         now = self._ros_clock.now()
-        gamma, delta, torque = float(state.gamma), float(state.delta), float(state.input_torque)
+        gamma, delta, torque = state
         sample = Sample(now.nanoseconds, (gamma, delta))
         msg = JointState()
         msg.header.stamp = now.to_msg()
@@ -231,7 +230,7 @@ class FourBarNode(Node):
             return
         cfg = self._config
         pts = linkage_points(cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length, cfg.rocker_cd_length,
-                             served, float(state.gamma), float(state.delta))
+                             served, state.gamma, state.delta)
         self._marker_pub.publish(self._markers.update(pts, self.get_clock().now().to_msg()))
         self._marker_key = key
         self.counters.markers_published += 1
@@ -242,8 +241,8 @@ class FourBarNode(Node):
         """The current status message (also what the timer publishes)."""
         state: LinkageState | None = None
         if self._served is not None:
-            try:
-                state = self.cache.get(self._served)
+            try:  # the full state (rates, transmission angle) only here, once per period
+                state = solve(self._config, self._served)
             except FourBarError:
                 state = None
         last = self._last_decision

@@ -1,4 +1,4 @@
-"""Reuse the last solved linkage state when the same angle is commanded again. No ROS.
+"""Reuse the last solved state when the same angle is commanded again. No ROS.
 
 Counters make the saving observable: ``computed`` counts real solves, ``reused`` the repeats.
 """
@@ -6,21 +6,22 @@ Counters make the saving observable: ``computed`` counts real solves, ``reused``
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Generic, TypeVar
 
-from fourbar_ros.antenna import LinkageState
+S = TypeVar('S')
 
 
-class StateCache:
+class StateCache(Generic[S]):
     """One-entry cache of ``solve(theta)`` keyed by the exact float theta (rad)."""
 
-    def __init__(self, solve: Callable[[float], LinkageState]) -> None:
+    def __init__(self, solve: Callable[[float], S]) -> None:
         self._solve = solve
         self._theta: float | None = None
-        self._state: LinkageState | None = None
+        self._state: S | None = None
         self.computed = 0
         self.reused = 0
 
-    def get(self, theta: float) -> LinkageState:
+    def get(self, theta: float) -> S:
         """The state at theta; solved only if theta differs from the last one solved."""
         if self._state is not None and theta == self._theta:
             self.reused += 1
@@ -30,7 +31,7 @@ class StateCache:
         self.computed += 1
         return state
 
-    def reset(self, solve: Callable[[float], LinkageState] | None = None) -> None:
+    def reset(self, solve: Callable[[float], S] | None = None) -> None:
         """Forget the cached state (after a configuration change), optionally with a new solver."""
         if solve is not None:
             self._solve = solve

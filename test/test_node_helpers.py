@@ -12,7 +12,7 @@ from fourbar_ros.command_policy import Outcome, Policy, decide
 from fourbar_ros.config import AntennaConfig, config_from_values, default_config
 from fourbar_ros.diagnostic_values import Counters, Level, summarize
 from fourbar_ros.joint_velocity import Sample, finite_difference
-from fourbar_ros.loads import com_height_rate, gravity_torque, load_torque, motor_torque, solve, solver
+from fourbar_ros.loads import com_height_rate, gravity_torque, load_torque, motor_torque, pose_solver, solve
 from fourbar_ros.marker_geometry import linkage_points
 from fourbar_ros.state_cache import StateCache
 from fourbar_ros.transforms import antenna_joint_positions
@@ -102,12 +102,14 @@ def test_gravity_torque_is_the_derivative_of_potential_energy(along: float, norm
             load_torque(cfg, t, float(full.gamma), float(full.dgamma_dtheta)), rel=1e-12, abs=1e-15)
 
 
+@pytest.mark.parametrize('driven', ['gamma', 'delta'])
 @pytest.mark.parametrize('mass', [0.0, 1.5])
-def test_bound_solver_equals_solve(mass: float) -> None:
-    cfg = config_from_values({'antenna_mass': mass, 'com_offset_normal': 0.02, 'driven_rocker': 'delta'})
-    bound = solver(cfg)
+def test_pose_is_the_same_floats_as_solve(mass: float, driven: str) -> None:
+    cfg = config_from_values({'antenna_mass': mass, 'com_offset_normal': 0.02, 'driven_rocker': driven})
+    bound = pose_solver(cfg)
     for theta in np.linspace(LO, HI, 7):
-        assert bound(float(theta)) == solve(cfg, float(theta))
+        full = solve(cfg, float(theta))
+        assert bound(float(theta)) == (full.gamma, full.delta, full.input_torque)
 
 
 def test_no_mass_no_gravity() -> None:
