@@ -216,7 +216,8 @@ class AntennaLinkage:
         """Rocker angles (gamma, delta) in radians for antenna angle theta (radians) on the given branch.
 
         Scalars raise UnreachableError for NaN, inf or an out-of-reach theta, and SingularPositionError at a
-        change point (frame = coupler, AB = CD, theta = 0: a parallelogram whose rocker angle is undetermined).
+        change point (frame = coupler, AB = CD, theta = 0: a parallelogram whose rocker angle is undetermined;
+        also within ~1e-154 rad of it, where 4 H h sin^2(theta/2) underflows).
         Arrays raise the same for any such element when on_invalid='raise', or return NaN at exactly those
         elements when on_invalid='nan' (reachable(theta) is the validity mask, change points aside). The exact
         reach limit is solved (the rockers are then in line).

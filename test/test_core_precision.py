@@ -164,7 +164,9 @@ def test_property_any_geometry_any_reachable_angle(frame: float, ab: float, coup
     # and the parallelogram's change point is undetermined by definition (test_core_antenna covers the error).
     assume(r.theta_max - r.theta_gap > 1e-9)
     theta = math.copysign(r.theta_gap + abs(frac) * (r.theta_max - r.theta_gap), frac)
-    assume(not (frame == coupler and ab == cd and theta == 0.0))
+    # Within ~1e-154 rad of that change point the squared diagonal underflows and the solver reports the change
+    # point too (documented in AntennaLinkage.rocker_angles).
+    assume(not (frame == coupler and ab == cd and abs(theta) < 1e-150))
     check(link, theta)
 
 
