@@ -66,7 +66,7 @@ class RockerAngles(NamedTuple):
     delta: ArrayLike
 
 
-_angles = RockerAngles._make
+_new_tuple = tuple.__new__  # builds a RockerAngles without NamedTuple._make's Python-level length check
 _UPPER = Branch.UPPER
 _sin, _cos, _sqrt, _atan2, _PI = math.sin, math.cos, math.sqrt, math.atan2, math.pi
 
@@ -248,8 +248,8 @@ class AntennaLinkage:
             alpha = _atan2(root, cos_p + w)
             beta = alpha if equal_links else _atan2(root, cos_q + w)
             if branch is _UPPER:
-                return _angles((phi + alpha, beta - phi))
-            return _angles((phi - alpha, -beta - phi))
+                return _new_tuple(RockerAngles, (phi + alpha, beta - phi))
+            return _new_tuple(RockerAngles, (phi - alpha, -beta - phi))
         return self._rocker_angles_array(np.asarray(theta, dtype=np.float64), branch, on_invalid)
 
     def _clamped(self, far: float, near: float, theta: float) -> tuple[float, float]:
