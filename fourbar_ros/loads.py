@@ -82,8 +82,17 @@ def pose(cfg: AntennaConfig, theta: float) -> Pose:
 
 
 def pose_solver(cfg: AntennaConfig) -> Callable[[float], Pose]:
-    """``theta -> pose(cfg, theta)`` bound once."""
-    return partial(pose, cfg)
+    """``theta -> pose(cfg, theta)`` with the configuration's lookups bound once (the node's per-command call)."""
+    if cfg.has_gravity_load:
+        return partial(pose, cfg)
+    angles, torque_at = cfg.linkage.rocker_angles, cfg.linkage.torque_at
+    branch, load, driven = cfg.branch, cfg.load_torque, cfg.driven
+
+    def constant_load_pose(theta: float) -> Pose:
+        gamma, delta = angles(theta, branch)
+        return Pose(float(gamma), float(delta), float(torque_at(theta, gamma, delta, load, driven)))
+
+    return constant_load_pose
 
 
 def motor_torque(cfg: AntennaConfig, input_torque: float) -> float:
