@@ -7,7 +7,7 @@ cd "$(dirname "$0")/.."
 PYTHON=${PYTHON:-python3}
 VENV=${VENV:-.venv}
 stamp="$VENV/.fourbar-bootstrap"
-want=$(cat setup.py requirements/*.txt | sha256sum | cut -d' ' -f1)
+want=$(cat "$0" setup.py requirements/*.txt | sha256sum | cut -d' ' -f1)
 if [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ]; then
   exit 0
 fi
@@ -20,7 +20,8 @@ else
   "$PYTHON" -m venv "$VENV"
   ros_reqs=(-r requirements/ros-jazzy.txt)
 fi
-"$VENV/bin/python" -m pip install --quiet --upgrade pip==25.3 setuptools==80.9.0 wheel==0.45.1
+# setuptools < 80: colcon-core 0.21 requires it (its ament_python build runs setup.py with this setuptools).
+"$VENV/bin/python" -m pip install --quiet --upgrade pip==25.3 setuptools==79.0.1 wheel==0.45.1
 "$VENV/bin/python" -m pip install --quiet -c requirements/constraints.txt "${ros_reqs[@]}" \
   --config-settings editable_mode=compat -e '.[bags,plot,test]'
 "$VENV/bin/python" -c 'import rclpy, numpy, rosbags'  # fail here, not later, if the environment is incomplete
