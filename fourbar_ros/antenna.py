@@ -38,6 +38,7 @@ ArrayLike = float | FloatArray
 OnInvalid = Literal['raise', 'nan']
 
 _TWO_PI = 2.0 * math.pi
+_BLOCK = 8192  #: elements per block of the vectorized solve: its working arrays (64 KiB each) stay in L2
 _DEAD_TOL = 4.0 * math.ulp(1.0)  #: |sin| below this many ulps of the angles counts as zero (a dead point)
 
 
@@ -198,8 +199,14 @@ class AntennaLinkage:
             f'theta={theta!r} rad is a change point of this linkage (frame = coupler and AB = CD make a '
             f'parallelogram there): the rocker angles are undetermined')
 
-    def _invalid_array(self, theta: FloatArray, bad: npt.NDArray[np.bool_]) -> UnreachableError:
-        first = float(theta[bad].flat[0])
+    def _invalid_array(self, theta: FloatArray) -> UnreachableError:
+        """The one-line error for an array with unsolvable angles (the error path: recomputes the whole mask)."""
+        k = self._k
+        with np.errstate(invalid='ignore'):
+            s = np.sin(0.5 * theta)
+        w = 2.0 * (s * k.two_l2) * s
+        bad = self._invalid_factors(k.far - w, w + k.near)
+        first = float(theta[bad][0])
         return UnreachableError(
             f'{int(bad.sum())} of {theta.size} angles cannot be solved, the first theta={first!r}; '
             f'reachable: {self._reach.describe()}')
@@ -264,50 +271,71 @@ class AntennaLinkage:
         raise self._unreachable(theta)
 
     def _rocker_angles_array(self, theta: FloatArray, branch: Branch, on_invalid: OnInvalid) -> RockerAngles:
+        # Blocks small enough to stay in cache: the dozen arithmetic passes around the five unavoidable ufuncs
+        # then cost far less than on arrays streamed through memory. The loop is over blocks, not elements.
+        flat = np.ascontiguousarray(theta).reshape(-1)
+        gamma = np.empty_like(flat)
+        delta = np.empty_like(flat)
+        for start in range(0, flat.size, _BLOCK):
+            stop = start + _BLOCK
+            self._solve_block(flat[start:stop], branch, on_invalid, gamma[start:stop], delta[start:stop], flat)
+        return RockerAngles(gamma.reshape(theta.shape), delta.reshape(theta.shape))
+
+    def _solve_block(self, t: FloatArray, branch: Branch, on_invalid: OnInvalid, gamma: FloatArray,
+                     delta: FloatArray, whole: FloatArray) -> None:
+        """The scalar path's operations, in the same order, on one block; results written to gamma, delta."""
         k = self._k
         with np.errstate(invalid='ignore'):
-            half = 0.5 * theta
+            half = t * 0.5
             s = np.sin(half)
-            c = np.cos(half)
-        s_sq = s * s
-        w = k.four_l1_l2 * s_sq
+            c = np.cos(half, out=half)
+        hs = s * k.two_l2
+        w = hs * s
+        w *= 2.0
         far = k.far - w
         near = w + k.near
         prod = far * near
-        if prod.size and not prod.min() >= 0.0:
-            tol = k.tol
-            far[(far < 0.0) & (far >= -tol)] = 0.0
-            near[(near < 0.0) & (near >= -tol)] = 0.0
-            with np.errstate(invalid='ignore'):
-                bad = ~((far >= 0.0) & (near >= 0.0))
+        if not prod.min() >= 0.0:
+            bad = self._invalid_factors(far, near)
             if bad.any() and on_invalid == 'raise':
-                raise self._invalid_array(theta, bad)
+                raise self._invalid_array(whole)
             far[bad] = np.nan
             np.multiply(far, near, out=prod)
         if k.diff == 0.0 and (w == 0.0).any():  # only a parallelogram-capable geometry pays for this check
             change = w == 0.0
             if on_invalid == 'raise':
-                raise self._change_point(float(theta[change].flat[0]))
+                raise self._change_point(float(t[change][0]))
             prod[change] = np.nan
         root = np.sqrt(prod, out=prod)
-        s *= c
-        s *= k.two_l2  # now h sin(theta) in frame units
-        s_sq *= k.two_l2
-        s_sq += k.diff  # now H - h cos(theta) in frame units
+        y = np.multiply(hs, c, out=c)  # h sin(theta) in frame units
+        hs *= s
+        x = np.add(hs, k.diff, out=hs)  # H - h cos(theta) in frame units
         if k.diff >= 0.0:
-            phi = np.arctan2(s, s_sq, out=s)
+            phi = np.arctan2(y, x, out=y)
         else:  # coupler longer than frame: keep arctan2's cut away from theta = 0
-            phi = np.arctan2(np.negative(s, out=s), np.negative(s_sq, out=s_sq), out=s)
+            phi = np.arctan2(np.negative(y, out=y), np.negative(x, out=x), out=y)
             phi += math.pi
-        alpha = np.arctan2(root, w + k.cos_p)
+        alpha = np.arctan2(root, np.add(w, k.cos_p, out=far), out=far)
         if k.equal_links:
             beta = alpha
         else:
             w += k.cos_q
             beta = np.arctan2(root, w, out=w)
-        if branch is Branch.UPPER:
-            return RockerAngles(np.add(phi, alpha, out=alpha if beta is not alpha else None), beta - phi)
-        return RockerAngles(phi - alpha, np.negative(beta) - phi)
+        if branch is _UPPER:
+            np.add(phi, alpha, out=gamma)
+            np.subtract(beta, phi, out=delta)
+        else:
+            np.subtract(phi, alpha, out=gamma)
+            np.negative(beta, out=delta)
+            delta -= phi
+
+    def _invalid_factors(self, far: FloatArray, near: FloatArray) -> npt.NDArray[np.bool_]:
+        """Where (far, near) say 'out of reach', after zeroing factors negative only by rounding (in place)."""
+        tol = self._k.tol
+        far[(far < 0.0) & (far >= -tol)] = 0.0
+        near[(near < 0.0) & (near >= -tol)] = 0.0
+        with np.errstate(invalid='ignore'):
+            return ~((far >= 0.0) & (near >= 0.0))
 
     # ---------------------------------------------------------------- rates
 
