@@ -367,3 +367,21 @@ def test_gap_geometry_reach() -> None:
     t = 0.5 * (r.theta_gap + r.theta_max)
     g, d = link.rocker_angles(t)
     assert antenna_joint_positions(1.0, 1.0, 0.9, 0.5, t, g, d).residual < 1e-15
+
+
+def test_large_arrays_span_blocks_with_the_same_results_and_policies() -> None:
+    # Longer than one block of the vectorized solve, in any shape and memory layout.
+    t = np.linspace(-0.6, 0.6, 3 * 8192 + 17)
+    g, d = TURNANTENNA.rocker_angles(t)
+    scalar = [TURNANTENNA.rocker_angles(float(x)) for x in t[::97]]
+    assert np.array_equal(g[::97], [p.gamma for p in scalar])
+    assert np.array_equal(d[::97], [p.delta for p in scalar])
+    grid = t[:-17].reshape(3, -1)[:, ::2]  # 2-D and non-contiguous
+    gg, _ = TURNANTENNA.rocker_angles(grid)
+    assert gg.shape == grid.shape and np.array_equal(gg, g[:-17].reshape(3, -1)[:, ::2])
+    bad = t.copy()
+    bad[[5, 9000, 20000]] = [np.nan, 2.0, -np.inf]
+    with pytest.raises(UnreachableError, match=f'3 of {t.size} angles cannot be solved, the first theta=nan'):
+        TURNANTENNA.rocker_angles(bad)
+    gn, _ = TURNANTENNA.rocker_angles(bad, on_invalid='nan')
+    assert list(np.nonzero(np.isnan(gn))[0]) == [5, 9000, 20000]
