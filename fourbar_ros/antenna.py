@@ -25,13 +25,16 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import Literal, NamedTuple, overload
+from typing import TYPE_CHECKING, Literal, NamedTuple, overload
 
 import numpy as np
 import numpy.typing as npt
 
 from .dyad import DyadConstants, dyad_constants, reach_half_angles
 from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
+
+if TYPE_CHECKING:
+    from .general import FourBar
 
 FloatArray = npt.NDArray[np.float64]
 ArrayLike = float | FloatArray
@@ -458,15 +461,20 @@ class AntennaLinkage:
         to the left of the line from B to D when gamma is measured (B to the left of C to A when delta is), which
         is the annex's working pose; -1 is the crossed pose. Raises UnreachableError if the rocker cannot take q.
         """
-        from .general import FourBar  # local: general imports nothing from here, but keep the hot path lean
+        t3, t4 = self._as_four_bar(driven).angles(q, assembly)
+        other = _wrap(math.pi - t4 if isinstance(t4, float) else np.pi - t4)
+        # The coupler's angle from +x is -theta with AB as the crank; mirrored (CD as the crank) it is +theta.
+        return InverseSolution(_wrap(-t3 if driven is Driven.GAMMA else t3), other)
 
-        if driven is Driven.GAMMA:
-            fb = FourBar(self.frame, self.rocker_ab, self.coupler, self._cd)
-            t3, t4 = fb.angles(q, assembly)
-            return InverseSolution(_wrap(-t3), _wrap(math.pi - t4 if isinstance(t4, float) else np.pi - t4))
-        fb = FourBar(self.frame, self._cd, self.coupler, self.rocker_ab)
-        t3, t4 = fb.angles(q, assembly)
-        return InverseSolution(_wrap(t3), _wrap(math.pi - t4 if isinstance(t4, float) else np.pi - t4))
+    def _as_four_bar(self, driven: Driven) -> FourBar:
+        """This linkage as the general four-bar with the measured rocker as its crank (built once per rocker)."""
+        from .general import FourBar  # local: fourbar_ros.general imports this module
+
+        built: dict[Driven, FourBar] = self.__dict__.setdefault('_four_bars', {})  # per instance, not global
+        if driven not in built:
+            crank, rocker = (self.rocker_ab, self._cd) if driven is Driven.GAMMA else (self._cd, self.rocker_ab)
+            built[driven] = FourBar(self.frame, crank, self.coupler, rocker)
+        return built[driven]
 
 
 def _wrap(x: ArrayLike) -> ArrayLike:
