@@ -88,11 +88,6 @@ def fourbar_joint_positions(ground: float, crank: float, coupler: float, rocker:
     return JointPositions(zero, chain(to_b), c_left, chain(trans(ground)) + zero, _distance(c_left, c_right))
 
 
-def loop_closure_residual(positions: JointPositions) -> FloatArray:
-    """Residual (metres) of a set of joint positions: |C from the first pivot - C from the second|."""
-    return positions.residual
-
-
 def _distance(p: FloatArray, q: FloatArray) -> FloatArray:
     diff = p - q
     return np.asarray(np.hypot(diff[..., 0], diff[..., 1]))
