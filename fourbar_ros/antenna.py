@@ -183,10 +183,15 @@ class AntennaLinkage:
         return self._reach
 
     def reachable(self, theta: FloatArray) -> npt.NDArray[np.bool_]:
-        """Element-wise: may theta (radians) be commanded? False for NaN, inf and out-of-reach values."""
+        """Element-wise: does rocker_angles solve theta (radians)? False for NaN, inf and out-of-reach values.
+
+        The very test the solver applies (so it agrees with on_invalid='nan' to the last float at the limits).
+        """
+        k = self._k
         with np.errstate(invalid='ignore'):
-            t = np.abs(np.remainder(np.asarray(theta, dtype=np.float64) + math.pi, _TWO_PI) - math.pi)
-            return (t >= self._reach.theta_gap) & (t <= self._reach.theta_max)
+            s = np.sin(0.5 * np.asarray(theta, dtype=np.float64))
+        w = 2.0 * (s * k.two_l2) * s
+        return ~self._invalid_factors(k.far - w, w + k.near)
 
     def _unreachable(self, theta: float) -> UnreachableError:
         if math.isnan(theta):
@@ -204,14 +209,9 @@ class AntennaLinkage:
 
     def _invalid_array(self, theta: FloatArray) -> UnreachableError:
         """The one-line error for an array with unsolvable angles (the error path: recomputes the whole mask)."""
-        k = self._k
-        with np.errstate(invalid='ignore'):
-            s = np.sin(0.5 * theta)
-        w = 2.0 * (s * k.two_l2) * s
-        bad = self._invalid_factors(k.far - w, w + k.near)
-        first = float(theta[bad][0])
+        bad = ~self.reachable(theta)
         return UnreachableError(
-            f'{int(bad.sum())} of {theta.size} angles cannot be solved, the first theta={first!r}; '
+            f'{int(bad.sum())} of {theta.size} angles cannot be solved, the first theta={float(theta[bad][0])!r}; '
             f'reachable: {self._reach.describe()}')
 
     # ---------------------------------------------------------------- positions

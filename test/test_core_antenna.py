@@ -385,3 +385,20 @@ def test_large_arrays_span_blocks_with_the_same_results_and_policies() -> None:
         TURNANTENNA.rocker_angles(bad)
     gn, _ = TURNANTENNA.rocker_angles(bad, on_invalid='nan')
     assert list(np.nonzero(np.isnan(gn))[0]) == [5, 9000, 20000]
+
+
+def test_reachable_is_the_solvers_own_test_at_the_limit_floats() -> None:
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        frame, ab, coupler, cd = rng.uniform(0.05, 2.0, 4)
+        try:
+            link = AntennaLinkage(frame, ab, coupler, cd)
+        except InvalidGeometryError:
+            continue
+        t = np.array([link.reach().theta_max])
+        floats = [float(t[0])]
+        for _ in range(4):
+            floats.append(math.nextafter(floats[-1], math.inf))
+        arr = np.array(floats + [-f for f in floats])
+        g, _ = link.rocker_angles(arr, on_invalid='nan')
+        assert np.array_equal(np.isfinite(g), link.reachable(arr))
