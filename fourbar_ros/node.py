@@ -123,7 +123,11 @@ class FourBarNode(Node):
         self._policy = Policy(cfg.out_of_limits)
         self._reach = cfg.linkage.reach()
         self._driven_first = cfg.driven is Driven.GAMMA
-        self._names = list(cfg.joint_names)
+        # One JointState and one Float64, refilled per command: publish() serializes synchronously, so reuse is
+        # safe, and it spares building a message (~5 us, a sixth of the node's cost over a bare relay).
+        self._joint_msg = JointState()
+        self._joint_msg.name = list(cfg.joint_names)
+        self._torque_msg = Float64()
         self._markers = LinkageMarkers(cfg.frame_id)
         self.cache.reset(pose_solver(cfg))
         self._last_sample = None  # a velocity across a configuration change means nothing
@@ -182,7 +186,8 @@ class FourBarNode(Node):
             if state is None:
                 state = self._solve(theta)
             if state is not None:
-                self._torque_pub.publish(Float64(data=state.input_torque))
+                self._torque_msg.data = state.input_torque
+                self._torque_pub.publish(self._torque_msg)
                 counters.input_torque_published += 1
         else:
             counters.input_torque_skipped += 1
@@ -200,9 +205,8 @@ class FourBarNode(Node):
         now = self._ros_clock.now()
         gamma, delta, torque = state
         sample = Sample(now.nanoseconds, (gamma, delta))
-        msg = JointState()
+        msg = self._joint_msg
         msg.header.stamp = now.to_msg()
-        msg.name = self._names
         msg.position = [gamma, delta]
         msg.velocity = finite_difference(self._last_sample, sample, self._velocity_timeout)
         msg.effort = [torque, 0.0] if self._driven_first else [0.0, torque]
