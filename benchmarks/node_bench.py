@@ -21,26 +21,24 @@ Targets (issue 3): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is a
 from __future__ import annotations
 
 import argparse
-import fcntl
 import json
 import os
 import statistics
 import subprocess
 import sys
-import tempfile
 import threading
 import time
 from collections.abc import Callable, Sequence
+from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
+
+from fourbar_ros.bag_replay import free_domain_id
 
 REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 DEPTH = 1000
 LAG_S = 0.25  # a rate is sustained if the last answer comes at most this long after the last command
-# Same lock files as test/ros_support.py, so a benchmark never shares a domain with a concurrent test run.
-LOCK_DIR = Path(tempfile.gettempdir()) / 'fourbar_ros_domain_locks'
-DOMAIN_IDS = (*range(90, 102), *range(215, 233))
 
 
 # --------------------------------------------------------------------------- helper processes
@@ -133,20 +131,6 @@ class Child:
                 return
             except subprocess.TimeoutExpired:
                 continue
-
-
-def lease_domain() -> tuple[int, int]:
-    """(domain id, lock fd): an id no concurrent test or benchmark run holds."""
-    LOCK_DIR.mkdir(parents=True, exist_ok=True)
-    for domain_id in DOMAIN_IDS[::-1]:
-        fd = os.open(LOCK_DIR / f'{domain_id}.lock', os.O_RDWR | os.O_CREAT, 0o666)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            continue
-        return domain_id, fd
-    raise RuntimeError('no free ROS domain id')
 
 
 def node_script() -> list[str]:
@@ -397,7 +381,8 @@ def run(quick: bool) -> dict[str, Any]:
 
     cfg = load_config(YAML)
     n_lat, duration, bisections, repeats, rounds = (300, 1.0, 2, 5, 1) if quick else (2000, 2.0, 4, 15, 3)
-    domain_id, lock_fd = lease_domain()
+    hold = ExitStack()
+    domain_id = hold.enter_context(free_domain_id())  # the lock files the tests and tools use
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
     children: list[Child] = []
     context = Context()
@@ -451,7 +436,7 @@ def run(quick: bool) -> dict[str, Any]:
         for child in children:
             child.close()
         context.try_shutdown()
-        os.close(lock_fd)
+        hold.close()
     result['targets'] = {'latency_ratio_max': 1.10, 'rate_ratio_min': 0.9}
     result['meets_targets'] = {
         'latency': result['latency_ratio_median'] <= 1.10,

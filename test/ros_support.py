@@ -14,7 +14,6 @@ a pytest fixture, so there is nothing to register in conftest.py.
 
 from __future__ import annotations
 
-import fcntl
 import os
 import signal
 import subprocess
@@ -23,7 +22,7 @@ import tempfile
 import threading
 import time
 from collections.abc import Callable, Iterator, Sequence
-from contextlib import contextmanager, suppress
+from contextlib import ExitStack, contextmanager, suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Generic, TypeVar
@@ -33,13 +32,14 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
+from fourbar_ros.bag_replay import FREE_DOMAIN_IDS, free_domain_id
+
 REPO = Path(__file__).resolve().parent.parent
 #: Default deadline (s) for discovery and message waits; generous because the machine is shared.
 TIMEOUT = 30.0
 #: Domain ids tests may lease: the ranges that are safe on Linux (ports below the ephemeral range),
 #: minus 10-89, which developers use for manual experiments.
-TEST_DOMAIN_IDS: tuple[int, ...] = (*range(90, 102), *range(215, 233))
-LOCK_DIR = Path(tempfile.gettempdir()) / 'fourbar_ros_domain_locks'
+TEST_DOMAIN_IDS: tuple[int, ...] = FREE_DOMAIN_IDS
 
 M = TypeVar('M')
 
@@ -48,36 +48,22 @@ M = TypeVar('M')
 
 @dataclass
 class DomainLease:
-    """A held ROS_DOMAIN_ID; the flock is released by ``release()`` (or at process exit)."""
+    """A held ROS_DOMAIN_ID (fourbar_ros.bag_replay.free_domain_id's lock), given back by ``release()``."""
 
     domain_id: int
-    _fd: int
+    _hold: ExitStack
 
     def release(self) -> None:
         """Give the id back (idempotent)."""
-        if self._fd >= 0:
-            os.close(self._fd)  # closing drops the flock
-            self._fd = -1
+        self._hold.close()
 
 
 def lease_domain_id(candidates: Sequence[int] = TEST_DOMAIN_IDS) -> DomainLease:
-    """Lock the first free id among ``candidates`` (``fcntl.flock`` on one file per id).
-
-    Concurrent pytest runs on this machine (other agents, CI) each get a different id; a crashed run's
-    lock disappears with its process. Start at a pid-dependent offset to spread the ids out.
-    """
-    LOCK_DIR.mkdir(parents=True, exist_ok=True)
-    start = os.getpid() % len(candidates)
-    for i in range(len(candidates)):
-        domain_id = candidates[(start + i) % len(candidates)]
-        fd = os.open(LOCK_DIR / f'{domain_id}.lock', os.O_RDWR | os.O_CREAT, 0o666)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            os.close(fd)
-            continue
-        return DomainLease(domain_id, fd)
-    raise RuntimeError(f'all test ROS domain ids are in use: {candidates}')
+    """A free id among ``candidates``: the same lock files and port check the bag tools and the demo use, so
+    concurrent pytest runs, benchmarks and demos on this machine never share a domain; a crashed run's lock
+    disappears with its process."""
+    hold = ExitStack()
+    return DomainLease(hold.enter_context(free_domain_id(candidates)), hold)
 
 
 # --------------------------------------------------------------------------- waiting
