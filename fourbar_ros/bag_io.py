@@ -9,6 +9,10 @@ Every bag this module writes is a rosbag2 bag of metadata version 9 (ROS 2 Jazzy
 message definitions (``ros2msg``), type hashes (RIHS01) and offered QoS profiles a
 ``ros2 bag record`` of the same publishers would store. Writes are atomic: the bag is built in a
 hidden temporary directory next to the target and renamed into place only when complete.
+
+A writer can ``flush()`` what it has so far (recordings do it every second by default), so a process
+killed mid-recording leaves its data in that hidden directory; ``reindex()`` turns it into a complete
+bag (see docs/bags.md).
 """
 
 from __future__ import annotations
@@ -37,6 +41,9 @@ from rosbags.interfaces import (
     QosTime,
 )
 from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+from rosbags.rosbag2.metadata import parse_qos
+from rosbags.rosbag2.storage_mcap import McapWriter
+from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys import Stores, get_typestore
 
 from fourbar_ros.errors import FourBarError
@@ -283,8 +290,11 @@ class AtomicBagWriter:
     """A rosbag2 writer (metadata v9) that publishes its bag only when it is complete.
 
     Use as a context manager. The bag is built under a hidden sibling directory
-    ``.NAME.*.partial`` and renamed to ``path`` after a clean exit; on any exception, including
-    KeyboardInterrupt, the temporary directory is removed and ``path`` never appears.
+    ``.NAME.*.partial`` (the bag itself at ``.NAME.*.partial/NAME``) and renamed to ``path`` after a
+    clean exit; on any exception, including KeyboardInterrupt, the temporary directory is removed and
+    ``path`` never appears. If the process dies without running any cleanup (SIGKILL, power loss),
+    the hidden directory stays with whatever ``flush()`` had handed to the OS; ``reindex(path)``
+    recovers it.
     """
 
     def __init__(self, path: str | os.PathLike[str], storage: str = DEFAULT_STORAGE) -> None:
@@ -330,6 +340,26 @@ class AtomicBagWriter:
         except BaseException:
             self.abort()
             raise
+
+    @property
+    def work_dir(self) -> Path | None:
+        """The hidden ``.NAME.*.partial`` directory the bag is built in (None when not open)."""
+        return self._tmpdir
+
+    def flush(self) -> None:
+        """Hand every message written so far to the OS, so it survives this process being killed.
+
+        mcap: the open chunk (if it holds messages) is closed and the file buffer flushed;
+        sqlite3: the open transaction is committed. No fsync: this protects against the process
+        dying (SIGKILL, OOM killer, a crash), not against the machine losing power.
+        """
+        storage = self.writer.storage
+        if isinstance(storage, McapWriter):
+            if any(storage.chunk.msgs.values()):
+                storage.close_chunk()
+            storage.bio.flush()
+        elif isinstance(storage, Sqlite3Writer):
+            storage.conn.commit()
 
     @property
     def writer(self) -> Writer:
@@ -431,3 +461,238 @@ def write_command_bag(path: str | os.PathLike[str], stamps_ns: Sequence[int],
         for stamp, theta in zip(stamps_ns, values, strict=True):
             bag.write(conn, stamp, float64_cdr(theta))
     return Path(path)
+
+
+# --------------------------------------------------------------------------- recovering killed recordings
+
+@dataclass(frozen=True)
+class _Topic:
+    """A topic as found in a storage file: everything AtomicBagWriter.add_topic needs."""
+
+    cid: int
+    name: str
+    msgtype: str
+    msgdef: str
+    digest: str
+    serialization_format: str
+    qos: tuple[Qos, ...]
+
+
+@dataclass
+class ReindexResult:
+    """What ``reindex`` recovered: the new bag, its messages per topic, and what was dropped.
+
+    ``source``: the storage file read; ``source_bytes``: its size; ``kept_bytes``: the bytes of its
+    complete records (mcap) or its size (sqlite3); ``dropped``: why reading stopped before the end of
+    the file (an incomplete last chunk, a corrupt page), or None when the whole file was readable.
+    """
+
+    path: Path
+    storage: str
+    source: Path
+    source_bytes: int
+    kept_bytes: int
+    counts: dict[str, int] = field(default_factory=dict)
+    dropped: str | None = None
+    removed: Path | None = None
+
+    @property
+    def messages(self) -> int:
+        """Messages in the rebuilt bag."""
+        return sum(self.counts.values())
+
+
+def partial_dirs(path: str | os.PathLike[str]) -> list[Path]:
+    """The hidden work directories ``.NAME.*.partial`` an AtomicBagWriter for ``path`` left behind."""
+    p = Path(path)
+    if not p.parent.is_dir():
+        return []
+    return sorted(d for d in p.parent.iterdir()
+                  if d.name.startswith(f'.{p.name}.') and d.name.endswith('.partial') and (d / p.name).is_dir())
+
+
+def _digest(msgtype: str, msgdef: str, fmt: str) -> str:
+    """RIHS01 hash of ``msgtype`` from its stored definition (Jazzy's if the definition is absent)."""
+    from rosbags.typesys import get_types_from_idl, get_types_from_msg
+
+    if msgdef:
+        try:
+            store = get_typestore(Stores.EMPTY)
+            store.register(get_types_from_idl(msgdef) if fmt == 'ros2idl' else get_types_from_msg(msgdef, msgtype))
+            return str(store.hash_rihs01(msgtype))
+        except Exception:  # an unparsable definition: fall back to the Jazzy type below
+            pass
+    jazzy = jazzy_typestore()
+    if msgtype in jazzy.fielddefs:
+        return str(jazzy.hash_rihs01(msgtype))
+    return ''
+
+
+def _scan_mcap(file: Path, result: ReindexResult) -> Iterator[_Topic | tuple[int, int, bytes]]:
+    """Yield topics (when first seen) and messages ``(channel id, log time ns, CDR)`` of every
+    complete record; stop quietly at the first incomplete or corrupt one (noted in ``result``)."""
+    from mcap.records import Channel as McapChannel
+    from mcap.records import Message as McapMessage
+    from mcap.records import Schema as McapSchema
+    from mcap.stream_reader import StreamReader
+
+    schemas: dict[int, McapSchema] = {}
+    size = file.stat().st_size
+    with file.open('rb') as f:
+        reader = StreamReader(f, record_size_limit=max(size, 1))
+        records = reader.records
+        while True:
+            try:
+                record = next(records)
+            except StopIteration:
+                result.kept_bytes = f.tell()
+                return
+            except Exception as exc:  # the stream ends (mid-record, or with no footer), or a record is corrupt
+                if result.kept_bytes < size:
+                    result.dropped = (f'{size - result.kept_bytes} bytes after the last complete record: '
+                                      f'{_one_line(exc)}')
+                return
+            result.kept_bytes = f.tell()
+            if isinstance(record, McapSchema):
+                schemas[record.id] = record
+            elif isinstance(record, McapChannel):
+                schema = schemas.get(record.schema_id)
+                if schema is None:
+                    continue
+                msgdef = schema.data.decode('utf8', 'replace')
+                qos_text = record.metadata.get('offered_qos_profiles', '')
+                try:
+                    qos = tuple(parse_qos(qos_text))
+                except Exception:
+                    qos = ()
+                yield _Topic(record.id, record.topic, schema.name, msgdef,
+                             _digest(schema.name, msgdef, schema.encoding), record.message_encoding, qos)
+            elif isinstance(record, McapMessage):
+                yield record.channel_id, record.log_time, bytes(record.data)
+
+
+def _scan_sqlite3(file: Path, result: ReindexResult) -> Iterator[_Topic | tuple[int, int, bytes]]:
+    """Like ``_scan_mcap`` for a rosbag2 sqlite3 file (committed rows; sqlite rolls back the rest)."""
+    import sqlite3
+
+    con = sqlite3.connect(f'file:{file}?mode=rw', uri=True)  # rw: sqlite rolls a hot journal back
+    try:
+        defs: dict[str, tuple[str, str, str]] = {}
+        try:
+            for typ, enc, text, digest in con.execute(
+                    'SELECT topic_type, encoding, encoded_message_definition, type_description_hash '
+                    'FROM message_definitions'):
+                defs[str(typ)] = (str(enc), str(text), str(digest))
+        except sqlite3.Error:
+            pass  # older schema without definitions
+        try:
+            rows = list(con.execute('SELECT id, name, type, serialization_format, offered_qos_profiles, '
+                                    'type_description_hash FROM topics'))
+        except sqlite3.Error:
+            rows = [(*r, '') for r in con.execute(
+                'SELECT id, name, type, serialization_format, offered_qos_profiles FROM topics')]
+        for tid, name, typ, ser, qos_text, digest in rows:
+            enc, text, def_digest = defs.get(str(typ), ('ros2msg', '', ''))
+            try:
+                qos = tuple(parse_qos(str(qos_text)))
+            except Exception:
+                qos = ()
+            yield _Topic(int(tid), str(name), str(typ), text,
+                         str(digest or def_digest or _digest(str(typ), text, enc)), str(ser), qos)
+        try:
+            for tid, stamp, data in con.execute('SELECT topic_id, timestamp, data FROM messages ORDER BY id'):
+                yield int(tid), int(stamp), bytes(data)
+        except sqlite3.Error as exc:
+            result.dropped = _one_line(exc)
+        result.kept_bytes = result.source_bytes
+    finally:
+        con.close()
+
+
+def _storage_file(bag: Path) -> tuple[Path, str]:
+    files = sorted(p for p in bag.iterdir() if p.suffix in ('.mcap', '.db3') and p.is_file())
+    if not files:
+        raise BagError(f'{bag}: no storage file (.mcap or .db3) to reindex')
+    if len(files) > 1:
+        raise BagError(f'{bag}: {len(files)} storage files; reindex handles single-file bags')
+    return files[0], 'mcap' if files[0].suffix == '.mcap' else 'sqlite3'
+
+
+def _copy(file: Path, storage: str, bag: AtomicBagWriter, result: ReindexResult) -> None:
+    """Write every recoverable topic and message of ``file`` into ``bag``, in stored order."""
+    scan = _scan_mcap if storage == 'mcap' else _scan_sqlite3
+    conns: dict[int, Connection] = {}
+    by_name: dict[str, Connection] = {}
+    for item in scan(file, result):
+        if isinstance(item, _Topic):
+            if item.name not in by_name:
+                by_name[item.name] = bag.add_topic(
+                    item.name, item.msgtype, item.qos, msgdef=item.msgdef or None, rihs01=item.digest or None)
+                result.counts[item.name] = 0
+            conns[item.cid] = by_name[item.name]
+        else:
+            cid, stamp, data = item
+            conn = conns.get(cid)
+            if conn is not None:  # a message of a channel that was never announced cannot be typed
+                bag.write(conn, stamp, data)
+                result.counts[conn.topic] += 1
+
+
+def _source_and_target(path: Path) -> tuple[Path, Path, Path | None]:
+    """(bag directory to read, where the rebuilt bag goes, work directory to remove afterwards)."""
+    if not path.exists() and not path.is_symlink():
+        found = partial_dirs(path)
+        if not found:
+            raise BagError(f'{path}: no such bag and no interrupted recording (.{path.name}.*.partial) '
+                           'next to it')
+        if len(found) > 1:
+            raise BagError(f'{path}: {len(found)} interrupted recordings ({", ".join(d.name for d in found)}); '
+                           'pass the one to recover')
+        return found[0] / path.name, path, found[0]
+    if not path.is_dir():
+        raise BagError(f'{path}: not a bag directory')
+    if path.name.startswith('.') and path.name.endswith('.partial'):
+        inner = [d for d in path.iterdir() if d.is_dir()]
+        if len(inner) != 1:
+            raise BagError(f'{path}: not a recording work directory (expected one bag inside)')
+        return inner[0], path.parent / inner[0].name, path
+    return path, path, None
+
+
+def reindex(path: str | os.PathLike[str]) -> ReindexResult:
+    """Turn what a killed recording left into a complete, readable bag, like ``ros2 bag reindex``.
+
+    ``path``: the bag the recording was writing (its hidden ``.NAME.*.partial`` work directory is
+    found next to it), that work directory itself, or a bag directory whose metadata.yaml is missing
+    or whose mcap file has no summary/footer. Every complete record is copied (mcap: every complete
+    chunk; sqlite3: every committed row) into a new bag with metadata.yaml, written atomically; then
+    the work directory is removed, or the original bag directory is replaced. Message definitions,
+    type hashes and offered QoS come from the storage file; custom data, if any, is not recovered.
+    Raises BagError (one line) when there is nothing to recover or the target exists.
+    """
+    source, target, work = _source_and_target(Path(path))
+    file, storage = _storage_file(source)
+    result = ReindexResult(target, storage, file, file.stat().st_size, 0)
+    in_place = target == source
+    build = target if not in_place else target.parent / f'.{target.name}.reindexed'
+    if build.exists():
+        raise BagError(f'{build}: exists already, not overwriting')
+    try:
+        with AtomicBagWriter(build, storage) as bag:
+            _copy(file, storage, bag, result)
+            if not result.counts:
+                raise BagError(f'{file}: no complete topic to recover ({result.dropped or "empty"})')
+    except BagError:
+        raise
+    except Exception as exc:
+        raise BagError(f'{file}: cannot recover ({_one_line(exc)})') from exc
+    if in_place:
+        old = Path(tempfile.mkdtemp(prefix=f'.{target.name}.', suffix='.original', dir=target.parent))
+        os.rename(target, old / target.name)
+        os.rename(build, target)
+        _fsync(target.parent)
+        shutil.rmtree(old, ignore_errors=True)
+    elif work is not None:
+        shutil.rmtree(work, ignore_errors=True)
+        result.removed = work
+    return result

@@ -26,6 +26,8 @@ from fourbar_ros.bag_replay import ReplayError, handshake, make_qos, publisher_n
 
 #: History depth of the recording subscriptions: how far the recorder may fall behind a burst.
 RECORD_DEPTH = 1000
+#: Seconds between flushes of the bag being recorded (what a SIGKILL may lose, plus one spin).
+DEFAULT_FLUSH_INTERVAL = 1.0
 
 
 def rosbags_qos(profile: Any) -> Qos:
@@ -121,8 +123,11 @@ class Recorder:
     """
 
     def __init__(self, node: Node, out: Path, plans: Sequence[TopicPlan], storage: str = 'mcap',
-                 on_message: Callable[[str, int], None] | None = None) -> None:
+                 on_message: Callable[[str, int], None] | None = None,
+                 flush_interval: float = DEFAULT_FLUSH_INTERVAL) -> None:
         self.node = node
+        self.flush_interval = flush_interval
+        self._next_flush = time.monotonic() + flush_interval
         self.out = Path(out)
         self.plans = list(plans)
         self.bag = AtomicBagWriter(self.out, storage)
@@ -141,6 +146,7 @@ class Recorder:
                 self._subs.append(node.create_subscription(
                     _import_type(plan.msgtype), plan.name, self._writer_for(conn, plan.name),
                     request_qos(plan.offered), raw=True))
+            self.bag.flush()  # the file header is on disk from the start
         except BaseException:
             self.abort()
             raise
@@ -154,6 +160,19 @@ class Recorder:
             if self.on_message is not None:
                 self.on_message(name, self.counts[name])
         return write
+
+    def flush_if_due(self, now: float | None = None) -> bool:
+        """Flush the bag if ``flush_interval`` seconds (monotonic) passed since the last flush."""
+        now = time.monotonic() if now is None else now
+        if now < self._next_flush:
+            return False
+        self.bag.flush()
+        self._next_flush = now + self.flush_interval
+        return True
+
+    def seconds_to_flush(self) -> float:
+        """Seconds until the next flush is due (0 if overdue)."""
+        return max(0.0, self._next_flush - time.monotonic())
 
     def matched(self) -> bool:
         """True once every subscription has matched at least one publisher."""
@@ -198,10 +217,15 @@ class Recorder:
 
 def record_until(executor: Executor, recorder: Recorder, stop: Callable[[], bool],
                  max_seconds: float | None = None) -> float:
-    """Run callbacks until ``stop()`` or ``max_seconds``; return the seconds recorded."""
+    """Run callbacks until ``stop()`` or ``max_seconds``; return the seconds recorded.
+
+    The bag is flushed every ``recorder.flush_interval`` seconds in between (a spin waits at most
+    until the next flush is due, so a quiet topic does not delay it).
+    """
     start = time.monotonic()
     while not stop():
         if max_seconds is not None and time.monotonic() - start >= max_seconds:
             break
-        executor.spin_once(timeout_sec=0.1)
+        executor.spin_once(timeout_sec=min(0.1, recorder.seconds_to_flush()))
+        recorder.flush_if_due()
     return time.monotonic() - start

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 import signal
 import sys
 from pathlib import Path
@@ -24,6 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--wait', type=float, default=10.0, metavar='S',
                         help='seconds to wait for a publisher on every topic (default: 10)')
     parser.add_argument('--duration', type=float, metavar='S', help='stop after S seconds of recording')
+    parser.add_argument('--flush-interval', type=float, default=1.0, metavar='S',
+                        help='hand the recorded messages to the OS every S seconds, so a killed recorder '
+                        'keeps all but the last S seconds (recover with `fourbar reindex OUT`; default: 1)')
     parser.add_argument('--stop-after', action='append', default=[], metavar='TOPIC=N',
                         help='stop once TOPIC has N messages (repeatable: all must be reached)')
 
@@ -57,6 +61,10 @@ def run(args: argparse.Namespace) -> int:
     if args.wait <= 0 or (args.duration is not None and not args.duration > 0):
         print(f'{prog}: error: --wait and --duration must be positive', file=sys.stderr)
         return 2
+    if not (math.isfinite(args.flush_interval) and args.flush_interval > 0):
+        print(f'{prog}: error: --flush-interval must be a positive number of seconds, got {args.flush_interval}',
+              file=sys.stderr)
+        return 2
     stop_after = _parse_stop_after(args.stop_after)
     AtomicBagWriter(args.out, args.storage)  # checks OUT before touching ROS; writes nothing
 
@@ -85,14 +93,15 @@ def run(args: argparse.Namespace) -> int:
         if unknown:
             print(f'{prog}: error: --stop-after names a topic not recorded: {unknown[0]}', file=sys.stderr)
             return 2
-        recorder = Recorder(node, args.out, plans, args.storage)
+        recorder = Recorder(node, args.out, plans, args.storage, flush_interval=args.flush_interval)
         rec = recorder
         spin_until(executor, lambda: rec.matched() or bool(stopping), args.wait)
         for fqn in rec.handshake(executor, args.wait):
             print(f'{prog}: warning: {fqn} has no parameter services; its first messages may be missed',
                   file=sys.stderr)
         names = ' '.join(p.name for p in plans)
-        print(f'{prog}: recording {names} to {args.out} (Ctrl-C to stop)', file=sys.stderr, flush=True)
+        print(f'{prog}: recording {names} to {args.out} (Ctrl-C to stop; flushed every {args.flush_interval:g} s '
+              f'to {rec.bag.work_dir})', file=sys.stderr, flush=True)
 
         def done() -> bool:
             return bool(stopping) or (bool(wanted) and all(rec.counts[t] >= n for t, n in wanted.items()))

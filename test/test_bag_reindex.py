@@ -1,0 +1,245 @@
+"""A killed recording keeps what it had: periodic flushes, `fourbar reindex`, and a real SIGKILL of `fourbar record`.
+
+Without ROS: a writer process that dies without any cleanup (os._exit) after a flush leaves exactly the flushed
+messages in its hidden work directory; `fourbar reindex` turns them into a bag equal (topics, definitions, hashes,
+QoS, every stamp and byte) to one written cleanly with those messages. With ROS: `fourbar record` is SIGKILLed while
+a publisher streams; after reindex the bag is read by rosbags and by mcap or sqlite3, and holds every message that
+was on disk (waited for with a deadline, one flush interval after it was published) before the kill.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+import yaml
+from bag_support import Tool, read_with_mcap, read_with_sqlite, run_tool, storage_file
+from ros_support import REPO, TIMEOUT, RosSession, wait_for
+from std_msgs.msg import Float64
+
+from fourbar_ros.bag_io import (
+    FLOAT64,
+    AtomicBagWriter,
+    BagError,
+    fingerprint,
+    float64_cdr,
+    jazzy_typestore,
+    partial_dirs,
+    read_messages,
+    recorded_qos,
+    reindex,
+)
+
+STORAGES = ('mcap', 'sqlite3')
+
+# A writer that flushes after FLUSHED messages, writes UNFLUSHED more and dies without any cleanup.
+KILLED_WRITER = '''
+import os, sys
+from fourbar_ros.bag_io import AtomicBagWriter, FLOAT64, DIAGNOSTIC_ARRAY, float64_cdr, recorded_qos
+out, storage, flushed, unflushed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
+bag = AtomicBagWriter(out, storage)
+bag.open()
+cmd = bag.add_topic('/antenna_angle_cmd', FLOAT64, [recorded_qos()])
+bag.add_topic('/diagnostics', DIAGNOSTIC_ARRAY, [recorded_qos(transient_local=True)])
+for i in range(flushed + unflushed):
+    bag.write(cmd, 1_700_000_000_000_000_000 + 10_000_000 * i, float64_cdr(i * 0.001))
+    if i + 1 == flushed:
+        bag.flush()
+os._exit(9)
+'''
+
+
+def _killed_writer(out: Path, storage: str, flushed: int, unflushed: int) -> None:
+    proc = subprocess.run([sys.executable, '-c', KILLED_WRITER, str(out), storage, str(flushed), str(unflushed)],
+                          check=False, cwd=REPO, capture_output=True, text=True, timeout=TIMEOUT)
+    assert proc.returncode == 9, proc.stderr
+
+
+def _clean_bag(out: Path, storage: str, n: int) -> Path:
+    """What a clean recording of the first ``n`` messages would have written."""
+    from fourbar_ros.bag_io import DIAGNOSTIC_ARRAY
+
+    with AtomicBagWriter(out, storage) as bag:
+        cmd = bag.add_topic('/antenna_angle_cmd', FLOAT64, [recorded_qos()])
+        bag.add_topic('/diagnostics', DIAGNOSTIC_ARRAY, [recorded_qos(transient_local=True)])
+        for i in range(n):
+            bag.write(cmd, 1_700_000_000_000_000_000 + 10_000_000 * i, float64_cdr(i * 0.001))
+    return out
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_killed_writer_keeps_the_flushed_messages(storage: str, tmp_path: Path) -> None:
+    out = tmp_path / 'rec'
+    # 3000 unflushed messages (~120 KB) are still in the open mcap chunk or sqlite3 transaction when it dies.
+    _killed_writer(out, storage, 500, 3000)
+    assert not out.exists()
+    [work] = partial_dirs(out)
+    rc, lines, stdout = run_tool(['reindex', out], dict(os.environ))
+    assert rc == 0 and stdout == '', lines
+    assert lines[0].startswith(f'fourbar reindex: wrote {out}: 500 messages (/antenna_angle_cmd: 500, /diagnostics: 0)')
+    assert not work.exists() and partial_dirs(out) == []
+    # Everything that defines the content equals a clean bag of the flushed messages; only custom data
+    # (none here) cannot be recovered.
+    assert fingerprint(out) == fingerprint(_clean_bag(tmp_path / 'clean', storage, 500))
+    other = read_with_mcap(out) if storage == 'mcap' else read_with_sqlite(out)
+    assert [m.data for _, m in other['/antenna_angle_cmd']] == [i * 0.001 for i in range(500)]
+    info = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['message_count'] == 500 and info['storage_identifier'] == storage
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_reindex_rebuilds_a_bag_directory_in_place(storage: str, tmp_path: Path) -> None:
+    """A bag directory without metadata.yaml (e.g. moved out of the work directory by hand)."""
+    out = tmp_path / 'rec'
+    _killed_writer(out, storage, 40, 3)
+    [work] = partial_dirs(out)
+    moved = tmp_path / 'moved'
+    (work / 'rec').rename(moved)
+    assert not (moved / 'metadata.yaml').exists()
+    result = reindex(moved)
+    assert result.path == moved and result.messages == 40 and result.removed is None
+    assert [m.data for _, m in read_messages(moved)['/antenna_angle_cmd']] == [i * 0.001 for i in range(40)]
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(['moved', work.name])  # nothing else left
+
+
+def test_reindex_errors_are_one_line_and_change_nothing(tmp_path: Path) -> None:
+    out = tmp_path / 'rec'
+    rc, lines, _ = run_tool(['reindex', out], dict(os.environ))
+    assert rc == 2 and lines == [f'fourbar reindex: error: {out}: no such bag and no interrupted recording '
+                                 '(.rec.*.partial) next to it']
+    _killed_writer(out, 'mcap', 5, 0)
+    _killed_writer(out, 'mcap', 6, 0)
+    before = sorted(p.name for p in tmp_path.iterdir())
+    with pytest.raises(BagError, match=r'2 interrupted recordings .*pass the one to recover'):
+        reindex(out)
+    assert sorted(p.name for p in tmp_path.iterdir()) == before
+    result = reindex(tmp_path / before[1])  # naming the work directory picks it
+    assert result.path == out and result.messages in (5, 6) and result.removed == tmp_path / before[1]
+    assert len(partial_dirs(out)) == 1
+    # A work directory killed before any message was flushed has nothing to recover.
+    empty = tmp_path / 'empty'
+    _killed_writer(empty, 'mcap', 0, 3)
+    with pytest.raises(BagError, match='no complete topic to recover'):
+        reindex(empty)
+    assert not empty.exists() and len(partial_dirs(empty)) == 1
+
+
+def test_reindex_recovers_from_a_truncated_mcap(tmp_path: Path) -> None:
+    """A file cut anywhere keeps every chunk that ends before the cut (here: cut inside the last chunk)."""
+    # Build a file of three flushed chunks, then cut it in the middle of the third.
+    bag = AtomicBagWriter(tmp_path / 'src', 'mcap')
+    bag.open()
+    conn = bag.add_topic('/antenna_angle_cmd', FLOAT64, [recorded_qos()])
+    sizes = []
+    for chunk in range(3):
+        for i in range(100):
+            bag.write(conn, 1_000 + chunk * 100 + i, float64_cdr(chunk * 100 + i))
+        bag.flush()
+        assert bag.work_dir is not None
+        sizes.append(storage_file(bag.work_dir / 'src').stat().st_size)
+    assert bag.work_dir is not None
+    src = bag.work_dir / 'src'
+    cut = (sizes[1] + sizes[2]) // 2
+    storage_file(src).write_bytes(storage_file(src).read_bytes()[:cut])
+    try:
+        result = reindex(src)
+        assert result.messages == 200 and result.kept_bytes == sizes[1]
+        assert result.dropped is not None and result.dropped.startswith(f'{cut - sizes[1]} bytes after')
+        assert [m.data for _, m in read_messages(src)['/antenna_angle_cmd']] == [float(i) for i in range(200)]
+    finally:
+        bag.abort()
+
+
+# --------------------------------------------------------------------------- SIGKILL of `fourbar record`
+
+def _on_disk(out: Path, storage: str) -> list[float]:
+    """The stream values already in the recorder's work directory, read without changing anything."""
+    dirs = partial_dirs(out)
+    if not dirs:
+        return []
+    files = [p for p in (dirs[0] / out.name).iterdir() if p.suffix in ('.mcap', '.db3')]
+    if not files:
+        return []
+    store = jazzy_typestore()
+    values: list[float] = []
+    if storage == 'mcap':
+        from mcap.records import Message
+        from mcap.stream_reader import StreamReader
+
+        with files[0].open('rb') as f:
+            try:
+                for record in StreamReader(f).records:
+                    if isinstance(record, Message):
+                        values.append(float(store.deserialize_cdr(bytes(record.data), FLOAT64).data))
+            except Exception:  # the end of a file still being written
+                pass
+        return values
+    try:
+        con = sqlite3.connect(f'file:{files[0]}?mode=ro', uri=True, timeout=0.1)
+        try:
+            rows = con.execute('SELECT data FROM messages ORDER BY id').fetchall()
+        finally:
+            con.close()
+    except sqlite3.Error:  # locked while the recorder commits: try again
+        return []
+    return [float(store.deserialize_cdr(bytes(d), FLOAT64).data) for (d,) in rows]
+
+
+@pytest.fixture(scope='module')
+def ros() -> Iterator[RosSession]:
+    with RosSession('fourbar_reindex_test') as session:
+        yield session
+
+
+@pytest.mark.ros
+@pytest.mark.slow
+@pytest.mark.parametrize('storage', STORAGES)
+def test_sigkill_while_streaming_keeps_all_but_the_last_interval(storage: str, ros: RosSession,
+                                                                 tmp_path: Path) -> None:
+    out = tmp_path / 'rec'
+    interval = 0.5
+    pub = ros.publisher(Float64, '/fourbar_reindex_stream', 1000)
+    published: list[float] = []  # monotonic time of each message i (value float(i))
+
+    def publish() -> None:
+        pub.publish(Float64(data=float(len(published))))
+        published.append(time.monotonic())
+
+    with Tool(['record', out, '--storage', storage, '--topics', '/fourbar_reindex_stream',
+               '--flush-interval', str(interval)], ros.env()) as recorder:
+        recorder.wait_line('recording')
+        timer = ros.node.create_timer(0.005, publish)  # ~200 messages/s while the recorder runs
+        ros.executor.wake()
+        try:
+            wait_for(lambda: len(published) >= 100, what='100 published messages')
+            marked = len(published)  # messages 0 .. marked-1 went out before this point
+            # A flush interval later they are on disk: wait for it (deadline), streaming on meanwhile.
+            wait_for(lambda: len(_on_disk(out, storage)) >= marked, poll=0.05,
+                     what=f'messages 0..{marked - 1} flushed to the work directory')
+            recorder.signal(signal.SIGKILL)
+            killed_at = time.monotonic()
+            assert recorder.wait() == -signal.SIGKILL
+        finally:
+            ros.node.destroy_timer(timer)
+    sent = len(published)
+    assert not out.exists()
+    rc, lines, _ = run_tool(['reindex', out], ros.env())
+    assert rc == 0, lines
+    values = [m.data for _, m in read_messages(out)['/fourbar_reindex_stream']]
+    other = read_with_mcap(out) if storage == 'mcap' else read_with_sqlite(out)
+    assert [m.data for _, m in other['/fourbar_reindex_stream']] == values
+    kept = len(values)
+    # Reliable QoS, in order: what is kept is a gap-free prefix of what was sent, and holds everything that
+    # was on disk before the kill.
+    assert values == [float(i) for i in range(kept)]
+    assert marked <= kept <= sent
+    older = sum(1 for t in published if t < killed_at - interval)
+    print(f'{storage}: {sent} sent, kill {killed_at - published[0]:.2f} s after the first; kept {kept}; '
+          f'{older} sent more than {interval} s before the kill; {lines}')
