@@ -12,6 +12,11 @@ Two modes:
   and the next answered command proves the node has consumed them (one subscription, in order).
 
 The recorded CDR bytes are published unchanged (rclpy >= Jazzy's ``Publisher.publish(bytes)``).
+
+Timed mode can also publish ``/clock`` (``rosgraph_msgs/Clock``) from the bag's timeline, like
+``ros2 bag play --clock``: the playback time (the first command's stamp plus the elapsed wall time
+times ``rate``) at ``clock_hz`` (40 Hz by default, rosbag2's default), so a node with
+``use_sim_time:=true`` runs on the bag's time.
 """
 
 from __future__ import annotations
@@ -51,6 +56,8 @@ make_qos = cast('Callable[..., QoSProfile]', QoSProfile)
 
 #: History depth of the replay publisher (timed mode may run ahead of a slow node by this much).
 PUBLISH_DEPTH = 1000
+#: Rate (Hz) of /clock in timed replay with a clock, as ``ros2 bag play --clock`` publishes by default.
+DEFAULT_CLOCK_HZ = 40.0
 
 
 class ReplayError(FourBarError):
@@ -236,11 +243,19 @@ class ReplayStats:
     expected_answers: int = 0
     answers: int = 0
     seconds: float = 0.0
+    clocks: int = 0
 
     @property
     def rate_hz(self) -> float:
         """Commands published per second of wall time."""
         return self.published / self.seconds if self.seconds > 0 else math.inf
+
+
+def _clock_type() -> Any:
+    """``rosgraph_msgs.msg.Clock`` (imported by name: the message package ships no type stubs)."""
+    import importlib
+
+    return importlib.import_module('rosgraph_msgs.msg').Clock
 
 
 class Replayer:
@@ -251,11 +266,17 @@ class Replayer:
     """
 
     def __init__(self, node: Node, stream: CommandStream, topic: str | None = None,
-                 answer_topic: str | None = None, answer_type: Any = None) -> None:
+                 answer_topic: str | None = None, answer_type: Any = None, clock: bool = False) -> None:
         self.node = node
         self.stream = stream
         self.topic = topic or stream.topic
         self.publisher = node.create_publisher(Float64, self.topic, publisher_qos(stream))
+        self.clock_publisher: Any = None
+        if clock:
+            # rosbag2's clock QoS: best effort, keep last 1 (what rclpy's and rclcpp's time sources request).
+            self.clock_publisher = node.create_publisher(
+                _clock_type(), '/clock', make_qos(history=HistoryPolicy.KEEP_LAST, depth=1,
+                                          reliability=ReliabilityPolicy.BEST_EFFORT))
         self.answer_topic = answer_topic
         self.answers = 0
         self.subscription = None
@@ -310,18 +331,62 @@ class Replayer:
             handshake(self.node, executor, subscribers + others, timeout_s)
         return answers
 
+    def prepare_clock(self, executor: Executor, timeout_s: float) -> list[str]:
+        """Before a replay with ``/clock``: make sure the command subscribers have discovered the clock
+        publisher (the handshake of ``fetch_parameters``), so the first commands already meet a clock.
+
+        Returns the subscribers whose ``use_sim_time`` is false (they ignore ``/clock``).
+        """
+        cmd = self.publisher.topic_name
+        ignoring = []
+        for target in wait_for_node_names(self.node, executor, lambda: subscriber_nodes(self.node, cmd),
+                                          timeout_s, f'subscribed to {cmd}'):
+            values = fetch_parameters(self.node, executor, target, ['use_sim_time'], timeout_s)
+            if values.get('use_sim_time') is not True:
+                ignoring.append(target)
+        return ignoring
+
+    def _publish_clock(self, stamp_ns: int) -> None:
+        from builtin_interfaces.msg import Time
+
+        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        self.clock_publisher.publish(_clock_type()(clock=Time(sec=sec, nanosec=nanosec)))
+
     def run_timed(self, executor: Executor, rate: float = 1.0,
-                  progress: Progress | None = None, ack_timeout_s: float = 10.0) -> ReplayStats:
-        """Publish with the recorded timing scaled by ``1/rate``; wait until the node acknowledged."""
+                  progress: Progress | None = None, ack_timeout_s: float = 10.0,
+                  clock_hz: float = DEFAULT_CLOCK_HZ) -> ReplayStats:
+        """Publish with the recorded timing scaled by ``1/rate``; wait until the node acknowledged.
+
+        With a clock publisher (``Replayer(clock=True)``), ``/clock`` carries the playback time every
+        ``1/clock_hz`` s of wall time from the start (the first command's stamp) to the last command.
+        """
         if not rate > 0.0 or not math.isfinite(rate):
             raise ReplayError(f'rate must be a positive number, got {rate}')
+        if not clock_hz > 0.0 or not math.isfinite(clock_hz):
+            raise ReplayError(f'clock rate must be a positive number of Hz, got {clock_hz}')
         stats = ReplayStats()
         stamps, raws = self.stream.stamps_ns, self.stream.raw
+        clock = self.clock_publisher is not None
+        period = 1.0 / clock_hz
         start = time.monotonic()
+        next_clock = start
+
+        def tick(now: float) -> None:
+            nonlocal next_clock
+            if clock and now >= next_clock:
+                self._publish_clock(stamps[0] + round((now - start) * rate * 1e9))
+                stats.clocks += 1
+                next_clock += period
+                if next_clock <= now:  # fell behind (a busy machine): resume the rate, no burst
+                    next_clock = now + period
         for i, raw in enumerate(raws):
             due = start + (stamps[i] - stamps[0]) * 1e-9 / rate
-            while (now := time.monotonic()) < due:
-                executor.spin_once(timeout_sec=due - now)
+            while True:
+                now = time.monotonic()
+                tick(now)
+                if now >= due:
+                    break
+                executor.spin_once(timeout_sec=(min(due, next_clock) if clock else due) - now)
             self.publisher.publish(raw)
             stats.published += 1
             if progress:

@@ -20,6 +20,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     mode.add_argument('--as-fast-as-node-keeps-up', dest='lockstep', action='store_true',
                       help='publish each command once the node answered the previous one on '
                       'joint_states (nothing is lost, whatever the speed)')
+    parser.add_argument('--clock', nargs='?', type=float, const=40.0, default=None, metavar='HZ',
+                        help='timed replay: also publish /clock (rosgraph_msgs/Clock) with the bag\'s playback '
+                        'time at HZ (default 40, as `ros2 bag play --clock`), for nodes with use_sim_time:=true; '
+                        'put it after BAG or give HZ')
     parser.add_argument('--topic', metavar='NAME',
                         help='publish on NAME instead of the recorded topic (e.g. /tilt/antenna_angle_cmd)')
     parser.add_argument('--answer-topic', metavar='NAME',
@@ -63,6 +67,14 @@ def run(args: argparse.Namespace) -> int:
         if not (math.isfinite(value) and value > 0):
             print(f'{prog}: error: --{name} must be a positive number, got {value}', file=sys.stderr)
             return 2
+    if args.clock is not None:
+        if args.lockstep:
+            print(f'{prog}: error: --clock works with timed replay (--rate), not --as-fast-as-node-keeps-up',
+                  file=sys.stderr)
+            return 2
+        if not (math.isfinite(args.clock) and args.clock > 0):
+            print(f'{prog}: error: --clock must be a positive rate in Hz, got {args.clock}', file=sys.stderr)
+            return 2
     if not 1 <= args.window <= 1000:
         print(f'{prog}: error: --window must be in 1..1000, got {args.window}', file=sys.stderr)
         return 2
@@ -85,8 +97,11 @@ def run(args: argparse.Namespace) -> int:
             answer_topic = None
             if args.lockstep:
                 answer_topic = args.answer_topic or sibling_topic(node.resolve_topic_name(topic), 'joint_states')
-            replayer = Replayer(node, stream, topic, answer_topic)
+            replayer = Replayer(node, stream, topic, answer_topic, clock=args.clock is not None)
             replayer.wait_for_node(executor, args.wait)
+            if args.clock is not None:
+                for fqn in replayer.prepare_clock(executor, args.wait):
+                    print(f'{prog}: warning: {fqn} has use_sim_time false; it ignores /clock', file=sys.stderr)
             if args.lockstep:
                 answers = replayer.prepare_lockstep(executor, args.wait, answers_from_file)
                 stats = replayer.run_lockstep(executor, answers, args.deadline, progress, args.window)
@@ -96,10 +111,12 @@ def run(args: argparse.Namespace) -> int:
                       f'{stats.published - stats.expected_answers} commands rejected by the node\'s limits',
                       file=sys.stderr)
             else:
-                stats = replayer.run_timed(executor, args.rate, progress)
+                stats = replayer.run_timed(executor, args.rate, progress,
+                                           clock_hz=args.clock if args.clock is not None else 40.0)
                 progress.end()
+                clock = f'; /clock {stats.clocks} times at {args.clock:g} Hz' if args.clock is not None else ''
                 print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s at rate {args.rate:g} '
-                      f'on {replayer.publisher.topic_name}', file=sys.stderr)
+                      f'on {replayer.publisher.topic_name}{clock}', file=sys.stderr)
             return 0
         except ReplayError as exc:
             progress.end()
