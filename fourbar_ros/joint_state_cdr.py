@@ -1,0 +1,187 @@
+"""CDR bytes of many ``sensor_msgs/msg/JointState`` and ``std_msgs/msg/Float64`` messages at once (numpy, no ROS).
+
+The node publishes JointStates whose frame_id and joint names never change between messages and whose
+position and effort always hold one value per joint; only the stamp, the floats and whether the velocity
+is present (``len(names)`` values or none) vary. So each message is one of two fixed byte layouts, and a
+block of messages is a numpy structured array over a repeated template: no per-message serializer.
+
+The bytes are those of ROS 2's little-endian plain CDR (XCDR1, encapsulation ``00 01 00 00``), what
+rclpy and ``rosbags``' ``serialize_cdr`` produce: alignment is counted from the end of the 4-byte
+encapsulation header; a sequence length (uint32) is aligned to 4; float64 elements to 8, and an empty
+sequence adds no padding; a string is its uint32 length (UTF-8 bytes plus the terminating NUL), the
+bytes and the NUL.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+import numpy.typing as npt
+
+ENCAPSULATION = b'\x00\x01\x00\x00'  #: CDR, little endian, no options
+FloatArray = npt.NDArray[np.float64]
+_INT32_MAX = 2**31 - 1
+
+
+class _Buf:
+    """A growing CDR body with the alignment rule; records where the variable fields sit."""
+
+    def __init__(self) -> None:
+        self.data = bytearray()
+
+    def align(self, n: int) -> None:
+        self.data += b'\x00' * (-len(self.data) % n)
+
+    def uint32(self, value: int) -> int:
+        self.align(4)
+        at = len(self.data)
+        self.data += int(value).to_bytes(4, 'little')
+        return at
+
+    def string(self, text: str) -> None:
+        raw = text.encode('utf-8') + b'\x00'
+        self.uint32(len(raw))
+        self.data += raw
+
+    def float64s(self, count: int) -> int:
+        """A float64 sequence of ``count`` zeros; returns the offset of its first element (-1 if empty)."""
+        self.uint32(count)
+        if count == 0:
+            return -1
+        self.align(8)
+        at = len(self.data)
+        self.data += b'\x00' * (8 * count)
+        return at
+
+
+@dataclass(frozen=True)
+class JointStateLayout:
+    """One fixed byte layout: template bytes (encapsulation included) and a structured dtype over them."""
+
+    size: int
+    template: bytes
+    dtype: np.dtype[np.void]
+    with_velocity: bool
+
+
+@lru_cache(maxsize=16)
+def joint_state_layout(frame_id: str, names: tuple[str, ...], with_velocity: bool) -> JointStateLayout:
+    """The layout of a JointState with this frame_id and these names, position and effort of ``len(names)``
+    values each and velocity of ``len(names)`` values (``with_velocity``) or none."""
+    if '\x00' in frame_id or any('\x00' in n for n in names):
+        raise ValueError('frame_id and joint names must not contain NUL characters')
+    k = len(names)
+    body = _Buf()
+    sec_at = body.uint32(0)
+    nsec_at = body.uint32(0)
+    body.string(frame_id)
+    body.uint32(k)
+    for name in names:
+        body.string(name)
+    pos_at = body.float64s(k)
+    vel_at = body.float64s(k if with_velocity else 0)
+    eff_at = body.float64s(k)
+    head = len(ENCAPSULATION)
+    fields: dict[str, tuple[npt.DTypeLike, int]] = {'sec': ('<i4', head + sec_at), 'nanosec': ('<u4', head + nsec_at)}
+    if k:
+        fields['position'] = (('<f8', (k,)), head + pos_at)
+        fields['effort'] = (('<f8', (k,)), head + eff_at)
+        if with_velocity:
+            fields['velocity'] = (('<f8', (k,)), head + vel_at)
+    size = head + len(body.data)
+    dtype = np.dtype({'names': list(fields), 'formats': [f[0] for f in fields.values()],
+                      'offsets': [f[1] for f in fields.values()], 'itemsize': size})
+    return JointStateLayout(size, ENCAPSULATION + bytes(body.data), dtype, with_velocity)
+
+
+def _rows(layout: JointStateLayout, count: int) -> npt.NDArray[np.void]:
+    """``count`` copies of the template, as a writable structured array."""
+    buf = np.frombuffer(layout.template * count, dtype=np.uint8).copy()
+    return buf.view(layout.dtype)
+
+
+def _split(blob: bytes, size: int) -> list[bytes]:
+    return [blob[i:i + size] for i in range(0, len(blob), size)]
+
+
+def stamp_parts(stamps_ns: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+    """(sec, nanosec) of ``builtin_interfaces/Time`` for nanosecond stamps, as rclpy's Time.to_msg splits them.
+
+    Raises ValueError for a stamp whose seconds do not fit the message's int32.
+    """
+    sec, nanosec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), 1_000_000_000)
+    if sec.size and (sec.min() < -_INT32_MAX - 1 or sec.max() > _INT32_MAX):
+        raise ValueError('a stamp does not fit builtin_interfaces/Time (int32 seconds)')
+    return sec, nanosec
+
+
+def encode_joint_states(stamps_ns: npt.NDArray[np.int64], frame_id: str, names: Sequence[str],
+                        position: FloatArray, effort: FloatArray, velocity: FloatArray,
+                        has_velocity: npt.NDArray[np.bool_]) -> list[bytes]:
+    """The CDR bytes of ``len(stamps_ns)`` JointState messages, in order.
+
+    ``position``, ``effort``, ``velocity``: shape (n, len(names)) (rad, N m, rad/s); message i carries
+    ``velocity[i]`` when ``has_velocity[i]``, else an empty velocity (the row is then ignored).
+    """
+    names = tuple(names)
+    n = len(stamps_ns)
+    k = len(names)
+    sec, nanosec = stamp_parts(stamps_ns)
+    position = np.asarray(position, dtype=np.float64).reshape(n, k)
+    effort = np.asarray(effort, dtype=np.float64).reshape(n, k)
+    velocity = np.asarray(velocity, dtype=np.float64).reshape(n, k)
+    has_velocity = np.asarray(has_velocity, dtype=np.bool_).reshape(n)
+    parts: dict[bool, list[bytes]] = {}
+    for with_velocity in (True, False):
+        select = has_velocity if with_velocity else ~has_velocity
+        count = int(np.count_nonzero(select))
+        if count == 0:
+            parts[with_velocity] = []
+            continue
+        layout = joint_state_layout(frame_id, names, with_velocity)
+        rows = _rows(layout, count)
+        every = count == n
+        rows['sec'] = sec if every else sec[select]
+        rows['nanosec'] = nanosec if every else nanosec[select]
+        if k:
+            rows['position'] = position if every else position[select]
+            rows['effort'] = effort if every else effort[select]
+            if with_velocity:
+                rows['velocity'] = velocity if every else velocity[select]
+        parts[with_velocity] = _split(rows.tobytes(), layout.size)
+    if not parts[False]:
+        return parts[True]
+    if not parts[True]:
+        return parts[False]
+    merged = np.empty(n, dtype=object)
+    merged[has_velocity] = parts[True]
+    merged[~has_velocity] = parts[False]
+    out: list[bytes] = merged.tolist()
+    return out
+
+
+_FLOAT64 = np.dtype({'names': ['head', 'data'], 'formats': ['<u4', '<f8'], 'offsets': [0, 4], 'itemsize': 12})
+_HEAD = int.from_bytes(ENCAPSULATION, 'little')
+
+
+def encode_float64s(values: FloatArray) -> list[bytes]:
+    """The CDR bytes of one ``std_msgs/msg/Float64`` per value (12 bytes each; NaN and inf kept bit for bit)."""
+    values = np.asarray(values, dtype=np.float64).reshape(-1)
+    recs = np.empty(values.size, dtype=_FLOAT64)
+    recs['head'] = _HEAD
+    recs['data'] = values
+    return _split(recs.tobytes(), 12)
+
+
+def decode_float64s(raws: Sequence[bytes]) -> FloatArray | None:
+    """The values of little-endian CDR ``std_msgs/msg/Float64`` messages, or None when any message is not
+    exactly that 12-byte form (the caller then decodes one by one with a full deserializer)."""
+    if any(len(r) != 12 for r in raws):
+        return None
+    recs = np.frombuffer(b''.join(raws), dtype=_FLOAT64)
+    if recs.size and not bool(np.all(recs['head'] == _HEAD)):
+        return None
+    return np.array(recs['data'], dtype=np.float64)
