@@ -11,9 +11,7 @@ Units: metres, radians, N m, kg, seconds.
 from __future__ import annotations
 
 import math
-import re
-import sys
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -28,16 +26,23 @@ from fourbar_ros.params import (
     ParamValue,
     is_foreign,
 )
+from fourbar_ros.rcl_yaml import (
+    NODE_NAME,
+    ConfigError,
+    node_sections,
+    rcl_scalar,
+    read_text,
+    section_pattern,
+    values_from_yaml,
+)
 
-#: Node name the loader looks for besides the ``/**`` wildcard section.
-NODE_NAME = 'fourbar_node'
+__all__ = [
+    'NODE_NAME', 'AntennaConfig', 'ConfigError', 'check_value', 'config_from_values', 'declared_values',
+    'default_config', 'load_config', 'rcl_scalar', 'unknown_in_node_sections', 'values_from_yaml',
+]
 
 #: Samples (plus both ends) used to check that the driven rocker has no dead point in the range.
 _RANGE_SAMPLES = 512
-
-
-class ConfigError(FourBarError):
-    """Invalid parameter file or parameter values; the message is one line naming the parameter."""
 
 
 @dataclass(frozen=True)
@@ -136,45 +141,57 @@ def check_value(spec: ParamSpec, value: object) -> ParamValue:
     if spec.type is float:
         if isinstance(value, bool) or not isinstance(value, float):
             hint = f' (write {value}.0)' if isinstance(value, int) and not isinstance(value, bool) else ''
-            raise ConfigError(f'{name}: expected a double{hint}, got {_type_name(value)} {value!r}')
+            raise ConfigError(f'{name}: expected a double{hint}, got {_type_name(value)} {value!r}', (name,))
         if not math.isfinite(value):
-            raise ConfigError(f'{name}: must be finite, got {value!r}')
+            raise ConfigError(f'{name}: must be finite, got {value!r}', (name,))
         lo, hi = spec.minimum, spec.maximum
         if lo is not None and value < lo and not math.isclose(value, lo, rel_tol=RANGE_REL_TOL):
-            raise ConfigError(f'{name}: {value!r} {spec.unit} is below the minimum {lo!r}'.replace('  ', ' '))
+            raise ConfigError(f'{name}: {value!r} {spec.unit} is below the minimum {lo!r}'.replace('  ', ' '), (name,))
         if hi is not None and value > hi and not math.isclose(value, hi, rel_tol=RANGE_REL_TOL):
-            raise ConfigError(f'{name}: {value!r} {spec.unit} is above the maximum {hi!r}'.replace('  ', ' '))
+            raise ConfigError(f'{name}: {value!r} {spec.unit} is above the maximum {hi!r}'.replace('  ', ' '), (name,))
         return value
     if spec.type is str:
         if not isinstance(value, str):
-            raise ConfigError(f'{name}: expected a string, got {_type_name(value)} {value!r}')
+            raise ConfigError(f'{name}: expected a string, got {_type_name(value)} {value!r}', (name,))
         if spec.choices and value not in spec.choices:
-            raise ConfigError(f"{name}: {value!r} is not one of {', '.join(spec.choices)}")
+            raise ConfigError(f"{name}: {value!r} is not one of {', '.join(spec.choices)}", (name,))
         if not value.strip():
-            raise ConfigError(f'{name}: must not be empty')
+            raise ConfigError(f'{name}: must not be empty', (name,))
         return value
     raise ConfigError(f'{name}: unsupported parameter type {spec.type.__name__}')  # pragma: no cover
 
 
 def _deg(angle: float) -> str:
-    return f'{angle:.6g} rad ({math.degrees(angle):.4g} deg)'
+    return f'{angle!r} rad ({math.degrees(angle):.6g} deg)'
+
+
+_LENGTHS = ('frame_length', 'rocker_ab_length', 'coupler_length', 'rocker_cd_length')
+
+
+def _fault(why: str, primary: tuple[str, ...], involved: tuple[str, ...],
+           changed: Collection[str] | None) -> ConfigError:
+    """A cross-parameter rejection naming the parameters at fault: those of ``involved`` the caller changed,
+    else ``primary`` (the ones a reader would fix first)."""
+    names = tuple(n for n in involved if n in changed) if changed else ()
+    names = names or primary
+    return ConfigError(f"{', '.join(names)}: {why}", names)
 
 
 def _check_tilt_range(linkage: AntennaLinkage, theta_min: float, theta_max: float,
-                      driven: Driven, branch: Branch) -> None:
+                      driven: Driven, branch: Branch, changed: Collection[str] | None) -> None:
     """Raise ConfigError unless the linkage assembles on ``branch`` over [theta_min, theta_max]
     and the driven rocker has no dead point (d q/d theta = 0) inside it."""
+    tilt = ('theta_min', 'theta_max')
     if not theta_min < theta_max:
-        raise ConfigError(f'theta_min: {_deg(theta_min)} must be below theta_max {_deg(theta_max)}')
+        raise _fault(f'theta_min {_deg(theta_min)} must be below theta_max {_deg(theta_max)}', tilt, tilt, changed)
     reach = linkage.reach()
     for name, theta in (('theta_min', theta_min), ('theta_max', theta_max)):
         if not reach.contains(theta):
-            raise ConfigError(
-                f'{name}: {_deg(theta)} is out of the linkage reach {reach.describe()}')
+            raise _fault(f'{name} {_deg(theta)} is out of the linkage reach {reach.describe()}',
+                         (name,), (name, *_LENGTHS), changed)
     if reach.theta_gap > 0.0 and theta_min < reach.theta_gap and theta_max > -reach.theta_gap:
-        raise ConfigError(
-            f'theta_min: [{_deg(theta_min)}, {_deg(theta_max)}] crosses the unreachable band '
-            f'|theta| < {_deg(reach.theta_gap)}')
+        raise _fault(f'[theta_min, theta_max] = [{_deg(theta_min)}, {_deg(theta_max)}] crosses the unreachable '
+                     f'band |theta| < {_deg(reach.theta_gap)}', tilt, (*tilt, *_LENGTHS), changed)
     samples = [theta_min + (theta_max - theta_min) * i / _RANGE_SAMPLES
                for i in range(_RANGE_SAMPLES + 1)]
     sign = 0.0
@@ -182,24 +199,31 @@ def _check_tilt_range(linkage: AntennaLinkage, theta_min: float, theta_max: floa
         try:
             advantage = linkage.mechanical_advantage(theta, driven=driven, branch=branch)
         except FourBarError as exc:
-            raise ConfigError(
-                f'theta_min: the linkage does not assemble at theta = {_deg(theta)} '
-                f'inside [theta_min, theta_max]: {exc}') from None
+            raise _fault(f'the linkage does not assemble at theta = {_deg(theta)} inside [theta_min, theta_max]: '
+                         f'{exc}', tilt, (*tilt, *_LENGTHS, 'branch'), changed) from None
         if not math.isfinite(advantage) or advantage == 0.0 or (sign and advantage * sign < 0.0):
-            raise ConfigError(
-                f'driven_rocker: {driven.name.lower()} has a dead point near theta = {_deg(theta)} '
-                'inside [theta_min, theta_max] (unbounded input torque)')
+            raise _fault(f'the {driven.value} rocker (driven_rocker) has a dead point near theta = {_deg(theta)} '
+                         f'inside [theta_min, theta_max] = [{_deg(theta_min)}, {_deg(theta_max)}] (unbounded input '
+                         'torque): narrow the range or drive the other rocker',
+                         (*tilt, 'driven_rocker'), (*tilt, 'driven_rocker', *_LENGTHS, 'branch'), changed)
         sign = math.copysign(1.0, advantage)
 
 
-def config_from_values(values: Mapping[str, object]) -> AntennaConfig:
+def declared_values(values: Mapping[str, object]) -> dict[str, object]:
+    """The entries of ``values`` that name a fourbar_node parameter (ROS convention: others are ignored)."""
+    return {name: value for name, value in values.items() if name in PARAMETERS_BY_NAME}
+
+
+def config_from_values(values: Mapping[str, object], changed: Collection[str] | None = None) -> AntennaConfig:
     """Validate a complete or partial name->value map (missing names take their defaults).
 
-    Unknown names raise ``ConfigError`` (rclpy's own ``use_sim_time``/``qos_overrides.*`` are ignored).
+    Unknown names raise ``ConfigError`` (rclpy's own ``use_sim_time``/``qos_overrides.*`` are ignored); filter
+    a parameter file's values with ``declared_values`` first. ``changed``: the names a run-time change sets;
+    a rejection that involves several parameters then names those of them at fault (``ConfigError.names``).
     """
     for name in values:
         if name not in PARAMETERS_BY_NAME and not is_foreign(name):
-            raise ConfigError(f'{name}: unknown parameter (known: {", ".join(PARAMETERS_BY_NAME)})')
+            raise ConfigError(f'{name}: unknown parameter (known: {", ".join(PARAMETERS_BY_NAME)})', (name,))
     v: dict[str, Any] = {}
     for spec in PARAMETERS:
         v[spec.name] = check_value(spec, values.get(spec.name, spec.default))
@@ -209,10 +233,12 @@ def config_from_values(values: Mapping[str, object]) -> AntennaConfig:
         linkage = AntennaLinkage(frame=v['frame_length'], rocker_ab=v['rocker_ab_length'],
                                  coupler=v['coupler_length'], rocker_cd=v['rocker_cd_length'])
     except FourBarError as exc:
-        raise ConfigError(f'frame_length: the lengths do not form a linkage: {exc}') from None
-    _check_tilt_range(linkage, v['theta_min'], v['theta_max'], driven, branch)
+        raise _fault(f'the lengths do not form a linkage: {exc}', _LENGTHS, _LENGTHS, changed) from None
+    _check_tilt_range(linkage, v['theta_min'], v['theta_max'], driven, branch, changed)
     if v['gamma_joint'] == v['delta_joint']:
-        raise ConfigError(f"delta_joint: {v['delta_joint']!r} is also gamma_joint; names must differ")
+        joints = ('gamma_joint', 'delta_joint')
+        raise _fault(f"gamma_joint and delta_joint are both {v['delta_joint']!r}; names must differ",
+                     joints, joints, changed)
     return AntennaConfig(
         frame_length=v['frame_length'], rocker_ab_length=v['rocker_ab_length'],
         coupler_length=v['coupler_length'], rocker_cd_length=v['rocker_cd_length'],
@@ -233,166 +259,36 @@ def default_config() -> AntennaConfig:
     return config_from_values({})
 
 
-_TRUE = frozenset({'Y', 'y', 'yes', 'Yes', 'YES', 'true', 'True', 'TRUE', 'on', 'On', 'ON'})
-_FALSE = frozenset({'N', 'n', 'no', 'No', 'NO', 'false', 'False', 'FALSE', 'off', 'Off', 'OFF'})
-_INT_RE = re.compile(r'\s*([+-]?)(0[xX][0-9a-fA-F]+|0[0-7]*|[1-9][0-9]*)')
-_DEC_RE = re.compile(r'\s*[+-]?(\d+\.?\d*|\.\d+)([eE][+-]?\d+)?')
-_HEX_RE = re.compile(r'\s*[+-]?0[xX]([0-9a-fA-F]+\.?[0-9a-fA-F]*|\.[0-9a-fA-F]+)([pP][+-]?\d+)?')
-_SPECIAL_RE = re.compile(r'\s*[+-]?(inf|infinity|nan(\([0-9A-Za-z_]*\))?)', re.IGNORECASE)
-_YAML_SPECIAL = {'.nan': math.nan, '.NaN': math.nan, '.NAN': math.nan}
-_YAML_SPECIAL.update({f'{sign}.{inf}': (-math.inf if sign == '-' else math.inf)
-                      for sign in ('', '+', '-') for inf in ('inf', 'Inf', 'INF')})
-
-
-def _nonzero_mantissa(text: str) -> bool:
-    """True if a decimal or hex float literal has a non-zero digit before its exponent."""
-    body = text.strip().lstrip('+-')
-    if body[:2] in ('0x', '0X'):
-        return any(c in '123456789abcdefABCDEF' for c in re.split('[pP]', body[2:])[0])
-    return any(c in '123456789' for c in re.split('[eE]', body)[0])
-
-
-def rcl_scalar(text: str, quoted: bool) -> bool | int | float | str:
-    """The value rcl's YAML parameter parser gives a scalar (``get_value`` in rcl_yaml_param_parser).
-
-    Quoted scalars are strings. Plain ones are tried as a bool word (true/yes/on/y ...), a C ``strtol``
-    integer (base prefix 0x or 0 for octal), a C ``strtod`` double (also 1e-3, inf, nan, hex floats,
-    .nan/.inf), else a string. This differs from PyYAML's YAML 1.1 rules (``1e-3`` and ``1_000``).
-    """
-    if quoted:
-        return text
-    if text in _TRUE:
-        return True
-    if text in _FALSE:
-        return False
-    m = _INT_RE.fullmatch(text)
-    if m:
-        digits = m.group(2)
-        if digits[:2] in ('0x', '0X'):
-            value = int(digits, 16)
-        elif len(digits) > 1 and digits[0] == '0':
-            value = int(digits, 8)
-        else:
-            value = int(digits)
-        value = -value if m.group(1) == '-' else value
-        if -(2**63) <= value < 2**63:  # otherwise strtol sets ERANGE and rcl tries a double
-            return value
-    if text in _YAML_SPECIAL:
-        return _YAML_SPECIAL[text]
-    if _DEC_RE.fullmatch(text) or _SPECIAL_RE.fullmatch(text):
-        number = float(text.strip())
-    elif _HEX_RE.fullmatch(text):
-        stripped = text.strip()
-        sign = -1.0 if stripped.startswith('-') else 1.0
-        body = stripped.lstrip('+-')
-        number = sign * float.fromhex(body if 'p' in body.lower() else body + 'p0')
-    else:
-        return text
-    if not _SPECIAL_RE.fullmatch(text) and (
-            math.isinf(number) or (abs(number) < sys.float_info.min and (number != 0.0 or _nonzero_mantissa(text)))):
-        return text  # strtod overflow or underflow (also to a subnormal): ERANGE, so rcl keeps the string
-    return number
-
-
-def _plain_values(node: Any, source: str) -> Any:
-    """Convert a composed PyYAML node tree to Python values with rcl's scalar rules."""
-    import yaml
-
-    if isinstance(node, yaml.MappingNode):
-        out: dict[str, Any] = {}
-        for key_node, value_node in node.value:
-            out[str(key_node.value)] = _plain_values(value_node, source)
-        return out
-    if isinstance(node, yaml.SequenceNode):
-        return [_plain_values(item, source) for item in node.value]
-    if node.style not in ("'", '"') and node.value == '':
-        raise ConfigError(f'{source}: no value at line {node.start_mark.line + 1}')
-    return rcl_scalar(node.value, quoted=node.style in ("'", '"'))
-
-
-def _flatten(prefix: str, mapping: Mapping[str, Any], out: dict[str, object]) -> None:
-    """rcl's nesting rule: ``a: {b: 1}`` under ros__parameters is the parameter ``a.b``."""
-    for key, value in mapping.items():
-        name = f'{prefix}{key}'
-        if isinstance(value, dict):
-            _flatten(name + '.', value, out)
-        else:
-            out[name] = value
-
-
-def _matches_node(key: str, fqn: str) -> bool:
-    """rcl's rule: does section ``key`` (``/**``, ``/ns/name``, ``name`` = ``/name``, ``/*/name``,
-    ``/**/name``) apply to the node with fully qualified name ``fqn``? ``*`` is one namespace level,
-    ``**`` any number of them."""
-    pattern = [t for t in ('/' + key.strip().lstrip('/')).split('/') if t]
-    target = [t for t in fqn.split('/') if t]
-
-    def match(p: list[str], t: list[str]) -> bool:
-        if not p:
-            return not t
-        if p[0] == '**':
-            return any(match(p[1:], t[i:]) for i in range(len(t) + 1))
-        return bool(t) and (p[0] == '*' or p[0] == t[0]) and match(p[1:], t[1:])
-
-    return match(pattern, target)
-
-
-def _node_sections(doc: Mapping[str, Any], prefix: str = '') -> Iterator[tuple[str, Any]]:
-    """(node key, section) in file order; nested mappings without ros__parameters are namespace levels."""
-    for key, section in doc.items():
-        name = f'{prefix}/{key.strip("/")}' if prefix else key
-        if isinstance(section, dict) and 'ros__parameters' not in section and all(
-                isinstance(v, dict) for v in section.values()) and section:
-            yield from _node_sections(section, name)
-        else:
-            yield name, section
-
-
-def values_from_yaml(text: str, source: str = '<string>', node_name: str = NODE_NAME,
-                     namespace: str = '/') -> dict[str, object]:
-    """The parameter values the node ``namespace``/``node_name`` receives from a ROS 2 parameter file.
-
-    Scalars are typed as rcl types them (see ``rcl_scalar``); the sections that apply to the node
-    (``/**``, its name, wildcards) are merged in file order, a later one overriding an earlier one.
-    """
-    import yaml  # PyYAML, only for its parser; imported here to keep `import fourbar_ros.config` light
-
-    try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else 'syntax error'
-        raise ConfigError(f'{source}: not valid YAML: {first}') from None
-    doc = _plain_values(root, source) if root is not None else None
-    if not isinstance(doc, dict):
-        raise ConfigError(f"{source}: expected a mapping with a '/**:' or '{node_name}:' section")
-    fqn = f"{namespace.rstrip('/')}/{node_name}"
-    values: dict[str, object] = {}
-    found = False
-    for key, section in _node_sections(doc):
-        if not _matches_node(key, fqn):
-            continue
-        if not isinstance(section, dict) or not isinstance(section.get('ros__parameters'), dict):
-            raise ConfigError(f"{source}: section {key!r} has no 'ros__parameters:' mapping")
-        found = True
-        _flatten('', section['ros__parameters'], values)
-    if not found:
-        raise ConfigError(f"{source}: no '/**:' or '{fqn}' section with 'ros__parameters:'")
-    return values
-
-
 def load_config(path: str | Path, node_name: str = NODE_NAME, namespace: str = '/') -> AntennaConfig:
     """Read and validate a ROS 2 parameter file (``/**:`` or ``<node_name>:`` -> ``ros__parameters:``)
     as the node ``namespace``/``node_name`` would receive it.
 
+    Names that are not fourbar_node parameters are ignored, as a ROS node ignores parameters it does not declare
+    (a ``/**`` section shared by a whole robot carries other nodes' parameters); ``unknown_in_node_sections``
+    lists those in sections naming this node, for a warning. At most ``rcl_yaml.MAX_FILE_BYTES`` are read.
     Raises ``ConfigError`` with a one-line message naming the parameter (or the file) and why.
     """
-    path = Path(path)
+    values = values_from_yaml(read_text(path), str(path), node_name, namespace)
     try:
-        text = path.read_text(encoding='utf-8')
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f'{path}: cannot read: {exc.__class__.__name__}: {exc}'.splitlines()[0]) from None
-    values = values_from_yaml(text, str(path), node_name, namespace)
-    try:
-        return config_from_values(values)
+        return config_from_values(declared_values(values))
     except ConfigError as exc:
-        raise ConfigError(f'{path}: {exc}') from None
+        raise ConfigError(f'{path}: {exc}', exc.names) from None
+
+
+def unknown_in_node_sections(path: str | Path, node_name: str = NODE_NAME, namespace: str = '/') -> list[str]:
+    """Names that are not fourbar_node parameters (nor rclpy's own) in the sections of a parameter file that name
+    this node explicitly (``fourbar_node:``, ``/ns/fourbar_node:``, ``/*/fourbar_node:``; not wildcard sections such
+    as ``/**:``, which commonly carry other nodes' parameters), in file order: probably typos, worth a warning.
+
+    Raises ``ConfigError`` like ``load_config`` if the file cannot be read or is not a parameter file.
+    """
+    sections = node_sections(read_text(path), str(path), node_name, namespace)
+    unknown: dict[str, None] = {}
+    for key, values in sections:
+        pattern = section_pattern(key)
+        if not pattern or pattern[-1] != node_name:
+            continue
+        for name in values:
+            if name not in PARAMETERS_BY_NAME and not is_foreign(name):
+                unknown[name] = None
+    return list(unknown)

@@ -183,7 +183,9 @@ def test_cli_flags_override_the_file(capsys: pytest.CaptureFixture[str]) -> None
     (['--theta-max', '20', '--deg'], 'dead point'),
     (['--frame', '1.0'], 'do not form a linkage'),
     (['--min-reach-margin', 'nan'], 'must be finite'),
-    (['--samples', '1'], 'at least 2'),
+    (['--samples', '1'], 'between 2 and 100000'),
+    (['--samples', '100000001'], 'between 2 and 100000'),
+    (['--samples', '1e8'], 'between 2 and 100000'),
     (['--plot', 'out.jpg'], 'must end in .png'),
     (['--plot', 'no/such/dir/out.png'], 'directory does not exist'),
 ])

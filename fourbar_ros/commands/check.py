@@ -11,9 +11,17 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..config import AntennaConfig, ConfigError, config_from_values, values_from_yaml
-from ..design_check import DEFAULT_SAMPLES, CheckLimits, DesignReport, check_design, format_report
+from ..config import (
+    AntennaConfig,
+    ConfigError,
+    config_from_values,
+    declared_values,
+    unknown_in_node_sections,
+    values_from_yaml,
+)
+from ..design_check import DEFAULT_SAMPLES, MAX_SAMPLES, CheckLimits, DesignReport, check_design, format_report
 from ..errors import FourBarError
+from ..rcl_yaml import read_text
 
 if TYPE_CHECKING:
     from ..design_check import Curves
@@ -60,21 +68,31 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      help='fail when an end of the tilt range is closer than this to the reach limit '
                      '(rad; deg with --deg; default 0)')
     parser.add_argument('--deg', action='store_true', help='angle flags are in degrees')
-    parser.add_argument('--samples', type=int, default=DEFAULT_SAMPLES, help='grid intervals over the tilt range')
+    parser.add_argument('--samples', type=integer, default=DEFAULT_SAMPLES, metavar='N',
+                        help=f'grid intervals over the tilt range, 2 to {MAX_SAMPLES} (default {DEFAULT_SAMPLES}; '
+                        'extrema are refined between grid points)')
     parser.add_argument('--plot', metavar='FILE.png', help='write a figure: the mechanism at both ends and the '
                         'middle of the range, input torque and transmission angle curves')
     parser.add_argument('--json', action='store_true', help='print one JSON object (rad, N m)')
+
+
+def integer(text: str) -> int:
+    """An integer count, also written as 1e5 or 2000.0 (argparse reports a ValueError as 'invalid value')."""
+    try:
+        return int(text)
+    except ValueError:
+        value = float(text)
+        if not value.is_integer():
+            raise ValueError(text) from None
+        return int(value)
 
 
 def configuration(args: argparse.Namespace) -> AntennaConfig:
     """The validated configuration: file (or defaults) values, overridden by the flags."""
     values: dict[str, object] = {}
     if args.params is not None:
-        try:
-            text = Path(args.params).read_text(encoding='utf-8')
-        except (OSError, UnicodeDecodeError) as exc:
-            raise ConfigError(f'{args.params}: cannot read: {exc.__class__.__name__}: {exc}'.splitlines()[0]) from None
-        values = values_from_yaml(text, args.params)
+        # Names that are not fourbar_node parameters are ignored, as the node ignores them (see run's warning).
+        values = declared_values(values_from_yaml(read_text(args.params), args.params))
     for dest, name in _OVERRIDES.items():
         value = getattr(args, dest)
         if value is None:
@@ -87,7 +105,17 @@ def configuration(args: argparse.Namespace) -> AntennaConfig:
     try:
         return config_from_values(values)
     except ConfigError as exc:
-        raise ConfigError(f'{args.params}: {exc}' if args.params else str(exc)) from None
+        raise ConfigError(f'{args.params}: {exc}' if args.params else str(exc), exc.names) from None
+
+
+def warn_unknown_parameters(prog: str, path: str | None) -> None:
+    """One warning line on stderr naming undeclared parameters in the file's sections for fourbar_node."""
+    if path is None:
+        return
+    unknown = unknown_in_node_sections(path)
+    if unknown:
+        print(f"{prog}: warning: {path}: not fourbar_node parameters, ignored: {', '.join(unknown)}",
+              file=sys.stderr)
 
 
 def _limits(args: argparse.Namespace) -> CheckLimits:
@@ -100,10 +128,11 @@ def _limits(args: argparse.Namespace) -> CheckLimits:
 def run(args: argparse.Namespace) -> int:
     """Check; exit 0 (pass), 1 (a limit fails) or 2 (bad input, one line on stderr)."""
     try:
+        if not 2 <= args.samples <= MAX_SAMPLES:
+            raise FourBarError(f'--samples={args.samples} must be between 2 and {MAX_SAMPLES}')
         cfg = configuration(args)
         limits = _limits(args)
-        if args.samples < 2:
-            raise FourBarError(f'--samples={args.samples} must be at least 2')
+        warn_unknown_parameters('fourbar check', args.params)
         if args.plot is not None:
             _check_plot_path(args.plot)
         report = check_design(cfg, limits, args.samples)
