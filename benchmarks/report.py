@@ -199,7 +199,10 @@ def summary(data: dict[str, Any]) -> str:
     s = by[data['shipped']]
     return (f'shipped: max error {_fmt(s["max_error_rad"])} rad, scalar {_ns(s["seconds_per_solve_scalar"])} ns, '
             f'vector {_ns(s["seconds_per_solve_vector"])} ns/solve; floor ratio {_fmt(h["floor_ratio"])} '
-            f'(target <= 1.3); scalar / annex {_fmt(h["scalar_ratio_to_annex"])}; '
+            f'(target <= 1.3); one angle through the array path '
+            f'{_ns(data["baselines_seconds"]["array_path_one_angle_per_call"])} ns '
+            f'({_fmt(h["array_path_one_ratio_to_scalar"])}x scalar); '
+            f'scalar / annex {_fmt(h["scalar_ratio_to_annex"])}; '
             f'on the vector front: {h["shipped_on_pareto_front_vector"]}; stress defects: '
             f'{len(data["stress"]["defects"])}; elapsed {data["elapsed_seconds"]} s')
 
@@ -259,7 +262,9 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         'in the same loop, and the stable form\'s bare math (a closure returning a plain tuple, no validation, '
         f'no NamedTuple) {_ns(data["baselines_seconds"]["stable_plain_scalar_per_call"])} ns: shipped is '
         f'{_fmt(h["scalar_ratio_to_stable_plain"])}x that, the annex formula '
-        f'{_fmt(h["annex_scalar_ratio_to_stable_plain"])}x.',
+        f'{_fmt(h["annex_scalar_ratio_to_stable_plain"])}x. The same solver given a one-element array (its '
+        f'numpy path) costs {_ns(data["baselines_seconds"]["array_path_one_angle_per_call"])} ns per call, '
+        f'{_fmt(h["array_path_one_ratio_to_scalar"])}x the scalar path: what the math-module fast path saves.',
         f'- Pareto front (vectorized): shipped on the front: **{h["shipped_on_pareto_front_vector"]}**'
         + ('' if h['shipped_on_pareto_front_vector'] else
            f' (dominated by {", ".join(h["shipped_dominated_by_vector"])})')

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
-from .methods import Method, NotApplicableError, Solver
+from .methods import Method, NotApplicableError, Solver, linkage
 from .reference import Geometry, ReferenceArrays, angle_error, reference_arrays
 from .timing import Case, interleaved, pilot, scalar_loop
 
@@ -190,16 +190,21 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
             repeats: int) -> dict[str, float]:
     """Fill seconds_per_solve_* on the Turnantenna geometry; returns the baselines measured in the same rounds.
 
-    Baselines: ``floor`` (see :func:`floor_ufuncs`, per element of the n_vector array) and ``python_call`` (the
-    scalar loop calling a function that returns a tuple, per call); CPU-time medians, with ``*_wall`` beside.
+    Baselines: ``floor`` (see :func:`floor_ufuncs`, per element of the n_vector array), ``python_call`` (the
+    scalar loop calling a function that returns a tuple, per call) and ``array_path_one`` (the shipped solver
+    called with a one-element array, per call: what its math-module scalar path saves); CPU-time medians, with
+    ``*_wall`` beside.
     """
     g = TURNANTENNA
     interval = sweep_interval(g)
     thetas = np.sort(sweep_angles(g, n_vector, seed=7))
     scalar_thetas = np.sort(sweep_angles(g, n_scalar, seed=8)).tolist()
     by_name = {r.name: r for r in results}
+    one_angle = linkage(g).rocker_angles
     scalar_cases = [Case('python_call', scalar_loop(lambda t: (t, t), scalar_thetas), n_scalar),
-                    Case('stable_plain', scalar_loop(stable_plain_scalar(g), scalar_thetas), n_scalar)]
+                    Case('stable_plain', scalar_loop(stable_plain_scalar(g), scalar_thetas), n_scalar),
+                    Case('array_path_one', scalar_loop(lambda t: one_angle(np.array([t])), scalar_thetas),
+                         n_scalar)]
     inputs = floor_inputs(g, thetas)
     vector_cases = [Case('floor', lambda: floor_ufuncs(inputs), n_vector)]
     for m in methods:
@@ -234,6 +239,7 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
             by_name[name].wall_seconds_per_solve_vector = wall
     return {'floor': v_times['floor'][0], 'python_call': s_times['python_call'][0],
             'stable_plain': s_times['stable_plain'][0], 'stable_plain_wall': s_times['stable_plain'][1],
+            'array_path_one': s_times['array_path_one'][0], 'array_path_one_wall': s_times['array_path_one'][1],
             'floor_wall': v_times['floor'][1], 'python_call_wall': s_times['python_call'][1]}
 
 

@@ -30,7 +30,17 @@ from typing import TYPE_CHECKING, Literal, NamedTuple, overload
 import numpy as np
 import numpy.typing as npt
 
-from .dyad import DyadConstants, dyad_constants, reach_half_angles
+from .dyad import (
+    Branch,
+    DyadChangePointError,
+    DyadConstants,
+    DyadOpenError,
+    closes,
+    closure,
+    closure_array,
+    dyad_constants,
+    reach_half_angles,
+)
 from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
 
 if TYPE_CHECKING:
@@ -40,20 +50,13 @@ FloatArray = npt.NDArray[np.float64]
 ArrayLike = float | FloatArray
 OnInvalid = Literal['raise', 'nan']
 
+__all__ = [
+    'AntennaLinkage', 'ArrayLike', 'Branch', 'Driven', 'FloatArray', 'InverseSolution', 'LinkageState', 'OnInvalid',
+    'Reach', 'RockerAngles', 'RockerRates',
+]
+
 _TWO_PI = 2.0 * math.pi
-_BLOCK = 8192  #: elements per block of the vectorized solve: its working arrays (64 KiB each) stay in L2
 _DEAD_TOL = 4.0 * math.ulp(1.0)  #: |sin| below this many ulps of the angles counts as zero (a dead point)
-
-
-class Branch(enum.IntEnum):
-    """Assembly branch of the forward solve (theta given).
-
-    UPPER is the annex's branch (A.14, A.15): B lies to the left of the diagonal from A to
-    D - h (cos theta, -sin theta), so gamma + delta is in [0, pi]. LOWER is its mirror image across that diagonal.
-    """
-
-    UPPER = 1
-    LOWER = -1
 
 
 class Driven(enum.Enum):
@@ -71,8 +74,6 @@ class RockerAngles(NamedTuple):
 
 
 _new_tuple = tuple.__new__  # builds a RockerAngles without NamedTuple._make's Python-level length check
-_UPPER = Branch.UPPER
-_sin, _cos, _sqrt, _atan2, _PI = math.sin, math.cos, math.sqrt, math.atan2, math.pi
 
 
 class RockerRates(NamedTuple):
@@ -168,7 +169,8 @@ class AntennaLinkage:
         object.__setattr__(self, 'rocker_cd', cd)
         object.__setattr__(self, '_cd', cd)
         # Angles depend only on length ratios: work in units of the frame so no scale can overflow.
-        k = dyad_constants(frame, coupler, ab, cd, unit=frame)
+        # The coupler's angle theta passes 0 in normal use: keep the angles continuous there.
+        k = dyad_constants(frame, coupler, ab, cd, unit=frame, continuous_at_zero=True)
         try:
             gap, top = reach_half_angles(k)
         except ValueError:
@@ -187,11 +189,7 @@ class AntennaLinkage:
 
         The very test the solver applies (so it agrees with on_invalid='nan' to the last float at the limits).
         """
-        k = self._k
-        with np.errstate(invalid='ignore'):
-            s = np.sin(0.5 * np.asarray(theta, dtype=np.float64))
-        w = 2.0 * (s * k.two_l2) * s
-        return ~self._invalid_factors(k.far - w, w + k.near)
+        return closes(self._k, theta)
 
     def _unreachable(self, theta: float) -> UnreachableError:
         if math.isnan(theta):
@@ -234,111 +232,21 @@ class AntennaLinkage:
         """
         tp = type(theta)
         if tp is float or tp is int or isinstance(theta, float):
-            # The scalar hot path: locals only, module-level math bindings, no numpy.
-            diff, diff_sq, _, two_l2, far0, near0, cos_p, cos_q, equal_links, _ = self._k
-            half = 0.5 * theta
+            # The scalar hot path: the dyad's math-module closure, no numpy (theta is the dyad's angle x).
             try:
-                s = _sin(half)
-            except ValueError:  # math.sin(inf)
+                # (mypy cannot narrow theta from type(theta) checks; isinstance would cost the hot path)
+                return _new_tuple(RockerAngles, closure(self._k, theta, branch))  # type: ignore[arg-type]
+            except DyadOpenError:
                 raise self._unreachable(float(theta)) from None
-            hs = two_l2 * s  # h sin(theta/2) in frame units
-            w = 2.0 * hs * s  # 4 H h sin^2(theta/2) in frame units
-            far = far0 - w
-            near = near0 + w
-            if not far * near >= 0.0:
-                far, near = self._clamped(far, near, float(theta))
-            if diff_sq + w == 0.0:
-                raise self._change_point(float(theta))
-            root = _sqrt(far * near)
-            c = _cos(half)
-            if diff >= 0.0:
-                phi = _atan2(hs * c, diff + hs * s)
-            else:  # coupler longer than frame: keep atan2's cut away from theta = 0
-                phi = _PI + _atan2(-hs * c, -diff - hs * s)
-            alpha = _atan2(root, cos_p + w)
-            beta = alpha if equal_links else _atan2(root, cos_q + w)
-            if branch is _UPPER:
-                return _new_tuple(RockerAngles, (phi + alpha, beta - phi))
-            return _new_tuple(RockerAngles, (phi - alpha, -beta - phi))
-        return self._rocker_angles_array(np.asarray(theta, dtype=np.float64), branch, on_invalid)
-
-    def _clamped(self, far: float, near: float, theta: float) -> tuple[float, float]:
-        """Zero a factor that is negative only by rounding at the reach limit; otherwise raise."""
-        tol = self._k.tol
-        if -tol <= far < 0.0:
-            far = 0.0
-        if -tol <= near < 0.0:
-            near = 0.0
-        if far >= 0.0 and near >= 0.0:
-            return far, near
-        raise self._unreachable(theta)
-
-    def _rocker_angles_array(self, theta: FloatArray, branch: Branch, on_invalid: OnInvalid) -> RockerAngles:
-        # Blocks small enough to stay in cache: the dozen arithmetic passes around the five unavoidable ufuncs
-        # then cost far less than on arrays streamed through memory. The loop is over blocks, not elements.
-        flat = np.ascontiguousarray(theta).reshape(-1)
-        gamma = np.empty_like(flat)
-        delta = np.empty_like(flat)
-        for start in range(0, flat.size, _BLOCK):
-            stop = start + _BLOCK
-            self._solve_block(flat[start:stop], branch, on_invalid, gamma[start:stop], delta[start:stop], flat)
-        return RockerAngles(gamma.reshape(theta.shape), delta.reshape(theta.shape))
-
-    def _solve_block(self, t: FloatArray, branch: Branch, on_invalid: OnInvalid, gamma: FloatArray,
-                     delta: FloatArray, whole: FloatArray) -> None:
-        """The scalar path's operations, in the same order, on one block; results written to gamma, delta."""
-        k = self._k
-        with np.errstate(invalid='ignore'):
-            half = t * 0.5
-            s = np.sin(half)
-            c = np.cos(half, out=half)
-        hs = s * k.two_l2
-        w = hs * s
-        w *= 2.0
-        far = k.far - w
-        near = w + k.near
-        prod = far * near
-        if not prod.min() >= 0.0:
-            bad = self._invalid_factors(far, near)
-            if bad.any() and on_invalid == 'raise':
-                raise self._invalid_array(whole)
-            far[bad] = np.nan
-            np.multiply(far, near, out=prod)
-        if k.diff == 0.0 and (w == 0.0).any():  # only a parallelogram-capable geometry pays for this check
-            change = w == 0.0
-            if on_invalid == 'raise':
-                raise self._change_point(float(t[change][0]))
-            prod[change] = np.nan
-        root = np.sqrt(prod, out=prod)
-        y = np.multiply(hs, c, out=c)  # h sin(theta) in frame units
-        hs *= s
-        x = np.add(hs, k.diff, out=hs)  # H - h cos(theta) in frame units
-        if k.diff >= 0.0:
-            phi = np.arctan2(y, x, out=y)
-        else:  # coupler longer than frame: keep arctan2's cut away from theta = 0
-            phi = np.arctan2(np.negative(y, out=y), np.negative(x, out=x), out=y)
-            phi += math.pi
-        alpha = np.arctan2(root, np.add(w, k.cos_p, out=far), out=far)
-        if k.equal_links:
-            beta = alpha
-        else:
-            w += k.cos_q
-            beta = np.arctan2(root, w, out=w)
-        if branch is _UPPER:
-            np.add(phi, alpha, out=gamma)
-            np.subtract(beta, phi, out=delta)
-        else:
-            np.subtract(phi, alpha, out=gamma)
-            np.negative(beta, out=delta)
-            delta -= phi
-
-    def _invalid_factors(self, far: FloatArray, near: FloatArray) -> npt.NDArray[np.bool_]:
-        """Where (far, near) say 'out of reach', after zeroing factors negative only by rounding (in place)."""
-        tol = self._k.tol
-        far[(far < 0.0) & (far >= -tol)] = 0.0
-        near[(near < 0.0) & (near >= -tol)] = 0.0
-        with np.errstate(invalid='ignore'):
-            return ~((far >= 0.0) & (near >= 0.0))
+            except DyadChangePointError:
+                raise self._change_point(float(theta)) from None
+        t = np.asarray(theta, dtype=np.float64)
+        try:
+            return RockerAngles(*closure_array(self._k, t, branch, on_invalid))
+        except DyadOpenError:
+            raise self._invalid_array(t) from None
+        except DyadChangePointError as exc:
+            raise self._change_point(exc.x) from None
 
     # ---------------------------------------------------------------- rates
 

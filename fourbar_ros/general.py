@@ -20,7 +20,17 @@ from typing import NamedTuple
 import numpy as np
 
 from .antenna import _DEAD_TOL, ArrayLike, FloatArray, OnInvalid, _check_length
-from .dyad import DyadConstants, dyad_constants, reach_half_angles
+from .dyad import (
+    Branch,
+    DyadChangePointError,
+    DyadConstants,
+    DyadOpenError,
+    closes,
+    closure,
+    closure_array,
+    dyad_constants,
+    reach_half_angles,
+)
 from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
 
 
@@ -83,68 +93,30 @@ class FourBar:
 
         Raises UnreachableError where the loop cannot close (for arrays, or NaN there with on_invalid='nan').
         """
-        k = self._k
+        # The diagonal B -> O4 is the dyad's P -> Q with x = -t2; t3 is the dyad's angle at P, t4 = pi - its angle at Q.
+        which = Branch.UPPER if branch >= 0 else Branch.LOWER
         if isinstance(t2, (float, int)):
-            half = -0.5 * t2  # the diagonal B -> O4 is the dyad's P -> Q with x = -t2
             try:
-                s = math.sin(half)
-            except ValueError:
+                t3, q = closure(self._k, -t2, which)
+            except DyadOpenError:
                 raise self._unreachable(float(t2)) from None
-            c = math.cos(half)
-            w = k.four_l1_l2 * s * s
-            far = k.far - w
-            near = k.near + w
-            if not far * near >= 0.0:
-                tol = k.tol
-                far = 0.0 if -tol <= far < 0.0 else far
-                near = 0.0 if -tol <= near < 0.0 else near
-                if not (far >= 0.0 and near >= 0.0):
-                    raise self._unreachable(float(t2))
-            root = math.sqrt(far * near)
-            if k.diff_sq + w == 0.0:
+            except DyadChangePointError:
                 raise SingularPositionError(
-                    f't2={t2!r} rad is a change point (ground = crank puts B on O4): the rocker angle is undetermined')
-            phi = math.atan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
-            alpha = math.atan2(root, k.cos_p + w)
-            beta = math.atan2(root, k.cos_q + w)
-            if branch >= 0:
-                return FourBarAngles(phi + alpha, phi + math.pi - beta)
-            return FourBarAngles(phi - alpha, phi + math.pi + beta)
+                    f't2={t2!r} rad is a change point (ground = crank puts B on O4): the rocker angle is undetermined'
+                ) from None
+            return FourBarAngles(t3, math.pi - q)
         t = np.asarray(t2, dtype=np.float64)
-        with np.errstate(invalid='ignore'):
-            s_a = np.sin(-0.5 * t)
-            c_a = np.cos(-0.5 * t)
-        w_a = k.four_l1_l2 * s_a * s_a
-        far_a = k.far - w_a
-        near_a = k.near + w_a
-        return self._angles_array(t, s_a, c_a, w_a, far_a, near_a, branch, on_invalid)
-
-    def _angles_array(self, t: FloatArray, s: FloatArray, c: FloatArray, w: FloatArray, far: FloatArray,
-                      near: FloatArray, branch: int, on_invalid: OnInvalid) -> FourBarAngles:
-        k = self._k
-        tol = k.tol
-        far[(far < 0.0) & (far >= -tol)] = 0.0
-        near[(near < 0.0) & (near >= -tol)] = 0.0
-        with np.errstate(invalid='ignore'):
-            bad = ~((far >= 0.0) & (near >= 0.0))
-        if bad.any():
-            if on_invalid == 'raise':
-                raise UnreachableError(
-                    f'{int(bad.sum())} of {t.size} crank angles cannot close the loop, the first '
-                    f't2={float(t[bad].flat[0])!r}; closes for {self._describe_range()}')
-            far[bad] = np.nan
-        if k.diff == 0.0 and (w == 0.0).any():
-            if on_invalid == 'raise':
-                raise SingularPositionError('a crank angle t2 = 0 is a change point (ground = crank puts B on O4): '
-                                            'the rocker angle is undetermined')
-            far[w == 0.0] = np.nan
-        root = np.sqrt(far * near)
-        phi = np.arctan2(k.two_l2 * s * c, k.diff + k.two_l2 * s * s)
-        alpha = np.arctan2(root, k.cos_p + w)
-        beta = np.arctan2(root, k.cos_q + w)
-        if branch >= 0:
-            return FourBarAngles(phi + alpha, phi + np.pi - beta)
-        return FourBarAngles(phi - alpha, phi + np.pi + beta)
+        try:
+            t3_a, q_a = closure_array(self._k, np.negative(t), which, on_invalid)
+        except DyadOpenError:
+            bad = ~closes(self._k, np.negative(t))
+            raise UnreachableError(
+                f'{int(bad.sum())} of {t.size} crank angles cannot close the loop, the first '
+                f't2={float(t[bad].flat[0])!r}; closes for {self._describe_range()}') from None
+        except DyadChangePointError:
+            raise SingularPositionError('a crank angle t2 = 0 is a change point (ground = crank puts B on O4): '
+                                        'the rocker angle is undetermined') from None
+        return FourBarAngles(t3_a, np.subtract(np.pi, q_a, out=q_a))
 
     def rocker_angle(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
         """Rocker angle t4 (radians) for crank angle t2 (radians): the solution of Freudenstein's equation."""
