@@ -420,6 +420,8 @@ def test_atomic_writer_refuses_bad_targets(tmp_path: Path) -> None:
     (['NEW', '--stop-after', 'joint_states'], '--stop-after wants TOPIC=N'),
     (['NEW', '--stop-after', 'joint_states=0'], '--stop-after wants TOPIC=N'),
     (['NEW', '--wait', '0'], 'must be positive'),
+    (['NEW', '--flush-interval', '0'], '--flush-interval must be a positive number of seconds'),
+    (['NEW', '--flush-interval', 'nan'], '--flush-interval must be a positive number of seconds'),
 ])
 def test_record_cli_bad_input(args: list[str], words: str, tmp_path: Path,
                               capsys: pytest.CaptureFixture[str]) -> None:
@@ -433,6 +435,17 @@ def test_record_cli_bad_input(args: list[str], words: str, tmp_path: Path,
     assert out == '' and len(lines) == 1 and lines[0].startswith('fourbar record: error: ') and words in lines[0]
     assert _listing(tmp_path) == before
     assert (tmp_path / 'EXISTS' / 'keep').read_text() == 'untouched'
+
+
+@pytest.mark.parametrize('args, words', [
+    (['--clock', '--as-fast-as-node-keeps-up'], '--clock works with timed replay'),
+    (['--clock', '0'], '--clock must be a positive rate in Hz, got 0.0'),
+    (['--clock', 'inf'], '--clock must be a positive rate in Hz, got inf'),
+])
+def test_replay_cli_bad_clock(args: list[str], words: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert cli_main(['replay', str(BAG_DIR / 'sweep_mcap'), *args]) == 2
+    out, err = capsys.readouterr()
+    assert out == '' and len(err.splitlines()) == 1 and err.startswith('fourbar replay: error: ') and words in err
 
 
 def test_progress_bar_draws_only_on_a_terminal() -> None:
