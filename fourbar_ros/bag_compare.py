@@ -1,0 +1,335 @@
+r"""Compare two bags of the node's outputs message by message (no rclpy): joint_states and input_torque.
+
+Per topic (every ``sensor_msgs/JointState`` and ``std_msgs/Float64`` topic of either bag), in bag order, the
+i-th message of A against the i-th of B: the message count, joint names, frame_id and whether a velocity is
+present must be equal; the stamps (JointState header stamps and every message's log time, ns) exactly equal;
+the floats within a tolerance: ``--atol`` absolute, or by default ``ulps`` units in the last place of each
+value's *scale*, the magnitude its rounding errors are relative to when two correct implementations compute it
+(numpy's SIMD transcendentals against libm, another CPU, another association of a product):
+
+- position q (rad): scale = |q| + pi. The rocker angles are sums of atan2 results in [-pi, pi], so their
+  rounding error is an absolute few ulps of pi, not of |q| (a q near 0 is not known to ulps of itself);
+- velocity v = (q - q_anchor) / dt (rad/s): scale = |v| + (|q| + |q_anchor| + 2 pi) / dt: the difference of two
+  positions, each known to ulps of |q| + pi, divided by the interval (dt and the anchor, the first message of
+  the run of equal stamps before it, as joint_velocity's rule picks it, taken from A);
+- effort and input torque tau = tau_load * lever * sin(s) / sin(r) (N m), s = gamma + delta and r the driven
+  rocker's angle to the coupler (delta - theta driving gamma, gamma + theta driving delta; theta recovered from
+  the positions with the configuration's geometry): scale = |tau| (1 + pi (|cot s| + |cot r|)): an angle error
+  of e rad moves tau by |tau| |cot| e, and the angles carry errors of ulps of pi. Near a dead point
+  (sin r -> 0) the scale, like the true uncertainty, grows without bound. The input_torque message i takes
+  the condition of joint_states message i of A; a Float64 topic without one, and an effort of 0.0 at the
+  rocker that is not driven, have scale |value|;
+- any other Float64: scale = |value|.
+
+Values equal as floats (same NaN or inf included) always match. The default of 16 ulps allows a 1-2 ulp
+difference in each of the up to four transcendental results (sin, cos, two atan2) that feed a value, with the
+factor <= 2 by which atan2 and the torque's sine ratio can pass a relative error on within the tilt range.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from fourbar_ros.antenna import Driven
+from fourbar_ros.bag_io import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
+from fourbar_ros.config import AntennaConfig
+
+FloatArray = npt.NDArray[np.float64]
+DEFAULT_ULPS = 16.0
+#: What ``ignore`` may name.
+FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque')
+
+
+@dataclass
+class TopicData:
+    """One topic's messages as arrays: log times (ns) and, for JointState, header stamps, names, frame ids,
+    positions/efforts (n, k), velocities (n, k; NaN rows where empty) and the velocity presence."""
+
+    msgtype: str
+    log_ns: npt.NDArray[np.int64]
+    stamp_ns: npt.NDArray[np.int64] | None = None
+    names: list[tuple[str, ...]] = field(default_factory=list)
+    frame_ids: list[str] = field(default_factory=list)
+    positions: FloatArray | None = None
+    velocities: FloatArray | None = None
+    has_velocity: npt.NDArray[np.bool_] | None = None
+    efforts: FloatArray | None = None
+    data: FloatArray | None = None
+
+    def __len__(self) -> int:
+        return int(self.log_ns.size)
+
+
+def _rows(seqs: list[Any], width: int) -> FloatArray:
+    out = np.full((len(seqs), width), np.nan)
+    for i, s in enumerate(seqs):
+        if len(s):
+            out[i, :len(s)] = s
+    return out
+
+
+def read_topics(path: str | os.PathLike[str]) -> dict[str, TopicData]:
+    """Every JointState and Float64 topic of a bag as arrays. Raises BagError (one line)."""
+    p = Path(path)
+    store = jazzy_typestore()
+    raw: dict[str, tuple[str, list[int], list[Any]]] = {}
+    with open_bag(p) as reader:
+        conns = [c for c in reader.connections if c.msgtype in (JOINT_STATE, FLOAT64)]
+        for c in conns:
+            raw.setdefault(c.topic, (c.msgtype, [], []))
+        try:
+            for conn, stamp, data in reader.messages(connections=conns):
+                entry = raw[conn.topic]
+                entry[1].append(int(stamp))
+                entry[2].append(store.deserialize_cdr(bytes(data), conn.msgtype))
+        except Exception as exc:
+            text = (str(exc).strip() or type(exc).__name__).splitlines()[0]
+            raise BagError(f'{p}: unreadable bag ({text})') from exc
+    out: dict[str, TopicData] = {}
+    for topic, (msgtype, logs, msgs) in raw.items():
+        td = TopicData(msgtype, np.array(logs, dtype=np.int64))
+        if msgtype == FLOAT64:
+            td.data = np.array([m.data for m in msgs], dtype=np.float64)
+        else:
+            width = max((max(len(m.position), len(m.velocity), len(m.effort)) for m in msgs), default=0)
+            td.stamp_ns = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in msgs],
+                                   dtype=np.int64)
+            td.names = [tuple(m.name) for m in msgs]
+            td.frame_ids = [m.header.frame_id for m in msgs]
+            td.positions = _rows([m.position for m in msgs], width)
+            td.efforts = _rows([m.effort for m in msgs], width)
+            td.velocities = _rows([m.velocity for m in msgs], width)
+            td.has_velocity = np.array([len(m.velocity) > 0 for m in msgs], dtype=np.bool_)
+        out[topic] = td
+    return out
+
+
+# --------------------------------------------------------------------------- scales
+
+def position_scale(q: FloatArray) -> FloatArray:
+    """|q| + pi (rad): see the module docstring."""
+    return np.abs(q) + math.pi
+
+
+def velocity_scale(stamps_ns: npt.NDArray[np.int64], positions: FloatArray, velocities: FloatArray) -> FloatArray:
+    """|v| + (|q| + |q_anchor| + 2 pi) / dt per element; |v| where no interval is known."""
+    n = stamps_ns.size
+    idx = np.arange(n)
+    new_run = np.ones(n, dtype=np.bool_)
+    new_run[1:] = stamps_ns[1:] != stamps_ns[:-1]
+    run_start = np.maximum.accumulate(np.where(new_run, idx, 0))
+    anchor = np.zeros(n, dtype=np.intp)
+    anchor[1:] = run_start[:-1]
+    dt = (stamps_ns - stamps_ns[anchor]).astype(np.float64) * 1e-9
+    with np.errstate(divide='ignore', invalid='ignore'):
+        spread = (np.abs(positions) + np.abs(positions[anchor]) + 2.0 * math.pi) / dt[:, None]
+    spread[~(dt > 0.0)] = 0.0
+    out: FloatArray = np.abs(velocities) + spread
+    return out
+
+
+def torque_condition(cfg: AntennaConfig, positions: FloatArray) -> FloatArray:
+    """1 + pi (|cot s| + |cot r|) per row of [gamma, delta] positions (rad): see the module docstring."""
+    gamma, delta = positions[:, 0], positions[:, 1]
+    bx, by = cfg.rocker_ab_length * np.cos(gamma), cfg.rocker_ab_length * np.sin(gamma)
+    cx, cy = cfg.frame_length - cfg.rocker_cd_length * np.cos(delta), cfg.rocker_cd_length * np.sin(delta)
+    theta = np.arctan2(by - cy, cx - bx)  # C - B = h (cos theta, -sin theta)
+    s = gamma + delta
+    r = delta - theta if cfg.driven is Driven.GAMMA else gamma + theta
+    with np.errstate(divide='ignore', invalid='ignore'):
+        cond = 1.0 + math.pi * (np.abs(np.cos(s) / np.sin(s)) + np.abs(np.cos(r) / np.sin(r)))
+    cond[np.isnan(cond)] = np.inf
+    out: FloatArray = cond
+    return out
+
+
+# --------------------------------------------------------------------------- comparing
+
+@dataclass(frozen=True)
+class Difference:
+    """One mismatch: where, what, both values and the allowed difference (None: must be equal)."""
+
+    topic: str
+    index: int
+    what: str
+    a: object
+    b: object
+    allowed: float | None = None
+
+    def describe(self) -> str:
+        """One line."""
+        tol = '' if self.allowed is None else f' (|a - b| = {_absdiff(self.a, self.b):.3g} > {self.allowed:.3g})'
+        return f'{self.topic} message {self.index}: {self.what}: A {self.a!r}, B {self.b!r}{tol}'
+
+
+def _absdiff(a: object, b: object) -> float:
+    try:
+        return abs(float(a) - float(b))  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return math.nan
+
+
+@dataclass
+class Comparison:
+    """Everything found: counts per topic, mismatches (the first ``limit`` kept), the worst ratio per field."""
+
+    compared: dict[str, int] = field(default_factory=dict)
+    differences: list[Difference] = field(default_factory=list)
+    mismatches: int = 0
+    worst: dict[str, float] = field(default_factory=dict)  # |a - b| / allowed, per topic.field
+    limit: int = 10
+
+    @property
+    def equal(self) -> bool:
+        """True when nothing differs beyond the tolerance."""
+        return self.mismatches == 0
+
+    def add(self, diff: Difference, count: int = 1) -> None:
+        self.mismatches += count
+        if len(self.differences) < self.limit:
+            self.differences.append(diff)
+
+
+class Comparer:
+    """Compare topic data of A and B with one tolerance (``ulps`` of each scale, or ``atol``)."""
+
+    def __init__(self, cfg: AntennaConfig, ulps: float = DEFAULT_ULPS, atol: float | None = None,
+                 ignore: Sequence[str] = (), limit: int = 10) -> None:
+        unknown = sorted(set(ignore) - set(FIELDS))
+        if unknown:
+            raise BagError(f'cannot ignore {", ".join(unknown)} (choose from {", ".join(FIELDS)})')
+        if not (math.isfinite(ulps) and ulps >= 0) or (atol is not None and not (math.isfinite(atol) and atol >= 0)):
+            raise BagError('tolerances must be finite and >= 0')
+        self.cfg, self.ulps, self.atol, self.ignore = cfg, ulps, atol, frozenset(ignore)
+        self.result = Comparison(limit=limit)
+
+    def allowed(self, scale: FloatArray) -> FloatArray:
+        """The allowed |a - b| for values of this scale."""
+        if self.atol is not None:
+            return np.full(scale.shape, self.atol)
+        out: FloatArray = self.ulps * np.spacing(np.abs(scale))
+        return out
+
+    def floats(self, topic: str, what: str, a: FloatArray, b: FloatArray, scale: FloatArray) -> None:
+        """Element-wise a vs b within allowed(scale); equal floats (NaN == NaN included) always pass."""
+        same = (a == b) | (np.isnan(a) & np.isnan(b))
+        allowed = self.allowed(scale)
+        with np.errstate(invalid='ignore'):
+            diff = np.abs(a - b)
+            ok = same | (diff <= allowed)
+            ratio = np.where(same, 0.0, diff / np.where(allowed > 0, allowed, np.inf))
+        key = f'{topic} {what}'
+        worst = float(np.nanmax(ratio)) if ratio.size else 0.0
+        self.result.worst[key] = max(self.result.worst.get(key, 0.0), worst if math.isfinite(worst) else math.inf)
+        bad = np.argwhere(~ok)
+        for row in bad[: self.result.limit]:
+            i = int(row[0])
+            label = what if a.ndim == 1 else f'{what}[{int(row[1])}]'
+            self.result.add(Difference(topic, i, label, float(a[tuple(row)]), float(b[tuple(row)]),
+                                       float(allowed[tuple(row)])))
+        if len(bad) > self.result.limit:
+            self.result.mismatches += len(bad) - self.result.limit
+
+    def exact(self, topic: str, what: str, a: Sequence[Any] | npt.NDArray[Any],
+              b: Sequence[Any] | npt.NDArray[Any]) -> None:
+        """Element-wise equality (stamps, names, frame ids, velocity presence)."""
+        if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
+            bad: list[int] = np.flatnonzero(a != b).tolist()
+        else:
+            bad = [i for i, (x, y) in enumerate(zip(a, b, strict=True)) if x != y]
+        for i in bad[: self.result.limit]:
+            x, y = a[i], b[i]
+            self.result.add(Difference(topic, i, what, x.item() if isinstance(x, np.generic) else x,
+                                       y.item() if isinstance(y, np.generic) else y))
+        if len(bad) > self.result.limit:
+            self.result.mismatches += len(bad) - self.result.limit
+
+    def joint_states(self, topic: str, a: TopicData, b: TopicData) -> None:
+        assert a.positions is not None and b.positions is not None and a.stamp_ns is not None
+        assert a.efforts is not None and b.efforts is not None and a.velocities is not None
+        assert b.velocities is not None and a.has_velocity is not None and b.has_velocity is not None
+        assert b.stamp_ns is not None
+        self.exact(topic, 'name', a.names, b.names)
+        self.exact(topic, 'frame_id', a.frame_ids, b.frame_ids)
+        if a.positions.shape != b.positions.shape:
+            self.result.add(Difference(topic, 0, 'joint count', a.positions.shape[1], b.positions.shape[1]))
+            return
+        if 'stamps' not in self.ignore:
+            self.exact(topic, 'header stamp (ns)', a.stamp_ns, b.stamp_ns)
+        if 'positions' not in self.ignore:
+            self.floats(topic, 'position', a.positions, b.positions, position_scale(a.positions))
+        if 'velocities' not in self.ignore:
+            self.exact(topic, 'velocity present', a.has_velocity, b.has_velocity)
+            both = a.has_velocity & b.has_velocity
+            scale = velocity_scale(a.stamp_ns, a.positions, a.velocities)
+            self.floats(topic, 'velocity', np.where(both[:, None], a.velocities, 0.0),
+                        np.where(both[:, None], b.velocities, 0.0), scale)
+        if 'efforts' not in self.ignore:
+            self.floats(topic, 'effort', a.efforts, b.efforts, self.effort_scale(a))
+
+    def effort_scale(self, a: TopicData) -> FloatArray:
+        """Scale of each effort: the torque's condition at the driven rocker, |value| at the other."""
+        assert a.efforts is not None and a.positions is not None
+        scale = np.abs(a.efforts)
+        if a.positions.shape[1] == 2:
+            d = 0 if self.cfg.driven is Driven.GAMMA else 1
+            scale[:, d] = scale[:, d] * torque_condition(self.cfg, a.positions)
+        return scale
+
+    def float64s(self, topic: str, a: TopicData, b: TopicData, joints: TopicData | None) -> None:
+        assert a.data is not None and b.data is not None
+        if 'stamps' not in self.ignore:
+            self.exact(topic, 'log time (ns)', a.log_ns, b.log_ns)
+        if 'input_torque' in self.ignore and topic.rsplit('/', 1)[-1] == 'input_torque':
+            return
+        scale = np.abs(a.data)
+        if joints is not None and joints.positions is not None and len(joints) == len(a):
+            scale = scale * torque_condition(self.cfg, joints.positions)
+        self.floats(topic, 'data', a.data, b.data, scale)
+
+
+def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str], cfg: AntennaConfig,
+                 ulps: float = DEFAULT_ULPS, atol: float | None = None, ignore: Sequence[str] = (),
+                 limit: int = 10) -> Comparison:
+    """Compare the JointState and Float64 topics of two bags (see the module docstring). BagError on bad input."""
+    comparer = Comparer(cfg, ulps, atol, ignore, limit)
+    result = comparer.result
+    data_a, data_b = read_topics(path_a), read_topics(path_b)
+    if not data_a and not data_b:
+        raise BagError(f'{path_a}, {path_b}: no JointState or Float64 topic to compare')
+    for topic in sorted(set(data_a) | set(data_b)):
+        a, b = data_a.get(topic), data_b.get(topic)
+        if a is None or b is None:
+            result.add(Difference(topic, 0, 'topic', 'present' if a else 'missing', 'present' if b else 'missing'))
+            continue
+        if a.msgtype != b.msgtype:
+            result.add(Difference(topic, 0, 'type', a.msgtype, b.msgtype))
+            continue
+        n = min(len(a), len(b))
+        if len(a) != len(b):
+            result.add(Difference(topic, n, 'message count', len(a), len(b)))
+            a, b = _head(a, n), _head(b, n)
+        result.compared[topic] = n
+        if a.msgtype == JOINT_STATE:
+            comparer.joint_states(topic, a, b)
+        else:
+            sibling = data_a.get(f'{topic.rsplit("/", 1)[0]}/joint_states')
+            joints = _head(sibling, n) if sibling is not None and topic.endswith('/input_torque') else None
+            comparer.float64s(topic, a, b, joints)
+    return result
+
+
+def _head(td: TopicData, n: int) -> TopicData:
+    """The first n messages."""
+    def cut(x: Any) -> Any:
+        return None if x is None else x[:n]
+    return TopicData(td.msgtype, td.log_ns[:n], cut(td.stamp_ns), td.names[:n], td.frame_ids[:n],
+                     cut(td.positions), cut(td.velocities), cut(td.has_velocity), cut(td.efforts), cut(td.data))
