@@ -66,7 +66,7 @@ def linkage(g: Geometry) -> AntennaLinkage:
 
 # ---------------------------------------------------------------------------------------------- annex formula
 
-def _annex(g: Geometry, _interval: tuple[float, float]) -> Solver:
+def annex_solver(g: Geometry, _interval: tuple[float, float]) -> Solver:
     if not g.equal_rockers:
         raise NotApplicableError('the annex formula assumes equal rockers')
     H, h, ll = g.frame, g.coupler, g.rocker_ab
@@ -384,7 +384,7 @@ HERMITE_SIZES = (16, 64, 256, 1024, 4096)
 def all_methods(quick: bool = False) -> list[Method]:
     """Every method of the common sweep (ours and the formula of the annex; peers are in benchmarks.peers)."""
     methods = [
-        Method('annex', 'annex', 'float64', 'Annex A.13-A.15 as written (atan P, acos Q)', _annex),
+        Method('annex', 'annex', 'float64', 'Annex A.13-A.15 as written (atan P, acos Q)', annex_solver),
         Method('annex-atan2', 'annex', 'float64', 'annex with atan2 for atan P (acos Q kept)', _annex_atan2),
         Method('annex-f32', 'annex', 'float32', 'annex as written, float32 arrays', _annex_f32),
         Method(SHIPPED, 'shipped', 'float64', 'fourbar_ros AntennaLinkage.rocker_angles', _shipped),

@@ -39,7 +39,7 @@ def peer_versions() -> dict[str, str | None]:
     return out
 
 
-def _pylinkage(g: Geometry, _interval: tuple[float, float]) -> Solver:
+def pylinkage_solver(g: Geometry, _interval: tuple[float, float]) -> Solver:
     try:
         from pylinkage.geometry import circle_intersect
     except ImportError as exc:  # pragma: no cover - depends on the environment
@@ -105,7 +105,7 @@ def _mechanism(g: Geometry, interval: tuple[float, float]) -> Solver:
 def peer_methods() -> list[Method]:
     """The peers as benchmark methods (build raises NotApplicableError when the package is missing)."""
     return [
-        Method('pylinkage', 'peer', 'float64', 'pylinkage.geometry.circle_intersect + atan2', _pylinkage),
+        Method('pylinkage', 'peer', 'float64', 'pylinkage.geometry.circle_intersect + atan2', pylinkage_solver),
         Method('mechanism', 'peer', 'float64', 'mechanism.Mechanism (scipy fsolve on the loop equation)',
                _mechanism),
     ]

@@ -216,10 +216,10 @@ Scalar = Callable[[float], tuple[float, float]]
 
 
 def _annex_scalar(g: Geometry) -> Scalar | None:
-    from .methods import NotApplicableError, _annex
+    from .methods import NotApplicableError, annex_solver
 
     try:
-        s = _annex(g, (0.0, 0.0)).scalar
+        s = annex_solver(g, (0.0, 0.0)).scalar
     except NotApplicableError:
         return None
     return s
@@ -227,10 +227,10 @@ def _annex_scalar(g: Geometry) -> Scalar | None:
 
 def _pylinkage_scalar(g: Geometry) -> Scalar | None:
     from .methods import NotApplicableError
-    from .peers import _pylinkage
+    from .peers import pylinkage_solver
 
     try:
-        return _pylinkage(g, (0.0, 0.0)).scalar
+        return pylinkage_solver(g, (0.0, 0.0)).scalar
     except NotApplicableError:
         return None
 
@@ -248,10 +248,10 @@ def _shipped_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _annex_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    from .methods import NotApplicableError, _annex
+    from .methods import NotApplicableError, annex_solver
 
     try:
-        v = _annex(g, (0.0, 0.0)).vector
+        v = annex_solver(g, (0.0, 0.0)).vector
     except NotApplicableError:
         return None
     assert v is not None

@@ -25,7 +25,7 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Literal, NamedTuple, overload
+from typing import NamedTuple, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -42,21 +42,13 @@ from .dyad import (
     reach_half_angles,
 )
 from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
-
-if TYPE_CHECKING:
-    from .general import FourBar
-
-FloatArray = npt.NDArray[np.float64]
-ArrayLike = float | FloatArray
-OnInvalid = Literal['raise', 'nan']
+from .numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid, check_length
 
 __all__ = [
-    'AntennaLinkage', 'ArrayLike', 'Branch', 'Driven', 'FloatArray', 'InverseSolution', 'LinkageState', 'OnInvalid',
-    'Reach', 'RockerAngles', 'RockerRates',
+    'AntennaLinkage', 'Branch', 'Driven', 'InverseSolution', 'LinkageState', 'Reach', 'RockerAngles', 'RockerRates',
 ]
 
 _TWO_PI = 2.0 * math.pi
-_DEAD_TOL = 4.0 * math.ulp(1.0)  #: |sin| below this many ulps of the angles counts as zero (a dead point)
 
 
 class Driven(enum.Enum):
@@ -136,15 +128,6 @@ class Reach:
         return f'{fmt(self.theta_gap)} <= |theta| <= {fmt(self.theta_max)}'
 
 
-def _check_length(name: str, value: float) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise InvalidGeometryError(f'{name}={value!r} must be a number (metres)')
-    v = float(value)
-    if not (math.isfinite(v) and v > 0.0):
-        raise InvalidGeometryError(f'{name}={v!r} m must be finite and positive')
-    return v
-
-
 @dataclass(frozen=True)
 class AntennaLinkage:
     """The antenna's four-bar: frame AD, rockers AB and CD, coupler BC carrying the antenna (lengths in metres).
@@ -162,10 +145,10 @@ class AntennaLinkage:
     _reach: Reach = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        frame = _check_length('frame', self.frame)
-        ab = _check_length('rocker_ab', self.rocker_ab)
-        coupler = _check_length('coupler', self.coupler)
-        cd = ab if self.rocker_cd is None else _check_length('rocker_cd', self.rocker_cd)
+        frame = check_length('frame', self.frame)
+        ab = check_length('rocker_ab', self.rocker_ab)
+        coupler = check_length('coupler', self.coupler)
+        cd = ab if self.rocker_cd is None else check_length('rocker_cd', self.rocker_cd)
         object.__setattr__(self, 'rocker_cd', cd)
         object.__setattr__(self, '_cd', cd)
         # Angles depend only on length ratios: work in units of the frame so no scale can overflow.
@@ -319,7 +302,7 @@ class AntennaLinkage:
         if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
             q = delta if gamma_driven else gamma
             q_rate = math.sin(q - theta if gamma_driven else q + theta)
-            if abs(q_rate) <= _DEAD_TOL * (1.0 + abs(q) + abs(theta)):
+            if abs(q_rate) <= DEAD_TOL * (1.0 + abs(q) + abs(theta)):
                 raise DeadPointError(
                     f'theta={theta!r} rad is a dead point for the {driven.value} rocker: the {_other(driven)} '
                     f'rocker is in line with the coupler, so no finite torque holds the antenna')
@@ -327,7 +310,7 @@ class AntennaLinkage:
         q_a = np.asarray(delta if gamma_driven else gamma)
         with np.errstate(divide='ignore', invalid='ignore'):
             q_rate_a = np.sin(np.subtract(q_a, theta) if gamma_driven else np.add(q_a, theta))
-            q_rate_a[np.abs(q_rate_a) <= _DEAD_TOL * (1.0 + np.abs(q_a) + np.abs(theta))] = np.nan
+            q_rate_a[np.abs(q_rate_a) <= DEAD_TOL * (1.0 + np.abs(q_a) + np.abs(theta))] = np.nan
             tau: FloatArray = np.multiply(load_torque, lever * np.sin(np.add(gamma, delta))) / q_rate_a
         return tau
 
@@ -367,22 +350,56 @@ class AntennaLinkage:
 
         The motor side knows its rocker; this is the four-bar with that rocker as the crank. assembly=+1 puts C
         to the left of the line from B to D when gamma is measured (B to the left of C to A when delta is), which
-        is the annex's working pose; -1 is the crossed pose. Raises UnreachableError if the rocker cannot take q.
+        is the annex's working pose; -1 is the crossed pose. Raises UnreachableError if the rocker cannot take q
+        (for arrays: if any element cannot).
         """
-        t3, t4 = self._as_four_bar(driven).angles(q, assembly)
-        other = _wrap(math.pi - t4 if isinstance(t4, float) else np.pi - t4)
-        # The coupler's angle from +x is -theta with AB as the crank; mirrored (CD as the crank) it is +theta.
-        return InverseSolution(_wrap(-t3 if driven is Driven.GAMMA else t3), other)
+        # The four-bar with the measured rocker as crank: its diagonal (rocker end -> other pivot) is the dyad's
+        # P -> Q with x = -q; the dyad's angle at P is the coupler's direction from +x (-theta with AB as the crank,
+        # +theta mirrored, CD as the crank) and its angle at Q is the other rocker's angle.
+        k, reach = self._rocker_dyad(driven)
+        which = Branch.UPPER if assembly >= 0 else Branch.LOWER
+        sign = -1.0 if driven is Driven.GAMMA else 1.0
+        if isinstance(q, (float, int)):
+            try:
+                coupler_dir, other = closure(k, -q, which)
+            except DyadOpenError:
+                raise UnreachableError(f'q={float(q)!r} rad: the {driven.value} rocker cannot take this angle; it '
+                                       f'takes {_describe_rocker(reach)}') from None
+            except DyadChangePointError:
+                raise self._rocker_change_point(driven, float(q)) from None
+            return InverseSolution(_wrap(sign * coupler_dir), _wrap(other))
+        qa = np.asarray(q, dtype=np.float64)
+        try:
+            coupler_a, other_a = closure_array(k, np.negative(qa), which, 'raise')
+        except DyadOpenError:
+            bad = ~closes(k, np.negative(qa))
+            raise UnreachableError(
+                f'{int(bad.sum())} of {qa.size} {driven.value} angles cannot be taken, the first '
+                f'q={float(qa[bad].flat[0])!r}; the {driven.value} rocker takes {_describe_rocker(reach)}') from None
+        except DyadChangePointError as exc:
+            raise self._rocker_change_point(driven, -exc.x) from None
+        return InverseSolution(_wrap(sign * coupler_a), _wrap(other_a))
 
-    def _as_four_bar(self, driven: Driven) -> FourBar:
-        """This linkage as the general four-bar with the measured rocker as its crank (built once per rocker)."""
-        from .general import FourBar  # local: fourbar_ros.general imports this module
-
-        built: dict[Driven, FourBar] = self.__dict__.setdefault('_four_bars', {})  # per instance, not global
-        if driven not in built:
+    def _rocker_dyad(self, driven: Driven) -> tuple[DyadConstants, tuple[float, float]]:
+        """The dyad of the four-bar with the measured rocker as its crank and its reach (built once per rocker)."""
+        built: dict[Driven, tuple[DyadConstants, tuple[float, float]]] = self.__dict__.setdefault('_rocker_dyads', {})
+        if driven not in built:  # per instance, not global; the exact constants cost ~20 us
             crank, rocker = (self.rocker_ab, self._cd) if driven is Driven.GAMMA else (self._cd, self.rocker_ab)
-            built[driven] = FourBar(self.frame, crank, self.coupler, rocker)
+            k = dyad_constants(self.frame, crank, self.coupler, rocker, unit=self.frame)
+            built[driven] = (k, reach_half_angles(k))
         return built[driven]
+
+    def _rocker_change_point(self, driven: Driven, q: float) -> SingularPositionError:
+        return SingularPositionError(
+            f'q={q!r} rad is a change point of the {driven.value} rocker (as long as the frame, it puts its end on '
+            f'the other pivot): the antenna angle is undetermined')
+
+
+def _describe_rocker(reach: tuple[float, float]) -> str:
+    gap, top = reach
+    if gap == 0.0:
+        return f'|q| <= {top:.12g} rad'
+    return f'{gap:.12g} <= |q| <= {top:.12g} rad'
 
 
 def _wrap(x: ArrayLike) -> ArrayLike:

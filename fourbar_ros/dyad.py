@@ -18,13 +18,12 @@ from __future__ import annotations
 import enum
 import math
 from fractions import Fraction
-from typing import Literal, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
-OnInvalid = Literal['raise', 'nan']
+from .numeric import FloatArray, OnInvalid
 
 
 class DyadConstants(NamedTuple):

@@ -19,7 +19,6 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .antenna import _DEAD_TOL, ArrayLike, FloatArray, OnInvalid, _check_length
 from .dyad import (
     Branch,
     DyadChangePointError,
@@ -32,6 +31,7 @@ from .dyad import (
     reach_half_angles,
 )
 from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
+from .numeric import DEAD_TOL, ArrayLike, OnInvalid, check_length
 
 
 class FourBarAngles(NamedTuple):
@@ -58,10 +58,10 @@ class FourBar:
     crank_max: float = field(init=False, compare=False)
 
     def __post_init__(self) -> None:
-        l1 = _check_length('ground', self.ground)
-        l2 = _check_length('crank', self.crank)
-        l3 = _check_length('coupler', self.coupler)
-        l4 = _check_length('rocker', self.rocker)
+        l1 = check_length('ground', self.ground)
+        l2 = check_length('crank', self.crank)
+        l3 = check_length('coupler', self.coupler)
+        l4 = check_length('rocker', self.rocker)
         k = dyad_constants(l1, l2, l3, l4, unit=l1)
         try:
             gap, top = reach_half_angles(k)
@@ -148,12 +148,12 @@ class FourBar:
         a, b = (t4, t2) if invert else (t2, t4)
         if isinstance(a, (float, int)) and isinstance(b, (float, int)) and isinstance(t3, float):
             den = math.sin(b - t3)
-            if abs(den) <= _DEAD_TOL * (1.0 + abs(b) + abs(t3)):
+            if abs(den) <= DEAD_TOL * (1.0 + abs(b) + abs(t3)):
                 raise DeadPointError(f't2={t2!r} rad: {why}')
             return num_len * math.sin(a - t3) / (den_len * den)
         with np.errstate(divide='ignore', invalid='ignore'):
             den_a = np.sin(np.subtract(b, t3))
-            den_a[np.abs(den_a) <= _DEAD_TOL * (1.0 + np.abs(b) + np.abs(t3))] = np.nan
+            den_a[np.abs(den_a) <= DEAD_TOL * (1.0 + np.abs(b) + np.abs(t3))] = np.nan
             return num_len * np.sin(np.subtract(a, t3)) / (den_len * den_a)
 
     def _describe_range(self) -> str:
@@ -167,4 +167,4 @@ class FourBar:
         return UnreachableError(f't2={t2!r} rad cannot close the loop; it closes for {self._describe_range()}')
 
 
-__all__ = ['FloatArray', 'FourBar', 'FourBarAngles']
+__all__ = ['FourBar', 'FourBarAngles']

@@ -18,16 +18,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Literal, overload
+from typing import overload
 
 import numpy as np
 import numpy.typing as npt
 
 from .antenna import AntennaLinkage, Branch, RockerAngles
 from .errors import UnreachableError
-
-FloatArray = npt.NDArray[np.float64]
-ArrayLike = float | FloatArray
+from .numeric import ArrayLike, FloatArray, OnInvalid
 
 _SAMPLES_PER_INTERVAL = 16
 _new = tuple.__new__
@@ -107,11 +105,11 @@ class RockerTable:
         return self._gamma.copy(), self._delta.copy()
 
     @overload
-    def rocker_angles(self, theta: float, on_invalid: Literal['raise', 'nan'] = ...) -> RockerAngles: ...
+    def rocker_angles(self, theta: float, on_invalid: OnInvalid = ...) -> RockerAngles: ...
     @overload
-    def rocker_angles(self, theta: FloatArray, on_invalid: Literal['raise', 'nan'] = ...) -> RockerAngles: ...
+    def rocker_angles(self, theta: FloatArray, on_invalid: OnInvalid = ...) -> RockerAngles: ...
 
-    def rocker_angles(self, theta: ArrayLike, on_invalid: Literal['raise', 'nan'] = 'raise') -> RockerAngles:
+    def rocker_angles(self, theta: ArrayLike, on_invalid: OnInvalid = 'raise') -> RockerAngles:
         """Interpolated (gamma, delta) in radians; within max_error of the exact solve.
 
         A theta outside [theta_min, theta_max] (or NaN) raises UnreachableError; for arrays with

@@ -27,12 +27,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import numpy.typing as npt
 
 from fourbar_ros.errors import FourBarError, SingularPositionError, UnreachableError
 from fourbar_ros.general import FourBar
-
-FloatArray = npt.NDArray[np.float64]
+from fourbar_ros.numeric import FloatArray
 
 #: Default limit on the 2-norm condition number of the Freudenstein system. Beyond about 1/sqrt(eps) = 6.7e7 more
 #: than half of the double-precision digits of the constants can be lost to rounding alone.

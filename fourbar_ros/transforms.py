@@ -11,10 +11,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-import numpy.typing as npt
 
-FloatArray = npt.NDArray[np.float64]
-AngleLike = float | FloatArray
+from .numeric import ArrayLike as AngleLike
+from .numeric import FloatArray
 
 _ORIGIN = np.array([0.0, 0.0, 1.0])
 
