@@ -2,7 +2,8 @@
 
 Levels use diagnostic_msgs/DiagnosticStatus numbering: ERROR when the drive cannot hold the load at the
 served angle (a torque margin below zero), WARN when the last command was rejected or clamped or the
-transmission angle is poor (outside [transmission_angle_min, pi - transmission_angle_min]), OK otherwise.
+transmission angle is poor (outside [transmission_angle_min, pi - transmission_angle_min]) or commands
+were lost since the previous status (``commands_lost`` grew), OK otherwise.
 Floats are written with ``repr`` (shortest round-trip form), so a reader recovers them exactly.
 """
 
@@ -17,6 +18,9 @@ from fourbar_ros.antenna import LinkageState
 from fourbar_ros.command_policy import Decision, Outcome
 from fourbar_ros.config import AntennaConfig
 from fourbar_ros.loads import motor_torque
+
+#: More commands lost than this since the previous status raise the level to WARN (any loss does).
+LOST_WARN_THRESHOLD = 0
 
 
 class Level(enum.IntEnum):
@@ -46,7 +50,8 @@ class Counters:
     diagnostics_published: int = 0
     diagnostics_skipped: int = 0
     parameter_changes_accepted: int = 0
-    parameter_changes_rejected: int = 0
+    parameter_changes_rejected: int = 0  # every refusal: rclpy's (undeclared, type, range, read-only) and ours
+    commands_lost: int = 0  # published to us but never taken: gaps in the publishers' sequence numbers
 
     def record(self, outcome: Outcome) -> None:
         """Count one command by its outcome."""
@@ -67,6 +72,40 @@ class Counters:
         return asdict(self)
 
 
+class SequenceGaps:
+    """Counts commands lost between publishers and the subscription from the rmw's publication sequence numbers.
+
+    Each publisher numbers its messages 1, 2, 3, ... (the DDS writer's sequence number, passed up in the
+    message info); a number that skips ahead means the messages between were never taken: dropped by a
+    full keep-last queue on either side, or undeserializable. The message info does not say which publisher
+    sent a message, so numbers are matched to *tracks*: each goes to the track whose last number is the
+    largest below it, or starts a new track (a new or restarted publisher; the first message of a track counts
+    no loss). With one publisher this is exact; with several interleaved ones it is exact while none loses
+    messages, and an estimate otherwise. At most ``max_tracks`` tracks are kept (least recently used dropped).
+    """
+
+    def __init__(self, max_tracks: int = 16) -> None:
+        self._lasts: list[int] = []  # one per track, least recently used first
+        self._max_tracks = max_tracks
+
+    def observe(self, seq: int) -> int:
+        """Record sequence number ``seq``; return how many numbers it skipped (newly lost messages)."""
+        lasts = self._lasts
+        best = -1
+        for i, last in enumerate(lasts):
+            if last < seq and (best < 0 or last > lasts[best]):
+                best = i
+        if best < 0:
+            if len(lasts) >= self._max_tracks:
+                del lasts[0]
+            lasts.append(seq)
+            return 0
+        lost = seq - lasts[best] - 1
+        del lasts[best]
+        lasts.append(seq)
+        return lost
+
+
 class Summary(NamedTuple):
     """One diagnostic status: level, one-line message, (key, value) pairs."""
 
@@ -77,8 +116,11 @@ class Summary(NamedTuple):
 
 def summarize(cfg: AntennaConfig, last: Decision | None, last_command: float | None,
               state: LinkageState | None, counters: Counters, states_computed: int,
-              states_reused: int) -> Summary:
-    """Build the status from the last command (raw, rad), its decision, the state at the served angle."""
+              states_reused: int, lost_since_last: int = 0) -> Summary:
+    """Build the status from the last command (raw, rad), its decision, the state at the served angle.
+
+    ``lost_since_last``: commands lost since the previous status; more than ``LOST_WARN_THRESHOLD`` is a WARN.
+    """
     values: list[tuple[str, str]] = []
     level, message = Level.OK, 'waiting for the first command'
     if last is not None and last_command is not None:
@@ -117,6 +159,11 @@ def summarize(cfg: AntennaConfig, last: Decision | None, last_command: float | N
             message = f'poor transmission angle {math.degrees(transmission):.4g} deg'
         elif level is Level.OK:
             message = 'ok'
+    if lost_since_last > LOST_WARN_THRESHOLD and level is not Level.ERROR:
+        lost = (f'{lost_since_last} commands lost since the previous status ({counters.commands_lost} in all): '
+                'they came faster than the node takes them and a queue dropped the oldest')
+        message = lost if level is Level.OK else f'{message}; {lost}'
+        level = Level.WARN
     values += [(k, str(v)) for k, v in counters.as_dict().items()]
     values += [('states_computed', str(states_computed)), ('states_reused', str(states_reused))]
     return Summary(level, message, values)

@@ -22,32 +22,43 @@ decisions in the pure modules command_policy, state_cache, joint_velocity, diagn
 from __future__ import annotations
 
 import itertools
+import signal
 import sys
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Collection, Sequence
+from typing import Any, cast
 
 import rclpy
 import rclpy.utilities
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.executors import ExternalShutdownException
+from rclpy.clock import Clock, ROSClock
+from rclpy.clock_type import ClockType
+from rclpy.exceptions import ParameterNotDeclaredException
+from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos_overriding_options import QoSOverridingOptions
+from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from visualization_msgs.msg import MarkerArray
 
 from fourbar_ros.antenna import Driven, LinkageState
 from fourbar_ros.command_policy import Decision, Outcome, Policy, decide
-from fourbar_ros.config import AntennaConfig, ConfigError, config_from_values
-from fourbar_ros.diagnostic_values import Counters, summarize
+from fourbar_ros.config import (
+    AntennaConfig,
+    ConfigError,
+    config_from_values,
+    declared_values,
+    unknown_in_node_sections,
+)
+from fourbar_ros.diagnostic_values import Counters, SequenceGaps, summarize
 from fourbar_ros.errors import FourBarError
-from fourbar_ros.joint_velocity import Sample, finite_difference
+from fourbar_ros.joint_velocity import Sample, velocity_step
 from fourbar_ros.loads import Pose, pose_solver, solve
 from fourbar_ros.marker_geometry import linkage_points
-from fourbar_ros.params import is_foreign
+from fourbar_ros.params import PARAMETERS_BY_NAME, is_foreign
 from fourbar_ros.ros_markers import LinkageMarkers
 from fourbar_ros.ros_params import declarations
 from fourbar_ros.state_cache import StateCache
@@ -58,12 +69,17 @@ STREAM_DEPTH = 1000
 #: Keep-last depth of markers and diagnostics (latest state only matters).
 STATUS_DEPTH = 10
 WARN_THROTTLE_S = 1.0
+#: Steady-clock delay (s) after which a node on sim time without /clock says so.
+NO_CLOCK_WARN_S = 3.0
 
 
 class FourBarNode(Node):
     """The antenna tilt node. Raises ConfigError from the constructor if its parameters are invalid."""
 
-    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+    def __init__(self, node_name: str = NODE_NAME, *, params_files: Sequence[str] = (),
+                 command_line_names: Collection[str] = (), **kwargs: Any) -> None:
+        """``params_files`` and ``command_line_names`` (``-p name:=...``) only say which unknown parameter
+        names were addressed to this node (warned about) rather than to the whole robot (ignored)."""
         super().__init__(node_name, **kwargs)
         # rclpy's logger and destroy_node are unannotated: bind them to typed names once.
         get_logger: Callable[[], RcutilsLogger] = self.get_logger
@@ -71,17 +87,25 @@ class FourBarNode(Node):
         self._ros_clock = self.get_clock()
         self._warn: Callable[..., object] = logger.warning
         self._error: Callable[..., object] = logger.error
+        self._debug: Callable[..., object] = logger.debug
         try:
             self._config = self._validated_overrides()
+            constructor_overrides: list[Parameter] = kwargs.get('parameter_overrides') or []
+            explicit = set(command_line_names) | {p.name for p in constructor_overrides}
+            for path in params_files:
+                explicit.update(unknown_in_node_sections(path, self.get_name(), self.get_namespace()))
         except ConfigError:
             _destroy(self)
             raise
+        self._report_unknown_overrides(explicit)
         self.declare_parameters('', list(declarations(self._config.as_values())))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._after_set_parameters)
         self._pending: AntennaConfig | None = None
 
         self.counters = Counters()
+        self.gaps = SequenceGaps()
+        self._lost_reported = 0  # commands_lost at the previous diagnostics status
         self.cache: StateCache[Pose] = StateCache(pose_solver(self._config))
         self._last_command: float | None = None
         self._last_decision: Decision | None = None
@@ -99,17 +123,42 @@ class FourBarNode(Node):
         self._marker_pub = self.create_publisher(MarkerArray, 'linkage_markers', STATUS_DEPTH,
                                                  qos_overriding_options=qos_options)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATUS_DEPTH)
-        self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd', self._on_command,
+        # Two parameters: rclpy then passes the message info (its typing only knows the one-parameter form).
+        on_command = cast(Callable[[Any], None], self._on_command)
+        self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd', on_command,
                                                      STREAM_DEPTH, qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
+        # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
+        # this one runs on the steady clock so that case is reported, once per episode.
+        self._clock_warned = False
+        self._clock_check = self.create_timer(NO_CLOCK_WARN_S, self._check_sim_clock,
+                                              clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # ------------------------------------------------------------------ configuration
 
+    def _startup_values(self) -> dict[str, object]:
+        """Every startup value rcl parsed for this node (params files, ``-p``, constructor overrides).
+
+        rclpy has no public accessor for them before they are declared, and declaring first would let rclpy
+        refuse a bad value with its own message instead of our one line naming the parameter; so this reads
+        rclpy's ``_parameter_overrides``.
+        """
+        return {name: p.value for name, p in self._parameter_overrides.items()}
+
     def _validated_overrides(self) -> AntennaConfig:
-        """Validate the startup values (params file, --param, constructor overrides) before declaring."""
-        overrides = {name: p.value for name, p in self._parameter_overrides.items()}
-        return config_from_values(overrides)
+        """Validate the startup values of our parameters before declaring; other names are ignored (ROS)."""
+        return config_from_values(declared_values(self._startup_values()))
+
+    def _report_unknown_overrides(self, explicit: Collection[str]) -> None:
+        """Warn about unknown names addressed to this node (probably typos); others only at debug level."""
+        for name in self._startup_values():
+            if name in PARAMETERS_BY_NAME or is_foreign(name):
+                continue
+            if name in explicit:
+                self._warn(f'{name}: not a fourbar_node parameter; ignored (known: {", ".join(PARAMETERS_BY_NAME)})')
+            else:
+                self._debug(f'{name}: not a fourbar_node parameter (from a wildcard section); ignored')
 
     @property
     def config(self) -> AntennaConfig:
@@ -134,19 +183,54 @@ class FourBarNode(Node):
         self._generation += 1
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Validate the running configuration with the proposed changes, as a whole."""
+        """Validate the running configuration with the proposed changes, as a whole.
+
+        rclpy calls this only after its own checks (declared, type, range, read-only) passed; every
+        rejection, theirs or ours, is counted and logged in ``set_parameters_atomically``/``set_parameters``.
+        """
         proposed: dict[str, object] = dict(self._config.as_values())
+        changed = [p.name for p in params if not is_foreign(p.name)]
         for p in params:
             if not is_foreign(p.name):
                 proposed[p.name] = p.value
         try:
-            self._pending = config_from_values(proposed)
+            self._pending = config_from_values(proposed, changed)
         except ConfigError as exc:
             self._pending = None
-            self.counters.parameter_changes_rejected += 1
-            self._warn(f'parameter change rejected: {exc}')
             return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
+
+    def _count_result(self, result: SetParametersResult) -> SetParametersResult:
+        if not result.successful:
+            self.counters.parameter_changes_rejected += 1
+            self._warn(f'parameter change rejected: {result.reason}')
+        return result
+
+    def _count_undeclared(self, exc: ParameterNotDeclaredException) -> None:
+        self.counters.parameter_changes_rejected += 1
+        self._warn(f'parameter change rejected: {_one_line(exc)}')
+
+    # Every run-time change (the set_parameters and set_parameters_atomically services, ros2 param, in-process
+    # calls) passes through these two; rclpy refuses unknown names, wrong types, out-of-range values and
+    # read-only parameters before our callback runs, so the counting is done here, around all of it.
+    def set_parameters_atomically(self, parameter_list: list[Parameter]) -> SetParametersResult:
+        """rclpy's, with every rejection counted (``parameter_changes_rejected``) and logged."""
+        try:
+            return self._count_result(super().set_parameters_atomically(parameter_list))
+        except ParameterNotDeclaredException as exc:
+            self._count_undeclared(exc)
+            raise
+
+    def set_parameters(self, parameter_list: list[Parameter]) -> list[SetParametersResult]:
+        """rclpy's (one parameter at a time), with every rejection counted and logged."""
+        try:
+            results: list[SetParametersResult] = super().set_parameters(parameter_list)
+        except ParameterNotDeclaredException as exc:
+            self._count_undeclared(exc)
+            raise
+        for result in results:
+            self._count_result(result)
+        return results
 
     def _after_set_parameters(self, params: list[Parameter]) -> None:
         if self._pending is not None and any(not is_foreign(p.name) for p in params):
@@ -156,10 +240,13 @@ class FourBarNode(Node):
 
     # ------------------------------------------------------------------ commands
 
-    def _on_command(self, msg: Float64) -> None:
+    def _on_command(self, msg: Float64, info: dict[str, Any]) -> None:
         # Latency-critical path first (check, solve, publish joint_states); bookkeeping after.
         command = msg.data
         counters = self.counters
+        seq = info['publication_sequence_number']
+        if seq is not None:  # the rmw's per-publisher number: a gap is a command we never took
+            counters.commands_lost += self.gaps.observe(seq)
         self._last_command = command
         if self._theta_min <= command <= self._theta_max:  # accepted as is (NaN and inf fail here)
             theta = command
@@ -208,10 +295,9 @@ class FourBarNode(Node):
         msg = self._joint_msg
         msg.header.stamp = now.to_msg()
         msg.position = [gamma, delta]
-        msg.velocity = finite_difference(self._last_sample, sample, self._velocity_timeout)
+        msg.velocity, self._last_sample = velocity_step(self._last_sample, sample, self._velocity_timeout)
         msg.effort = [torque, 0.0] if self._driven_first else [0.0, torque]
         self._joint_pub.publish(msg)
-        self._last_sample = sample
         self.counters.joint_states_published += 1
 
     # ------------------------------------------------------------------ markers
@@ -253,7 +339,8 @@ class FourBarNode(Node):
         if last is None and self._last_command is not None:  # the fast path stores no Decision
             last = Decision(self._last_command, Outcome.ACCEPTED, '')
         summary = summarize(self._config, last, self._last_command, state, self.counters,
-                            self.cache.computed, self.cache.reused)
+                            self.cache.computed, self.cache.reused,
+                            lost_since_last=self.counters.commands_lost - self._lost_reported)
         return DiagnosticStatus(
             level=bytes([int(summary.level)]), name=f'{self.get_fully_qualified_name()}: antenna tilt linkage',
             message=summary.message, hardware_id=self._config.frame_id,
@@ -267,6 +354,19 @@ class FourBarNode(Node):
         msg = DiagnosticArray(status=[self.diagnostic_status()])
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
+        self._lost_reported = self.counters.commands_lost
+
+    # ------------------------------------------------------------------ sim time
+
+    def _check_sim_clock(self) -> None:
+        """Warn once if use_sim_time is on and no /clock has arrived (the ROS clock still reads 0)."""
+        clock = self._ros_clock
+        waiting = isinstance(clock, ROSClock) and clock.ros_time_is_active and clock.now().nanoseconds == 0
+        if waiting and not self._clock_warned:
+            self._warn(f'use_sim_time is true but no /clock message arrived in {NO_CLOCK_WARN_S:g} s: stamps are 0, '
+                       'joint velocities are empty and diagnostics and markers (timers on the ROS clock) are not '
+                       'published until /clock runs (e.g. ros2 bag play --clock)')
+        self._clock_warned = waiting
 
 
 def _destroy(node: Node) -> None:
@@ -277,6 +377,17 @@ def _destroy(node: Node) -> None:
 def _one_line(exc: BaseException) -> str:
     text = ' '.join(str(exc).split())
     return text or exc.__class__.__name__
+
+
+def params_files(argv: list[str]) -> list[str]:
+    """The ``--params-file`` paths among ``argv``, in order."""
+    return [path for flag, path in itertools.pairwise(argv) if flag == '--params-file']
+
+
+def command_line_names(argv: list[str]) -> list[str]:
+    """The parameter names set with ``-p name:=value`` (or ``--param``) among ``argv``."""
+    return [arg.split(':=', 1)[0].rsplit(':', 1)[-1] for flag, arg in itertools.pairwise(argv)
+            if flag in ('-p', '--param') and ':=' in arg]
 
 
 def params_file_problem(argv: list[str]) -> str | None:
@@ -299,29 +410,72 @@ def params_file_problem(argv: list[str]) -> str | None:
     return None
 
 
+#: Longest time (s) the spin loop waits for work before it looks at the stop flag again.
+STOP_POLL_S = 0.1
+
+
+class StopRequest:
+    """Set by SIGINT/SIGTERM; the spin loop ends when it sees it.
+
+    rclpy's own handlers shut the context down from the signal while a callback may still be running, so
+    get_subscription_count, publish or the next wait set raise RCLError ("context is invalid") and SIGINT's
+    KeyboardInterrupt can land inside take_message. This handler only sets a flag (Python runs it in the main
+    thread between bytecodes); the loop then returns and main() destroys the node and shuts down, in order.
+    """
+
+    def __init__(self) -> None:
+        self.signal: int | None = None
+
+    def __call__(self, signum: int, frame: object) -> None:
+        self.signal = signum
+
+    def install(self) -> None:
+        """Handle SIGINT and SIGTERM in this process (main thread only)."""
+        signal.signal(signal.SIGINT, self)
+        signal.signal(signal.SIGTERM, self)
+
+    @property
+    def requested(self) -> bool:
+        """True once a stop signal arrived."""
+        return self.signal is not None
+
+
+def spin_until_stopped(executor: Executor, stop: StopRequest, poll_s: float = STOP_POLL_S) -> None:
+    """Run callbacks until ``stop`` is requested (checked at least every ``poll_s`` s) or the context ends."""
+    while not stop.requested and executor.context.ok():
+        executor.spin_once(timeout_sec=poll_s)
+
+
 def main(args: list[str] | None = None) -> int:
     """Console script ``fourbar_node``: exit 0 on Ctrl-C/SIGTERM, 2 with one line on bad parameters."""
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 
-    problem = params_file_problem(sys.argv if args is None else args)
+    stop = StopRequest()
+    stop.install()  # before rclpy.init: a stop during startup also ends cleanly, after the node is built
+    argv = sys.argv if args is None else args
+    problem = params_file_problem(argv)
     if problem is not None:
         print(f'fourbar_node: error: {problem}', file=sys.stderr)
         return 2
     try:
-        rclpy.init(args=args)
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
         print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
         return 2
     node: FourBarNode | None = None
+    executor: Executor | None = None
     try:
-        node = FourBarNode()
-        rclpy.spin(node)
+        node = FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv))
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spin_until_stopped(executor, stop)
     except (ConfigError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
         print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
         return 2
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
     finally:
+        # Nothing runs callbacks any more (one thread): destroy the node, then shut the context down.
+        if executor is not None:
+            executor.shutdown(timeout_sec=0.0)
         if node is not None:
             _destroy(node)
         rclpy.utilities.try_shutdown()

@@ -321,6 +321,13 @@ class NodeProcess:
             f.close()
             setattr(self, name, None)
 
+    def stderr_now(self) -> str:
+        """What the running process wrote to stderr so far (the file stays open)."""
+        if self._err is None:
+            return self.stderr
+        self._err.seek(0)
+        return str(self._err.read().decode('utf-8', 'replace'))
+
     def running(self) -> bool:
         """True while the process has not exited."""
         return self.proc is not None and self.proc.poll() is None

@@ -247,18 +247,24 @@ def test_runtime_parameter_changes_validated_as_a_whole(ros: RosSession, make_ri
     before = rig.node.config
     rejected = [
         ([Parameter('theta_max', value=0.9)], False, 'theta_max: '),                    # out of reach
-        ([Parameter('coupler_length', value=0.5)], False, 'frame_length: '),           # never assembles
-        ([Parameter('theta_min', value=0.05), Parameter('theta_max', value=0.01)], True, 'theta_min: '),
+        ([Parameter('coupler_length', value=0.5)], False, 'coupler_length: '),         # never assembles
+        ([Parameter('theta_min', value=0.05), Parameter('theta_max', value=0.01)], True, 'theta_min, theta_max: '),
         ([Parameter('driven_rocker', value='beta')], False, 'driven_rocker: '),
-        ([Parameter('gamma_joint', value='rocker_cd_joint')], False, 'delta_joint: '),
+        ([Parameter('gamma_joint', value='rocker_cd_joint')], False, 'gamma_joint: '),
         ([Parameter('reducer_ratio', value=500)], False, 'Wrong parameter type'),        # rclpy's own check
         ([Parameter('load_torque', value=math.nan)], False, 'load_torque'),             # rclpy's range check
-        ([Parameter('diagnostics_period', value=2.0)], False, 'read-only'),
+        ([Parameter('diagnostics_period', value=2.0)], False, 'read-only'),             # rclpy's read-only check
+        ([Parameter('diagnostics_period', value=2.0)], True, 'read-only'),
+        ([Parameter('robot_description', value='<robot/>')], False, 'undeclared'),       # rclpy: not declared
+        ([Parameter('robot_description', value='<robot/>')], True, 'undeclared'),
+        ([Parameter('reducer_ratio', value='fast')], True, 'Wrong parameter type'),
     ]
-    for params, atomic, reason in rejected:
+    for count, (params, atomic, reason) in enumerate(rejected, start=1):
         results = set_params(ros, rig, params, atomic)
         assert not results[0].successful, params
         assert reason in results[0].reason and '\n' not in results[0].reason
+        # Every refusal is counted, rclpy's own (before our callback) as well as ours.
+        assert rig.node.counters.parameter_changes_rejected == count, (params, results[0].reason)
         assert rig.node.config == before
         assert rig.node.get_parameter('theta_max').value == HI
         assert rig.node.get_parameter('coupler_length').value == 0.102

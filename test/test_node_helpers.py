@@ -11,7 +11,7 @@ from fourbar_ros.antenna import Driven, LinkageState
 from fourbar_ros.command_policy import Outcome, Policy, decide
 from fourbar_ros.config import AntennaConfig, config_from_values, default_config
 from fourbar_ros.diagnostic_values import Counters, Level, summarize
-from fourbar_ros.joint_velocity import Sample, finite_difference
+from fourbar_ros.joint_velocity import Sample, velocity_step
 from fourbar_ros.loads import com_height_rate, gravity_torque, load_torque, motor_torque, pose_solver, solve
 from fourbar_ros.marker_geometry import linkage_points
 from fourbar_ros.state_cache import StateCache
@@ -144,15 +144,37 @@ def test_cache_counts_solves_and_repeats() -> None:
 
 # ----------------------------------------------------------------------------- velocities
 
-def test_finite_difference() -> None:
+def test_velocity_step_cases() -> None:
     prev = Sample(1_000_000_000, (0.5, 0.7))
     cur = Sample(1_010_000_000, (0.51, 0.68))
-    v = finite_difference(prev, cur, timeout=0.5)
-    assert v == [(0.51 - 0.5) / 0.01, (0.68 - 0.7) / 0.01]
-    assert finite_difference(None, cur, 0.5) == []
-    assert finite_difference(prev, Sample(prev.stamp_ns, (0.6, 0.6)), 0.5) == []   # same stamp
-    assert finite_difference(cur, prev, 0.5) == []                                  # clock went back
-    assert finite_difference(prev, Sample(prev.stamp_ns + 600_000_000, (0.6, 0.6)), 0.5) == []  # stale
+    v, anchor = velocity_step(prev, cur, timeout=0.5)
+    # The same two float operations (subtract, divide) as the rule itself: equality is legitimate.
+    assert v == [(0.51 - 0.5) / 0.01, (0.68 - 0.7) / 0.01] and anchor == cur
+    assert velocity_step(None, cur, 0.5) == ([], cur)
+    same = Sample(prev.stamp_ns, (0.6, 0.6))
+    assert velocity_step(prev, same, 0.5) == ([], prev)              # same stamp: no velocity, anchor kept
+    assert velocity_step(cur, prev, 0.5) == ([], prev)               # clock went back: restart from it
+    stale = Sample(prev.stamp_ns + 600_000_000, (0.6, 0.6))
+    assert velocity_step(prev, stale, 0.5) == ([], stale)            # older than the timeout: restart
+
+
+def test_velocity_is_unbiased_when_commands_outpace_the_clock() -> None:
+    """Commands at 100 Hz on a clock ticking at 40 Hz (sim time): many share a stamp. A constant-rate
+    ramp must come out at its true rate on average, and no velocity over a zero interval."""
+    rate = 0.3  # rad/s
+    anchor: Sample | None = None
+    velocities: list[float] = []
+    for k in range(4000):
+        t_true = k * 0.01                                   # s, command k
+        stamp_ns = int(t_true // 0.025) * 25_000_000         # the clock's last tick
+        v, anchor = velocity_step(anchor, Sample(stamp_ns, (rate * t_true,)), timeout=0.5)
+        velocities += v
+    assert len(velocities) == 4000 * 0.01 / 0.025 - 1        # one per tick after the first
+    mean = sum(velocities) / len(velocities)
+    # Each velocity spans first-command-of-tick to first-command-of-next-tick; their sum telescopes, so the
+    # mean differs from the truth only by one command interval over the whole run (0.01 s / 40 s).
+    assert abs(mean / rate - 1.0) < 1e-3
+    assert all(0.5 * rate < v < 1.5 * rate for v in velocities)  # each within one command interval per tick
 
 
 # ----------------------------------------------------------------------------- markers
