@@ -656,6 +656,16 @@ def _source_and_target(path: Path) -> tuple[Path, Path, Path | None]:
         if len(inner) != 1:
             raise BagError(f'{path}: not a recording work directory (expected one bag inside)')
         return inner[0], path.parent / inner[0].name, path
+    if (path / 'metadata.yaml').is_file():
+        try:
+            with open_bag(path) as reader:
+                list(reader.messages())
+        except BagError:
+            pass  # broken: rebuild it
+        else:
+            work = partial_dirs(path)
+            hint = f'; to recover an interrupted recording, pass {work[0]}' if work else ''
+            raise BagError(f'{path}: a complete, readable bag already; nothing to do{hint}')
     return path, path, None
 
 

@@ -10,6 +10,7 @@ was on disk (waited for with a deadline, one flush interval after it was publish
 from __future__ import annotations
 
 import os
+import re
 import signal
 import sqlite3
 import subprocess
@@ -122,7 +123,11 @@ def test_reindex_errors_are_one_line_and_change_nothing(tmp_path: Path) -> None:
     assert sorted(p.name for p in tmp_path.iterdir()) == before
     result = reindex(tmp_path / before[1])  # naming the work directory picks it
     assert result.path == out and result.messages in (5, 6) and result.removed == tmp_path / before[1]
-    assert len(partial_dirs(out)) == 1
+    [left] = partial_dirs(out)
+    # OUT is now a complete bag: reindexing it again changes nothing and points at the other work directory.
+    with pytest.raises(BagError, match=re.escape(f'a complete, readable bag already; nothing to do; to recover '
+                                                 f'an interrupted recording, pass {left}')):
+        reindex(out)
     # A work directory killed before any message was flushed has nothing to recover.
     empty = tmp_path / 'empty'
     _killed_writer(empty, 'mcap', 0, 3)
