@@ -345,19 +345,20 @@ class AntennaLinkage:
 
     # ---------------------------------------------------------------- inverse
 
-    def from_rocker(self, q: ArrayLike, driven: Driven = Driven.GAMMA, assembly: int = 1) -> InverseSolution:
+    def from_rocker(self, q: ArrayLike, driven: Driven = Driven.GAMMA,
+                    branch: Branch = Branch.UPPER) -> InverseSolution:
         """Antenna angle and the other rocker's angle (radians) from a measured rocker angle q (radians).
 
-        The motor side knows its rocker; this is the four-bar with that rocker as the crank. assembly=+1 puts C
+        The motor side knows its rocker; this is the four-bar with that rocker as the crank. Branch.UPPER puts C
         to the left of the line from B to D when gamma is measured (B to the left of C to A when delta is), which
-        is the annex's working pose; -1 is the crossed pose. Raises UnreachableError if the rocker cannot take q
-        (for arrays: if any element cannot).
+        is the annex's working pose; Branch.LOWER is the crossed pose. Raises UnreachableError if the rocker cannot
+        take q (for arrays: if any element cannot).
         """
         # The four-bar with the measured rocker as crank: its diagonal (rocker end -> other pivot) is the dyad's
         # P -> Q with x = -q; the dyad's angle at P is the coupler's direction from +x (-theta with AB as the crank,
         # +theta mirrored, CD as the crank) and its angle at Q is the other rocker's angle.
         k, reach = self._rocker_dyad(driven)
-        which = Branch.UPPER if assembly >= 0 else Branch.LOWER
+        which = Branch(branch)  # also takes the plain +1 / -1
         sign = -1.0 if driven is Driven.GAMMA else 1.0
         if isinstance(q, (float, int)):
             try:

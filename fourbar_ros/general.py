@@ -45,8 +45,9 @@ class FourBarAngles(NamedTuple):
 class FourBar:
     """A general planar four-bar (lengths in metres, any consistent unit); validated on construction.
 
-    Assembly branch (``branch``) of every solve: +1 puts C to the left of the diagonal from B to O4 (the usual
-    'open' drawing of a crank-rocker with everything above the ground), -1 to the right ('crossed').
+    Assembly branch (``branch``, a :class:`~fourbar_ros.dyad.Branch`) of every solve: Branch.UPPER (+1) puts C to
+    the left of the diagonal from B to O4 (the usual 'open' drawing of a crank-rocker with everything above the
+    ground), Branch.LOWER (-1) to the right ('crossed').
     """
 
     ground: float
@@ -88,13 +89,13 @@ class FourBar:
         links = sorted((self.ground, self.crank, self.coupler, self.rocker))
         return links[0] + links[3] <= links[1] + links[2]
 
-    def angles(self, t2: ArrayLike, branch: int = 1, on_invalid: OnInvalid = 'raise') -> FourBarAngles:
+    def angles(self, t2: ArrayLike, branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> FourBarAngles:
         """Coupler and rocker angles (t3, t4) in radians for crank angle t2 (radians) on the given branch.
 
         Raises UnreachableError where the loop cannot close (for arrays, or NaN there with on_invalid='nan').
         """
         # The diagonal B -> O4 is the dyad's P -> Q with x = -t2; t3 is the dyad's angle at P, t4 = pi - its angle at Q.
-        which = Branch.UPPER if branch >= 0 else Branch.LOWER
+        which = Branch(branch)  # also takes the plain +1 / -1
         if isinstance(t2, (float, int)):
             try:
                 t3, q = closure(self._k, -t2, which)
@@ -118,11 +119,11 @@ class FourBar:
                                         'the rocker angle is undetermined') from None
         return FourBarAngles(t3_a, np.subtract(np.pi, q_a, out=q_a))
 
-    def rocker_angle(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
+    def rocker_angle(self, t2: ArrayLike, branch: Branch = Branch.UPPER) -> ArrayLike:
         """Rocker angle t4 (radians) for crank angle t2 (radians): the solution of Freudenstein's equation."""
         return self.angles(t2, branch).t4
 
-    def velocity_ratio(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
+    def velocity_ratio(self, t2: ArrayLike, branch: Branch = Branch.UPPER) -> ArrayLike:
         """dt4/dt2 = l2 sin(t2 - t3) / (l4 sin(t4 - t3)) (dimensionless, signed).
 
         Unbounded where the rocker is in line with the coupler (the sine is zero to within its rounding):
@@ -132,7 +133,7 @@ class FourBar:
         return self._ratio(t2, t3, t4, self.crank, self.rocker, 'the rocker is in line with the coupler; '
                            'dt4/dt2 is unbounded', invert=False)
 
-    def mechanical_advantage(self, t2: ArrayLike, branch: int = 1) -> ArrayLike:
+    def mechanical_advantage(self, t2: ArrayLike, branch: Branch = Branch.UPPER) -> ArrayLike:
         """tau4/tau2 = dt2/dt4 = l4 sin(t4 - t3) / (l2 sin(t2 - t3)) by power balance (signed).
 
         Unbounded at the toggle where the crank is in line with the coupler: scalars raise DeadPointError there,

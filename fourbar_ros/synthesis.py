@@ -24,10 +24,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 
+from fourbar_ros.dyad import Branch
 from fourbar_ros.errors import FourBarError, SingularPositionError, UnreachableError
 from fourbar_ros.general import FourBar
 from fourbar_ros.numeric import FloatArray
@@ -36,7 +37,7 @@ from fourbar_ros.numeric import FloatArray
 #: than half of the double-precision digits of the constants can be lost to rounding alone.
 MAX_CONDITION = 1e8
 
-#: Two branch solutions closer than this (rad) are one toggle position (C on the line B-O4): branch reported as 0.
+#: Two branch solutions closer than this (rad) are one toggle position (C on the line B-O4): reported as TOGGLE.
 #: Near a toggle t4 moves like the square root of a length change, so rounding of the lengths (~eps) alone moves
 #: it by ~sqrt(eps) = 1.5e-8 rad (more for extreme length ratios): branch solutions closer than this cannot be
 #: told apart.
@@ -44,6 +45,9 @@ TOGGLE_TOL = 1e-6
 
 #: Safety factor on the first-order rounding bound cond * eps * |K| below which K1 or K2 counts as zero.
 _ROUNDING_FACTOR = 16.0
+
+#: PairCheck.branch where both branches meet (a toggle or a change point): no one Branch passes the pair.
+TOGGLE: Literal[0] = 0
 
 
 class DesignError(FourBarError):
@@ -62,9 +66,9 @@ class UnbuildableDesignError(DesignError):
 class PairCheck:
     """How the designed linkage passes one requested pair (angles in rad, as requested: before any flip).
 
-    ``branch`` is +1 (open) or -1 (crossed) in the sense of :meth:`FourBar.angles`, 0 when the two branches meet
-    there (a toggle: C on the line B-O4; or a change point, then t4_linkage and t4_error are None), None when the
-    designed linkage cannot be assembled at that crank angle.
+    ``branch`` is Branch.UPPER (+1, open) or Branch.LOWER (-1, crossed) in the sense of :meth:`FourBar.angles`,
+    TOGGLE (0) when the two branches meet there (a toggle: C on the line B-O4; or a change point, then t4_linkage
+    and t4_error are None), None when the designed linkage cannot be assembled at that crank angle.
     ``t4_linkage`` is the rocker angle the linkage takes on that branch (None if unreachable) and ``t4_error`` its
     wrapped difference to the requested t4 (rad). ``equation_residual`` is the pair's Freudenstein residual
     ``K1 cos t4 - K2 cos t2 + K3 - cos(t2 - t4)`` (dimensionless).
@@ -72,7 +76,7 @@ class PairCheck:
 
     t2: float
     t4: float
-    branch: int | None
+    branch: Branch | Literal[0] | None
     t4_linkage: float | None
     t4_error: float | None
     equation_residual: float
@@ -104,21 +108,21 @@ class Design:
     pairs: tuple[PairCheck, ...]
 
     @property
-    def branch(self) -> int | None:
-        """The branch (+1 or -1) of every pair, toggle pairs (on both) aside; None when the pairs use both
-        branches, one is unreachable, or all are toggles."""
-        branches = {p.branch for p in self.pairs} - {0}
+    def branch(self) -> Branch | None:
+        """The branch of every pair, toggle pairs (on both) aside; None when the pairs use both branches, one is
+        unreachable, or all are toggles."""
+        branches = {p.branch for p in self.pairs} - {TOGGLE}
         if len(branches) == 1:
             (b,) = branches
-            if b in (1, -1):
+            if isinstance(b, Branch):
                 return b
         return None
 
     @property
     def mixed_branches(self) -> bool:
-        """True when reachable pairs lie on both branches (+1 and -1)."""
+        """True when reachable pairs lie on both branches (UPPER and LOWER)."""
         branches = {p.branch for p in self.pairs}
-        return 1 in branches and -1 in branches
+        return Branch.UPPER in branches and Branch.LOWER in branches
 
     @property
     def max_t4_error(self) -> float | None:
@@ -338,21 +342,21 @@ def _check_pair(fb: FourBar, t2: float, t4: float, crank_flipped: bool, rocker_f
     """Run the linkage at the pair's crank angle on both branches and find which one gives the requested t4."""
     t2_phys = t2 + math.pi if crank_flipped else t2
     shift = math.pi if rocker_flipped else 0.0
-    found: dict[int, tuple[float, float]] = {}  # branch -> (t4 in the request's convention, |error|)
-    for branch in (1, -1):
+    found: dict[Branch, tuple[float, float]] = {}  # branch -> (t4 in the request's convention, |error|)
+    for branch in (Branch.UPPER, Branch.LOWER):
         try:
             t4_branch = float(fb.angles(t2_phys, branch=branch)[1]) - shift
         except UnreachableError:
             continue
         except SingularPositionError:  # change point: B on O4, the rocker angle is undetermined
-            return PairCheck(t2, t4, 0, None, None, residual)
+            return PairCheck(t2, t4, TOGGLE, None, None, residual)
         found[branch] = (t4_branch, abs(_wrap(t4_branch - t4)))
     if not found:
         return PairCheck(t2, t4, None, None, None, residual)
     best = min(found, key=lambda b: found[b][1])
     t4_lin, err = found[best]
-    if len(found) == 2 and abs(_wrap(found[1][0] - found[-1][0])) <= TOGGLE_TOL:
-        best = 0
+    if len(found) == 2 and abs(_wrap(found[Branch.UPPER][0] - found[Branch.LOWER][0])) <= TOGGLE_TOL:
+        return PairCheck(t2, t4, TOGGLE, _wrap(t4_lin), err, residual)
     return PairCheck(t2, t4, best, _wrap(t4_lin), err, residual)
 
 

@@ -277,7 +277,7 @@ def test_inverse_round_trip_both_rockers() -> None:
     th_s, d_s = TURNANTENNA.from_rocker(float(g[10]))
     assert abs(th_s - t[10]) < 1e-13 and abs(d_s - d[10]) < 1e-13
     # The crossed assembly is another pose with the same gamma; it closes the loop too.
-    th_x, d_x = TURNANTENNA.from_rocker(float(g[10]), assembly=-1)
+    th_x, d_x = TURNANTENNA.from_rocker(float(g[10]), branch=Branch.LOWER)
     pos = antenna_joint_positions(0.180, 0.060, 0.102, 0.060, th_x, float(g[10]), d_x)
     assert pos.residual < 1e-15 and abs(th_x - t[10]) > 0.1
 
