@@ -1,9 +1,17 @@
 """Sim time from a bag: `fourbar replay --clock` drives a node started with use_sim_time:=true.
 
-A 100 Hz constant-rate ramp (generated here) is replayed with /clock at 40 Hz, the default of `ros2 bag play
---clock` and of `fourbar replay --clock`, so several commands share one clock value. `fourbar record` records
-joint_states; every JointState must be stamped on the bag's timeline, and the mean published joint velocity over
-the ramp must be within a few percent of the true rate (the core's derivative along the ramp).
+A 100 Hz constant-rate ramp (generated here) is replayed with /clock at 40 Hz of bag time, the default of
+`ros2 bag play --clock` and of `fourbar replay --clock`, so two or three commands share one clock value.
+`fourbar record` records joint_states; every JointState must be stamped on the bag's timeline, and the mean
+published joint velocity over the ramp must be within a few percent of the true rate (the core's derivative
+along the ramp).
+
+The replay runs at a quarter of real time (`--rate 0.25 --clock 10`: still 100 Hz commands and a 40 Hz clock
+in bag time). The node stamps a command with the clock it has when it takes it, so scheduling delays (wall
+time) shift stamps against positions; a velocity Delta q / Delta t averaged over samples is biased by about
+(delay / clock period)^2 (Jensen). On this shared 2-core machine, at real time (25 ms clock period) that was 5%
+under load; slowing both streams 4x divides the bias by 16 while the rule under test sees the same sequence of
+shared stamps.
 """
 
 from __future__ import annotations
@@ -56,17 +64,18 @@ def _rocker_rates(cfg: AntennaConfig, theta: float, rate: float) -> tuple[float,
     return (float(hi.gamma - lo.gamma) / (2 * h) * rate, float(hi.delta - lo.delta) / (2 * h) * rate)
 
 
-@pytest.mark.parametrize('clock_hz', [40.0])
-def test_velocity_under_sim_time_from_a_replayed_clock(clock_hz: float, ros: RosSession, cfg: AntennaConfig,
-                                                       tmp_path: Path) -> None:
-    stamps, values, rate = _ramp(cfg)
+@pytest.mark.parametrize('rate, clock_hz', [(0.25, 10.0)])  # 40 Hz of bag time
+def test_velocity_under_sim_time_from_a_replayed_clock(rate: float, clock_hz: float, ros: RosSession,
+                                                       cfg: AntennaConfig, tmp_path: Path) -> None:
+    stamps, values, speed = _ramp(cfg)
     bag = write_command_bag(tmp_path / 'ramp', stamps, values)
     out = tmp_path / 'joints'
     env = ros.env()
     with node_process(['--ros-args', '--params-file', str(CONFIG), '-p', 'use_sim_time:=true'], env) as node, \
             Tool(['record', out, '--topics', 'joint_states', '--stop-after', f'joint_states={N}'], env) as recorder:
         recorder.wait_line('recording')
-        rc, lines, _ = run_tool(['replay', bag, '--no-progress', '--clock', str(clock_hz)], env)
+        rc, lines, _ = run_tool(['replay', bag, '--no-progress', '--rate', str(rate), '--clock', str(clock_hz)],
+                                env)
         assert rc == 0, lines
         assert not any('use_sim_time false' in line for line in lines), lines
         assert recorder.wait() == 0, recorder.lines
@@ -89,13 +98,14 @@ def test_velocity_under_sim_time_from_a_replayed_clock(clock_hz: float, ros: Ros
     measured_delta = sum(joints[i].velocity[1] for i in answered) / len(answered)
     # The true rates at the same commands. Each published velocity is a secant over a few clock periods of a
     # smooth, nearly linear curve: its mean differs from the mean derivative by far less than 1%.
-    true = [_rocker_rates(cfg, values[i], rate) for i in answered]
+    true = [_rocker_rates(cfg, values[i], speed) for i in answered]
     true_gamma = sum(g for g, _ in true) / len(true)
     true_delta = sum(d for _, d in true) / len(true)
     ratio_gamma, ratio_delta = measured_gamma / true_gamma, measured_delta / true_delta
-    print(f'sim time, /clock {clock_hz:g} Hz, commands {HZ} Hz: {len(answered)} of {N} JointStates with a '
+    print(f'sim time, replay rate {rate:g}, /clock {clock_hz / rate:g} Hz and commands {HZ} Hz of bag time: '
+          f'{len(answered)} of {N} JointStates with a '
           f'velocity; mean velocity / true rate: gamma {ratio_gamma:.4f}, delta {ratio_delta:.4f}')
-    # "Within a few percent": 3% covers the clock's quantization (a 25 ms clock step on a 3 s ramp) and
-    # scheduling jitter; the bias this catches was 0.40x.
+    # "Within a few percent": 3% leaves room for the residual jitter bias (see the module docstring); the
+    # bias this catches was 0.40x.
     assert abs(ratio_gamma - 1.0) <= 0.03, (ratio_gamma, ratio_delta)
     assert abs(ratio_delta - 1.0) <= 0.03, (ratio_gamma, ratio_delta)
