@@ -47,7 +47,9 @@ def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
     assert lines['delta'].startswith('delta    +39.39 deg .. +56.38 deg')
     assert 'rejected 0 commands' in lines['rejected'] and '521 received' in lines['rejected']
     deviations = [float(x) for x in re.findall(r'= ([0-9.e+-]+) ', lines['check'] + ' ')]
-    assert len(deviations) == 2 and max(deviations) <= 1e-12
+    # Exactly 0: the node (loads.pose_solver) and the demo's check (loads.solve) make the identical scalar core
+    # calls on the same float theta; float64 crosses CDR and the bag unchanged.
+    assert len(deviations) == 2 and max(deviations) == 0.0
     png = out / 'demo.png'
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 20_000
     recorded = read_messages(out / 'outputs')
