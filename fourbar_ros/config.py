@@ -18,6 +18,7 @@ from typing import Any
 
 from fourbar_ros.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.errors import FourBarError
+from fourbar_ros.loads import has_gravity_load
 from fourbar_ros.params import (
     PARAMETERS,
     PARAMETERS_BY_NAME,
@@ -82,7 +83,7 @@ class AntennaConfig:
     @property
     def has_gravity_load(self) -> bool:
         """True when the antenna weight adds an angle-dependent load."""
-        return self.antenna_mass > 0.0 and self.gravity > 0.0
+        return has_gravity_load(self)
 
     def as_values(self) -> dict[str, ParamValue]:
         """Parameter name -> value (the inverse of ``config_from_values``)."""

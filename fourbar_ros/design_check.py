@@ -1,6 +1,7 @@
 """Design check of the antenna tilt linkage over its configured tilt range (pure: no ROS).
 
-For ``[theta_min, theta_max]`` (rad) of an :class:`~fourbar_ros.config.AntennaConfig` it reports:
+For ``[theta_min, theta_max]`` (rad) of a :class:`DesignSpec` (an :class:`~fourbar_ros.config.AntennaConfig`
+provides one) it reports:
 
 - reach margin at both ends: how much further theta (rad) may go before the linkage reaches its toggle
   (the reach limit, where the rockers' rates blow up);
@@ -26,18 +27,35 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
-import numpy.typing as npt
 
 from fourbar_ros.antenna import Driven
-from fourbar_ros.config import AntennaConfig
 from fourbar_ros.errors import FourBarError
-from fourbar_ros.loads import motor_torque
+from fourbar_ros.loads import LoadSpec, motor_torque
 from fourbar_ros.loads import solve as solve_state
+from fourbar_ros.numeric import FloatArray
 
-FloatArray = npt.NDArray[np.float64]
+
+class DesignSpec(LoadSpec, Protocol):
+    """What the check reads besides the load model's inputs (``fourbar_ros.config.AntennaConfig`` provides it)."""
+
+    @property
+    def theta_min(self) -> float:
+        """Lower end of the tilt range (rad)."""
+    @property
+    def theta_max(self) -> float:
+        """Upper end of the tilt range (rad)."""
+    @property
+    def output_torque_limit(self) -> float:
+        """Reducer rating: the most torque at the driven rocker (N m)."""
+    @property
+    def motor_torque_limit(self) -> float:
+        """The most torque the motor gives before the reducer (N m)."""
+    @property
+    def transmission_angle_min(self) -> float:
+        """Configured limit on the transmission angle's distance from a dead point (rad)."""
 
 #: Rule of thumb (Alt; Norton, Design of Machinery): keep the transmission angle at least 40 deg from a dead point.
 TRANSMISSION_RULE_OF_THUMB = math.radians(40.0)
@@ -157,7 +175,7 @@ class Curves:
     other_rate: FloatArray
 
 
-def _point(cfg: AntennaConfig, theta: float) -> tuple[float, float, float, float, float, float]:
+def _point(cfg: DesignSpec, theta: float) -> tuple[float, float, float, float, float, float]:
     """(gamma, delta, input torque, transmission angle, driven rate, other rate) at theta; inf torque at a dead
     point."""
     s = solve_state(cfg, theta)
@@ -169,7 +187,7 @@ def _point(cfg: AntennaConfig, theta: float) -> tuple[float, float, float, float
             driven_rate, other_rate)
 
 
-def sample_curves(cfg: AntennaConfig, samples: int = DEFAULT_SAMPLES) -> Curves:
+def sample_curves(cfg: DesignSpec, samples: int = DEFAULT_SAMPLES) -> Curves:
     """Sample the tilt range at ``samples`` + 1 evenly spaced angles (both ends included)."""
     if not 2 <= samples <= MAX_SAMPLES:
         raise FourBarError(f'samples={samples} must be between 2 and {MAX_SAMPLES}')
@@ -209,7 +227,7 @@ def _extremum(theta: FloatArray, values: FloatArray, f: Callable[[float], float]
     return Extremum(fx, x) if fx > best.value else best
 
 
-def _reach_margins(cfg: AntennaConfig) -> tuple[float, float]:
+def _reach_margins(cfg: DesignSpec) -> tuple[float, float]:
     """(low, high) margins in rad from the tilt range's ends to the reach limits of the interval holding it."""
     r = cfg.linkage.reach()
     if r.theta_gap == 0.0 and r.theta_max >= math.pi:
@@ -225,7 +243,7 @@ def _deg(angle: float) -> str:
     return f'{math.degrees(angle):+.3f} deg'
 
 
-def check_design(cfg: AntennaConfig, limits: CheckLimits | None = None,
+def check_design(cfg: DesignSpec, limits: CheckLimits | None = None,
                  samples: int = DEFAULT_SAMPLES) -> DesignReport:
     """Check the configured linkage, load and drive over [theta_min, theta_max]; see the module docstring."""
     limits = limits or CheckLimits()

@@ -16,32 +16,72 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from functools import partial
-from typing import NamedTuple
+from typing import NamedTuple, Protocol
 
-from fourbar_ros.antenna import Driven, LinkageState
-from fourbar_ros.config import AntennaConfig
+from fourbar_ros.antenna import AntennaLinkage, Branch, Driven, LinkageState
 
 
-def com_height_rate(cfg: AntennaConfig, theta: float, gamma: float, dgamma_dtheta: float) -> float:
+class LoadSpec(Protocol):
+    """What the load model reads (``fourbar_ros.config.AntennaConfig`` provides it; any object with these
+    read-only attributes does)."""
+
+    @property
+    def linkage(self) -> AntennaLinkage:
+        """The linkage (lengths in m)."""
+    @property
+    def driven(self) -> Driven:
+        """The rocker the motor drives."""
+    @property
+    def branch(self) -> Branch:
+        """The assembly branch."""
+    @property
+    def load_torque(self) -> float:
+        """Constant load torque about theta (N m, +theta sense)."""
+    @property
+    def antenna_mass(self) -> float:
+        """Antenna mass (kg); 0 for no weight."""
+    @property
+    def gravity(self) -> float:
+        """Gravitational acceleration (m/s^2)."""
+    @property
+    def com_offset_along(self) -> float:
+        """Centre of mass beyond the coupler's midpoint along B->C (m)."""
+    @property
+    def com_offset_normal(self) -> float:
+        """Centre of mass off the coupler along its normal n (m)."""
+    @property
+    def reducer_ratio(self) -> float:
+        """Reducer ratio, motor turns per rocker turn (dimensionless)."""
+    @property
+    def reducer_efficiency(self) -> float:
+        """Reducer efficiency in (0, 1] (dimensionless)."""
+
+
+def has_gravity_load(cfg: LoadSpec) -> bool:
+    """True when the antenna weight adds an angle-dependent load (mass and gravity both positive)."""
+    return cfg.antenna_mass > 0.0 and cfg.gravity > 0.0
+
+
+def com_height_rate(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float:
     """d y_com / d theta (m/rad): how fast the antenna's centre of mass rises as theta grows."""
-    along = 0.5 * cfg.coupler_length + cfg.com_offset_along
-    return (cfg.rocker_ab_length * math.cos(gamma) * dgamma_dtheta
+    along = 0.5 * cfg.linkage.coupler + cfg.com_offset_along
+    return (cfg.linkage.rocker_ab * math.cos(gamma) * dgamma_dtheta
             - along * math.cos(theta) - cfg.com_offset_normal * math.sin(theta))
 
 
-def gravity_torque(cfg: AntennaConfig, theta: float, gamma: float, dgamma_dtheta: float) -> float:
+def gravity_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float:
     """Torque (N m, about theta, +theta sense) that holds the antenna's weight at this pose."""
-    if not cfg.has_gravity_load:
+    if not has_gravity_load(cfg):
         return 0.0
     return cfg.antenna_mass * cfg.gravity * com_height_rate(cfg, theta, gamma, dgamma_dtheta)
 
 
-def load_torque(cfg: AntennaConfig, theta: float, gamma: float, dgamma_dtheta: float) -> float:
+def load_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float:
     """Total load torque about theta (N m): the constant ``load_torque`` plus the gravity term."""
     return cfg.load_torque + gravity_torque(cfg, theta, gamma, dgamma_dtheta)
 
 
-def solve(cfg: AntennaConfig, theta: float) -> LinkageState:
+def solve(cfg: LoadSpec, theta: float) -> LinkageState:
     """The linkage state at antenna angle theta (rad) under the configured load.
 
     Without an antenna mass this is exactly ``cfg.linkage.state(theta, cfg.load_torque, cfg.driven,
@@ -49,7 +89,7 @@ def solve(cfg: AntennaConfig, theta: float) -> LinkageState:
     ``UnreachableError``/``DeadPointError`` for an angle the linkage cannot serve.
     """
     link = cfg.linkage
-    if not cfg.has_gravity_load:
+    if not has_gravity_load(cfg):
         return link.state(theta, cfg.load_torque, cfg.driven, cfg.branch)
     gamma, delta = link.rocker_angles(theta, cfg.branch)
     rates = link.rates_at(theta, gamma, delta)
@@ -68,12 +108,12 @@ class Pose(NamedTuple):
     input_torque: float
 
 
-def pose(cfg: AntennaConfig, theta: float) -> Pose:
+def pose(cfg: LoadSpec, theta: float) -> Pose:
     """Rocker angles and input torque at theta (rad) under the configured load, without the rates and the
     transmission angle when the load does not need them. Same floats as ``solve`` (the same core calls)."""
     link = cfg.linkage
     gamma, delta = link.rocker_angles(theta, cfg.branch)
-    if cfg.has_gravity_load:
+    if has_gravity_load(cfg):
         rates = link.rates_at(theta, gamma, delta)
         load = load_torque(cfg, theta, float(gamma), float(rates.dgamma_dtheta))
     else:
@@ -81,9 +121,9 @@ def pose(cfg: AntennaConfig, theta: float) -> Pose:
     return Pose(float(gamma), float(delta), float(link.torque_at(theta, gamma, delta, load, cfg.driven)))
 
 
-def pose_solver(cfg: AntennaConfig) -> Callable[[float], Pose]:
+def pose_solver(cfg: LoadSpec) -> Callable[[float], Pose]:
     """``theta -> pose(cfg, theta)`` with the configuration's lookups bound once (the node's per-command call)."""
-    if cfg.has_gravity_load:
+    if has_gravity_load(cfg):
         return partial(pose, cfg)
     angles, torque_at = cfg.linkage.rocker_angles, cfg.linkage.torque_at
     branch, load, driven = cfg.branch, cfg.load_torque, cfg.driven
@@ -95,7 +135,7 @@ def pose_solver(cfg: AntennaConfig) -> Callable[[float], Pose]:
     return constant_load_pose
 
 
-def motor_torque(cfg: AntennaConfig, input_torque: float) -> float:
+def motor_torque(cfg: LoadSpec, input_torque: float) -> float:
     """Motor-side torque (N m) for a driven-rocker torque, driving through the reducer:
     input_torque / (reducer_ratio * reducer_efficiency). (Back-driven, the motor would need less.)"""
     return input_torque / (cfg.reducer_ratio * cfg.reducer_efficiency)
