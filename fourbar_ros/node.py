@@ -38,6 +38,7 @@ from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
@@ -66,6 +67,12 @@ from fourbar_ros.state_cache import StateCache
 NODE_NAME = 'fourbar_node'
 #: Keep-last depth of the command subscription and the per-command outputs.
 STREAM_DEPTH = 1000
+#: The command subscription: best effort, keep-last STREAM_DEPTH. It matches reliable and best-effort
+#: publishers alike, and one payload the middleware cannot take (an empty one) cannot stall the commands that
+#: follow it from that publisher, as it does on a reliable subscription (Fast DDS keeps waiting for it). Lost
+#: commands are counted either way (``commands_lost``); on one host best effort loses no more than reliable
+#: keep-last, whose queues drop the oldest when full.
+COMMAND_QOS = QoSProfile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: Keep-last depth of markers and diagnostics (latest state only matters).
 STATUS_DEPTH = 10
 WARN_THROTTLE_S = 1.0
@@ -126,7 +133,7 @@ class FourBarNode(Node):
         # Two parameters: rclpy then passes the message info (its typing only knows the one-parameter form).
         on_command = cast(Callable[[Any], None], self._on_command)
         self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd', on_command,
-                                                     STREAM_DEPTH, qos_overriding_options=qos_options)
+                                                     COMMAND_QOS, qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
         # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
