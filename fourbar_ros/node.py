@@ -72,7 +72,8 @@ STREAM_DEPTH = 1000
 #: follow it from that publisher, as it does on a reliable subscription (Fast DDS keeps waiting for it). Lost
 #: commands are counted either way (``commands_lost``); on one host best effort loses no more than reliable
 #: keep-last, whose queues drop the oldest when full.
-COMMAND_QOS = QoSProfile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
+_qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
+COMMAND_QOS = _qos_profile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
 #: Keep-last depth of markers and diagnostics (latest state only matters).
 STATUS_DEPTH = 10
 WARN_THROTTLE_S = 1.0
