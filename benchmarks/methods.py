@@ -28,6 +28,7 @@ import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.antenna import AntennaLinkage
+from fourbar_ros.lookup import hermite_coefficients, horner_columns
 
 from .reference import Geometry
 
@@ -256,25 +257,18 @@ def build_table(g: Geometry, interval: tuple[float, float], n: int, hermite: boo
     gam, dlt = (np.asarray(v) for v in link.rocker_angles(grid))
     step = (hi - lo) / (n - 1)
 
-    def coefficients(y: FloatArray, dy: FloatArray | None) -> FloatArray:
+    def linear(y: FloatArray) -> FloatArray:
         c = np.zeros((n - 1, 4))
-        y0, y1 = y[:-1], y[1:]
-        c[:, 0] = y0
-        if dy is None:
-            c[:, 1] = y1 - y0
-            return c
-        m0, m1 = dy[:-1] * step, dy[1:] * step
-        c[:, 1] = m0
-        c[:, 2] = 3.0 * (y1 - y0) - 2.0 * m0 - m1
-        c[:, 3] = 2.0 * (y0 - y1) + m0 + m1
+        c[:, 0] = y[:-1]
+        c[:, 1] = y[1:] - y[:-1]
         return c
 
-    if hermite:
+    if hermite:  # fourbar_ros.lookup's coefficients, from the core's rates times the step
         rates = link.rates_at(grid, gam, dlt)
-        cg = coefficients(gam, np.asarray(rates.dgamma_dtheta))
-        cd = coefficients(dlt, np.asarray(rates.ddelta_dtheta))
+        cg = hermite_coefficients(gam, np.asarray(rates.dgamma_dtheta) * step)
+        cd = hermite_coefficients(dlt, np.asarray(rates.ddelta_dtheta) * step)
     else:
-        cg, cd = coefficients(gam, None), coefficients(dlt, None)
+        cg, cd = linear(gam), linear(dlt)
     return Table(lo, 1.0 / step, n, cg.astype(dtype), cd.astype(dtype))
 
 
@@ -298,7 +292,7 @@ def _lut(n: int, hermite: bool, dtype: type[np.floating] = np.float64,
             f = u - i
             g0, g1, g2, g3 = cg_list[i]
             d0, d1, d2, d3 = cd_list[i]
-            if hermite:
+            if hermite:  # inline, as lookup's own scalar path: a call per element would be timed, not the table
                 return g0 + f * (g1 + f * (g2 + f * g3)), d0 + f * (d1 + f * (d2 + f * d3))
             return g0 + f * g1, d0 + f * d1
 
@@ -308,17 +302,6 @@ def _lut(n: int, hermite: bool, dtype: type[np.floating] = np.float64,
         grid = lo + np.arange(n) / inv
         ends_g = np.append(cols_g[0], cols_g[0][-1] + cols_g[1][-1])
         ends_d = np.append(cols_d[0], cols_d[0][-1] + cols_d[1][-1])
-
-        def poly(cols: list[npt.NDArray[np.floating]], i: npt.NDArray[np.intp],
-                 f: npt.NDArray[np.floating]) -> npt.NDArray[np.floating]:
-            r = np.take(cols[3], i)
-            r *= f
-            r += np.take(cols[2], i)
-            r *= f
-            r += np.take(cols[1], i)
-            r *= f
-            r += np.take(cols[0], i)
-            return r
 
         def vector(theta: FloatArray) -> tuple[npt.NDArray[np.floating], npt.NDArray[np.floating]]:
             if is64 and not hermite:  # numpy's own linear interpolation is the fastest float64 table here
@@ -331,7 +314,7 @@ def _lut(n: int, hermite: bool, dtype: type[np.floating] = np.float64,
                 np.clip(i, 0, last, out=i)
                 u -= i
                 if hermite:
-                    gam, dlt = poly(cols_g, i, u), poly(cols_d, i, u)
+                    gam, dlt = horner_columns(cols_g, i, u), horner_columns(cols_d, i, u)
                 else:
                     gam = np.take(cols_g[1], i)
                     gam *= u

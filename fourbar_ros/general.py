@@ -119,10 +119,6 @@ class FourBar:
                                         'the rocker angle is undetermined') from None
         return FourBarAngles(t3_a, np.subtract(np.pi, q_a, out=q_a))
 
-    def rocker_angle(self, t2: ArrayLike, branch: Branch = Branch.UPPER) -> ArrayLike:
-        """Rocker angle t4 (radians) for crank angle t2 (radians): the solution of Freudenstein's equation."""
-        return self.angles(t2, branch).t4
-
     def velocity_ratio(self, t2: ArrayLike, branch: Branch = Branch.UPPER) -> ArrayLike:
         """dt4/dt2 = l2 sin(t2 - t3) / (l4 sin(t4 - t3)) (dimensionless, signed).
 

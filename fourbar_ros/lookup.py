@@ -17,8 +17,9 @@ Benchmarks (benchmarks/run.py) compare it with the exact solve; the exact solve 
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import overload
+from typing import TypeVar, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -28,6 +29,7 @@ from .errors import UnreachableError
 from .numeric import ArrayLike, FloatArray, OnInvalid
 
 _SAMPLES_PER_INTERVAL = 16
+_F = TypeVar('_F', bound=np.floating)
 _new = tuple.__new__
 
 
@@ -82,8 +84,8 @@ class RockerTable:
                 raise ValueError(f'table interval [{lo!r}, {hi!r}] rad touches the reach limit, where the rocker '
                                  'slopes are unbounded; keep it inside the reach')
             step = (hi - lo) / (n - 1)
-            cg = _hermite(g, np.asarray(rates.dgamma_dtheta, dtype=np.float64) * step)
-            cd = _hermite(d, np.asarray(rates.ddelta_dtheta, dtype=np.float64) * step)
+            cg = hermite_coefficients(g, np.asarray(rates.dgamma_dtheta, dtype=np.float64) * step)
+            cd = hermite_coefficients(d, np.asarray(rates.ddelta_dtheta, dtype=np.float64) * step)
             err64, err32 = _measure(linkage, branch, lo, step, cg, cd)
             if err64 <= 0.5 * tolerance:
                 rows = tuple(zip(map(tuple, cg.tolist()), map(tuple, cd.tolist()), strict=True))
@@ -143,8 +145,8 @@ class RockerTable:
         np.minimum(ia, self.points - 2, out=ia)
         ua -= ia  # now the fraction within the interval
         cols = self._columns
-        gam = _horner_columns(cols[:4], ia, ua)
-        dlt = _horner_columns(cols[4:], ia, ua)
+        gam = horner_columns(cols[:4], ia, ua)
+        dlt = horner_columns(cols[4:], ia, ua)
         if bad.any():
             gam[bad] = np.nan
             dlt[bad] = np.nan
@@ -182,8 +184,9 @@ class RockerTable:
             '  out[1] = d[0] + f * (d[1] + f * (d[2] + f * d[3]));\n}\n')
 
 
-def _hermite(y: FloatArray, m: FloatArray) -> FloatArray:
-    """Per-interval cubic coefficients from values y and slopes m (already times the step)."""
+def hermite_coefficients(y: FloatArray, m: FloatArray) -> FloatArray:
+    """Per-interval cubic Hermite coefficients, shape (y.size - 1, 4), from values y and slopes m (already times
+    the step): on interval i, c0 + f (c1 + f (c2 + f c3)) with f in [0, 1]."""
     c = np.empty((y.size - 1, 4))
     y0, y1, m0, m1 = y[:-1], y[1:], m[:-1], m[1:]
     c[:, 0] = y0
@@ -193,12 +196,9 @@ def _hermite(y: FloatArray, m: FloatArray) -> FloatArray:
     return c
 
 
-def _horner(c: npt.NDArray[np.floating], i: npt.NDArray[np.intp], f: npt.NDArray[np.floating]) -> FloatArray:
-    return np.asarray(c[i, 0] + f * (c[i, 1] + f * (c[i, 2] + f * c[i, 3])))
-
-
-def _horner_columns(cols: tuple[FloatArray, ...], i: npt.NDArray[np.intp], f: FloatArray) -> FloatArray:
-    """c0 + f (c1 + f (c2 + f c3)) with each coefficient gathered from its own contiguous column."""
+def horner_columns(cols: Sequence[npt.NDArray[_F]], i: npt.NDArray[np.intp], f: npt.NDArray[_F]) -> npt.NDArray[_F]:
+    """c0 + f (c1 + f (c2 + f c3)) with coefficient j gathered at indices i from cols[j] (contiguous columns
+    gather fastest); computed in f's precision (float64 or float32)."""
     r = np.take(cols[3], i)
     r *= f
     r += np.take(cols[2], i)
@@ -218,12 +218,19 @@ def _measure(linkage: AntennaLinkage, branch: Branch, lo: float, step: float, cg
     ff = np.tile(f, n)
     theta = lo + (i + ff) * step
     exact = [np.asarray(v, dtype=np.float64) for v in linkage.rocker_angles(theta, branch)]
-    err64 = max(float(np.max(np.abs(_horner(c, i, ff) - e))) for c, e in zip((cg, cd), exact, strict=True))
+    err64 = max(float(np.max(np.abs(horner_columns(_split_columns(c), i, ff) - e)))
+                for c, e in zip((cg, cd), exact, strict=True))
     # float32 all the way, as the C code of RockerTable.to_c computes: theta, index and fraction included.
     one = np.float32
     u = (theta.astype(np.float32) - one(lo)) * one(1.0 / step)
     i32 = np.clip(u.astype(np.intp), 0, n - 1)
     f32 = u - i32.astype(np.float32)
-    err32 = max(float(np.max(np.abs(_horner(c.astype(np.float32), i32, f32).astype(np.float64) - e)))
+    err32 = max(float(np.max(np.abs(horner_columns(_split_columns(c.astype(np.float32)), i32, f32)
+                                    .astype(np.float64) - e)))
                 for c, e in zip((cg, cd), exact, strict=True))
     return err64, err32
+
+
+def _split_columns(c: npt.NDArray[_F]) -> list[npt.NDArray[_F]]:
+    """The four coefficient columns of a (n, 4) table."""
+    return [c[:, j] for j in range(4)]
