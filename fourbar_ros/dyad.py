@@ -11,6 +11,10 @@ angle x. Two links of lengths r1 (at P) and r2 (at Q) meet at a third point. Wit
 The constants (far, near, cos_p, cos_q) are exact rational functions of the lengths, rounded once at construction,
 so each per-angle quantity is one constant plus w: its only rounding beyond the constant's is that of w, which is
 the rounding the angle x itself brings. No acos, no asin, no difference of two rounded squares per call.
+
+``closure`` (one Python float, math module: the scalar fast path) and ``closure_array`` (float64 arrays, numpy, in
+cache-sized blocks) apply the same operations in the same order; ``AntennaLinkage`` and ``FourBar`` both solve
+through them. ``closes`` is their validity test.
 """
 
 from __future__ import annotations
@@ -82,7 +86,8 @@ class Branch(enum.IntEnum):
     UPPER (+1) puts it to the left of P -> Q, LOWER (-1) to the right (its mirror image across the diagonal).
     For ``AntennaLinkage`` (theta given) UPPER is the annex's branch (A.14, A.15): B to the left of the diagonal
     from A to D - h (cos theta, -sin theta), so gamma + delta is in [0, pi]. For ``FourBar`` (crank angle given)
-    UPPER is the 'open' assembly, C to the left of the diagonal from B to O4, and LOWER the 'crossed' one.
+    UPPER is the 'open' assembly, C to the left of the diagonal from B to O4, and LOWER the 'crossed' one; so for
+    ``AntennaLinkage.from_rocker`` (a rocker angle given), where UPPER is the annex's working pose.
     """
 
     UPPER = 1
