@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, sine_ratio_scale
 
 from fourbar_ros import (
     AntennaLinkage,
@@ -14,9 +15,11 @@ from fourbar_ros import (
     Driven,
     FourBarError,
     InvalidGeometryError,
+    LinkageState,
     SingularPositionError,
     UnreachableError,
 )
+from fourbar_ros.numeric import ArrayLike
 from fourbar_ros.transforms import antenna_joint_positions
 
 TURNANTENNA = AntennaLinkage(frame=0.180, rocker_ab=0.060, coupler=0.102)
@@ -54,13 +57,21 @@ def test_known_values_scalar(theta: float, gamma: float, delta: float, dg: float
     assert abs(rates.ddelta_dtheta - dd) < 1e-12
 
 
-def test_known_values_vectorized_match_scalar_bit_for_bit_or_ulps() -> None:
+def pose_scales(link: AntennaLinkage, theta: ArrayLike, g: ArrayLike, d: ArrayLike) -> tuple[ArrayLike, ArrayLike]:
+    """Condition-weighted magnitudes (rad) of gamma and delta at theta: see ulp_bounds.angle_scale."""
+    r = link.rates_at(theta, g, d)
+    return angle_scale(g, theta, r.dgamma_dtheta), angle_scale(d, theta, r.ddelta_dtheta)
+
+
+def test_known_values_vectorized_match_scalar_within_ulps() -> None:
     thetas = np.radians([row[0] for row in KNOWN])
     g, d = TURNANTENNA.rocker_angles(thetas)
-    for i, t in enumerate(thetas):
-        gs, ds = TURNANTENNA.rocker_angles(float(t))
-        assert abs(g[i] - gs) <= 2 * math.ulp(gs)
-        assert abs(d[i] - ds) <= 2 * math.ulp(ds)
+    scalar = [TURNANTENNA.rocker_angles(float(t)) for t in thetas]
+    sg, sd = pose_scales(TURNANTENNA, thetas, g, d)
+    # numpy's and libm's sin, cos, arctan2 may differ by 1-2 ulp each (about four in the chain): 8 ulps of the
+    # condition-weighted magnitude 1 + |q| + |theta dq/dtheta|.
+    assert_close_ulps(g, [p.gamma for p in scalar], CHAIN_ULPS, sg, 'gamma array vs scalar')
+    assert_close_ulps(d, [p.delta for p in scalar], CHAIN_ULPS, sd, 'delta array vs scalar')
     assert np.allclose(g, np.radians([row[1] for row in KNOWN]), rtol=0, atol=1e-12)
 
 
@@ -207,15 +218,42 @@ def test_power_balance_of_input_torque(driven: Driven) -> None:
         assert abs(tau_in * ma - load) < 1e-13 * load
 
 
+def state_scales(link: AntennaLinkage, st: LinkageState, load: float, driven: Driven) -> dict[str, ArrayLike]:
+    """Condition-weighted magnitude of each LinkageState field, for comparing two paths by CHAIN_ULPS ulps.
+
+    gamma, delta: 1 + |q| + |theta dq/dtheta| (ulp_bounds.angle_scale). The rates, the mechanical advantage and
+    the input torque are c sin(u)/sin(v) with angle arguments accurate to those scales: sine_ratio_scale, whose
+    |cot| factor is the amplification near a dead point (sin(v) -> 0, up to ~10x over WORKING). The transmission
+    angle is atan2(|sin x|, -cos x), of condition 1 in x: the scale of x plus its own magnitude.
+    """
+    t, g, d = (np.asarray(v, dtype=np.float64) for v in (st.theta, st.gamma, st.delta))
+    sg, sd = pose_scales(link, t, g, d)
+    h, ab, cd = link.coupler, link.rocker_ab, float(link.rocker_cd or 0.0)
+    rate_g = sine_ratio_scale(h / ab, d - t, sd, g + d, sg + sd)
+    rate_d = sine_ratio_scale(h / cd, g + t, sg, g + d, sg + sd)
+    if driven is Driven.GAMMA:  # tau = load AB sin(gamma + delta) / (h sin(delta - theta))
+        torque = sine_ratio_scale(abs(load * ab / h), g + d, sg + sd, d - t, sd)
+        mu_scale, ma = sd, rate_g
+    else:  # tau = -load CD sin(gamma + delta) / (h sin(gamma + theta))
+        torque = sine_ratio_scale(abs(load * cd / h), g + d, sg + sd, g + t, sg)
+        mu_scale, ma = sg, rate_d
+    return {'theta': np.zeros_like(t), 'gamma': sg, 'delta': sd, 'dgamma_dtheta': rate_g, 'ddelta_dtheta': rate_d,
+            'mechanical_advantage': ma, 'input_torque': torque,
+            'transmission_angle': mu_scale + np.abs(np.asarray(st.transmission_angle))}
+
+
 def test_state_agrees_with_separate_calls_and_arrays() -> None:
     t = WORKING
-    st = TURNANTENNA.state(t, 3.5, Driven.DELTA)
-    for i, ti in enumerate(t):
-        s = TURNANTENNA.state(float(ti), 3.5, Driven.DELTA)
-        for name in s._fields:
-            assert abs(getattr(st, name)[i] - getattr(s, name)) <= 4 * math.ulp(abs(getattr(s, name)) + 1.0)
-    assert np.array_equal(st.input_torque, TURNANTENNA.input_torque(t, 3.5, Driven.DELTA))
-    assert np.array_equal(st.transmission_angle, TURNANTENNA.transmission_angle(t, Driven.DELTA))
+    for driven in Driven:
+        st = TURNANTENNA.state(t, 3.5, driven)
+        scalar = [TURNANTENNA.state(float(ti), 3.5, driven) for ti in t]
+        scales = state_scales(TURNANTENNA, st, 3.5, driven)
+        for i, name in enumerate(st._fields):
+            # Array (numpy) vs scalar (math) path: CHAIN_ULPS ulps of each field's condition-weighted magnitude.
+            assert_close_ulps(st[i], [s[i] for s in scalar], CHAIN_ULPS, scales[name], f'{driven} {name}')
+        # Same array, same operations in the same order: these are bit for bit.
+        assert np.array_equal(st.input_torque, TURNANTENNA.input_torque(t, 3.5, driven))
+        assert np.array_equal(st.transmission_angle, TURNANTENNA.transmission_angle(t, driven))
 
 
 def test_transmission_angle_definition() -> None:
@@ -305,8 +343,12 @@ def test_bad_theta_array_policies() -> None:
     ok = TURNANTENNA.reachable(t)
     assert list(ok) == [True, False, True, False, False, True]
     assert np.array_equal(np.isfinite(g), ok) and np.array_equal(np.isfinite(d), ok)
-    g_ok, _ = TURNANTENNA.rocker_angles(t[ok])
-    assert np.array_equal(g[ok], g_ok)
+    g_ok, d_ok = TURNANTENNA.rocker_angles(t[ok])
+    # The same angles at other places of another array (numpy may round them differently there):
+    # CHAIN_ULPS ulps of the condition-weighted magnitude.
+    sg, sd = pose_scales(TURNANTENNA, t[ok], g_ok, d_ok)
+    assert_close_ulps(g[ok], g_ok, CHAIN_ULPS, sg, 'gamma, valid elements vs alone')
+    assert_close_ulps(d[ok], d_ok, CHAIN_ULPS, sd, 'delta, valid elements vs alone')
     st = TURNANTENNA.state(t, 3.5, on_invalid='nan')
     assert np.array_equal(np.isfinite(st.input_torque), ok)
 
@@ -373,12 +415,18 @@ def test_large_arrays_span_blocks_with_the_same_results_and_policies() -> None:
     # Longer than one block of the vectorized solve, in any shape and memory layout.
     t = np.linspace(-0.6, 0.6, 3 * 8192 + 17)
     g, d = TURNANTENNA.rocker_angles(t)
+    sg, sd = pose_scales(TURNANTENNA, t, g, d)
     scalar = [TURNANTENNA.rocker_angles(float(x)) for x in t[::97]]
-    assert np.array_equal(g[::97], [p.gamma for p in scalar])
-    assert np.array_equal(d[::97], [p.delta for p in scalar])
+    # Array (numpy) vs scalar (math) path: CHAIN_ULPS ulps of the condition-weighted magnitude.
+    assert_close_ulps(g[::97], [p.gamma for p in scalar], CHAIN_ULPS, sg[::97], 'gamma blocks vs scalar')
+    assert_close_ulps(d[::97], [p.delta for p in scalar], CHAIN_ULPS, sd[::97], 'delta blocks vs scalar')
     grid = t[:-17].reshape(3, -1)[:, ::2]  # 2-D and non-contiguous
-    gg, _ = TURNANTENNA.rocker_angles(grid)
-    assert gg.shape == grid.shape and np.array_equal(gg, g[:-17].reshape(3, -1)[:, ::2])
+    gg, dd = TURNANTENNA.rocker_angles(grid)
+    assert gg.shape == dd.shape == grid.shape
+    # The same angles at other places of other blocks: the same bound.
+    pick = (slice(None), slice(None, None, 2))
+    assert_close_ulps(gg, g[:-17].reshape(3, -1)[pick], CHAIN_ULPS, sg[:-17].reshape(3, -1)[pick], 'gamma 2-D')
+    assert_close_ulps(dd, d[:-17].reshape(3, -1)[pick], CHAIN_ULPS, sd[:-17].reshape(3, -1)[pick], 'delta 2-D')
     bad = t.copy()
     bad[[5, 9000, 20000]] = [np.nan, 2.0, -np.inf]
     with pytest.raises(UnreachableError, match=f'3 of {t.size} angles cannot be solved, the first theta=nan'):

@@ -1,0 +1,111 @@
+"""The one-ulp wrapper that stands in for another CPU's numpy (ulp_jitter) and the comparison helper (ulp_bounds)."""
+
+from __future__ import annotations
+
+import ast
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+import ulp_jitter
+from ulp_bounds import EPS, assert_close_ulps
+
+from fourbar_ros import AntennaLinkage
+
+PACKAGE = Path(__file__).resolve().parent.parent / 'fourbar_ros'
+
+
+@pytest.fixture
+def plain_numpy() -> None:
+    """Undo a session-wide --ulp-jitter for this test, so 'unmoved' is numpy's own result."""
+    wrapped = {n: getattr(np, n) for n in ulp_jitter.UFUNCS if isinstance(getattr(np, n), ulp_jitter.JitteredUfunc)}
+    for name, func in wrapped.items():
+        setattr(np, name, func.ufunc)
+    yield
+    for name, func in wrapped.items():
+        setattr(np, name, func)
+
+
+@pytest.mark.parametrize('share', [0.06, 0.25, 1.0])
+@pytest.mark.parametrize('name', ['sin', 'cos', 'arctan2', 'arctan', 'exp', 'log', 'hypot'])
+def test_moves_the_share_asked_by_one_ulp(plain_numpy: None, name: str, share: float) -> None:
+    x = np.linspace(0.01, 3.0, 20001)
+    args = (x, x[::-1]) if name in ('arctan2', 'hypot') else (x,)
+    plain = getattr(np, name)(*args)
+    with ulp_jitter.jittered(share):
+        moved = getattr(np, name)(*args)
+        again = getattr(np, name)(*args)
+    changed = moved != plain
+    assert abs(changed.mean() - share) < 0.02  # 20001 draws: the binomial spread is below 0.004
+    ulps = np.abs(moved - plain) / np.spacing(np.abs(plain))
+    assert np.all(ulps[changed] == 1.0)
+    assert 0.4 < np.mean(moved[changed] > plain[changed]) < 0.6  # up and down alike
+    assert np.array_equal(moved, again)  # deterministic
+    assert isinstance(getattr(np, name), np.ufunc)  # restored on leaving the block
+
+
+def test_out_argument_is_moved_in_place_and_inputs_read_first(plain_numpy: None) -> None:
+    x = np.linspace(-1.0, 1.0, 4001)
+    plain = np.cos(x)
+    with ulp_jitter.jittered(0.5):
+        fresh = np.cos(x)
+        buf = x.copy()
+        res = np.cos(buf, out=buf)  # out= aliases the input, as the core's solve does
+    assert res is buf
+    assert np.array_equal(buf, fresh) and np.mean(buf != plain) > 0.4
+
+
+def test_leaves_math_scalars_and_exact_values_alone(plain_numpy: None) -> None:
+    x = np.linspace(0.01, 3.0, 201)
+    libm = [(math.sin(v), math.cos(v), math.atan2(v, 0.7)) for v in x]
+    with ulp_jitter.jittered(1.0):
+        assert [(math.sin(v), math.cos(v), math.atan2(v, 0.7)) for v in x] == libm  # the scalar path: untouched
+        assert np.sin(0.0) == 0.0 and np.cos(0.0) == 1.0 and np.arctan2(0.0, 1.0) == 0.0
+        assert np.all(np.abs(np.cos(np.linspace(-1e-9, 1e-9, 101))) <= 1.0)  # never past the function's range
+        assert abs(float(np.arctan2(1e-300, -1.0))) <= math.pi
+        assert math.isnan(np.sin(np.nan)) and np.exp(-np.inf) == 0.0
+        assert np.sin.nin == 1 and np.arctan2.nout == 1  # the ufunc's attributes are still there
+        s = np.sin(0.3)
+        assert isinstance(s, np.float64) and abs(s - math.sin(0.3)) == math.ulp(math.sin(0.3))  # scalars too
+    assert isinstance(np.sin, np.ufunc)
+
+
+def test_reaches_the_core(plain_numpy: None) -> None:
+    link = AntennaLinkage(0.180, 0.060, 0.102)
+    t = np.linspace(-0.6, 0.6, 1001)
+    plain = link.rocker_angles(t).gamma
+    with ulp_jitter.jittered(1.0):
+        moved = link.rocker_angles(t).gamma
+    assert np.mean(moved != plain) > 0.5
+    assert_close_ulps(moved, plain, 8, 1.0 + np.abs(plain) + np.abs(t * 1.6))
+
+
+def test_package_looks_ufuncs_up_at_call_time() -> None:
+    """A module-level alias (from numpy import sin, _atan2 = np.arctan2) would escape the wrapper."""
+    escapes = []
+    for path in sorted(PACKAGE.rglob('*.py')):
+        tree = ast.parse(path.read_text(), str(path))
+        called = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.split('.')[0] == 'numpy':
+                escapes += [f'{path.name}:{node.lineno} from numpy import {a.name}' for a in node.names
+                            if a.name in ulp_jitter.UFUNCS or a.name == '*']
+            if (isinstance(node, ast.Attribute) and node.attr in ulp_jitter.UFUNCS
+                    and isinstance(node.value, ast.Name) and node.value.id in ('np', 'numpy')
+                    and id(node) not in called):
+                escapes.append(f'{path.name}:{node.lineno} np.{node.attr} bound without a call')
+    assert escapes == []
+
+
+def test_assert_close_ulps_passes_and_fails() -> None:
+    a = np.array([1.0, 2.0, np.nan, np.inf])
+    assert_close_ulps(a, a, 0)
+    assert_close_ulps(a + np.array([EPS, 2 * EPS, 0, 0]), a, 1.0)  # 1 ulp of |expected| each
+    with pytest.raises(AssertionError, match='1 of 4 elements differ by more than 1 ulps'):
+        assert_close_ulps(a + np.array([0, 8 * EPS, 0, 0]), a, 1.0)
+    assert_close_ulps(1e-17, 0.0, 1.0, scale=1.0)  # absolute via scale
+    with pytest.raises(AssertionError, match='NaN at different elements'):
+        assert_close_ulps([np.nan, 1.0], [1.0, 1.0], 4)
+    with pytest.raises(AssertionError, match='infinities differ'):
+        assert_close_ulps([np.inf], [-np.inf], 4)

@@ -1,0 +1,83 @@
+"""Bounds for comparing two float code paths (scalar vs array, blocks, node vs core, offline vs live).
+
+Two paths agree only to the rounding each one makes, carried through the problem: a few ulps times the quantity's
+condition number. numpy's SIMD transcendentals may differ from libm (and from another CPU's numpy) by 1-2 ulp, so
+a bit-for-bit comparison holds only when both sides run the very same operations on the same data and layout.
+
+    assert_close_ulps(actual, expected, n_ulps, scale=...)
+
+passes when |actual - expected| <= n_ulps * eps * scale element-wise (eps = 2**-52; eps * |x| >= ulp(x)).
+scale defaults to |expected| (a relative bound); pass the condition-weighted magnitude where cancellation or
+amplification makes the relative bound wrong. NaN must match NaN and infinities must be equal. The scale helpers
+below give the condition-weighted magnitudes of this package's quantities.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import numpy.typing as npt
+
+EPS = math.ulp(1.0)
+
+#: Ulps for one quantity computed by a chain of a few rounded operations: each transcendental may be 2 ulps off
+#: (SIMD vs libm) and the pose chain has about four of them (sin, cos and two arctan2), so 8 ulps of the
+#: condition-weighted scale.
+CHAIN_ULPS = 8.0
+
+ArrayLike = float | npt.ArrayLike
+
+
+def assert_close_ulps(actual: ArrayLike, expected: ArrayLike, n_ulps: float, scale: ArrayLike | None = None,
+                      what: str = 'value') -> None:
+    """Assert |actual - expected| <= n_ulps * EPS * scale element-wise (scale defaults to |expected|)."""
+    a = np.asarray(actual, dtype=np.float64)
+    e = np.asarray(expected, dtype=np.float64)
+    assert a.shape == e.shape or a.size == e.size == 1, f'{what}: shapes {a.shape} and {e.shape} differ'
+    a, e = np.broadcast_arrays(a, e)
+    nan_a, nan_e = np.isnan(a), np.isnan(e)
+    assert np.array_equal(nan_a, nan_e), (
+        f'{what}: NaN at different elements (actual {np.flatnonzero(nan_a)[:5]}, expected {np.flatnonzero(nan_e)[:5]})')
+    inf = np.isinf(a) | np.isinf(e)
+    assert np.array_equal(a[inf], e[inf]), f'{what}: infinities differ'
+    s = np.abs(e) if scale is None else np.broadcast_to(np.abs(np.asarray(scale, dtype=np.float64)), e.shape)
+    ok = ~(nan_a | inf)
+    with np.errstate(invalid='ignore'):  # inf - inf at the infinities checked above
+        err = np.where(ok, np.abs(a - e), 0.0)
+        bound = n_ulps * EPS * s
+    bad = ok & ~(err <= bound)
+    if bad.any():
+        i = int(np.flatnonzero(bad.reshape(-1))[np.argmax((err / np.where(bound > 0, bound, 1.0))[bad])])
+        af, ef, sf = a.reshape(-1), e.reshape(-1), s.reshape(-1)
+        raise AssertionError(
+            f'{what}: {int(bad.sum())} of {a.size} elements differ by more than {n_ulps:g} ulps of their scale; '
+            f'worst at flat index {i}: {af[i]!r} vs {ef[i]!r}, |diff| = {abs(af[i] - ef[i]) / EPS / sf[i]:.3g} '
+            f'eps * scale (scale {sf[i]:.6g})')
+
+
+def angle_scale(q: ArrayLike, theta: ArrayLike, dq_dtheta: ArrayLike) -> npt.NDArray[np.float64]:
+    """Condition-weighted magnitude (rad) of an angle q solved from theta: 1 + |q| + |theta dq/dtheta|.
+
+    The rounding of q itself (|q|, or pi for intermediate angles: the 1 covers them) plus that of the input
+    carried through the solve (a relative eps on theta moves q by eps |theta dq/dtheta|).
+    """
+    return 1.0 + np.abs(q) + np.abs(np.asarray(theta) * np.asarray(dq_dtheta))
+
+
+def sine_ratio_scale(coef: ArrayLike, num_angle: ArrayLike, num_scale: ArrayLike, den_angle: ArrayLike,
+                     den_scale: ArrayLike) -> npt.NDArray[np.float64]:
+    """Scale of v = coef sin(num_angle) / sin(den_angle) (a rocker rate, mechanical advantage or input torque).
+
+    An angle error of n eps * s in x changes sin(x) by n eps * s |cos x|, so with the arguments accurate to n ulps
+    of num_scale and den_scale, v is accurate to n ulps of
+    |v| (1 + den_scale |cot den_angle|) + num_scale |coef cos(num_angle) / sin(den_angle)|; the 1 covers the
+    sines' and the division's own rounding. Near a dead point (sin(den_angle) -> 0) the cotangent is the
+    amplification.
+    """
+    n, d = np.asarray(num_angle, dtype=np.float64), np.asarray(den_angle, dtype=np.float64)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        sin_d = np.sin(d)
+        v = np.abs(np.asarray(coef) * np.sin(n) / sin_d)
+        return (v * (1.0 + np.asarray(den_scale) * np.abs(np.cos(d) / sin_d))
+                + np.asarray(num_scale) * np.abs(np.asarray(coef) * np.cos(n) / sin_d))
