@@ -9,12 +9,15 @@ PACKAGE = 'fourbar_ros'
 setup(
     name=PACKAGE,
     version='0.1.0',
-    packages=find_packages(exclude=['test', 'test.*']),
+    packages=find_packages(include=[PACKAGE, f'{PACKAGE}.*']),  # not benchmarks/ or test/
     package_data={PACKAGE: ['py.typed', 'data/demo_sweep/*']},
     data_files=[
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
         (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+        (f'share/{PACKAGE}/launch', glob('launch/*.launch.py')),
+        (f'share/{PACKAGE}/rviz', glob('rviz/*.rviz')),
+        (f'share/{PACKAGE}/bags/demo_sweep', glob(f'{PACKAGE}/data/demo_sweep/*')),
     ],
     install_requires=['setuptools', 'numpy', 'PyYAML'],
     extras_require={

@@ -32,10 +32,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterable
+from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
 from fourbar_ros.antenna import Driven
-from fourbar_ros.config import AntennaConfig
+from fourbar_ros.config import AntennaConfig, load_config, values_from_yaml
 
 #: Default JointState name of the coupler joint (parameter ``coupler_joint`` where the node declares it).
 COUPLER_JOINT = 'coupler_joint'
@@ -150,3 +151,26 @@ def robot_description(cfg: AntennaConfig, coupler_joint: str = COUPLER_JOINT, ro
                     _xyz(0.5 * h + cfg.com_offset_along, 0.0, cfg.com_offset_normal))
     lines.append('</robot>')
     return '\n'.join(lines) + '\n'
+
+
+def coupler_joint_name(cfg: AntennaConfig, params: str | Path | None = None, node_name: str = 'fourbar_node',
+                       namespace: str = '/') -> str:
+    """The node's ``coupler_joint`` parameter for ``cfg`` (read from the file where the configuration does not
+    carry it yet); default COUPLER_JOINT."""
+    name = getattr(cfg, 'coupler_joint', None)
+    if isinstance(name, str):
+        return name
+    if params is None:
+        return COUPLER_JOINT
+    values = values_from_yaml(Path(params).read_text(encoding='utf-8'), str(params), node_name, namespace)
+    return str(values.get('coupler_joint', COUPLER_JOINT))
+
+
+def robot_description_for(params: str | Path, node_name: str = 'fourbar_node', namespace: str = '/',
+                          robot_name: str = 'fourbar') -> tuple[AntennaConfig, str]:
+    """Validated configuration and URDF for the node ``namespace``/``node_name`` started with ``params``.
+
+    Raises ``fourbar_ros.config.ConfigError`` (one line) for a bad file.
+    """
+    cfg = load_config(params, node_name, namespace)
+    return cfg, robot_description(cfg, coupler_joint_name(cfg, params, node_name, namespace), robot_name)

@@ -4,7 +4,6 @@ into lib/fourbar_ros that, started the way ``ros2 run`` starts it, serves comman
 from __future__ import annotations
 
 import os
-import shutil
 import signal
 import subprocess
 import sys
@@ -12,6 +11,8 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from colcon_support import colcon_install as build_once
+from colcon_support import sourced_env as colcon_env
 from ros_support import NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -19,7 +20,6 @@ from std_msgs.msg import Float64
 from fourbar_ros.config import load_config
 
 REPO = Path(__file__).resolve().parent.parent
-PACKAGE_FILES = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'fourbar_ros', 'config')
 
 
 def test_package_xml_validates_with_catkin_pkg() -> None:
@@ -43,37 +43,35 @@ def test_setup_declares_the_console_script_and_ros_install_dir() -> None:
 
 @pytest.fixture(scope='module')
 def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
-    """Build a copy of the package with colcon into a temporary workspace; yield its install prefix."""
-    colcon = Path(sys.executable).parent / 'colcon'
-    if not colcon.exists():
-        pytest.skip('colcon is not installed in this environment (pip install colcon-core colcon-ros)')
-    ws = tmp_path_factory.mktemp('colcon_ws')
-    src = ws / 'src' / 'fourbar_ros'
-    src.mkdir(parents=True)
-    for name in PACKAGE_FILES:
-        path = REPO / name
-        if path.is_dir():
-            shutil.copytree(path, src / name, ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
-        else:
-            shutil.copy2(path, src / name)
-    result = subprocess.run(
-        [str(colcon), '--log-base', str(ws / 'log'), 'build', '--base-paths', str(ws / 'src'),
-         '--build-base', str(ws / 'build'), '--install-base', str(ws / 'install')],
-        cwd=ws, capture_output=True, text=True, timeout=600, check=False)
-    assert result.returncode == 0, result.stdout[-3000:] + result.stderr[-3000:]
-    log = (ws / 'log' / 'latest_build' / 'logger_all.log').read_text(encoding='utf-8')
-    # Without a valid package.xml colcon silently builds a plain Python package instead.
-    assert "with type 'ros.ament_python' and name 'fourbar_ros'" in log
-    yield ws / 'install'
+    """Install base of the colcon build shared by the packaging, ros2 CLI and launch tests."""
+    yield build_once(tmp_path_factory)
 
 
 def sourced_env(ros: RosSession, prefix: Path) -> dict[str, str]:
     """What sourcing install/setup.sh sets for this package, on the test's domain id."""
+    return colcon_env(ros.env(), prefix, ros.domain_id, localhost=False)  # as this process's rclpy
+
+
+def test_setup_installs_only_the_package_and_the_share_files() -> None:
+    setup_py = (REPO / 'setup.py').read_text(encoding='utf-8')
+    assert "find_packages(include=[PACKAGE, f'{PACKAGE}.*'])" in setup_py
+    for share in ('config', 'launch', 'rviz', 'bags/demo_sweep'):
+        assert f"(f'share/{{PACKAGE}}/{share}'" in setup_py, share
+
+
+@pytest.mark.slow
+def test_colcon_install_has_share_files_and_no_benchmarks(colcon_install: Path) -> None:
+    prefix = colcon_install / 'fourbar_ros'
+    share = prefix / 'share' / 'fourbar_ros'
+    for rel in ('package.xml', 'config/antenna.yaml', 'launch/fourbar.launch.py', 'rviz/fourbar.rviz'):
+        assert (share / rel).read_bytes() == (REPO / rel).read_bytes(), rel
+    bag = share / 'bags' / 'demo_sweep'
+    assert sorted(p.name for p in bag.iterdir()) == sorted(p.name for p in (REPO / 'fourbar_ros' / 'data' /
+                                                                            'demo_sweep').iterdir())
     site = prefix / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / 'site-packages'
-    env = ros.env()
-    env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(site), env.get('PYTHONPATH', '')]))
-    env['AMENT_PREFIX_PATH'] = os.pathsep.join(filter(None, [str(prefix), env.get('AMENT_PREFIX_PATH', '')]))
-    return env
+    assert (site / 'fourbar_ros' / 'urdf.py').is_file()
+    assert not (site / 'benchmarks').exists() and not (site / 'test').exists()
+    assert os.access(prefix / 'lib' / 'fourbar_ros' / 'fourbar', os.X_OK)
 
 
 @pytest.mark.ros

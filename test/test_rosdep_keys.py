@@ -26,6 +26,7 @@ IMPORT_KEYS: dict[str, str | None] = {
     'pytest': 'python3-pytest',
     'hypothesis': 'python3-hypothesis',
     'catkin_pkg': 'python3-catkin-pkg',
+    'psutil': 'python3-psutil',
     'mpmath': None,
     'pylinkage': None,                 # benchmark peers, imported only by benchmarks (skipped where missing)
     'mechanism': None,
@@ -41,7 +42,7 @@ ROS_PACKAGES = {
 }
 #: Local test helpers and the project's own packages.
 LOCAL = {'fourbar_ros', 'benchmarks', 'ros_support', 'bag_support', 'mp_reference', 'ulp_jitter', 'ulp_bounds',
-         'conftest', 'test'}
+         'conftest', 'test', 'colcon_support', 'ros_cli_support'}
 
 
 def published_keys() -> set[str]:

@@ -8,9 +8,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ..config import AntennaConfig, default_config, load_config, values_from_yaml
+from ..config import default_config
 from ..errors import FourBarError
-from ..urdf import COUPLER_JOINT, robot_description
+from ..urdf import robot_description, robot_description_for
 
 HELP = 'print the URDF robot model (for robot_state_publisher) generated from the node\'s parameters'
 
@@ -25,18 +25,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--robot-name', default='fourbar', help='<robot name=...> (default: fourbar)')
     parser.add_argument('-o', '--output', metavar='FILE', help='write the URDF to FILE (atomically) instead of '
                         'standard output')
-
-
-def _coupler_joint(args: argparse.Namespace, cfg: AntennaConfig) -> str:
-    """The node's ``coupler_joint`` parameter as the file sets it (default: COUPLER_JOINT)."""
-    name = getattr(cfg, 'coupler_joint', None)
-    if isinstance(name, str):
-        return name
-    if args.params is None:
-        return COUPLER_JOINT
-    text = Path(args.params).read_text(encoding='utf-8')  # load_config has read and validated it already
-    value = values_from_yaml(text, args.params, args.node_name, args.namespace).get('coupler_joint', COUPLER_JOINT)
-    return str(value)
 
 
 def _write(path: str, text: str) -> None:
@@ -55,9 +43,10 @@ def _write(path: str, text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     """Print (or write) the URDF; exit 2 with one line on stderr for a bad parameter file."""
     try:
-        cfg = (load_config(args.params, args.node_name, args.namespace) if args.params is not None
-               else default_config())
-        text = robot_description(cfg, _coupler_joint(args, cfg), args.robot_name)
+        if args.params is None:
+            text = robot_description(default_config(), robot_name=args.robot_name)
+        else:
+            text = robot_description_for(args.params, args.node_name, args.namespace, args.robot_name)[1]
     except (FourBarError, ValueError, OSError) as exc:
         print(f'fourbar urdf: error: {exc}', file=sys.stderr)
         return 2

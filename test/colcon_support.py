@@ -1,0 +1,105 @@
+"""A colcon-built install of this package, built once per pytest process, and the environment that sourcing
+its setup script gives a child process (plus a leased ROS domain limited to this host).
+
+Used by test_packaging.py, test_ros_cli.py and test_launch.py: ``colcon_install(tmp_path_factory)`` builds on
+the first call and returns the same install base afterwards (a pytest fixture cannot be shared by several
+modules without conftest.py, so the sharing lives here).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import shutil
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parent.parent
+#: What a source checkout of the package contains that its build reads.
+PACKAGE_FILES = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'fourbar_ros', 'config', 'launch', 'rviz')
+BIN = Path(sys.executable).parent
+
+_lock = threading.Lock()
+_built: dict[str, Path | str] = {}
+
+
+def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Install base (``.../install``) of a colcon build of a copy of the package; skip without colcon."""
+    colcon = BIN / 'colcon'
+    if not colcon.exists():
+        pytest.skip('colcon is not installed in this environment (pip install colcon-core colcon-ros)')
+    with _lock:
+        if 'install' in _built:
+            return Path(_built['install'])
+        if 'error' in _built:
+            pytest.fail(str(_built['error']))
+        ws = tmp_path_factory.mktemp('colcon_ws')
+        src = ws / 'src' / 'fourbar_ros'
+        src.mkdir(parents=True)
+        for name in PACKAGE_FILES:
+            path = REPO / name
+            if path.is_dir():
+                shutil.copytree(path, src / name, ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
+            else:
+                shutil.copy2(path, src / name)
+        result = subprocess.run(
+            [str(colcon), '--log-base', str(ws / 'log'), 'build', '--base-paths', str(ws / 'src'),
+             '--build-base', str(ws / 'build'), '--install-base', str(ws / 'install')],
+            cwd=ws, capture_output=True, text=True, timeout=600, check=False)
+        if result.returncode != 0:
+            _built['error'] = 'colcon build failed: ' + result.stdout[-3000:] + result.stderr[-3000:]
+            pytest.fail(str(_built['error']))
+        log = (ws / 'log' / 'latest_build' / 'logger_all.log').read_text(encoding='utf-8')
+        # Without a valid package.xml colcon silently builds a plain Python package instead.
+        if "with type 'ros.ament_python' and name 'fourbar_ros'" not in log:
+            _built['error'] = 'colcon did not build fourbar_ros as ros.ament_python'
+            pytest.fail(str(_built['error']))
+        _built['install'] = ws / 'install'
+        return ws / 'install'
+
+
+def sourced_env(base: dict[str, str], prefix: Path, domain_id: int, localhost: bool = True) -> dict[str, str]:
+    """``base`` plus what sourcing ``install/setup.sh`` sets for this package (PYTHONPATH, AMENT_PREFIX_PATH,
+    PATH with this venv's ``ros2``), on ``domain_id``; with ``localhost``, discovery limited to this host (all
+    processes that must see each other need the same setting: leave it off when this pytest process talks to
+    the children through rclpy)."""
+    site = prefix / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / 'site-packages'
+    env = dict(base)
+    env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(site), env.get('PYTHONPATH', '')]))
+    env['AMENT_PREFIX_PATH'] = os.pathsep.join(filter(None, [str(prefix), env.get('AMENT_PREFIX_PATH', '')]))
+    env['PATH'] = os.pathsep.join(filter(None, [str(BIN), env.get('PATH', '')]))
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    if localhost:
+        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+        env.pop('ROS_LOCALHOST_ONLY', None)  # deprecated in Jazzy; it would override the range with a warning
+    env.setdefault('PYTHONUNBUFFERED', '1')
+    env['RCUTILS_COLORIZED_OUTPUT'] = '0'
+    return env
+
+
+def ros2_cli_missing() -> str | None:
+    """Why the ros2 command line cannot be used here (None when it can)."""
+    if importlib.util.find_spec('ros2cli') is None or not ((BIN / 'ros2').exists() or shutil.which('ros2')):
+        return ('the ros2 command line is not installed (source a ROS 2 Jazzy install, or run '
+                'scripts/install_ros_cli.sh WHEEL_DIR)')
+    return None
+
+
+def launch_missing() -> str | None:
+    """Why launch_ros / launch_testing cannot be used here (None when they can)."""
+    missing = [m for m in ('launch', 'launch_ros', 'launch_testing', 'ros2launch')
+               if importlib.util.find_spec(m) is None]
+    if missing:
+        return (f'{", ".join(missing)} not installed (source a ROS 2 Jazzy install, or run '
+                'scripts/install_ros_cli.sh WHEEL_DIR)')
+    return None
+
+
+def ros2() -> str:
+    """The ros2 executable: this venv's, else the one on PATH."""
+    exe = BIN / 'ros2'
+    return str(exe) if exe.exists() else str(shutil.which('ros2'))

@@ -1,0 +1,135 @@
+"""Running the real ``ros2`` command line in tests: long-lived commands (``ros2 run``, ``ros2 launch``,
+``ros2 topic echo``) in their own process group, one-shot commands with a deadline, and cleanup of every process
+a command started (its whole process group, then any descendant still alive).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+import subprocess
+import tempfile
+import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import psutil
+
+#: Deadline (s) for a one-shot command and for waits; generous because the machine is shared.
+TIMEOUT = 60.0
+
+
+def run(cmd: Sequence[str], env: dict[str, str], timeout: float = TIMEOUT, cwd: Path | None = None
+        ) -> subprocess.CompletedProcess[str]:
+    """A one-shot command; its output, never raising on a non-zero status."""
+    return subprocess.run(list(cmd), env=env, cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          check=False, stdin=subprocess.DEVNULL)
+
+
+class Background:
+    """A long-lived command in a new session (so a signal can go to it alone, or to its group as Ctrl-C
+    does); output goes to files, so it can never block on a full pipe."""
+
+    def __init__(self, cmd: Sequence[str], env: dict[str, str], cwd: Path | None = None) -> None:
+        self.cmd = list(cmd)
+        self._out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in _collect
+        self._err = tempfile.TemporaryFile()  # noqa: SIM115
+        self.proc = subprocess.Popen(self.cmd, env=env, cwd=cwd, stdout=self._out, stderr=self._err,
+                                     stdin=subprocess.DEVNULL, start_new_session=True)
+        self.stdout = ''
+        self.stderr = ''
+        self._seen: dict[int, Any] = {}
+
+    def output(self) -> str:
+        """Everything printed so far (stdout then stderr), without consuming it."""
+        parts = []
+        for f in (self._out, self._err):
+            if f.closed:
+                continue
+            fd = f.fileno()
+            parts.append(os.pread(fd, os.fstat(fd).st_size, 0).decode('utf-8', 'replace'))
+        return ''.join(parts) if parts else self.stdout + self.stderr
+
+    def descendants(self) -> list[Any]:
+        """The command's live descendants (remembered, so they can be checked after the command exits)."""
+        try:
+            for child in psutil.Process(self.proc.pid).children(recursive=True):
+                self._seen.setdefault(child.pid, child)
+        except psutil.NoSuchProcess:
+            pass
+        return [p for p in self._seen.values() if _alive(p)]
+
+    def wait_output(self, predicate: Callable[[str], bool], what: str, timeout: float = TIMEOUT) -> str:
+        """Poll the output until ``predicate`` holds; AssertionError (with the output) at the deadline."""
+        deadline = time.monotonic() + timeout
+        while True:
+            self.descendants()
+            text = self.output()
+            if predicate(text):
+                return text
+            if self.proc.poll() is not None:
+                raise AssertionError(f'{self.cmd[:4]} exited ({self.proc.returncode}) before {what}:\n{text[-3000:]}')
+            if time.monotonic() > deadline:
+                raise AssertionError(f'timed out after {timeout} s waiting for {what}:\n{text[-3000:]}')
+            time.sleep(0.05)
+
+    def wait_exit(self, timeout: float = TIMEOUT) -> int:
+        """Wait for the command to exit by itself; return its status."""
+        try:
+            self.proc.wait(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            raise AssertionError(f'{self.cmd[:4]} did not exit within {timeout} s') from None
+        self._collect()
+        return self.proc.returncode
+
+    def interrupt(self, group: bool = False, timeout: float = TIMEOUT) -> int:
+        """SIGINT to the command (``group``: to its whole process group, as Ctrl-C in a terminal); its status."""
+        self.descendants()
+        if self.proc.poll() is None:
+            if group:
+                os.killpg(self.proc.pid, signal.SIGINT)
+            else:
+                self.proc.send_signal(signal.SIGINT)
+        return self.wait_exit(timeout)
+
+    def kill(self) -> None:
+        """End the command, its process group and every descendant seen (SIGTERM, then SIGKILL); reap it."""
+        self.descendants()
+        for sig, wait in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 10.0)):
+            targets = [p for p in self._seen.values() if _alive(p)]
+            if self.proc.poll() is None:
+                with contextlib.suppress(ProcessLookupError):
+                    os.killpg(self.proc.pid, sig)
+            for p in targets:
+                with contextlib.suppress(psutil.NoSuchProcess):
+                    p.send_signal(sig)
+            _, still = psutil.wait_procs(targets, timeout=wait)
+            try:
+                self.proc.wait(timeout=wait)
+            except subprocess.TimeoutExpired:
+                continue
+            if not still:
+                break
+        if self.proc.returncode is None:
+            self.proc.kill()
+            self.proc.wait()
+        self._collect()
+
+    def _collect(self) -> None:
+        for name in ('_out', '_err'):
+            f = getattr(self, name)
+            if f.closed:
+                continue
+            f.seek(0)
+            setattr(self, 'stdout' if name == '_out' else 'stderr', f.read().decode('utf-8', 'replace'))
+            f.close()
+
+
+def _alive(p: Any) -> bool:
+    try:
+        return bool(p.is_running()) and p.status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
+        return False

@@ -1,0 +1,177 @@
+"""The ROS 2 command line a user types, over a colcon-built install of the package:
+``ros2 run fourbar_ros fourbar_node --ros-args --params-file ... -r __ns:=...``, ``ros2 topic pub --once`` /
+``ros2 topic echo --once``, ``ros2 param set`` (accepted and refused) and Ctrl-C.
+
+Every process shares one leased ROS_DOMAIN_ID, discovery limited to this host; no ros2 daemon is used
+(--no-daemon where a verb has it) and any daemon on the domain is stopped at the end.
+Runs where the ros2 command line is importable (a sourced Jazzy install, or scripts/install_ros_cli.sh);
+skipped elsewhere with the reason.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from colcon_support import colcon_install, ros2, ros2_cli_missing, sourced_env
+
+if (_why := ros2_cli_missing()) is not None:
+    pytest.skip(_why, allow_module_level=True)
+
+from ros_cli_support import TIMEOUT, Background, run  # needs psutil, which comes with ros2cli
+from ros_support import lease_domain_id
+
+from fourbar_ros.config import load_config
+from fourbar_ros.urdf import COUPLER_JOINT, robot_description
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+NAMESPACE = '/tilt_cli'
+NODE = f'{NAMESPACE}/fourbar_node'
+EPS = sys.float_info.epsilon
+
+
+@dataclass
+class Antenna:
+    """The node started by ``ros2 run`` in NAMESPACE, and what the tests learnt from it."""
+
+    env: dict[str, str]
+    prefix: Path
+    proc: Background
+    params: Path
+    joint_states: dict[str, Any] = field(default_factory=dict)
+
+
+def echo_once(env: dict[str, str], topic: str, msg_type: str) -> Background:
+    """``ros2 topic echo --once TOPIC TYPE`` in the background (the type given: no discovery of it needed)."""
+    return Background([ros2(), 'topic', 'echo', '--once', topic, msg_type], env)
+
+
+def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, value: float,
+                         timeout: float = TIMEOUT) -> dict[str, Any]:
+    """``ros2 topic pub --once`` (which waits for a matching subscription) until the echo has a message.
+
+    Repeated because discovery is not symmetric: the node may not yet see the echo's subscription when the
+    first command arrives (it skips outputs nobody subscribes to); one answer ends the echo.
+    """
+    deadline = time.monotonic() + timeout
+    while echo.proc.poll() is None:
+        if time.monotonic() > deadline:
+            raise AssertionError(f'no message on the echo after {timeout} s:\n{echo.output()[-2000:]}')
+        out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', topic, 'std_msgs/msg/Float64',
+                   f'{{data: {value!r}}}'], env, timeout=max(5.0, deadline - time.monotonic()))
+        assert out.returncode == 0, out.stdout + out.stderr
+    assert echo.wait_exit() == 0, echo.stderr
+    doc = yaml.safe_load(echo.stdout.split('\n---')[0])
+    assert isinstance(doc, dict), echo.stdout
+    return doc
+
+
+@pytest.fixture(scope='module')
+def antenna(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Antenna]:
+    install = colcon_install(tmp_path_factory)
+    prefix = install / 'fourbar_ros'
+    params = prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml'
+    lease = lease_domain_id()
+    env = sourced_env(dict(os.environ), prefix, lease.domain_id)
+    env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))  # logs of this run, not ~/.ros
+    proc = Background([ros2(), 'run', 'fourbar_ros', 'fourbar_node', '--ros-args', '--params-file', str(params),
+                       '-r', f'__ns:={NAMESPACE}'], env, cwd=tmp_path_factory.mktemp('anywhere'))
+    try:
+        yield Antenna(env, prefix, proc, params)
+    finally:
+        proc.kill()
+        run([ros2(), 'daemon', 'stop'], env, timeout=30)
+        lease.release()
+
+
+def test_ros2_run_in_a_namespace_answers_topic_pub_on_topic_echo(antenna: Antenna) -> None:
+    cfg = load_config(antenna.params)
+    echo = echo_once(antenna.env, f'{NAMESPACE}/joint_states', 'sensor_msgs/msg/JointState')
+    try:
+        msg = publish_until_echoed(antenna.env, echo, f'{NAMESPACE}/antenna_angle_cmd', 0.05)
+    finally:
+        echo.kill()
+    antenna.joint_states = msg
+    names = list(msg['name'])
+    assert names[:2] == list(cfg.joint_names)
+    state = cfg.linkage.state(0.05, cfg.load_torque)
+    # The node and this test call the same core solve; 4 ulps leave room for a different operation order in the
+    # node's pose path (condition ~1.5 inside the tilt range). ros2 topic echo prints doubles round-trippably.
+    for got, want in zip(msg['position'][:2], (state.gamma, state.delta), strict=True):
+        assert abs(got - want) <= 4 * EPS * abs(want), (got, want)
+    assert abs(msg['effort'][0] - state.input_torque) <= 16 * EPS * abs(state.input_torque)
+    # Relative names: every topic of the node is inside the namespace (listed once discovery has seen them).
+    deadline = time.monotonic() + TIMEOUT
+    while True:
+        topics = run([ros2(), 'topic', 'list', '--no-daemon', '--spin-time', '3'], antenna.env).stdout.split()
+        if f'{NAMESPACE}/joint_states' in topics and f'{NAMESPACE}/antenna_angle_cmd' in topics:
+            break
+        assert time.monotonic() < deadline, f'namespaced topics not listed after {TIMEOUT} s: {topics}'
+    assert not {'/joint_states', '/antenna_angle_cmd', '/input_torque', '/linkage_markers'} & set(topics), topics
+
+
+def test_published_joint_states_close_the_urdf_loop(antenna: Antenna) -> None:
+    """The node's own JointState, through the URDF's forward kinematics: both chains meet at C."""
+    from test_urdf import link_poses
+
+    msg = antenna.joint_states
+    if not msg:
+        pytest.skip('no joint_states received (see the previous test)')
+    if COUPLER_JOINT not in msg['name']:
+        pytest.skip(f'fourbar_node does not publish the coupler joint ({COUPLER_JOINT}) yet; '
+                    f'robot_state_publisher cannot place the coupler (published: {msg["name"]})')
+    cfg = load_config(antenna.params)
+    positions = dict(zip(msg['name'], msg['position'], strict=True))
+    poses = link_poses(robot_description(cfg), positions)
+    gap = math.dist(poses['coupler_c'][:3, 3], poses['rocker_cd_c'][:3, 3])
+    length_sum = cfg.frame_length + cfg.rocker_ab_length + cfg.coupler_length + cfg.rocker_cd_length
+    assert gap <= 16 * EPS * length_sum  # the bound of test_urdf.py (angle errors of a few ulps, condition ~1)
+
+
+def _param_get(antenna: Antenna, name: str) -> str:
+    out = run([ros2(), 'param', 'get', '--no-daemon', NODE, name], antenna.env)
+    assert out.returncode == 0, out.stdout + out.stderr
+    return out.stdout.strip()
+
+
+def _param_set(antenna: Antenna, name: str, value: str) -> tuple[str, str]:
+    out = run([ros2(), 'param', 'set', '--no-daemon', '--timeout', '30', NODE, name, value], antenna.env)
+    assert out.returncode == 0, out.stdout + out.stderr  # ros2 param set exits 0 and says why on stderr
+    return out.stdout.strip(), out.stderr.strip()
+
+
+def test_ros2_param_set_accepted_and_refused(antenna: Antenna) -> None:
+    theta_max = _param_get(antenna, 'theta_max')
+    out, err = _param_set(antenna, 'load_torque', '2.0')
+    assert out.startswith('Set parameter successful'), (out, err)
+    assert _param_get(antenna, 'load_torque') == 'Double value is: 2.0'
+    refusals = {
+        'theta_max': '1.5',        # beyond the linkage's reach
+        'load_torque': 'abc',      # a string for a double
+        'marker_period': '0.2',    # read-only
+        'frame_length': '-1.0',    # below the minimum
+    }
+    for name, value in refusals.items():
+        out, err = _param_set(antenna, name, value)
+        assert out == '' and err.startswith('Setting parameter failed'), (name, out, err)
+    assert _param_get(antenna, 'load_torque') == 'Double value is: 2.0'
+    assert _param_get(antenna, 'theta_max') == theta_max
+    assert antenna.proc.proc.poll() is None, antenna.proc.output()[-2000:]
+
+
+def test_ctrl_c_stops_ros2_run_and_the_node_with_status_0(antenna: Antenna) -> None:
+    children = antenna.proc.descendants()
+    assert children, 'ros2 run started no node process'
+    status = antenna.proc.interrupt(group=True)  # Ctrl-C in a terminal: SIGINT to the foreground group
+    assert status == 0, antenna.proc.stderr[-3000:]
+    assert 'Traceback' not in antenna.proc.stderr, antenna.proc.stderr[-3000:]
+    assert not antenna.proc.descendants(), 'a process outlived ros2 run'
