@@ -35,9 +35,10 @@ from .dyad import (
     DyadChangePointError,
     DyadConstants,
     DyadOpenError,
+    ScalarClosure,
     closes,
-    closure,
     closure_array,
+    closure_for,
     dyad_constants,
     reach_half_angles,
 )
@@ -142,6 +143,7 @@ class AntennaLinkage:
     rocker_cd: float | None = None
     _cd: float = field(init=False, repr=False, compare=False)  #: rocker_cd, resolved
     _k: DyadConstants = field(init=False, repr=False, compare=False)
+    _closure: ScalarClosure = field(init=False, repr=False, compare=False)  #: closure_for(_k)
     _reach: Reach = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -159,7 +161,12 @@ class AntennaLinkage:
         except ValueError:
             raise InvalidGeometryError(_never_assembles(frame, ab, coupler, cd)) from None
         object.__setattr__(self, '_k', k)
+        object.__setattr__(self, '_closure', closure_for(k))
         object.__setattr__(self, '_reach', Reach(theta_gap=gap, theta_max=top))
+
+    def __reduce__(self) -> tuple[type[AntennaLinkage], tuple[float, float, float, float | None]]:
+        """Pickle the lengths only (the derived constants and the bound closure are rebuilt)."""
+        return AntennaLinkage, (self.frame, self.rocker_ab, self.coupler, self.rocker_cd)
 
     # ---------------------------------------------------------------- reach
 
@@ -218,7 +225,7 @@ class AntennaLinkage:
             # The scalar hot path: the dyad's math-module closure, no numpy (theta is the dyad's angle x).
             try:
                 # (mypy cannot narrow theta from type(theta) checks; isinstance would cost the hot path)
-                return _new_tuple(RockerAngles, closure(self._k, theta, branch))  # type: ignore[arg-type]
+                return _new_tuple(RockerAngles, self._closure(theta, branch))  # type: ignore[arg-type]
             except DyadOpenError:
                 raise self._unreachable(float(theta)) from None
             except DyadChangePointError:
@@ -357,12 +364,12 @@ class AntennaLinkage:
         # The four-bar with the measured rocker as crank: its diagonal (rocker end -> other pivot) is the dyad's
         # P -> Q with x = -q; the dyad's angle at P is the coupler's direction from +x (-theta with AB as the crank,
         # +theta mirrored, CD as the crank) and its angle at Q is the other rocker's angle.
-        k, reach = self._rocker_dyad(driven)
+        k, closure, reach = self._rocker_dyad(driven)
         which = Branch(branch)  # also takes the plain +1 / -1
         sign = -1.0 if driven is Driven.GAMMA else 1.0
         if isinstance(q, (float, int)):
             try:
-                coupler_dir, other = closure(k, -q, which)
+                coupler_dir, other = closure(-q, which)
             except DyadOpenError:
                 raise UnreachableError(f'q={float(q)!r} rad: the {driven.value} rocker cannot take this angle; it '
                                        f'takes {_describe_rocker(reach)}') from None
@@ -381,13 +388,15 @@ class AntennaLinkage:
             raise self._rocker_change_point(driven, -exc.x) from None
         return InverseSolution(_wrap(sign * coupler_a), _wrap(other_a))
 
-    def _rocker_dyad(self, driven: Driven) -> tuple[DyadConstants, tuple[float, float]]:
-        """The dyad of the four-bar with the measured rocker as its crank and its reach (built once per rocker)."""
-        built: dict[Driven, tuple[DyadConstants, tuple[float, float]]] = self.__dict__.setdefault('_rocker_dyads', {})
+    def _rocker_dyad(self, driven: Driven) -> tuple[DyadConstants, ScalarClosure, tuple[float, float]]:
+        """The dyad of the four-bar with the measured rocker as its crank, its scalar closure and its reach (built
+        once per rocker)."""
+        built: dict[Driven, tuple[DyadConstants, ScalarClosure, tuple[float, float]]] = self.__dict__.setdefault(
+            '_rocker_dyads', {})
         if driven not in built:  # per instance, not global; the exact constants cost ~20 us
             crank, rocker = (self.rocker_ab, self._cd) if driven is Driven.GAMMA else (self._cd, self.rocker_ab)
             k = dyad_constants(self.frame, crank, self.coupler, rocker, unit=self.frame)
-            built[driven] = (k, reach_half_angles(k))
+            built[driven] = (k, closure_for(k), reach_half_angles(k))
         return built[driven]
 
     def _rocker_change_point(self, driven: Driven, q: float) -> SingularPositionError:

@@ -12,15 +12,16 @@ The constants (far, near, cos_p, cos_q) are exact rational functions of the leng
 so each per-angle quantity is one constant plus w: its only rounding beyond the constant's is that of w, which is
 the rounding the angle x itself brings. No acos, no asin, no difference of two rounded squares per call.
 
-``closure`` (one Python float, math module: the scalar fast path) and ``closure_array`` (float64 arrays, numpy, in
-cache-sized blocks) apply the same operations in the same order; ``AntennaLinkage`` and ``FourBar`` both solve
-through them. ``closes`` is their validity test.
+``closure_for(k)`` (one Python float, math module: the scalar fast path) and ``closure_array`` (float64 arrays,
+numpy, in cache-sized blocks) apply the same operations in the same order; ``AntennaLinkage`` and ``FourBar`` both
+solve through them. ``closes`` is their validity test.
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Callable
 from fractions import Fraction
 from typing import NamedTuple
 
@@ -114,45 +115,54 @@ _sin, _cos, _sqrt, _atan2, _PI = math.sin, math.cos, math.sqrt, math.atan2, math
 _BLOCK = 8192  #: elements per block of the vectorized solve: its working arrays (64 KiB each) stay in L2
 
 
-def closure(k: DyadConstants, x: float, branch: Branch) -> tuple[float, float]:
-    """The dyad closed at angle x (rad, a Python float): (angle_p, angle_q) in radians.
+#: closure_for's result: (x in rad, branch) -> (angle_p, angle_q) in rad.
+ScalarClosure = Callable[[float, Branch], tuple[float, float]]
+
+
+def closure_for(k: DyadConstants) -> ScalarClosure:
+    """The scalar closure of one geometry: a function (x, branch) -> (angle_p, angle_q) for x a Python float (rad).
 
     angle_p = phi + alpha on UPPER (phi - alpha on LOWER) is the direction of link r1 from P (from +x,
     counter-clockwise); angle_q = beta - phi on UPPER (-beta - phi on LOWER) is pi minus the direction of link r2
     from Q, i.e. its angle measured clockwise from -x. phi is the direction of P -> Q, alpha and beta the triangle's
-    angles at P and Q (see the module docstring). Raises DyadOpenError where the dyad does not close (NaN, inf,
-    out of reach) and DyadChangePointError where P = Q.
+    angles at P and Q (see the module docstring). The function raises DyadOpenError where the dyad does not close
+    (NaN, inf, out of reach) and DyadChangePointError where P = Q. The constants are bound once, as the closure's
+    own variables: the per-call cost is the math alone (this is the solvers' scalar hot path).
     """
     diff, diff_sq, _, two_l2, far0, near0, cos_p, cos_q, equal_links, tol, cut_at_pi = k
-    half = 0.5 * x
-    try:
-        s = _sin(half)
-    except ValueError:  # math.sin(inf)
-        raise DyadOpenError from None
-    hs = two_l2 * s  # L2 sin(x/2)
-    w = 2.0 * hs * s  # 4 L1 L2 sin^2(x/2)
-    far = far0 - w
-    near = near0 + w
-    if not far * near >= 0.0:  # rare: zero a factor negative only by rounding at the reach limit, else open
-        if -tol <= far < 0.0:
-            far = 0.0
-        if -tol <= near < 0.0:
-            near = 0.0
-        if not (far >= 0.0 and near >= 0.0):
-            raise DyadOpenError
-    if diff_sq + w == 0.0:
-        raise DyadChangePointError(float(x))
-    root = _sqrt(far * near)
-    c = _cos(half)
-    if cut_at_pi:
-        phi = _PI + _atan2(-hs * c, -diff - hs * s)
-    else:
-        phi = _atan2(hs * c, diff + hs * s)
-    alpha = _atan2(root, cos_p + w)
-    beta = alpha if equal_links else _atan2(root, cos_q + w)
-    if branch is _UPPER:
-        return phi + alpha, beta - phi
-    return phi - alpha, -beta - phi
+
+    def closure(x: float, branch: Branch) -> tuple[float, float]:
+        half = 0.5 * x
+        try:
+            s = _sin(half)
+        except ValueError:  # math.sin(inf)
+            raise DyadOpenError from None
+        hs = two_l2 * s  # L2 sin(x/2)
+        w = 2.0 * hs * s  # 4 L1 L2 sin^2(x/2)
+        far = far0 - w
+        near = near0 + w
+        if not far * near >= 0.0:  # rare: zero a factor negative only by rounding at the reach limit, else open
+            if -tol <= far < 0.0:
+                far = 0.0
+            if -tol <= near < 0.0:
+                near = 0.0
+            if not (far >= 0.0 and near >= 0.0):
+                raise DyadOpenError
+        if diff_sq + w == 0.0:
+            raise DyadChangePointError(float(x))
+        root = _sqrt(far * near)
+        c = _cos(half)
+        if cut_at_pi:
+            phi = _PI + _atan2(-hs * c, -diff - hs * s)
+        else:
+            phi = _atan2(hs * c, diff + hs * s)
+        alpha = _atan2(root, cos_p + w)
+        beta = alpha if equal_links else _atan2(root, cos_q + w)
+        if branch is _UPPER:
+            return phi + alpha, beta - phi
+        return phi - alpha, -beta - phi
+
+    return closure
 
 
 def open_factors(k: DyadConstants, far: FloatArray, near: FloatArray) -> npt.NDArray[np.bool_]:
@@ -177,7 +187,7 @@ def closes(k: DyadConstants, x: FloatArray) -> npt.NDArray[np.bool_]:
 
 def closure_array(k: DyadConstants, x: FloatArray, branch: Branch,
                   on_invalid: OnInvalid) -> tuple[FloatArray, FloatArray]:
-    """closure() on every element of a float64 array x (rad): (angle_p, angle_q) arrays of x's shape.
+    """closure_for(k)'s closure on every element of a float64 array x (rad): (angle_p, angle_q) arrays of x's shape.
 
     With on_invalid='raise' an element where the dyad does not close raises DyadOpenError, a change point
     DyadChangePointError (block by block, in order); with 'nan' those elements are NaN. Solved in cache-sized
@@ -195,7 +205,7 @@ def closure_array(k: DyadConstants, x: FloatArray, branch: Branch,
 
 def _closure_block(k: DyadConstants, t: FloatArray, branch: Branch, on_invalid: OnInvalid, out_p: FloatArray,
                    out_q: FloatArray) -> None:
-    """closure()'s operations, in the same order, on one block; results written to out_p, out_q."""
+    """closure_for(k)'s operations, in the same order, on one block; results written to out_p, out_q."""
     with np.errstate(invalid='ignore'):
         half = t * 0.5
         s = np.sin(half)

@@ -24,9 +24,10 @@ from .dyad import (
     DyadChangePointError,
     DyadConstants,
     DyadOpenError,
+    ScalarClosure,
     closes,
-    closure,
     closure_array,
+    closure_for,
     dyad_constants,
     reach_half_angles,
 )
@@ -55,6 +56,7 @@ class FourBar:
     coupler: float
     rocker: float
     _k: DyadConstants = field(init=False, repr=False, compare=False)
+    _closure: ScalarClosure = field(init=False, repr=False, compare=False)  #: closure_for(_k)
     crank_gap: float = field(init=False, compare=False)  #: the crank closes the loop iff gap <= |t2| <= max
     crank_max: float = field(init=False, compare=False)
 
@@ -71,8 +73,13 @@ class FourBar:
                 f'the four-bar ground={l1:.6g}, crank={l2:.6g}, coupler={l3:.6g}, rocker={l4:.6g} never '
                 f'assembles: no crank angle lets the coupler and rocker close the loop') from None
         object.__setattr__(self, '_k', k)
+        object.__setattr__(self, '_closure', closure_for(k))
         object.__setattr__(self, 'crank_gap', gap)
         object.__setattr__(self, 'crank_max', top)
+
+    def __reduce__(self) -> tuple[type[FourBar], tuple[float, float, float, float]]:
+        """Pickle the lengths only (the derived constants and the bound closure are rebuilt)."""
+        return FourBar, (self.ground, self.crank, self.coupler, self.rocker)
 
     def freudenstein_constants(self) -> tuple[float, float, float]:
         """(K1, K2, K3) of Freudenstein's equation (dimensionless), in the standard form above."""
@@ -98,7 +105,7 @@ class FourBar:
         which = Branch(branch)  # also takes the plain +1 / -1
         if isinstance(t2, (float, int)):
             try:
-                t3, q = closure(self._k, -t2, which)
+                t3, q = self._closure(-t2, which)
             except DyadOpenError:
                 raise self._unreachable(float(t2)) from None
             except DyadChangePointError:
