@@ -365,7 +365,7 @@ class AntennaLinkage:
         # P -> Q with x = -q; the dyad's angle at P is the coupler's direction from +x (-theta with AB as the crank,
         # +theta mirrored, CD as the crank) and its angle at Q is the other rocker's angle.
         k, closure, reach = self._rocker_dyad(driven)
-        which = Branch(branch)  # also takes the plain +1 / -1
+        which = branch if type(branch) is Branch else Branch(branch)  # also takes a plain +1 / -1
         sign = -1.0 if driven is Driven.GAMMA else 1.0
         if isinstance(q, (float, int)):
             try:

@@ -102,7 +102,7 @@ class FourBar:
         Raises UnreachableError where the loop cannot close (for arrays, or NaN there with on_invalid='nan').
         """
         # The diagonal B -> O4 is the dyad's P -> Q with x = -t2; t3 is the dyad's angle at P, t4 = pi - its angle at Q.
-        which = Branch(branch)  # also takes the plain +1 / -1
+        which = branch if type(branch) is Branch else Branch(branch)  # also takes a plain +1 / -1
         if isinstance(t2, (float, int)):
             try:
                 t3, q = self._closure(-t2, which)
