@@ -43,15 +43,19 @@ def antenna_angles(frame: float, ab: float, coupler: float, cd: float, theta: fl
 
 def antenna_rates(frame: float, ab: float, coupler: float, cd: float, theta: float,
                   branch: int = 1) -> tuple[mpf, mpf]:
-    """(d gamma/d theta, d delta/d theta) by high-precision numerical differentiation of antenna_angles."""
-    def part(i: int) -> Callable[[mpf], mpf]:
-        def f(t: mpf) -> mpf:
-            with mp.workdps(DIGITS + 20):
-                return _angles_mp(frame, ab, coupler, cd, t, branch)[i]
-        return f
+    """(d gamma/d theta, d delta/d theta) by high-precision numerical differentiation of the angles, DIGITS digits.
 
+    mpmath.diff raises the working precision for its difference quotients, so the function it differentiates
+    must compute at the ambient precision (a fixed workdps inside it would cap the result at ~18 digits).
+    """
+    def part(i: int) -> Callable[[mpf], mpf]:
+        return lambda t: _angles_mp(frame, ab, coupler, cd, t, branch)[i]
+
+    with mp.workdps(DIGITS + 20):
+        x = mpf(theta)
+        dg, dd = mpmath.diff(part(0), x), mpmath.diff(part(1), x)
     with mp.workdps(DIGITS):
-        return mpmath.diff(part(0), mpf(theta)), mpmath.diff(part(1), mpf(theta))
+        return +dg, +dd
 
 
 def _angles_mp(frame: float, ab: float, coupler: float, cd: float, t: mpf, branch: int) -> tuple[mpf, mpf]:

@@ -7,6 +7,7 @@ import math
 import mpmath
 import numpy as np
 import pytest
+from reference_table import FLOAT_ROWS
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
 from benchmarks.reference import (
@@ -22,12 +23,8 @@ from benchmarks.reference import (
     rocker_angles_mp,
 )
 
-# NOTES.md, "Values to expect (upper branch), from a 60-digit evaluation" (degrees; rates dimensionless).
-NOTES_TABLE = [
-    (-6, 40.921022829819, 56.378807215667, 1.518562886208, -0.981111583723),
-    (0, 49.458398126495, 49.458398126495, 1.307692307692, -1.307692307692),
-    (7, 57.328038082382, 39.390113547656, 0.916954003692, -1.542784836266),
-]
+# The 60-digit reference table (test/data/turnantenna_reference.csv): degrees; rates dimensionless.
+REFERENCE_TABLE = FLOAT_ROWS
 
 RANDOM = np.random.default_rng(12345)
 
@@ -40,8 +37,8 @@ def random_geometry(i: int) -> Geometry:
     return Geometry(f'random{i}', float(H), float(a), float(h), float(b))
 
 
-@pytest.mark.parametrize(('deg', 'gamma', 'delta', 'dg', 'dd'), NOTES_TABLE)
-def test_reference_reproduces_notes_table(deg: float, gamma: float, delta: float, dg: float, dd: float) -> None:
+@pytest.mark.parametrize(('deg', 'gamma', 'delta', 'dg', 'dd'), REFERENCE_TABLE)
+def test_reference_reproduces_the_reference_table(deg: float, gamma: float, delta: float, dg: float, dd: float) -> None:
     theta = math.radians(deg)
     g, d = rocker_angles_mp(TURNANTENNA, theta)
     assert math.degrees(float(g)) == pytest.approx(gamma, abs=1e-11)
@@ -93,7 +90,7 @@ def test_reach_float_is_the_last_reachable_float() -> None:
         rocker_angles_mp(geo, -top)
         with pytest.raises(ReferenceUnreachableError):
             rocker_angles_mp(geo, math.nextafter(top, math.inf))
-    # Turnantenna reaches |theta| <= 39.33 deg (NOTES).
+    # Turnantenna reaches |theta| <= 39.33 deg (the rockers in line: |AD'| = 2 l).
     assert math.degrees(reach_float(TURNANTENNA)[1]) == pytest.approx(39.328, abs=1e-3)
 
 

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from reference_table import FLOAT_ROWS
 
 from fourbar_ros.cli import main as cli_main
 from fourbar_ros.errors import InvalidGeometryError, SingularPositionError
@@ -94,16 +95,15 @@ def test_three_positions_recover_known_linkage(name: str, branch: int) -> None:
         assert math.copysign(1, side_of_b_o4((d.ground, d.crank, d.coupler, d.rocker), p.t2, p.t4)) == p.branch
 
 
-def test_turnantenna_linkage_from_the_notes_table() -> None:
+def test_turnantenna_linkage_from_the_reference_table() -> None:
     """The antenna linkage is a four-bar with ground AD, crank AB (t2 = gamma) and rocker DC (t4 = pi - delta).
-    Three rows of the independent 60-digit table in NOTES.md (-6, 0, +7 deg) must give back Turnantenna's
-    60 / 102 / 60 mm, to within what the table's 12 decimals of a degree allow (sensitivity * 0.5e-12 deg)."""
-    rows = [(40.921022829819, 56.378807215667), (49.458398126495, 49.458398126495),
-            (57.328038082382, 39.390113547656)]
-    pairs = [(math.radians(g), math.pi - math.radians(d)) for g, d in rows]
+    The three rows of the 60-digit reference table (test/data/turnantenna_reference.csv, -6, 0, +7 deg) must give
+    back Turnantenna's 60 / 102 / 60 mm, to within what double precision allows: each angle is good to a few ulps
+    of pi (the float of the table's degrees, radians(), pi - delta), and the lengths to sensitivity times that."""
+    pairs = [(math.radians(r.gamma_deg), math.pi - math.radians(r.delta_deg)) for r in FLOAT_ROWS]
     d = synthesize(pairs, ground=0.180)
-    bound = d.sensitivity * math.radians(0.5e-12)
-    assert 1e-13 < bound < 1e-11  # the table, not double precision, limits this check
+    bound = d.sensitivity * 4 * EPS * math.pi
+    assert 1e-14 < bound < 1e-12
     assert rel_err((d.crank, d.coupler, d.rocker), (0.060, 0.102, 0.060)) <= bound
     assert d.k1 == pytest.approx(3.0, rel=bound) and d.k2 == pytest.approx(3.0, rel=bound)
     assert d.k3 == pytest.approx((0.18**2 + 0.06**2 - 0.102**2 + 0.06**2) / (2 * 0.06 * 0.06), rel=2 * bound)
