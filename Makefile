@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup demo test lint bench-deps bench bench-quick clean
+.PHONY: setup demo test test-jitter lint bench-deps bench bench-quick clean
 
 setup:
 	@PYTHON=$(PYTHON) VENV=$(VENV) ./scripts/bootstrap.sh
@@ -17,6 +17,10 @@ lint: setup
 
 test: lint
 	$(BIN)/python -m pytest
+
+# The pure (non-ROS) tests as if on another CPU: numpy's transcendentals moved by one ulp (test/ulp_jitter.py).
+test-jitter: setup
+	$(BIN)/python -m pytest -m 'not ros' --ulp-jitter
 
 bench-deps: setup
 	$(BIN)/python -m pip install --quiet -c requirements/constraints.txt -r requirements/bench.txt
