@@ -62,7 +62,10 @@ def test_leaves_math_scalars_and_exact_values_alone(plain_numpy: None) -> None:
     with ulp_jitter.jittered(1.0):
         assert [(math.sin(v), math.cos(v), math.atan2(v, 0.7)) for v in x] == libm  # the scalar path: untouched
         assert np.sin(0.0) == 0.0 and np.cos(0.0) == 1.0 and np.arctan2(0.0, 1.0) == 0.0
-        assert np.all(np.abs(np.cos(np.linspace(-1e-9, 1e-9, 101))) <= 1.0)  # never past the function's range
+        assert np.all(np.abs(np.cos(np.linspace(-0.1, 0.1, 101))) <= 1.0)  # never past the function's range
+        tiny = np.geomspace(1e-300, 1e-8, 101)  # leading-term regime: cos x = 1, sin x = x in every libm
+        assert np.all(np.cos(tiny) == 1.0) and np.array_equal(np.sin(tiny), tiny)
+        assert np.array_equal(np.arctan2(tiny, 1.0), tiny) and np.all(np.hypot(1.0, tiny) == 1.0)
         assert abs(float(np.arctan2(1e-300, -1.0))) <= math.pi
         assert math.isnan(np.sin(np.nan)) and np.exp(-np.inf) == 0.0
         assert np.sin.nin == 1 and np.arctan2.nout == 1  # the ufunc's attributes are still there

@@ -6,9 +6,10 @@ CPU it was written on compares two float paths bit for bit somewhere. With the j
 wrapped ufuncs moves by one ulp (up or down) on a deterministic share of the elements, chosen by a hash of the
 input bits and of the element's position in the call (numpy dispatches by layout: a strided or overlapping array
 may take libm's loop where a contiguous one takes the SIMD loop, so the same value can round differently in
-another place). The same call always gives the same output; calls with out= are moved in place; exact special
-values (a zero or non-finite input or result) are left alone, as every real implementation returns them exactly.
-math.* (the scalar paths) is untouched.
+another place). The same call always gives the same output; calls with out= are moved in place. Left alone, as
+every real implementation returns them exactly: special values (a zero or non-finite input or result) and the
+leading-term regimes (for |x| < 2**-26: cos x = 1, exp x = 1, sin x = x and the like; arctan2(y, x) and
+hypot(x, y) when one input is below 2**-26 times the other). math.* (the scalar paths) is untouched.
 
 Turn it on for a pytest run with ``--ulp-jitter`` or ``FOURBAR_ULP_JITTER=1``. The share of elements moved is
 ``--ulp-jitter-share`` or ``FOURBAR_ULP_JITTER_SHARE`` (default 0.25); ``--ulp-jitter-seed`` or
@@ -55,6 +56,11 @@ _S29 = np.uint64(29)
 _S32 = np.uint64(32)
 
 
+#: Unary ufuncs whose result is its leading term, exactly rounded, for |x| < TINY (cos x = 1, sin x = x, ...).
+LEADING_TERM = {'sin', 'cos', 'tan', 'arcsin', 'arccos', 'arctan', 'exp', 'expm1', 'log1p', 'tanh'}
+TINY = 2.0**-26
+
+
 def selection(inputs: tuple[Any, ...], share: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """(moved, up): which elements move and in which direction, from a hash of the inputs' float64 bits and of
     each element's flat position in the broadcast result (arrays of that shape, 0-d for scalars)."""
@@ -89,6 +95,16 @@ class JitteredUfunc:
         self.__name__ = ufunc.__name__
         self.__doc__ = ufunc.__doc__
 
+    def _leading_term(self, inputs: tuple[Any, ...], shape: tuple[int, ...]) -> np.ndarray:
+        """Where the result is its leading term, which every implementation returns exactly rounded."""
+        a = [np.abs(np.broadcast_to(np.asarray(x, dtype=np.float64), shape)) for x in inputs]
+        with np.errstate(invalid='ignore', over='ignore'):
+            if self.__name__ in LEADING_TERM:
+                return a[0] < TINY
+            if self.__name__ in ('arctan2', 'hypot'):
+                return (a[0] < TINY * a[1]) | (a[1] < TINY * a[0])
+        return np.zeros(shape, dtype=bool)
+
     def __getattr__(self, name: str) -> Any:  # nin, nout, reduce, outer, ...: the real ufunc's
         return getattr(self.ufunc, name)
 
@@ -102,6 +118,7 @@ class JitteredUfunc:
         # Chosen before the call: with out= aliasing an input, the input bits are gone afterwards.
         try:
             moved, up = selection(inputs, self.share, self.seed)
+            moved &= ~self._leading_term(inputs, moved.shape)
         except (TypeError, ValueError):  # object arrays and the like: not ours to move
             return self.ufunc(*args, **kwargs)
         where = kwargs.get('where', True)
