@@ -1,23 +1,26 @@
-r"""Independent high-precision reference for the antenna linkage (mpmath, 60 working digits, >= 50 correct).
+r"""Independent high-precision reference for the antenna linkage (mpmath, 60 working digits, >= 50 correct): the
+one reference of the benchmarks and the tests.
 
 Derived here from the loop-closure equations (Annex A, eq. A.2 convention), not from the core's code:
 
     A = 0, D = (H, 0), B = a (cos g, sin g), C = D + b (-cos d, sin d), C - B = h (cos t, -sin t).
 
-With u = (cos t, -sin t), C - D = B + h u - D, so |B - D'| = b for D' = D - h u = (H - h cos t, h sin t): B is an
-intersection of the circle (A, a) with the circle (D', b) - a triangle A, D', B with sides a, b and
-s = |D'|. With phi the direction of D' and alpha_A, alpha_D the triangle's angles at A and D', the upper branch
-(B to the left of A -> D', the annex's gamma + delta in [0, pi]) is gamma = phi + alpha_A, delta = alpha_D - phi;
-the lower branch is gamma = phi - alpha_A, delta = -alpha_D - phi.
+With u = (cos t, -sin t), C - D = B + h u - D, so |B - D'| = b for D' = D - h u = (H - h cos t, h sin t): B is the
+meeting point of the circle (A, a) and the circle (D', b), found in Cartesian coordinates (its projection p on the
+line A -> D' and its height q off it, q > 0 on the upper branch: B to the left of A -> D', the annex's
+gamma + delta in [0, pi]); gamma and delta are then read off B and C with atan2. (The core solves the triangle
+A, D', B by its angles instead: a different route to the same pose.)
 
-Every float input (lengths, theta) is taken as an exact binary number; results are wrapped to (-pi, pi] and handed
+Every float input (lengths, theta) is taken as an exact binary number; results lie in (-pi, pi] and are handed
 to float code as double-double pairs (hi, lo) so that errors far below one ulp can be measured.
-The condition number uses the implicit-function derivatives of the same loop equations (see :func:`condition`).
+The condition number and :func:`rates_mp` use the implicit-function derivatives of the same loop equations;
+:func:`rates_numeric_mp` differentiates the angles numerically instead (an independent check of both).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import mpmath
@@ -63,44 +66,41 @@ def _mp_lengths(g: Geometry) -> tuple[mpmath.mpf, mpmath.mpf, mpmath.mpf, mpmath
     return mpmath.mpf(g.frame), mpmath.mpf(g.rocker_ab), mpmath.mpf(g.coupler), mpmath.mpf(g.rocker_cd)
 
 
-def _wrap(x: mpmath.mpf) -> mpmath.mpf:
-    """Wrap an angle to (-pi, pi] at the working precision."""
-    two_pi = 2 * mpmath.pi
-    x = x - two_pi * mpmath.floor(x / two_pi)  # [0, 2 pi)
-    return x - two_pi if x > mpmath.pi else x
-
-
-def rocker_angles_mp(g: Geometry, theta: float, branch: int = 1, dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
-    """(gamma, delta) in radians, wrapped to (-pi, pi], for the exact float theta; branch +1 upper, -1 lower.
+def rocker_angles_mp(g: Geometry, theta: float, branch: int = 1, dps: int = DPS,
+                     limit_slack: float = 0.0) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """(gamma, delta) in radians, in (-pi, pi], for the exact float theta; branch +1 upper, -1 lower.
 
     Raises ReferenceUnreachableError outside the reach and ReferenceSingularError where the diagonal vanishes.
-    The values are mpf at ``dps`` digits (returned outside the precision context: use them promptly or
-    convert with :func:`to_double_double`).
+    ``limit_slack`` > 0 solves a theta out of reach by no more than that share of AB^2 in q^2 as the limit pose
+    (as the core does for a float past the limit by rounding only). The values are mpf at ``dps`` digits
+    (returned outside the precision context: use them promptly or convert with :func:`to_double_double`).
     """
+    if branch not in (1, -1):
+        raise ValueError(f'branch must be +1 or -1, not {branch!r}')
     with mpmath.workdps(dps):
-        H, a, h, b = _mp_lengths(g)
-        t = mpmath.mpf(theta)
-        px = H - h * mpmath.cos(t)
-        py = h * mpmath.sin(t)
-        s2 = px * px + py * py
-        if s2 == 0:
-            raise ReferenceSingularError(f'{g.name}: theta={theta!r} makes a parallelogram change point')
-        outer = (a + b) ** 2 - s2
-        inner = s2 - (a - b) ** 2
-        if outer < 0 or inner < 0:
-            raise ReferenceUnreachableError(f'{g.name}: theta={theta!r} is out of reach')
-        # 4 s^2 y^2 where y is B's height above A-D': Heron's formula, in factored form.
-        root = mpmath.sqrt(outer * inner)
-        phi = mpmath.atan2(py, px)
-        alpha_a = mpmath.atan2(root, a * a - b * b + s2)
-        alpha_d = mpmath.atan2(root, b * b - a * a + s2)
-        if branch == 1:
-            gamma, delta = phi + alpha_a, alpha_d - phi
-        elif branch == -1:
-            gamma, delta = phi - alpha_a, -alpha_d - phi
-        else:
-            raise ValueError(f'branch must be +1 or -1, not {branch!r}')
-        return _wrap(gamma), _wrap(delta)
+        return _angles(g, mpmath.mpf(theta), branch, limit_slack)
+
+
+def _angles(g: Geometry, t: mpmath.mpf, branch: int, limit_slack: float) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """rocker_angles_mp at the ambient precision (so that mpmath.diff can raise it)."""
+    H, a, h, b = _mp_lengths(g)
+    dx = H - h * mpmath.cos(t)  # D' = (dx, dy)
+    dy = h * mpmath.sin(t)
+    e2 = dx * dx + dy * dy
+    if e2 == 0:
+        raise ReferenceSingularError(f'{g.name}: theta={float(t)!r} makes a parallelogram change point')
+    e = mpmath.sqrt(e2)
+    p = (a * a - b * b + e2) / (2 * e)  # B's projection on A -> D'
+    q2 = a * a - p * p  # B's squared height off A -> D'
+    if q2 < 0:
+        if q2 < -limit_slack * a * a:
+            raise ReferenceUnreachableError(f'{g.name}: theta={float(t)!r} is out of reach')
+        q2 = mpmath.mpf(0)
+    q = branch * mpmath.sqrt(q2)
+    ux, uy = dx / e, dy / e
+    bx, by = p * ux - q * uy, p * uy + q * ux
+    cx, cy = bx + h * mpmath.cos(t), by - h * mpmath.sin(t)
+    return mpmath.atan2(by, bx), mpmath.atan2(cy, H - cx)
 
 
 def loop_residual_mp(g: Geometry, theta: float, gamma: mpmath.mpf, delta: mpmath.mpf,
@@ -214,6 +214,31 @@ def rates_mp(g: Geometry, theta: float, branch: int = 1) -> tuple[float, float]:
         dg = b * (mpmath.cos(dm) * v1 - mpmath.sin(dm) * v2) / det
         dd = a * (mpmath.cos(gm) * v1 + mpmath.sin(gm) * v2) / det
         return float(dg), float(dd)
+
+
+def rates_numeric_mp(g: Geometry, theta: float, branch: int = 1, limit_slack: float = 0.0,
+                     dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """(d gamma/d theta, d delta/d theta) by numerical differentiation of the angles, to ``dps`` digits.
+
+    mpmath.diff raises the working precision for its difference quotients, so the angles are computed at the
+    ambient precision (a fixed precision inside would cap the result at ~18 digits).
+    """
+    def part(i: int) -> Callable[[mpmath.mpf], mpmath.mpf]:
+        return lambda t: _angles(g, t, branch, limit_slack)[i]
+
+    with mpmath.workdps(dps + 20):
+        x = mpmath.mpf(theta)
+        dg, dd = mpmath.diff(part(0), x), mpmath.diff(part(1), x)
+    with mpmath.workdps(dps):
+        return +dg, +dd
+
+
+def angle_error_mp(value: float, ref: mpmath.mpf) -> float:
+    """|value - ref| in radians, modulo 2 pi (ref in (-pi, pi], value continuous)."""
+    with mpmath.workdps(DPS):
+        d = mpmath.mpf(value) - ref
+        d = d - 2 * mpmath.pi * mpmath.nint(d / (2 * mpmath.pi))
+        return abs(float(d))
 
 
 def reach_mp(g: Geometry, dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:

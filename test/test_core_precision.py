@@ -14,12 +14,32 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from mp_reference import EPS, angle_error, antenna_angles, antenna_rates, theta_limit
 from mpmath import mpf
 
+from benchmarks.reference import Geometry, rates_numeric_mp, reach_mp, rocker_angles_mp
+from benchmarks.reference import angle_error_mp as angle_error
 from fourbar_ros import AntennaLinkage, Branch, InvalidGeometryError, SingularPositionError
 
 BOUND = 8.0  # ulps of the condition-weighted magnitude
+EPS = math.ulp(1.0)
+#: The package solves an angle out of reach by no more than rounding as the limit pose; so does the reference.
+LIMIT_SLACK = 1e-12
+
+
+def antenna_angles(frame: float, ab: float, coupler: float, cd: float, theta: float,
+                   branch: int = 1) -> tuple[mpf, mpf]:
+    """The 60-digit reference (gamma, delta) of benchmarks.reference, solving the limit as above."""
+    return rocker_angles_mp(Geometry('link', frame, ab, coupler, cd), theta, branch, limit_slack=LIMIT_SLACK)
+
+
+def antenna_rates(frame: float, ab: float, coupler: float, cd: float, theta: float) -> tuple[mpf, mpf]:
+    """The reference rates by numerical differentiation of the 60-digit angles."""
+    return rates_numeric_mp(Geometry('link', frame, ab, coupler, cd), theta, limit_slack=LIMIT_SLACK)
+
+
+def theta_limit(frame: float, ab: float, coupler: float, cd: float) -> mpf:
+    """The outer reach limit theta_max at 60 digits (the rockers in line: |AD'| = AB + CD)."""
+    return reach_mp(Geometry('link', frame, ab, coupler, cd))[1]
 
 
 def condition(link: AntennaLinkage, theta: float, gamma: float, delta: float) -> tuple[float, float]:
