@@ -66,6 +66,8 @@ def test_leaves_math_scalars_and_exact_values_alone(plain_numpy: None) -> None:
         tiny = np.geomspace(1e-300, 1e-8, 101)  # leading-term regime: cos x = 1, sin x = x in every libm
         assert np.all(np.cos(tiny) == 1.0) and np.array_equal(np.sin(tiny), tiny)
         assert np.array_equal(np.arctan2(tiny, 1.0), tiny) and np.all(np.hypot(1.0, tiny) == 1.0)
+        flat = np.full(64, math.pi)  # cos(pi) = -1 and sin(pi/2) = 1 at every position: flat extremes are exact
+        assert np.all(np.cos(flat) == -1.0) and np.all(np.sin(flat / 2) == 1.0)
         assert abs(float(np.arctan2(1e-300, -1.0))) <= math.pi
         assert math.isnan(np.sin(np.nan)) and np.exp(-np.inf) == 0.0
         assert np.sin.nin == 1 and np.arctan2.nout == 1  # the ufunc's attributes are still there

@@ -7,9 +7,10 @@ wrapped ufuncs moves by one ulp (up or down) on a deterministic share of the ele
 input bits and of the element's position in the call (numpy dispatches by layout: a strided or overlapping array
 may take libm's loop where a contiguous one takes the SIMD loop, so the same value can round differently in
 another place). The same call always gives the same output; calls with out= are moved in place. Left alone, as
-every real implementation returns them exactly: special values (a zero or non-finite input or result) and the
-leading-term regimes (for |x| < 2**-26: cos x = 1, exp x = 1, sin x = x and the like; arctan2(y, x) and
-hypot(x, y) when one input is below 2**-26 times the other). math.* (the scalar paths) is untouched.
+every real implementation returns them exactly: special values (a zero or non-finite input or result, a result
+at the function's extreme such as cos x = -1, where the function is flat) and the leading-term regimes (for
+|x| < 2**-26: cos x = 1, exp x = 1, sin x = x and the like; arctan2(y, x) and hypot(x, y) when one input is
+below 2**-26 times the other). math.* (the scalar paths) is untouched.
 
 Turn it on for a pytest run with ``--ulp-jitter`` or ``FOURBAR_ULP_JITTER=1``. The share of elements moved is
 ``--ulp-jitter-share`` or ``FOURBAR_ULP_JITTER_SHARE`` (default 0.25); ``--ulp-jitter-seed`` or
@@ -131,7 +132,8 @@ class JitteredUfunc:
         if res.shape != moved.shape:  # broadcast against out= of a larger shape
             moved = np.broadcast_to(moved, res.shape)
             up = np.broadcast_to(up, res.shape)
-        moved = moved & np.isfinite(res) & (res != 0.0)
+        # A result at the function's extreme (cos = -1, |sin| = 1, ...) is where the function is flat: exact.
+        moved = moved & np.isfinite(res) & (res != 0.0) & (res != self.low) & (res != self.high)
         if not moved.any():
             return result
         toward = np.where(up, np.inf, -np.inf).astype(res.dtype)
