@@ -21,7 +21,9 @@ value's *scale*, the magnitude its rounding errors are relative to when two corr
   rocker that is not driven, have scale |value|;
 - any other Float64: scale = |value|.
 
-Values equal as floats (same NaN or inf included) always match. The default of 16 ulps allows a 1-2 ulp
+Values equal as floats (same NaN or inf included) always match. Each topic is read ``BLOCK`` messages at a time
+from both bags at once (the fixed JointState layouts decoded on arrays, see joint_state_cdr), so memory does not
+grow with the bags; a longer topic's extra messages are counted, not compared. The default of 16 ulps allows a 1-2 ulp
 difference in each of the up to four transcendental results (sin, cos, two atan2) that feed a value, with the
 factor <= 2 by which atan2 and the torque's sine ratio can pass a relative error on within the tilt range.
 """
@@ -30,7 +32,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Generator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,10 +43,13 @@ import numpy.typing as npt
 from fourbar_ros.antenna import Driven
 from fourbar_ros.bag_io import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config import AntennaConfig
+from fourbar_ros.joint_state_cdr import decode_float64s, decode_joint_states
 
 FloatArray = npt.NDArray[np.float64]
 DEFAULT_ULPS = 16.0
 #: What ``ignore`` may name.
+#: Messages per block and topic.
+BLOCK = 65536
 FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque')
 
 
@@ -76,40 +81,78 @@ def _rows(seqs: list[Any], width: int) -> FloatArray:
     return out
 
 
-def read_topics(path: str | os.PathLike[str]) -> dict[str, TopicData]:
-    """Every JointState and Float64 topic of a bag as arrays. Raises BagError (one line)."""
-    p = Path(path)
+def _first_line(exc: BaseException) -> str:
+    return (str(exc).strip() or type(exc).__name__).splitlines()[0].rstrip('.')
+
+
+def topic_types_of(path: str | os.PathLike[str]) -> dict[str, str]:
+    """Topic -> type of the JointState and Float64 topics of a bag. Raises BagError (one line)."""
+    with open_bag(path) as reader:
+        return {c.topic: c.msgtype for c in reader.connections if c.msgtype in (JOINT_STATE, FLOAT64)}
+
+
+def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[bytes], start: int) -> TopicData:
+    """One block of messages as arrays: the block decoders of joint_state_cdr, else rosbags message by message."""
     store = jazzy_typestore()
-    raw: dict[str, tuple[str, list[int], list[Any]]] = {}
-    with open_bag(p) as reader:
-        conns = [c for c in reader.connections if c.msgtype in (JOINT_STATE, FLOAT64)]
-        for c in conns:
-            raw.setdefault(c.topic, (c.msgtype, [], []))
+
+    def full(j: int, raw: bytes) -> Any:
         try:
-            for conn, stamp, data in reader.messages(connections=conns):
-                entry = raw[conn.topic]
-                entry[1].append(int(stamp))
-                entry[2].append(store.deserialize_cdr(bytes(data), conn.msgtype))
+            return store.deserialize_cdr(raw, msgtype)
         except Exception as exc:
-            text = (str(exc).strip() or type(exc).__name__).splitlines()[0]
-            raise BagError(f'{p}: unreadable bag ({text})') from exc
-    out: dict[str, TopicData] = {}
-    for topic, (msgtype, logs, msgs) in raw.items():
-        td = TopicData(msgtype, np.array(logs, dtype=np.int64))
-        if msgtype == FLOAT64:
-            td.data = np.array([m.data for m in msgs], dtype=np.float64)
-        else:
-            width = max((max(len(m.position), len(m.velocity), len(m.effort)) for m in msgs), default=0)
-            td.stamp_ns = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in msgs],
-                                   dtype=np.int64)
-            td.names = [tuple(m.name) for m in msgs]
-            td.frame_ids = [m.header.frame_id for m in msgs]
-            td.positions = _rows([m.position for m in msgs], width)
-            td.efforts = _rows([m.effort for m in msgs], width)
-            td.velocities = _rows([m.velocity for m in msgs], width)
-            td.has_velocity = np.array([len(m.velocity) > 0 for m in msgs], dtype=np.bool_)
-        out[topic] = td
-    return out
+            raise BagError(f'{path}: message {start + j} on {topic} is not a valid {msgtype} '
+                           f'({_first_line(exc)})') from exc
+
+    td = TopicData(msgtype, np.array(logs, dtype=np.int64))
+    if msgtype == FLOAT64:
+        values = decode_float64s(raws)
+        td.data = values if values is not None else np.array([full(j, r).data for j, r in enumerate(raws)],
+                                                             dtype=np.float64)
+        return td
+    first = full(0, raws[0])
+    fast = decode_joint_states(raws, first.header.frame_id, tuple(first.name))
+    if fast is not None:
+        td.stamp_ns, td.positions, td.efforts = fast.stamps_ns, fast.position, fast.effort
+        td.velocities, td.has_velocity = fast.velocity, fast.has_velocity
+        td.names = [fast.names] * len(raws)
+        td.frame_ids = [fast.frame_id] * len(raws)
+        return td
+    msgs = [full(j, r) for j, r in enumerate(raws)]
+    width = max((max(len(m.position), len(m.velocity), len(m.effort)) for m in msgs), default=0)
+    td.stamp_ns = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in msgs],
+                           dtype=np.int64)
+    td.names = [tuple(m.name) for m in msgs]
+    td.frame_ids = [m.header.frame_id for m in msgs]
+    td.positions = _rows([m.position for m in msgs], width)
+    td.efforts = _rows([m.effort for m in msgs], width)
+    td.velocities = _rows([m.velocity for m in msgs], width)
+    td.has_velocity = np.array([len(m.velocity) > 0 for m in msgs], dtype=np.bool_)
+    return td
+
+
+def topic_blocks(path: str | os.PathLike[str], topic: str, msgtype: str,
+                 block: int = BLOCK) -> Generator[TopicData, None, None]:
+    """The messages of one topic, ``block`` at a time, as arrays. Raises BagError (one line)."""
+    p = Path(path)
+    with open_bag(p) as reader:
+        conns = [c for c in reader.connections if c.topic == topic]
+        logs: list[int] = []
+        raws: list[bytes] = []
+        done = 0
+        try:
+            for _, stamp, data in reader.messages(connections=conns):
+                logs.append(int(stamp))
+                raws.append(bytes(data))
+                if len(raws) == block:
+                    yield _decode(p, topic, msgtype, logs, raws, done)
+                    done += len(raws)
+                    logs, raws = [], []
+        except BagError:
+            raise
+        except Exception as exc:
+            raise BagError(f'{p}: unreadable bag after {done + len(raws)} messages on {topic} '
+                           f'({_first_line(exc)})') from exc
+        if raws:
+            yield _decode(p, topic, msgtype, logs, raws, done)
 
 
 # --------------------------------------------------------------------------- scales
@@ -119,20 +162,40 @@ def position_scale(q: FloatArray) -> FloatArray:
     return np.abs(q) + math.pi
 
 
-def velocity_scale(stamps_ns: npt.NDArray[np.int64], positions: FloatArray, velocities: FloatArray) -> FloatArray:
-    """|v| + (|q| + |q_anchor| + 2 pi) / dt per element; |v| where no interval is known."""
-    n = stamps_ns.size
-    idx = np.arange(n)
-    new_run = np.ones(n, dtype=np.bool_)
-    new_run[1:] = stamps_ns[1:] != stamps_ns[:-1]
-    run_start = np.maximum.accumulate(np.where(new_run, idx, 0))
-    anchor = np.zeros(n, dtype=np.intp)
+@dataclass
+class AnchorState:
+    """The velocity rule's anchor (stamp ns, positions rad) after the previous block; None before any."""
+
+    stamp_ns: int | None = None
+    positions: FloatArray = field(default_factory=lambda: np.zeros(0))
+
+
+def velocity_scale(stamps_ns: npt.NDArray[np.int64], positions: FloatArray, velocities: FloatArray,
+                   state: AnchorState | None = None) -> FloatArray:
+    """|v| + (|q| + |q_anchor| + 2 pi) / dt per element; |v| where no interval is known. ``state`` carries the
+    anchor from block to block (updated)."""
+    state = state if state is not None else AnchorState()
+    n, k = positions.shape
+    if n == 0:
+        return np.abs(velocities)
+    carried = state.stamp_ns is not None and state.positions.shape == (k,)
+    if carried:
+        t = np.concatenate((np.array([state.stamp_ns], dtype=np.int64), stamps_ns))
+        q = np.concatenate((state.positions.reshape(1, k), positions))
+    else:
+        t, q = stamps_ns, positions
+    new_run = np.ones(t.size, dtype=np.bool_)
+    new_run[1:] = t[1:] != t[:-1]
+    run_start = np.maximum.accumulate(np.where(new_run, np.arange(t.size), 0))
+    anchor = np.zeros(t.size, dtype=np.intp)
     anchor[1:] = run_start[:-1]
-    dt = (stamps_ns - stamps_ns[anchor]).astype(np.float64) * 1e-9
+    dt = (t - t[anchor]).astype(np.float64) * 1e-9
     with np.errstate(divide='ignore', invalid='ignore'):
-        spread = (np.abs(positions) + np.abs(positions[anchor]) + 2.0 * math.pi) / dt[:, None]
+        spread = (np.abs(q) + np.abs(q[anchor]) + 2.0 * math.pi) / dt[:, None]
     spread[~(dt > 0.0)] = 0.0
-    out: FloatArray = np.abs(velocities) + spread
+    state.stamp_ns = int(t[run_start[-1]])
+    state.positions = q[run_start[-1]].copy()
+    out: FloatArray = np.abs(velocities) + (spread[1:] if carried else spread)
     return out
 
 
@@ -218,7 +281,8 @@ class Comparer:
         out: FloatArray = self.ulps * np.spacing(np.abs(scale))
         return out
 
-    def floats(self, topic: str, what: str, a: FloatArray, b: FloatArray, scale: FloatArray) -> None:
+    def floats(self, topic: str, what: str, a: FloatArray, b: FloatArray, scale: FloatArray,
+               offset: int = 0) -> None:
         """Element-wise a vs b within allowed(scale); equal floats (NaN == NaN included) always pass."""
         same = (a == b) | (np.isnan(a) & np.isnan(b))
         allowed = self.allowed(scale)
@@ -233,13 +297,13 @@ class Comparer:
         for row in bad[: self.result.limit]:
             i = int(row[0])
             label = what if a.ndim == 1 else f'{what}[{int(row[1])}]'
-            self.result.add(Difference(topic, i, label, float(a[tuple(row)]), float(b[tuple(row)]),
+            self.result.add(Difference(topic, offset + i, label, float(a[tuple(row)]), float(b[tuple(row)]),
                                        float(allowed[tuple(row)])))
         if len(bad) > self.result.limit:
             self.result.mismatches += len(bad) - self.result.limit
 
     def exact(self, topic: str, what: str, a: Sequence[Any] | npt.NDArray[Any],
-              b: Sequence[Any] | npt.NDArray[Any]) -> None:
+              b: Sequence[Any] | npt.NDArray[Any], offset: int = 0) -> None:
         """Element-wise equality (stamps, names, frame ids, velocity presence)."""
         if isinstance(a, np.ndarray) and isinstance(b, np.ndarray):
             bad: list[int] = np.flatnonzero(a != b).tolist()
@@ -247,33 +311,35 @@ class Comparer:
             bad = [i for i, (x, y) in enumerate(zip(a, b, strict=True)) if x != y]
         for i in bad[: self.result.limit]:
             x, y = a[i], b[i]
-            self.result.add(Difference(topic, i, what, x.item() if isinstance(x, np.generic) else x,
+            self.result.add(Difference(topic, offset + i, what, x.item() if isinstance(x, np.generic) else x,
                                        y.item() if isinstance(y, np.generic) else y))
         if len(bad) > self.result.limit:
             self.result.mismatches += len(bad) - self.result.limit
 
-    def joint_states(self, topic: str, a: TopicData, b: TopicData) -> None:
+    def joint_states(self, topic: str, a: TopicData, b: TopicData, offset: int, anchor: AnchorState) -> None:
+        """One block of JointStates (message ``offset`` on)."""
         assert a.positions is not None and b.positions is not None and a.stamp_ns is not None
         assert a.efforts is not None and b.efforts is not None and a.velocities is not None
         assert b.velocities is not None and a.has_velocity is not None and b.has_velocity is not None
         assert b.stamp_ns is not None
-        self.exact(topic, 'name', a.names, b.names)
-        self.exact(topic, 'frame_id', a.frame_ids, b.frame_ids)
+        self.exact(topic, 'name', a.names, b.names, offset)
+        self.exact(topic, 'frame_id', a.frame_ids, b.frame_ids, offset)
         if a.positions.shape != b.positions.shape:
-            self.result.add(Difference(topic, 0, 'joint count', a.positions.shape[1], b.positions.shape[1]))
+            self.result.add(Difference(topic, offset, 'joint count', a.positions.shape[1], b.positions.shape[1]))
             return
         if 'stamps' not in self.ignore:
-            self.exact(topic, 'header stamp (ns)', a.stamp_ns, b.stamp_ns)
+            self.exact(topic, 'header stamp (ns)', a.stamp_ns, b.stamp_ns, offset)
+            self.exact(topic, 'log time (ns)', a.log_ns, b.log_ns, offset)
         if 'positions' not in self.ignore:
-            self.floats(topic, 'position', a.positions, b.positions, position_scale(a.positions))
+            self.floats(topic, 'position', a.positions, b.positions, position_scale(a.positions), offset)
         if 'velocities' not in self.ignore:
-            self.exact(topic, 'velocity present', a.has_velocity, b.has_velocity)
+            self.exact(topic, 'velocity present', a.has_velocity, b.has_velocity, offset)
             both = a.has_velocity & b.has_velocity
-            scale = velocity_scale(a.stamp_ns, a.positions, a.velocities)
+            scale = velocity_scale(a.stamp_ns, a.positions, a.velocities, anchor)
             self.floats(topic, 'velocity', np.where(both[:, None], a.velocities, 0.0),
-                        np.where(both[:, None], b.velocities, 0.0), scale)
+                        np.where(both[:, None], b.velocities, 0.0), scale, offset)
         if 'efforts' not in self.ignore:
-            self.floats(topic, 'effort', a.efforts, b.efforts, self.effort_scale(a))
+            self.floats(topic, 'effort', a.efforts, b.efforts, self.effort_scale(a), offset)
 
     def effort_scale(self, a: TopicData) -> FloatArray:
         """Scale of each effort: the torque's condition at the driven rocker, |value| at the other."""
@@ -284,46 +350,66 @@ class Comparer:
             scale[:, d] = scale[:, d] * torque_condition(self.cfg, a.positions)
         return scale
 
-    def float64s(self, topic: str, a: TopicData, b: TopicData, joints: TopicData | None) -> None:
+    def float64s(self, topic: str, a: TopicData, b: TopicData, joints: TopicData | None, offset: int) -> None:
+        """One block of Float64s; ``joints``: A's joint_states of the same messages (the torque's condition)."""
         assert a.data is not None and b.data is not None
         if 'stamps' not in self.ignore:
-            self.exact(topic, 'log time (ns)', a.log_ns, b.log_ns)
+            self.exact(topic, 'log time (ns)', a.log_ns, b.log_ns, offset)
         if 'input_torque' in self.ignore and topic.rsplit('/', 1)[-1] == 'input_torque':
             return
         scale = np.abs(a.data)
-        if joints is not None and joints.positions is not None and len(joints) == len(a):
+        if joints is not None and joints.positions is not None and len(joints) == len(a) \
+                and joints.positions.shape[1] == 2:
             scale = scale * torque_condition(self.cfg, joints.positions)
-        self.floats(topic, 'data', a.data, b.data, scale)
+        self.floats(topic, 'data', a.data, b.data, scale, offset)
 
 
 def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str], cfg: AntennaConfig,
                  ulps: float = DEFAULT_ULPS, atol: float | None = None, ignore: Sequence[str] = (),
-                 limit: int = 10) -> Comparison:
-    """Compare the JointState and Float64 topics of two bags (see the module docstring). BagError on bad input."""
+                 limit: int = 10, block: int = BLOCK) -> Comparison:
+    """Compare the JointState and Float64 topics of two bags (see the module docstring), ``block`` messages at
+    a time per topic (memory does not grow with the bags). BagError (one line) on bad input."""
     comparer = Comparer(cfg, ulps, atol, ignore, limit)
     result = comparer.result
-    data_a, data_b = read_topics(path_a), read_topics(path_b)
-    if not data_a and not data_b:
+    types_a, types_b = topic_types_of(path_a), topic_types_of(path_b)
+    if not types_a and not types_b:
         raise BagError(f'{path_a}, {path_b}: no JointState or Float64 topic to compare')
-    for topic in sorted(set(data_a) | set(data_b)):
-        a, b = data_a.get(topic), data_b.get(topic)
-        if a is None or b is None:
-            result.add(Difference(topic, 0, 'topic', 'present' if a else 'missing', 'present' if b else 'missing'))
+    for topic in sorted(set(types_a) | set(types_b)):
+        ta, tb = types_a.get(topic), types_b.get(topic)
+        if ta is None or tb is None:
+            result.add(Difference(topic, 0, 'topic', 'present' if ta else 'missing', 'present' if tb else 'missing'))
             continue
-        if a.msgtype != b.msgtype:
-            result.add(Difference(topic, 0, 'type', a.msgtype, b.msgtype))
+        if ta != tb:
+            result.add(Difference(topic, 0, 'type', ta, tb))
             continue
-        n = min(len(a), len(b))
-        if len(a) != len(b):
-            result.add(Difference(topic, n, 'message count', len(a), len(b)))
-            a, b = _head(a, n), _head(b, n)
-        result.compared[topic] = n
-        if a.msgtype == JOINT_STATE:
-            comparer.joint_states(topic, a, b)
-        else:
-            sibling = data_a.get(f'{topic.rsplit("/", 1)[0]}/joint_states')
-            joints = _head(sibling, n) if sibling is not None and topic.endswith('/input_torque') else None
-            comparer.float64s(topic, a, b, joints)
+        sibling = f'{topic.rsplit("/", 1)[0]}/joint_states'
+        pair_joints = ta == FLOAT64 and topic.endswith('/input_torque') and types_a.get(sibling) == JOINT_STATE
+        joints_iter = topic_blocks(path_a, sibling, JOINT_STATE, block) if pair_joints else None
+        blocks_b = topic_blocks(path_b, topic, tb, block)
+        blocks_a = topic_blocks(path_a, topic, ta, block)
+        anchor = AnchorState()
+        count_a = count_b = 0
+        for a in blocks_a:
+            b = next(blocks_b, None)
+            joints = next(joints_iter, None) if joints_iter is not None else None
+            n = min(len(a), len(b)) if b is not None else 0
+            if n:
+                a_n, b_n = _head(a, n), _head(b, n)  # type: ignore[arg-type]
+                if ta == JOINT_STATE:
+                    comparer.joint_states(topic, a_n, b_n, count_a, anchor)
+                else:
+                    comparer.float64s(topic, a_n, b_n, None if joints is None else _head(joints, n), count_a)
+            count_a += len(a)
+            count_b += len(b) if b is not None else 0
+            if b is None or len(b) != len(a):
+                break
+        count_a += sum(len(x) for x in blocks_a)  # what one bag has more: counted, not compared
+        count_b += sum(len(x) for x in blocks_b)
+        if joints_iter is not None:
+            joints_iter.close()
+        result.compared[topic] = min(count_a, count_b)
+        if count_a != count_b:
+            result.add(Difference(topic, min(count_a, count_b), 'message count', count_a, count_b))
     return result
 
 

@@ -185,3 +185,66 @@ def decode_float64s(raws: Sequence[bytes]) -> FloatArray | None:
     if recs.size and not bool(np.all(recs['head'] == _HEAD)):
         return None
     return np.array(recs['data'], dtype=np.float64)
+
+
+@dataclass(frozen=True)
+class DecodedJointStates:
+    """JointStates of one frame_id and one list of names as arrays (stamps ns; positions, efforts,
+    velocities (n, k) with NaN rows where the velocity is empty; ``has_velocity``)."""
+
+    frame_id: str
+    names: tuple[str, ...]
+    stamps_ns: npt.NDArray[np.int64]
+    position: FloatArray
+    effort: FloatArray
+    velocity: FloatArray
+    has_velocity: npt.NDArray[np.bool_]
+
+
+def _constant_mask(layout: JointStateLayout) -> npt.NDArray[np.bool_]:
+    """True at the bytes of a layout that are the same in every message (everything but stamp and floats)."""
+    mask = np.ones(layout.size, dtype=np.bool_)
+    fields = layout.dtype.fields
+    assert fields is not None
+    for name in layout.dtype.names or ():
+        sub, offset = fields[name][0], fields[name][1]
+        mask[offset:offset + sub.itemsize] = False
+    return mask
+
+
+def decode_joint_states(raws: Sequence[bytes], frame_id: str, names: tuple[str, ...]) -> DecodedJointStates | None:
+    """Decode little-endian CDR JointStates that all have this frame_id and these names, position and effort of
+    ``len(names)`` values and a velocity of ``len(names)`` or none: the inverse of ``encode_joint_states``.
+    None when any message is in another form (the caller then uses a full deserializer)."""
+    n, k = len(raws), len(names)
+    layouts = {lay.size: lay for lay in (joint_state_layout(frame_id, names, True),
+                                         joint_state_layout(frame_id, names, False))}
+    if len(layouts) != 2:
+        return None
+    sizes = np.fromiter((len(r) for r in raws), dtype=np.int64, count=n)
+    stamps = np.empty(n, dtype=np.int64)
+    position, effort = np.empty((n, k)), np.empty((n, k))
+    velocity = np.full((n, k), np.nan)
+    has_velocity = np.zeros(n, dtype=np.bool_)
+    done = 0
+    for size, layout in layouts.items():
+        select = np.flatnonzero(sizes == size)
+        if select.size == 0:
+            continue
+        done += select.size
+        rows = np.frombuffer(b''.join([raws[i] for i in select.tolist()]), dtype=np.uint8).reshape(-1, size)
+        const = _constant_mask(layout)
+        template = np.frombuffer(layout.template, dtype=np.uint8)
+        if not bool(np.all(rows[:, const] == template[const])):
+            return None
+        recs = rows.reshape(-1).view(layout.dtype)
+        stamps[select] = recs['sec'].astype(np.int64) * 1_000_000_000 + recs['nanosec']
+        if k:
+            position[select] = recs['position']
+            effort[select] = recs['effort']
+            if layout.with_velocity:
+                velocity[select] = recs['velocity']
+        has_velocity[select] = layout.with_velocity
+    if done != n:
+        return None
+    return DecodedJointStates(frame_id, names, stamps, position, effort, velocity, has_velocity)

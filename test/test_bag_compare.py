@@ -122,6 +122,20 @@ def test_tolerance_in_ulps_of_the_scale(processed: Path, cfg: AntennaConfig, tmp
     assert not compare_bags(processed, tmp_path / 'b32', cfg, atol=1e-14).equal
 
 
+def test_blocks_change_nothing(processed: Path, cfg: AntennaConfig, tmp_path: Path) -> None:
+    """Read in blocks of 7 (the velocity anchor and the torque's joint_states carried across blocks): the same
+    verdicts, and a difference is reported at its index in the whole topic."""
+    assert compare_bags(processed, processed, cfg, block=7).equal
+    rewrite(processed, tmp_path / 'b', changed('/input_torque', 200, lambda m: setattr(m, 'data', m.data * 1.001)))
+    for block in (7, 65536):
+        result = compare_bags(processed, tmp_path / 'b', cfg, block=block)
+        assert [(d.topic, d.index) for d in result.differences] == [('/input_torque', 200)], block
+    rewrite(processed, tmp_path / 'short', lambda t, i, m: None if t == '/joint_states' and i >= 290 else m)
+    for block in (7, 10, 65536):
+        result = compare_bags(processed, tmp_path / 'short', cfg, block=block)
+        assert [(d.index, d.what, d.a, d.b) for d in result.differences] == [(290, 'message count', 300, 290)]
+
+
 def test_ignored_fields(processed: Path, cfg: AntennaConfig, tmp_path: Path) -> None:
     rewrite(processed, tmp_path / 'b', CASES['header stamp by 1 ns'])
     assert compare_bags(processed, tmp_path / 'b', cfg, ignore=['stamps']).equal

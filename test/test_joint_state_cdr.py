@@ -14,6 +14,7 @@ from hypothesis import strategies as st
 from fourbar_ros.bag_io import FLOAT64, JOINT_STATE, jazzy_typestore
 from fourbar_ros.joint_state_cdr import (
     decode_float64s,
+    decode_joint_states,
     encode_float64s,
     encode_joint_states,
     joint_state_layout,
@@ -113,3 +114,23 @@ def test_float64_decode_refuses_other_forms() -> None:
     assert decode_float64s([good, good[:8]]) is None
     assert decode_float64s([good + b'\x00\x00\x00\x00']) is None
     assert decode_float64s([good[:8], good + b'\x00\x00\x00\x00']) is None  # right total, wrong parts
+
+
+def test_joint_states_decode_back_or_refuse() -> None:
+    """decode_joint_states inverts the encoder (rosbags-equal bytes, so any such message) and refuses any
+    message of another form: other names or frame_id, another joint count, a truncated message."""
+    stamps = np.array([5, 1_000_000_003, 7], dtype=np.int64)
+    rng = np.random.default_rng(2)
+    pos, eff, vel = rng.normal(size=(3, 2)), rng.normal(size=(3, 2)), rng.normal(size=(3, 2))
+    has = np.array([True, False, True])
+    raws = encode_joint_states(stamps, 'ab', ('x', 'yyy'), pos, eff, vel, has)
+    got = decode_joint_states(raws, 'ab', ('x', 'yyy'))
+    assert got is not None
+    assert np.array_equal(got.stamps_ns, stamps) and np.array_equal(got.position, pos)
+    assert np.array_equal(got.effort, eff) and np.array_equal(got.has_velocity, has)
+    assert np.array_equal(got.velocity[has], vel[has]) and np.isnan(got.velocity[~has]).all()
+    assert decode_joint_states(raws, 'ab', ('x', 'yyz')) is None
+    assert decode_joint_states(raws, 'a', ('x', 'yyy')) is None
+    other = reference(5, 'ab', ('x', 'yyy'), [1.0, 2.0, 3.0], None, [1.0, 2.0, 3.0])
+    assert decode_joint_states([*raws, other], 'ab', ('x', 'yyy')) is None
+    assert decode_joint_states([*raws, raws[0][:-8]], 'ab', ('x', 'yyy')) is None
