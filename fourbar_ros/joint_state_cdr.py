@@ -14,6 +14,7 @@ bytes and the NUL.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -156,10 +157,15 @@ def encode_joint_states(stamps_ns: npt.NDArray[np.int64], frame_id: str, names: 
         return parts[True]
     if not parts[True]:
         return parts[False]
-    merged = np.empty(n, dtype=object)
-    merged[has_velocity] = parts[True]
-    merged[~has_velocity] = parts[False]
-    out: list[bytes] = merged.tolist()
+    # Interleave by runs of equal presence (few: a velocity is missing only after a gap or a stamp step).
+    edges = [0, *(np.flatnonzero(has_velocity[1:] != has_velocity[:-1]) + 1).tolist(), n]
+    out: list[bytes] = []
+    taken = {True: 0, False: 0}
+    for lo, hi in itertools.pairwise(edges):
+        kind = bool(has_velocity[lo])
+        start = taken[kind]
+        out += parts[kind][start:start + hi - lo]
+        taken[kind] = start + hi - lo
     return out
 
 
