@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import math
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
-from bag_support import BAG_DIR, CONFIG, committed_bags, run_tool
+from bag_support import BAG_DIR, CONFIG, Tool, committed_bags, run_tool
+from ros_support import wait_for
 
 from fourbar_ros.antenna import Driven
 from fourbar_ros.bag_io import (
@@ -238,3 +240,20 @@ def test_big_endian_commands_are_decoded(tmp_path: Path) -> None:
     check_against_oracle(tmp_path / 'out', [T0, T0 + 10_000_000], values, cfg)
 
 
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize('sig', [signal.SIGTERM, signal.SIGINT])
+def test_stopped_run_leaves_nothing(sig: int, tmp_path: Path) -> None:
+    """SIGTERM or Ctrl-C while writing: status 130 (interrupted, like `fourbar replay`), no traceback, neither the
+    output nor its temporary directory left."""
+    from benchmarks.process_bench import make_bag
+
+    make_bag(tmp_path / 'in', 400_000, 'mcap')  # long enough to be mid-write when the signal arrives
+    out = tmp_path / 'outputs'
+    with Tool(['process', tmp_path / 'in', out], dict(os.environ)) as tool:
+        wait_for(lambda: any(p.name.endswith('.partial') for p in tmp_path.iterdir()), what='the partial bag')
+        tool.signal(sig)
+        rc = tool.wait()
+    assert rc == 130 and not any('Traceback' in line for line in tool.lines), tool.lines
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['in']
