@@ -143,6 +143,13 @@ def test_ignored_fields(processed: Path, cfg: AntennaConfig, tmp_path: Path) -> 
     assert compare_bags(processed, tmp_path / 'c', cfg, ignore=['velocities']).equal
 
 
+def test_command_defaults_are_the_modules() -> None:
+    from fourbar_ros import bag_compare
+    from fourbar_ros.commands import compare
+
+    assert (compare.DEFAULT_ULPS, compare.FIELDS) == (bag_compare.DEFAULT_ULPS, bag_compare.FIELDS)
+
+
 def test_bad_input_is_one_line(processed: Path, tmp_path: Path) -> None:
     env = dict(os.environ)
     for args in (['compare', processed, tmp_path / 'missing'],

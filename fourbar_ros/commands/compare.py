@@ -6,14 +6,16 @@ import argparse
 import sys
 from pathlib import Path
 
+#: bag_compare.DEFAULT_ULPS and bag_compare.FIELDS, written out: building the parser must not import rosbags.
+DEFAULT_ULPS = 16.0
+FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque')
+
 HELP = ('compare the joint_states and input_torque of two bags message by message (ulps of each value\'s '
         'scale, or --atol); exit 0 equal, 1 different, 2 bad input')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `fourbar compare`."""
-    from ..bag_compare import DEFAULT_ULPS, FIELDS
-
     parser.add_argument('a', type=Path, metavar='A', help='bag (directory, .mcap or .db3)')
     parser.add_argument('b', type=Path, metavar='B', help='bag to compare with A')
     tol = parser.add_mutually_exclusive_group()
