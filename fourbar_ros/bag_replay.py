@@ -331,20 +331,27 @@ class Replayer:
             handshake(self.node, executor, subscribers + others, timeout_s)
         return answers
 
-    def prepare_clock(self, executor: Executor, timeout_s: float) -> list[str]:
-        """Before a replay with ``/clock``: make sure the command subscribers have discovered the clock
-        publisher (the handshake of ``fetch_parameters``), so the first commands already meet a clock.
+    def prepare_timed(self, executor: Executor, timeout_s: float) -> tuple[list[str], list[str]]:
+        """Before a timed replay: make sure every node subscribed to the command topic has discovered this
+        replayer's publishers (the handshake of ``fetch_parameters``). A best-effort subscription (the node's)
+        drops whatever arrives before it has matched the publisher, and nothing is resent.
 
-        Returns the subscribers whose ``use_sim_time`` is false (they ignore ``/clock``).
+        Returns (subscribers without parameter services, which may miss the first commands; subscribers whose
+        ``use_sim_time`` is false, which ignore ``/clock``).
         """
         cmd = self.publisher.topic_name
-        ignoring = []
+        unreachable: list[str] = []
+        ignoring: list[str] = []
         for target in wait_for_node_names(self.node, executor, lambda: subscriber_nodes(self.node, cmd),
                                           timeout_s, f'subscribed to {cmd}'):
-            values = fetch_parameters(self.node, executor, target, ['use_sim_time'], timeout_s)
+            try:
+                values = fetch_parameters(self.node, executor, target, ['use_sim_time'], timeout_s)
+            except ReplayError:
+                unreachable.append(target)
+                continue
             if values.get('use_sim_time') is not True:
                 ignoring.append(target)
-        return ignoring
+        return unreachable, ignoring
 
     def _publish_clock(self, stamp_ns: int) -> None:
         from builtin_interfaces.msg import Time

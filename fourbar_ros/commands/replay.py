@@ -99,8 +99,12 @@ def run(args: argparse.Namespace) -> int:
                 answer_topic = args.answer_topic or sibling_topic(node.resolve_topic_name(topic), 'joint_states')
             replayer = Replayer(node, stream, topic, answer_topic, clock=args.clock is not None)
             replayer.wait_for_node(executor, args.wait)
-            if args.clock is not None:
-                for fqn in replayer.prepare_clock(executor, args.wait):
+            if not args.lockstep:
+                unreachable, ignoring = replayer.prepare_timed(executor, args.wait)
+                for fqn in unreachable:
+                    print(f'{prog}: warning: {fqn} has no parameter services; it may miss the first commands',
+                          file=sys.stderr)
+                for fqn in ignoring if args.clock is not None else []:
                     print(f'{prog}: warning: {fqn} has use_sim_time false; it ignores /clock', file=sys.stderr)
             if args.lockstep:
                 answers = replayer.prepare_lockstep(executor, args.wait, answers_from_file)
