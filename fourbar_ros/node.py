@@ -10,9 +10,8 @@ Interface (relative names, so namespaces and remapping apply):
   pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
   pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
                                                      every marker_period s, only when subscribed and changed
-QoS: the ROS default profile (reliable, volatile, keep-last) with depth 1000 for the command and the
-per-command outputs (a burst of a thousand commands is queued, not dropped) and depth 10 for markers and
-diagnostics. Markers are not per command (drawing them costs more than the rest of a command): a timer
+QoS: keep-last 1000 for the command (best effort, see COMMAND_QOS) and the per-command outputs (reliable),
+reliable keep-last 10 for markers and diagnostics; commands the queues drop are counted (commands_lost). Markers are not per command (drawing them costs more than the rest of a command): a timer
 publishes them at most every marker_period s. Each can be overridden with
 ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
 The node only adapts messages and parameters; the math is in fourbar_ros.antenna/loads and the

@@ -34,6 +34,9 @@ REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = load_config(YAML)
 LO, HI = CFG.theta_min, CFG.theta_max
+#: Equality is used where the node and the test call the identical scalar functions on the same float: the
+#: node's pose_solver and ``core()`` both call ``linkage.rocker_angles(theta, branch)`` and
+#: ``linkage.torque_at(...)`` (constant load). TOL is for cross-path comparisons, each with its reason beside it.
 TOL = 1e-12
 _ns_counter = itertools.count()
 
@@ -123,9 +126,9 @@ def check_joint_states(cfg: AntennaConfig, msgs: list[JointState], served: list[
     for msg, theta in zip(msgs, served, strict=True):
         s = core(cfg, theta)
         assert list(msg.name) == list(cfg.joint_names)
-        assert msg.position[0] == pytest.approx(s.gamma, abs=TOL)
-        assert msg.position[1] == pytest.approx(s.delta, abs=TOL)
-        assert list(msg.effort) == pytest.approx([s.input_torque, 0.0], abs=TOL)
+        # Identical scalar functions on the same theta (see TOL): equal.
+        assert msg.position[0] == s.gamma and msg.position[1] == s.delta
+        assert list(msg.effort) == [s.input_torque, 0.0]
         assert all(math.isfinite(x) for x in [*msg.position, *msg.velocity, *msg.effort])
         stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
         if prev is not None:
@@ -133,7 +136,8 @@ def check_joint_states(cfg: AntennaConfig, msgs: list[JointState], served: list[
             dt = (stamp - prev_stamp) * 1e-9
             if 0.0 < dt <= cfg.velocity_timeout:
                 want = [(msg.position[i] - prev.position[i]) / dt for i in range(2)]
-                assert list(msg.velocity) == pytest.approx(want, rel=TOL, abs=TOL)
+                # The node's rule does the same operations (int ns difference * 1e-9, subtract, divide): equal.
+                assert list(msg.velocity) == want
             else:
                 assert list(msg.velocity) == []
         prev = msg
@@ -147,11 +151,17 @@ def check_markers(msg: MarkerArray, theta: float) -> None:
     assert len(rockers.points) == 4
     assert all(m.header.frame_id == 'fourbar_base' and m.ns == 'fourbar' for m in msg.markers)
     assert [m.id for m in msg.markers] == [0, 1, 2, 3, 4]
+    # Two code paths (marker_geometry vs transforms): coordinates below 0.2 m from a few products of lengths
+    # and sines/cosines of the solved angles, each ~1 ulp; C may come along another chain of the loop, which
+    # adds the solve's closure residual (ulps times the pose's condition, modest away from dead points).
+    # Both are many orders below TOL = 1e-12 m.
     for point, want in zip(joints.points, (ref.a, ref.b, ref.c, ref.d), strict=True):
         assert (point.x, point.y, point.z) == pytest.approx((want[0], want[1], 0.0), abs=TOL)
     got = [c for p in coupler.points for c in (p.x, p.y)]
     assert got == pytest.approx([*ref.b, *ref.c], abs=TOL)
     tail, tip = antenna.points
+    # tip - tail = coupler * (cos theta, -sin theta) up to the rounding of two sums of ~0.2 m (~3e-17 m each)
+    # against a 0.102 m arrow: the angle is within ~1e-15 rad of theta.
     assert math.atan2(-(tip.y - tail.y), tip.x - tail.x) == pytest.approx(theta, abs=TOL)
 
 
@@ -165,8 +175,10 @@ def test_outputs_match_the_core(ros: RosSession, make_rig: Any) -> None:
     check_joint_states(CFG, js, commands)
     for msg, theta in zip(tq, commands, strict=True):
         s = core(CFG, theta)
-        assert msg.data == pytest.approx(s.input_torque, abs=TOL)
-        # The shipped YAML is a constant load: input torque times dq/dtheta is that load everywhere.
+        assert msg.data == s.input_torque  # identical scalar function (see TOL)
+        # The shipped YAML is a constant load: input torque times dq/dtheta is that load everywhere. Two
+        # formulas (torque_at's dtheta/dq, rates_at's dq/dtheta), each a few ulps times its condition number,
+        # which is modest here (no dead point in the range): rel TOL = 1e-12 (~4500 ulps) bounds it.
         assert msg.data * s.dgamma_dtheta == pytest.approx(3.5, rel=TOL)
     # Markers come from a timer: the latest pose is drawn, and every drawing is of a served pose.
     b_x = 0.06 * math.cos(core(CFG, 0.05).gamma)
@@ -207,7 +219,7 @@ def test_bad_commands_rejected(make_rig: Any) -> None:
     served = [0.01, HI, LO, 0.02]
     check_joint_states(CFG, rig.outputs['joint_states'].wait_count(len(served)), served)
     tq = rig.outputs['input_torque'].wait_count(len(served))
-    assert [m.data for m in tq] == pytest.approx([core(CFG, t).input_torque for t in served], abs=TOL)
+    assert [m.data for m in tq] == [core(CFG, t).input_torque for t in served]  # identical function (see TOL)
     wait_for(lambda: rig.received() - before['commands_received'] == len(sequence), what='all commands counted')
     after = rig.node.counters.as_dict()
     delta = {k: after[k] - before[k] for k in after}
@@ -279,7 +291,7 @@ def test_runtime_parameter_changes_validated_as_a_whole(ros: RosSession, make_ri
     rig.send([0.25, 0.7])
     tq = rig.outputs['input_torque'].wait_count(3)[1:]
     for msg, theta in zip(tq, [0.25, 0.3], strict=True):
-        assert msg.data * core(CFG, theta).dgamma_dtheta == pytest.approx(2.0, rel=TOL)
+        assert msg.data * core(CFG, theta).dgamma_dtheta == pytest.approx(2.0, rel=TOL)  # two formulas: see above
 
 
 def test_outputs_nobody_subscribes_to_are_not_computed(ros: RosSession, make_rig: Any) -> None:

@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 import signal
+import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -95,12 +96,21 @@ def test_burst_losses_are_counted_and_warned(ros: RosSession) -> None:
         for i in range(BURST):
             msg.data = LO + (HI - LO) * ((i % 991) + 0.5) / 991
             rig.pub.publish(msg)
-        # A last, distinct command: keep-last queues drop the oldest, so it arrives, and every command before
-        # it has by then been taken or skipped (a gap in the sequence numbers before it).
-        sentinel = 0.5 * (LO + HI) + 1e-6
-        rig.pub.publish(Float64(data=sentinel))
-        rig.js.wait_match(lambda m: m.position[0] == gamma(sentinel))
-        sent = BURST + 1
+        # Then distinct closing commands, one at a time, until the last one sent is answered: every command
+        # before it has then been taken or skipped (a gap in the sequence numbers before it). Best effort
+        # may lose a closing command too, hence the repeats (each waits for its answer with a deadline).
+        sent = BURST
+        deadline = time.monotonic() + 60.0
+        while True:
+            closing = 0.5 * (LO + HI) + (sent - BURST + 1) * 1e-6
+            rig.pub.publish(Float64(data=closing))
+            sent += 1
+            try:
+                rig.js.wait_match(lambda m, c=closing: m.position[0] == gamma(c), timeout=1.0)
+                break
+            except AssertionError:
+                if time.monotonic() > deadline:
+                    raise
         status, values = rig.status(lambda s, v: sum(counts(v)) - received0 - lost0 >= sent)
         received, lost = counts(values)
         print(f'burst: sent {sent}, received {received - received0}, counted lost {lost - lost0}')
