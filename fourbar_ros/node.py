@@ -11,9 +11,10 @@ Interface (relative names, so namespaces and remapping apply):
   pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
                                                      every marker_period s, only when subscribed and changed
 QoS: keep-last 1000 for the command (best effort, see COMMAND_QOS) and the per-command outputs (reliable),
-reliable keep-last 10 for markers and diagnostics; commands the queues drop are counted (commands_lost). Markers are not per command (drawing them costs more than the rest of a command): a timer
-publishes them at most every marker_period s. Each can be overridden with
-``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
+reliable keep-last 10 for markers and diagnostics; commands the queues drop are counted (commands_lost).
+Each can be overridden with ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
+Markers are not per command (drawing them costs more than the rest of a command): a timer publishes them
+at most every marker_period s.
 The node only adapts messages and parameters; the math is in fourbar_ros.antenna/loads and the
 decisions in the pure modules command_policy, state_cache, joint_velocity, diagnostic_values.
 """
