@@ -10,6 +10,8 @@ node runs alone. Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
 
 from __future__ import annotations
 
+# ruff: noqa: I001 - `launch` is ROS's package; ruff takes it for this repository's launch/ folder
+
 import atexit
 import os
 import tempfile
