@@ -133,3 +133,46 @@ def _alive(p: Any) -> bool:
         return bool(p.is_running()) and p.status() != psutil.STATUS_ZOMBIE
     except psutil.NoSuchProcess:
         return False
+
+
+def echo_once(env: dict[str, str], topic: str, msg_type: str) -> Background:
+    """``ros2 topic echo --once TOPIC TYPE`` in the background (the type given: no discovery of it needed)."""
+    from colcon_support import ros2
+
+    return Background([ros2(), 'topic', 'echo', '--once', topic, msg_type], env)
+
+
+def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, value: float,
+                         timeout: float = TIMEOUT) -> dict[str, Any]:
+    """``ros2 topic pub --once`` (which waits for a matching subscription) until the echo has a message.
+
+    Repeated because discovery is not symmetric: the node may not yet see the echo's subscription when the
+    first command arrives (it skips outputs nobody subscribes to); one answer ends the echo.
+    """
+    import yaml
+    from colcon_support import ros2
+
+    deadline = time.monotonic() + timeout
+    while echo.proc.poll() is None:
+        if time.monotonic() > deadline:
+            raise AssertionError(f'no message on the echo after {timeout} s:\n{echo.output()[-2000:]}')
+        out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', topic, 'std_msgs/msg/Float64',
+                   f'{{data: {value!r}}}'], env, timeout=max(5.0, deadline - time.monotonic()))
+        assert out.returncode == 0, out.stdout + out.stderr
+    assert echo.wait_exit() == 0, echo.stderr
+    doc = yaml.safe_load(echo.stdout.split('\n---')[0])
+    assert isinstance(doc, dict), echo.stdout
+    return doc
+
+
+def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[str]:
+    """Poll ``ros2 node list --no-daemon`` until ``node`` is listed; return the list."""
+    from colcon_support import ros2
+
+    deadline = time.monotonic() + timeout
+    while True:
+        nodes = run([ros2(), 'node', 'list', '--no-daemon', '--spin-time', '3'], env).stdout.split()
+        if node in nodes:
+            return nodes
+        if time.monotonic() > deadline:
+            raise AssertionError(f'{node} not listed after {timeout} s: {nodes}')

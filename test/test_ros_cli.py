@@ -20,13 +20,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import yaml
 from colcon_support import colcon_install, ros2, ros2_cli_missing, sourced_env
 
 if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from ros_cli_support import TIMEOUT, Background, run  # needs psutil, which comes with ros2cli
+from ros_cli_support import TIMEOUT, Background, echo_once, publish_until_echoed, run  # psutil: with ros2cli
 from ros_support import lease_domain_id
 
 from fourbar_ros.config import load_config
@@ -48,31 +47,6 @@ class Antenna:
     proc: Background
     params: Path
     joint_states: dict[str, Any] = field(default_factory=dict)
-
-
-def echo_once(env: dict[str, str], topic: str, msg_type: str) -> Background:
-    """``ros2 topic echo --once TOPIC TYPE`` in the background (the type given: no discovery of it needed)."""
-    return Background([ros2(), 'topic', 'echo', '--once', topic, msg_type], env)
-
-
-def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, value: float,
-                         timeout: float = TIMEOUT) -> dict[str, Any]:
-    """``ros2 topic pub --once`` (which waits for a matching subscription) until the echo has a message.
-
-    Repeated because discovery is not symmetric: the node may not yet see the echo's subscription when the
-    first command arrives (it skips outputs nobody subscribes to); one answer ends the echo.
-    """
-    deadline = time.monotonic() + timeout
-    while echo.proc.poll() is None:
-        if time.monotonic() > deadline:
-            raise AssertionError(f'no message on the echo after {timeout} s:\n{echo.output()[-2000:]}')
-        out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', topic, 'std_msgs/msg/Float64',
-                   f'{{data: {value!r}}}'], env, timeout=max(5.0, deadline - time.monotonic()))
-        assert out.returncode == 0, out.stdout + out.stderr
-    assert echo.wait_exit() == 0, echo.stderr
-    doc = yaml.safe_load(echo.stdout.split('\n---')[0])
-    assert isinstance(doc, dict), echo.stdout
-    return doc
 
 
 @pytest.fixture(scope='module')
@@ -138,7 +112,7 @@ def test_published_joint_states_close_the_urdf_loop(antenna: Antenna) -> None:
 
 
 def _param_get(antenna: Antenna, name: str) -> str:
-    out = run([ros2(), 'param', 'get', '--no-daemon', NODE, name], antenna.env)
+    out = run([ros2(), 'param', 'get', '--no-daemon', '--timeout', '30', NODE, name], antenna.env)
     assert out.returncode == 0, out.stdout + out.stderr
     return out.stdout.strip()
 

@@ -1,0 +1,116 @@
+"""``ros2 launch fourbar_ros fourbar.launch.py`` over a colcon-built install: the node in the given namespace
+answers commands, arguments reach the node, robot_state_publisher / RViz start only where installed (else one log
+line), SIGINT ends everything with status 0; and one launch_testing test (``launch_test``).
+
+Runs where the ros2 command line and launch_ros are importable; skipped elsewhere with the reason.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+from colcon_support import BIN, colcon_install, launch_missing, ros2, ros2_cli_missing, sourced_env
+
+if (_why := ros2_cli_missing() or launch_missing()) is not None:
+    pytest.skip(_why, allow_module_level=True)
+
+from ros_cli_support import Background, echo_once, publish_until_echoed, run, wait_node  # psutil: with ros2cli
+from ros_support import lease_domain_id
+
+from fourbar_ros.config import load_config
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+REPO = Path(__file__).resolve().parent.parent
+EPS = sys.float_info.epsilon
+
+
+@dataclass
+class Install:
+    env: dict[str, str]
+    prefix: Path
+    cwd: Path
+
+
+@pytest.fixture(scope='module')
+def install(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Install]:
+    prefix = colcon_install(tmp_path_factory) / 'fourbar_ros'
+    lease = lease_domain_id()
+    env = sourced_env(dict(os.environ), prefix, lease.domain_id)
+    env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))
+    try:
+        yield Install(env, prefix, tmp_path_factory.mktemp('anywhere'))
+    finally:
+        run([ros2(), 'daemon', 'stop'], env, timeout=30)
+        lease.release()
+
+
+def installed(env: dict[str, str], package: str) -> bool:
+    return run([ros2(), 'pkg', 'prefix', package], env).returncode == 0
+
+
+def test_ros2_launch_in_a_namespace_serves_and_stops_on_sigint(install: Install) -> None:
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_launch'],
+                        install.env, cwd=install.cwd)
+    try:
+        nodes = wait_node(install.env, '/tilt_launch/fourbar_node')
+        if installed(install.env, 'robot_state_publisher'):
+            nodes = wait_node(install.env, '/tilt_launch/robot_state_publisher')
+        else:
+            launch.wait_output(lambda t: 'robot_state_publisher is not installed; not starting it' in t,
+                               'the log line about robot_state_publisher')
+        assert not [n for n in nodes if n.endswith('fourbar_node') and not n.startswith('/tilt_launch/')], nodes
+        cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
+        echo = echo_once(install.env, '/tilt_launch/joint_states', 'sensor_msgs/msg/JointState')
+        try:
+            msg = publish_until_echoed(install.env, echo, '/tilt_launch/antenna_angle_cmd', -0.05)
+        finally:
+            echo.kill()
+        gamma, delta = cfg.linkage.rocker_angles(-0.05, cfg.branch)
+        # Same core solve in node and test; 4 ulps for a different operation order (condition ~1.5 here).
+        assert abs(msg['position'][0] - gamma) <= 4 * EPS * abs(gamma)
+        assert abs(msg['position'][1] - delta) <= 4 * EPS * abs(delta)
+        children = launch.descendants()
+        assert children
+        status = launch.interrupt(group=False)  # `kill -INT` of ros2 launch: it stops its processes itself
+        assert status == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+        assert not launch.descendants(), 'a process outlived ros2 launch'
+    finally:
+        launch.kill()
+
+
+def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: Install, tmp_path: Path) -> None:
+    params = tmp_path / 'mine.yaml'
+    params.write_text((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8')
+                      .replace('load_torque: 3.5', 'load_torque: 1.25'), encoding='utf-8')
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=/tilt_args',
+                         f'params_file:={params}', 'use_sim_time:=true', 'rviz:=true'], install.env, cwd=install.cwd)
+    try:
+        wait_node(install.env, '/tilt_args/fourbar_node')
+        get = [ros2(), 'param', 'get', '--no-daemon', '--timeout', '30', '/tilt_args/fourbar_node']
+        assert run([*get, 'use_sim_time'], install.env).stdout.strip() == 'Boolean value is: True'
+        assert run([*get, 'load_torque'], install.env).stdout.strip() == 'Double value is: 1.25'
+        if not installed(install.env, 'rviz2'):
+            launch.wait_output(lambda t: 'rviz2 is not installed; not starting RViz' in t, 'the log line about rviz2')
+        launch.descendants()
+        status = launch.interrupt(group=True)  # Ctrl-C in a terminal: SIGINT to the whole foreground group
+        assert status == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+        assert not launch.descendants(), 'a process outlived ros2 launch'
+    finally:
+        launch.kill()
+
+
+def test_launch_testing_test_passes(install: Install) -> None:
+    launch_test = BIN / 'launch_test'
+    exe = str(launch_test) if launch_test.exists() else 'launch_test'
+    out = run([exe, str(REPO / 'test' / 'launch_fourbar_ready.py')], install.env, timeout=180, cwd=install.cwd)
+    text = out.stdout + out.stderr
+    assert out.returncode == 0, text[-4000:]
+    assert 'test_joint_states_answer_a_command' in text and 'test_exit_codes' in text, text[-4000:]
