@@ -98,6 +98,11 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'JointState name of the rocker AB joint (gamma).'),
     ParamSpec('delta_joint', str, 'rocker_cd_joint', '',
               'JointState name of the rocker CD joint (delta).'),
+    ParamSpec('coupler_joint', str, 'coupler_joint', '',
+              'JointState name of the coupler joint (position gamma + theta: the coupler BC from rocker AB), '
+              'so robot_state_publisher can place the coupler of the URDF from `fourbar urdf`.'),
+    ParamSpec('hardware_id', str, 'fourbar_antenna_tilt', '',
+              'Diagnostics hardware_id: names the hardware (the tilt drive), not a TF frame.'),
     ParamSpec('frame_id', str, 'fourbar_base', '',
               'Frame of the markers: origin at pivot A, x along A->D, y up.'),
     ParamSpec('out_of_limits', str, 'reject', '',

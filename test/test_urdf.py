@@ -236,3 +236,14 @@ def test_output_file_is_written_whole(tmp_path: Path) -> None:
     assert out.returncode == 0, out.stderr
     assert out_file.read_text(encoding='utf-8') == robot_description(default_config())
     assert sorted(p.name for p in tmp_path.iterdir()) == ['model.urdf']
+
+
+def test_coupler_joint_name_comes_from_the_parameter_file(tmp_path: Path) -> None:
+    params = tmp_path / 'named.yaml'
+    params.write_text(YAML.read_text(encoding='utf-8').replace('coupler_joint: coupler_joint ',
+                                                                'coupler_joint: bc_joint '), encoding='utf-8')
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'urdf', '--params', str(params)],
+                         capture_output=True, text=True, timeout=60, check=False)
+    assert out.returncode == 0, out.stderr
+    movable = {j.attrib['name'] for j in ET.fromstring(out.stdout).findall('joint') if j.attrib['type'] != 'fixed'}
+    assert movable == {'rocker_ab_joint', 'bc_joint', 'rocker_cd_joint'}
