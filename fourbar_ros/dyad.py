@@ -5,12 +5,15 @@ angle x. Two links of lengths r1 (at P) and r2 (at Q) meet at a third point. Wit
 
     |Q - P|^2              = (L1 - L2)^2 + w
     (r1 + r2)^2 - |Q - P|^2 = far - w     >= 0: the dyad is not over-stretched
+                           = far_pi + wc  with wc = 4 L1 L2 cos^2(x/2), the same factor measured from x = pi
     |Q - P|^2 - (r1 - r2)^2 = near + w    >= 0: the dyad is not over-folded
     angle at P = atan2(sqrt((far - w)(near + w)), cos_p + w),  angle at Q = atan2(same, cos_q + w)
 
 The constants (far, near, cos_p, cos_q) are exact rational functions of the lengths, rounded once at construction,
 so each per-angle quantity is one constant plus w: its only rounding beyond the constant's is that of w, which is
 the rounding the angle x itself brings. No acos, no asin, no difference of two rounded squares per call.
+Past |x| = pi/2 the over-stretch factor is taken as far_pi + wc: wc < w there, so its rounding is smaller, and near
+x = pi, where far - w would cancel when r1 + r2 = L1 + L2 (a linkage whose coupler turns a full circle), it does not.
 
 ``closure_for(k)`` (one Python float, math module: the scalar fast path) and ``closure_array`` (float64 arrays,
 numpy, in cache-sized blocks) apply the same operations in the same order; ``AntennaLinkage`` and ``FourBar`` both
@@ -39,6 +42,8 @@ class DyadConstants(NamedTuple):
     four_l1_l2: float  #: 4 L1 L2
     two_l2: float  #: 2 L2
     far: float  #: (r1 + r2)^2 - (L1 - L2)^2: room left before the dyad stretches straight
+    far_pi: float  #: (r1 + r2)^2 - (L1 + L2)^2: the same room at x = pi
+    wide: bool  #: the dyad closes somewhere past |x| = pi/2 (far > 2 L1 L2), where far_pi + wc is used
     near: float  #: (L1 - L2)^2 - (r1 - r2)^2: room left before the dyad folds flat
     cos_p: float  #: (L1 - L2)^2 + r1^2 - r2^2: 2 r1 |PQ| cos(angle at P), less w
     cos_q: float  #: (L1 - L2)^2 - r1^2 + r2^2: 2 r2 |PQ| cos(angle at Q), less w
@@ -62,7 +67,8 @@ def dyad_constants(l1: float, l2: float, r1: float, r2: float, unit: float = 1.0
     scale = max(s_sum, d2, 4 * fl1 * fl2)
     return DyadConstants(
         diff=float(diff), diff_sq=float(d2), four_l1_l2=float(4 * fl1 * fl2), two_l2=float(2 * fl2),
-        far=float(s_sum - d2), near=float(d2 - s_diff), cos_p=float(d2 + r_sq), cos_q=float(d2 - r_sq),
+        far=float(s_sum - d2), far_pi=float(s_sum - (fl1 + fl2) ** 2), wide=s_sum - d2 > 2 * fl1 * fl2,
+        near=float(d2 - s_diff), cos_p=float(d2 + r_sq), cos_q=float(d2 - r_sq),
         equal_links=r1 == r2, tol=8.0 * math.ulp(1.0) * float(scale), cut_at_pi=continuous_at_zero and diff < 0,
     )
 
@@ -112,6 +118,7 @@ class DyadChangePointError(ValueError):
 
 _UPPER = Branch.UPPER
 _sin, _cos, _sqrt, _atan2, _PI = math.sin, math.cos, math.sqrt, math.atan2, math.pi
+_SQRT_HALF = math.sqrt(0.5)  #: |sin(x/2)| above this: |x| past pi/2 (mod 2 pi)
 _BLOCK = 8192  #: elements per block of the vectorized solve: its working arrays (64 KiB each) stay in L2
 
 
@@ -129,7 +136,7 @@ def closure_for(k: DyadConstants) -> ScalarClosure:
     (NaN, inf, out of reach) and DyadChangePointError where P = Q. The constants are bound once, as the closure's
     own variables: the per-call cost is the math alone (this is the solvers' scalar hot path).
     """
-    diff, diff_sq, _, two_l2, far0, near0, cos_p, cos_q, equal_links, tol, cut_at_pi = k
+    diff, diff_sq, _, two_l2, far0, far_pi, wide, near0, cos_p, cos_q, equal_links, tol, cut_at_pi = k
 
     def closure(x: float, branch: Branch) -> tuple[float, float]:
         half = 0.5 * x
@@ -137,9 +144,14 @@ def closure_for(k: DyadConstants) -> ScalarClosure:
             s = _sin(half)
         except ValueError:  # math.sin(inf)
             raise DyadOpenError from None
-        hs = two_l2 * s  # L2 sin(x/2)
+        hs = two_l2 * s  # 2 L2 sin(x/2), L1 being the unit
         w = 2.0 * hs * s  # 4 L1 L2 sin^2(x/2)
-        far = far0 - w
+        c = _cos(half)
+        if wide and (s > _SQRT_HALF or s < -_SQRT_HALF):  # past |x| = pi/2: see the module docstring
+            hc = two_l2 * c
+            far = far_pi + 2.0 * hc * c
+        else:
+            far = far0 - w
         near = near0 + w
         if not far * near >= 0.0:  # rare: zero a factor negative only by rounding at the reach limit, else open
             if -tol <= far < 0.0:
@@ -151,7 +163,6 @@ def closure_for(k: DyadConstants) -> ScalarClosure:
         if diff_sq + w == 0.0:
             raise DyadChangePointError(float(x))
         root = _sqrt(far * near)
-        c = _cos(half)
         if cut_at_pi:
             phi = _PI + _atan2(-hs * c, -diff - hs * s)
         else:
@@ -182,7 +193,10 @@ def closes(k: DyadConstants, x: FloatArray) -> npt.NDArray[np.bool_]:
     with np.errstate(invalid='ignore'):
         s = np.sin(0.5 * np.asarray(x, dtype=np.float64))
     w = 2.0 * (s * k.two_l2) * s
-    return ~open_factors(k, k.far - w, w + k.near)
+    far = k.far - w
+    if k.wide:
+        _far_from_pi(k, s, np.cos(0.5 * np.asarray(x, dtype=np.float64)), far)
+    return ~open_factors(k, far, w + k.near)
 
 
 def closure_array(k: DyadConstants, x: FloatArray, branch: Branch,
@@ -214,6 +228,8 @@ def _closure_block(k: DyadConstants, t: FloatArray, branch: Branch, on_invalid: 
     w = hs * s
     w *= 2.0
     far = k.far - w
+    if k.wide:
+        _far_from_pi(k, s, c, far)
     near = w + k.near
     prod = far * near
     if not prod.min() >= 0.0:
@@ -249,3 +265,12 @@ def _closure_block(k: DyadConstants, t: FloatArray, branch: Branch, on_invalid: 
         np.subtract(phi, alpha, out=out_p)
         np.negative(beta, out=out_q)
         out_q -= phi
+
+
+def _far_from_pi(k: DyadConstants, s: FloatArray, c: FloatArray, far: FloatArray) -> None:
+    """Where |x| is past pi/2 (|sin(x/2)| > sqrt(1/2)), replace far - w by far_pi + wc (in place)."""
+    with np.errstate(invalid='ignore'):
+        past = np.abs(s) > _SQRT_HALF
+    if past.any():
+        cp = c[past]
+        far[past] = (cp * k.two_l2) * cp * 2.0 + k.far_pi
