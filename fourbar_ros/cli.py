@@ -10,16 +10,35 @@ import argparse
 import importlib
 import os
 import pkgutil
+import re
 import sys
 from collections.abc import Sequence
+from typing import Any
 
 from . import commands
 from .errors import FourBarError
 
+_NUMBER = r'(?:(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?|inf(?:inity)?|nan)'
+#: A token that starts with '-' but is a value: a number or a comma-separated list of numbers (-6e-1, -.5, -inf,
+#: -0.5,5.0). argparse's own rule only knows -5 and -0.5, so `--theta -6e-1` and `--pairs -0.5,5.0` read as flags.
+NEGATIVE_NUMBER = re.compile(rf'^-{_NUMBER}(?:,[+-]?{_NUMBER})*$', re.IGNORECASE)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, taking every token that reads as a negative number (or a list of numbers) as a value.
+
+    As in argparse, this holds while no option itself looks like a negative number (none of ours does); the
+    subcommand parsers are of this class too (add_subparsers makes them of the parent's class).
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER  # argparse's hook for this rule (an instance attribute)
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every discovered subcommand."""
-    parser = argparse.ArgumentParser(prog='fourbar', description=__doc__.splitlines()[0] if __doc__ else None)
+    parser = Parser(prog='fourbar', description=__doc__.splitlines()[0] if __doc__ else None)
     sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
     for info in sorted(pkgutil.iter_modules(commands.__path__), key=lambda m: m.name):
         if info.name.startswith('_'):

@@ -21,8 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='crank angle t2 and rocker angle t4 of one position, from the ground line O2->O4 '
                         '(rad; deg with --deg); three pairs give an exact design, more a least-squares fit')
     parser.add_argument('--pair', action='append', default=[], metavar='T2,T4',
-                        help='one more pair (repeatable); write a pair starting with a minus sign as --pair=-0.5,1.2, '
-                        'since the shell argument "-0.5,1.2" would read as an option')
+                        help='one more pair (repeatable)')
     parser.add_argument('--deg', action='store_true', help='angles are in degrees')
     parser.add_argument('--ground', type=float, default=1.0, metavar='LENGTH',
                         help='ground link length l1 (m); sets the scale (default 1.0)')
