@@ -4,6 +4,10 @@ NaN and inf are always rejected. A finite command outside [theta_min, theta_max]
 clamped to the nearer limit, by policy; out-of-reach commands are a sub-case of out-of-limits
 (the configured limits always lie inside the reach), told apart only for the message and counters.
 Commands exactly at a limit are accepted unchanged.
+
+An antenna angle command is a number, not a direction: theta + 2 pi is not theta, and a command is in reach only if
+the linkage reaches that very number (|theta| <= pi and ``Reach.contains``). So 2 pi + 0.05 and 1e308 are out of
+reach; the node, ``fourbar solve`` and ``fourbar replay`` use this rule (``in_reach``).
 """
 
 from __future__ import annotations
@@ -45,20 +49,42 @@ class Decision(NamedTuple):
     reason: str
 
 
-def _fmt(theta: float) -> str:
-    return f'{theta:.9g} rad ({math.degrees(theta):.6g} deg)'
+def angle_text(theta: float) -> str:
+    """An angle for messages: the exact double in rad (repr: two different doubles never print alike), then
+    degrees when they are finite (math.degrees overflows beyond ~3e306 rad)."""
+    deg = math.degrees(theta)
+    return f'{theta!r} rad ({deg:.6g} deg)' if math.isfinite(deg) else f'{theta!r} rad'
+
+
+def in_reach(reach: Reach, theta: float) -> bool:
+    """True if the linkage reaches the antenna angle ``theta`` (rad) as a number, not modulo 2 pi."""
+    return abs(theta) <= math.pi and reach.contains(theta)
+
+
+def out_of_reach_text(reach: Reach, theta: float) -> str:
+    """'is out of reach ...' for a finite ``theta`` (rad) that ``in_reach`` refuses, saying when it is only so
+    because angles are not wrapped (below 1e6 rad, where wrapping would still be accurate to ~1e-10 rad)."""
+    wrapped = ' (angles are numbers here, not taken modulo 2 pi)' if abs(theta) < 1e6 and reach.contains(theta) else ''
+    return f'is out of reach; reachable: {reach.describe()}{wrapped}'
 
 
 def decide(command: float, theta_min: float, theta_max: float, policy: Policy, reach: Reach) -> Decision:
-    """Apply the policy to one command (rad). ``reach`` only classifies out-of-limit commands."""
+    """Apply the policy to one command (rad). ``reach`` only classifies out-of-limit commands (see ``in_reach``)."""
     if theta_min <= command <= theta_max:  # the common case first; NaN and inf fail here (finite limits)
         return Decision(command, Outcome.ACCEPTED, '')
     if not math.isfinite(command):
         return Decision(None, Outcome.REJECTED_NOT_FINITE, f'command {command} rad is not finite')
-    limit = theta_min if command < theta_min else theta_max
-    where = 'out of reach' if not reach.contains(command) else 'outside the limits'
-    reason = (f'command {_fmt(command)} is {where} [{_fmt(theta_min)}, {_fmt(theta_max)}]')
+    below = command < theta_min
+    limit = theta_min if below else theta_max
+    if in_reach(reach, command):
+        outcome = Outcome.REJECTED_OUT_OF_LIMITS
+        side = 'below theta_min' if below else 'above theta_max'
+        reason = (f'command {angle_text(command)} is outside the limits: {side} {angle_text(limit)} '
+                  f'by {abs(command - limit):.3g} rad')
+    else:
+        outcome = Outcome.REJECTED_OUT_OF_REACH
+        reason = f'command {angle_text(command)} {out_of_reach_text(reach, command)}'
     if policy is Policy.CLAMP:
-        return Decision(limit, Outcome.CLAMPED, f'{reason}; clamped to {_fmt(limit)}')
-    outcome = Outcome.REJECTED_OUT_OF_REACH if where == 'out of reach' else Outcome.REJECTED_OUT_OF_LIMITS
+        side = 'theta_min' if below else 'theta_max'
+        return Decision(limit, Outcome.CLAMPED, f'{reason}; clamped to {side} {angle_text(limit)}')
     return Decision(None, outcome, f'{reason}; rejected')

@@ -8,9 +8,11 @@ import math
 import sys
 from dataclasses import replace
 
-from ..antenna import AntennaLinkage, Branch, Driven, LinkageState
+from ..antenna import AntennaLinkage, Branch, Driven
+from ..command_policy import angle_text, out_of_reach_text
 from ..config import AntennaConfig, default_config, load_config
-from ..errors import FourBarError
+from ..errors import DeadPointError, FourBarError, SingularPositionError, UnreachableError
+from .check import warn_unknown_parameters
 
 HELP = 'solve the linkage at one antenna angle: rocker angles, rates, mechanical advantage, input torque'
 
@@ -63,34 +65,74 @@ def _configuration(args: argparse.Namespace) -> tuple[AntennaConfig, AntennaLink
     return (replace(cfg, **overrides) if overrides else cfg), linkage  # type: ignore[arg-type]
 
 
-def _as_dict(state: LinkageState) -> dict[str, float]:
-    keys = ('theta', 'gamma', 'delta', 'dgamma_dtheta', 'ddelta_dtheta', 'input_torque', 'mechanical_advantage',
-            'transmission_angle')
-    return {k: float(getattr(state, k)) for k in keys}
+_KEYS = ('theta', 'gamma', 'delta', 'dgamma_dtheta', 'ddelta_dtheta', 'input_torque', 'mechanical_advantage',
+         'transmission_angle')
+
+
+def _solve(linkage: AntennaLinkage, theta: float, cfg: AntennaConfig) -> tuple[dict[str, float | None], dict[str, str]]:
+    """Every quantity of `_KEYS` (None where it has no finite value) and, for each None, why.
+
+    The pose exists wherever the linkage reaches (also at the reach limit, where the rockers are in line); only the
+    rates (and the mechanical advantage, a rate) are unbounded there, and the torque is unbounded at a dead point.
+    Raises FourBarError if theta is out of reach (as a number: angles are not wrapped) or not finite.
+    """
+    if math.isfinite(theta) and abs(theta) > math.pi:  # the core would wrap it (its theta is periodic)
+        raise UnreachableError(f'theta={angle_text(theta)} {out_of_reach_text(linkage.reach(), theta)}')
+    gamma, delta = linkage.rocker_angles(theta, cfg.branch)
+    values: dict[str, float | None] = {'theta': theta, 'gamma': float(gamma), 'delta': float(delta)}
+    reasons: dict[str, str] = {}
+    try:
+        rates = linkage.rates_at(theta, gamma, delta)
+        values['dgamma_dtheta'], values['ddelta_dtheta'] = float(rates[0]), float(rates[1])
+        values['mechanical_advantage'] = values['dgamma_dtheta' if cfg.driven is Driven.GAMMA else 'ddelta_dtheta']
+    except SingularPositionError:
+        for key in ('dgamma_dtheta', 'ddelta_dtheta', 'mechanical_advantage'):
+            values[key] = None
+            reasons[key] = 'unbounded: theta is at the reach limit (the rockers are parallel)'
+    try:
+        values['input_torque'] = float(linkage.torque_at(theta, gamma, delta, cfg.load_torque, cfg.driven))
+    except DeadPointError:
+        values['input_torque'] = None
+        reasons['input_torque'] = f'unbounded: theta is a dead point of the {cfg.driven.value} rocker'
+    values['transmission_angle'] = float(linkage.transmission_angle_at(theta, gamma, delta, cfg.driven))
+    for key in _KEYS:
+        value = values[key]
+        if value is not None and not math.isfinite(value):
+            values[key] = None
+            reasons[key] = 'overflow: its magnitude exceeds the largest double, 1.8e308'
+    return {key: values[key] for key in _KEYS}, reasons
 
 
 def run(args: argparse.Namespace) -> int:
-    """Solve and print; exit 2 with one line on stderr for unreachable angles or invalid geometry."""
+    """Solve and print; exit 2 with one line on stderr for unreachable angles or invalid geometry.
+
+    JSON is strict (no NaN or Infinity): a quantity without a finite value is null and ``null_reasons`` says why.
+    """
     try:
         cfg, linkage = _configuration(args)
         theta = math.radians(args.theta) if args.deg else args.theta
-        state = linkage.state(theta, cfg.load_torque, cfg.driven, cfg.branch)
+        values, reasons = _solve(linkage, theta, cfg)
+        warn_unknown_parameters('fourbar solve', args.params)
     except FourBarError as exc:
         print(f'fourbar solve: error: {exc}', file=sys.stderr)
         return 2
-    values = _as_dict(state)
     if args.json:
         print(json.dumps({**values, 'load_torque': cfg.load_torque, 'driven': cfg.driven.value,
-                          'branch': cfg.branch.name.lower()}))
+                          'branch': cfg.branch.name.lower(), 'null_reasons': reasons}, allow_nan=False))
         return 0
     deg = {'theta', 'gamma', 'delta', 'transmission_angle'}
     print(f'linkage: frame {linkage.frame} m, rockers {linkage.rocker_ab} / {linkage.rocker_cd} m, '
           f'coupler {linkage.coupler} m; branch {cfg.branch.name.lower()}, driven rocker {cfg.driven.value}')
     for key, value in values.items():
+        if value is None:
+            print(f'{key:>22}: none ({reasons[key]})')
+            continue
         unit = ' N m' if key == 'input_torque' else (' rad' if key in deg else '')
         extra = f'  ({math.degrees(value):.12f} deg)' if key in deg else ''
         print(f'{key:>22}: {value!r}{unit}{extra}')
     print(f'{"load_torque":>22}: {cfg.load_torque!r} N m (about theta)')
     if not cfg.theta_min <= theta <= cfg.theta_max:
-        print(f'note: theta is outside the configured tilt range [{cfg.theta_min!r}, {cfg.theta_max!r}] rad')
+        print(f'note: theta is outside the configured limits [theta_min, theta_max] = '
+              f'[{angle_text(cfg.theta_min)}, {angle_text(cfg.theta_max)}]; the node would '
+              f'{"clamp" if cfg.out_of_limits == "clamp" else "reject"} this command')
     return 0
