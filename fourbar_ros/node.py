@@ -399,22 +399,16 @@ def command_line_names(argv: list[str]) -> list[str]:
 
 
 def params_file_problem(argv: list[str]) -> str | None:
-    """One line if a ``--params-file`` argument cannot be read or is not YAML, else None.
+    """One line if a ``--params-file`` argument cannot be read, is larger than 1 MiB, is not YAML or holds an
+    alias (rcl refuses those too), else None.
 
     Checked before rclpy.init, because rcl would log its own multi-line error first.
     """
-    import yaml
+    from fourbar_ros.rcl_yaml import params_file_problem as file_problem
 
     for flag, path in itertools.pairwise(argv):
-        if flag != '--params-file':
-            continue
-        try:
-            with open(path, encoding='utf-8') as f:
-                yaml.compose(f, Loader=yaml.SafeLoader)
-        except OSError as exc:
-            return f'{path}: cannot read: {exc.strerror or exc}'
-        except (yaml.YAMLError, UnicodeDecodeError) as exc:
-            return f'{path}: not valid YAML: {_one_line(exc)}'
+        if flag == '--params-file' and (problem := file_problem(path)) is not None:
+            return problem
     return None
 
 
