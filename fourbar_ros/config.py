@@ -72,6 +72,8 @@ class AntennaConfig:
     motor_torque_limit: float
     output_torque_limit: float
     joint_names: tuple[str, str]
+    coupler_joint: str
+    hardware_id: str
     frame_id: str
     out_of_limits: str
     transmission_angle_min: float
@@ -107,6 +109,8 @@ class AntennaConfig:
             'output_torque_limit': self.output_torque_limit,
             'gamma_joint': self.joint_names[0],
             'delta_joint': self.joint_names[1],
+            'coupler_joint': self.coupler_joint,
+            'hardware_id': self.hardware_id,
             'frame_id': self.frame_id,
             'out_of_limits': self.out_of_limits,
             'transmission_angle_min': self.transmission_angle_min,
@@ -236,10 +240,12 @@ def config_from_values(values: Mapping[str, object], changed: Collection[str] | 
     except FourBarError as exc:
         raise _fault(f'the lengths do not form a linkage: {exc}', _LENGTHS, _LENGTHS, changed) from None
     _check_tilt_range(linkage, v['theta_min'], v['theta_max'], driven, branch, changed)
-    if v['gamma_joint'] == v['delta_joint']:
-        joints = ('gamma_joint', 'delta_joint')
-        raise _fault(f"gamma_joint and delta_joint are both {v['delta_joint']!r}; names must differ",
-                     joints, joints, changed)
+    joints = ('gamma_joint', 'delta_joint', 'coupler_joint')
+    for i, first in enumerate(joints):
+        for second in joints[i + 1:]:
+            if v[first] == v[second]:
+                raise _fault(f'{first} and {second} are both {v[first]!r}; joint names must differ',
+                             (first, second), (first, second), changed)
     return AntennaConfig(
         frame_length=v['frame_length'], rocker_ab_length=v['rocker_ab_length'],
         coupler_length=v['coupler_length'], rocker_cd_length=v['rocker_cd_length'],
@@ -249,7 +255,8 @@ def config_from_values(values: Mapping[str, object], changed: Collection[str] | 
         gravity=v['gravity'], reducer_ratio=v['reducer_ratio'],
         reducer_efficiency=v['reducer_efficiency'], motor_torque_limit=v['motor_torque_limit'],
         output_torque_limit=v['output_torque_limit'],
-        joint_names=(v['gamma_joint'], v['delta_joint']), frame_id=v['frame_id'],
+        joint_names=(v['gamma_joint'], v['delta_joint']), coupler_joint=v['coupler_joint'],
+        hardware_id=v['hardware_id'], frame_id=v['frame_id'],
         out_of_limits=v['out_of_limits'], transmission_angle_min=v['transmission_angle_min'],
         velocity_timeout=v['velocity_timeout'], marker_period=v['marker_period'],
         diagnostics_period=v['diagnostics_period'], linkage=linkage)

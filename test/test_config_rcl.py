@@ -45,7 +45,8 @@ def same(a: object, b: object) -> bool:
 SCALARS = ['1', '-7', '010', '0x1F', '+5', '1e3', '2.5e+0', '1.', '.5', '1.5', '-0.0', 'inf', '-.inf', '.INF',
            'Infinity', 'nan', '.nan', '0x1p3', '1e999', '1e-400', '5e-324', '2.2250738585072014e-308',
            '1_000', '~', 'null', 'yes', 'No', 'on', 'y', 'true', "'1.5'", '"2"', 'abc', '9223372036854775807',
-           '9223372036854775808', '-9223372036854775809', '|\n      1.5', '1.5 # comment']
+           '9223372036854775808', '-9223372036854775809', '|\n      1.5', '1.5 # comment',
+           '0x1p99999', '1' * 30, '0' * 30 + '17', '1' * 400, '-' + '9' * 5000, '0x' + 'f' * 20, '&anchor 2.5']
 
 
 def test_scalar_typing_matches_rcl(ros: RosSession, tmp_path: Path) -> None:
@@ -126,3 +127,12 @@ def test_node_and_loader_agree(ros: RosSession, tmp_path: Path, body: str) -> No
     else:
         node.destroy_node()
         assert loader_error is None
+
+
+def test_alias_refused_by_rcl_and_the_loader(ros: RosSession, tmp_path: Path) -> None:
+    path = tmp_path / 'alias.yaml'
+    path.write_text('/**:\n  ros__parameters:\n    load_torque: &x 1.5\n    antenna_mass: *x\n', encoding='utf-8')
+    with pytest.raises(Exception, match='aliasing'):  # rclpy's RCLError: "Will not support aliasing at line 4"
+        rcl_values(ros, path, '/')
+    with pytest.raises(ConfigError, match=r'line 4: YAML aliases'):
+        load_config(path)
