@@ -80,8 +80,10 @@ class Background:
         try:
             self.proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
+            alive = [' '.join(p.cmdline()[:3]) for p in self.descendants()]
             self.kill()
-            raise AssertionError(f'{self.cmd[:4]} did not exit within {timeout} s') from None
+            raise AssertionError(f'{self.cmd[:4]} did not exit within {timeout} s (descendants alive: {alive}):\n'
+                                 f'{(self.stdout + self.stderr)[-3000:]}') from None
         self._collect()
         return self.proc.returncode
 
