@@ -34,8 +34,8 @@ setup(
     python_requires='>=3.10',
     entry_points={
         'console_scripts': [
-            'fourbar = fourbar_ros.cli:main',
-            'fourbar_node = fourbar_ros.node:main',
+            'fourbar = fourbar_ros.commands:main',
+            'fourbar_node = fourbar_ros.node.fourbar_node:main',
         ],
     },
 )

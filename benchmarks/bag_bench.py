@@ -35,8 +35,8 @@ T0_NS = 1_700_000_000 * 1_000_000_000
 
 def make_bag(path: Path, n: int, storage: str) -> Path:
     """A sweep theta_min -> theta_max -> theta_min repeated, ``n`` commands at 100 Hz."""
-    from fourbar_ros.bag_io import write_command_bag
-    from fourbar_ros.config import load_config
+    from fourbar_ros.bags.storage import write_command_bag
+    from fourbar_ros.config.antenna_config import load_config
 
     cfg = load_config(CONFIG)
     span = cfg.theta_max - cfg.theta_min
@@ -53,7 +53,7 @@ def read_rates(bag: Path) -> tuple[float, float]:
     """(raw messages/s with rosbags' Reader, decoded commands/s with bag_io.read_commands)."""
     from rosbags.rosbag2 import Reader
 
-    from fourbar_ros.bag_io import read_commands
+    from fourbar_ros.bags.storage import read_commands
 
     start = time.perf_counter()
     with Reader(bag) as reader:
@@ -74,8 +74,7 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from fourbar_ros.bag_io import read_commands
-    from fourbar_ros.bag_replay import (
+    from fourbar_ros.bags.replay import (
         NodeProcess,
         Replayer,
         ReplayError,
@@ -84,6 +83,7 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
         init_context,
         spin_until,
     )
+    from fourbar_ros.bags.storage import read_commands
 
     stream = read_commands(bag)
     rates: dict[int, list[float]] = {w: [] for w in WINDOWS}

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
-from .reference import Geometry, reach_float
+from benchmarks.reference import Geometry, reach_float
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -7,7 +7,7 @@ arrays out). ``interval`` is the (lo, hi) range of theta the method is asked to 
 - ``annex``: Annex A as written, A.13-A.15: gamma = (2 atan P + acos Q)/2, delta = (acos Q - 2 atan P)/2.
   Valid for equal rockers only; wrong by pi where H - h cos(theta) < 0; acos fails when rounding puts Q past 1.
 - ``annex-atan2``: the same with atan2(h sin t, H - h cos t) for atan P: isolates the acos(Q) weakness.
-- ``shipped``: the core, ``fourbar_ros.antenna.AntennaLinkage.rocker_angles`` (both paths).
+- ``shipped``: the core, ``fourbar_ros.core.antenna.AntennaLinkage.rocker_angles`` (both paths).
 - ``stable-f32``: the core's stable form (half-angle diagonal, factored Heron root, atan2) transcribed in float32.
 - ``newton-K``: K Newton steps on the two loop-closure equations (the translation parts of
   R(g) T(a) R(-t-g) T(h) [0 0 1]^T = T(H) R(pi-d) T(b) [0 0 1]^T), cold-started from the solution at the middle
@@ -27,10 +27,9 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.antenna import AntennaLinkage
-from fourbar_ros.lookup import hermite_coefficients, horner_columns
-
-from .reference import Geometry
+from benchmarks.reference import Geometry
+from fourbar_ros.core.antenna import AntennaLinkage
+from fourbar_ros.core.lookup import hermite_coefficients, horner_columns
 
 FloatArray = npt.NDArray[np.float64]
 ScalarFn = Callable[[float], tuple[float, float]]
@@ -263,7 +262,7 @@ def build_table(g: Geometry, interval: tuple[float, float], n: int, hermite: boo
         c[:, 1] = y[1:] - y[:-1]
         return c
 
-    if hermite:  # fourbar_ros.lookup's coefficients, from the core's rates times the step
+    if hermite:  # fourbar_ros.core.lookup's coefficients, from the core's rates times the step
         rates = link.rates_at(grid, gam, dlt)
         cg = hermite_coefficients(gam, np.asarray(rates.dgamma_dtheta) * step)
         cd = hermite_coefficients(dlt, np.asarray(rates.ddelta_dtheta) * step)
@@ -345,10 +344,10 @@ def _lut(n: int, hermite: bool, dtype: type[np.floating] = np.float64,
 
 
 def _lookup(tolerance: float) -> Callable[[Geometry, tuple[float, float]], Solver]:
-    """The offered fourbar_ros.lookup.RockerTable, built over the interval to the given tolerance (radians)."""
+    """The offered fourbar_ros.core.lookup.RockerTable, built over the interval to the given tolerance (radians)."""
 
     def build(g: Geometry, interval: tuple[float, float]) -> Solver:
-        from fourbar_ros.lookup import RockerTable
+        from fourbar_ros.core.lookup import RockerTable
 
         table = RockerTable.build(linkage(g), interval[0], interval[1], tolerance=tolerance)
         return Solver(table.rocker_angles, table.rocker_angles)  # type: ignore[arg-type]
@@ -388,7 +387,7 @@ def all_methods(quick: bool = False) -> list[Method]:
                           _lut(256, True, np.float32)))
     for tol in (1e-6, 1e-9):
         methods.append(Method(f'lookup-{tol:g}', 'lookup', 'float64',
-                              f'fourbar_ros.lookup.RockerTable built to {tol:g} rad', _lookup(tol)))
+                              f'fourbar_ros.core.lookup.RockerTable built to {tol:g} rad', _lookup(tol)))
     methods.append(Method('lut-linear-256+newton1', 'hybrid', 'float64',
                           '256-point linear table, then one Newton step', _lut(256, False, polish=True)))
     return methods

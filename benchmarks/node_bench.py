@@ -33,7 +33,7 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-from fourbar_ros.bag_replay import free_domain_id
+from fourbar_ros.bags.replay import free_domain_id
 
 REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
@@ -135,7 +135,7 @@ class Child:
 
 def node_script() -> list[str]:
     script = Path(sys.executable).parent / 'fourbar_node'
-    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.node']
+    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.node.fourbar_node']
 
 
 def destroy(node: Any) -> None:
@@ -298,7 +298,7 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
-    from fourbar_ros.node import FourBarNode
+    from fourbar_ros.node.fourbar_node import FourBarNode
 
     make_parameter: Callable[..., Any] = Parameter
     node = FourBarNode(context=context, namespace='/cost', cli_args=['--ros-args', '--params-file', str(YAML)],
@@ -377,7 +377,7 @@ def run(quick: bool) -> dict[str, Any]:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from fourbar_ros.config import load_config
+    from fourbar_ros.config.antenna_config import load_config
 
     cfg = load_config(YAML)
     n_lat, duration, bisections, repeats, rounds = (300, 1.0, 2, 5, 1) if quick else (2000, 2.0, 4, 15, 3)

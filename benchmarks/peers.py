@@ -20,8 +20,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from .methods import Method, NotApplicableError, Solver, linkage
-from .reference import Geometry
+from benchmarks.methods import Method, NotApplicableError, Solver, linkage
+from benchmarks.reference import Geometry
 
 FloatArray = npt.NDArray[np.float64]
 

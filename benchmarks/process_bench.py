@@ -5,7 +5,7 @@
 
 - copy: rosbags reads every raw message of the bag and writes it to a new bag (same storage), nothing
   decoded: the least any tool that rewrites the bag must spend;
-- process: ``fourbar_ros.bag_process.process_bag`` (what `fourbar process IN OUT` runs) with
+- process: ``fourbar_ros.bags.process.process_bag`` (what `fourbar process IN OUT` runs) with
   config/antenna.yaml: every command read, decided, solved, a JointState and a Float64 written per command
   (twice the messages of the copy);
 - ratio process/copy from the medians over ``--rounds`` interleaved rounds (copy, process, copy, ...),
@@ -39,9 +39,9 @@ def make_bag(path: Path, n: int, storage: str) -> Path:
     """``n`` commands sweeping theta_min -> theta_max -> theta_min (period 200) at 100 Hz, with a few bad values."""
     import numpy as np
 
-    from fourbar_ros.bag_io import FLOAT64, AtomicBagWriter, recorded_qos
-    from fourbar_ros.config import load_config
-    from fourbar_ros.joint_state_cdr import encode_float64s
+    from fourbar_ros.bags.joint_state_cdr import encode_float64s
+    from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, recorded_qos
+    from fourbar_ros.config.antenna_config import load_config
 
     cfg = load_config(CONFIG)
     k = np.arange(n)
@@ -63,7 +63,7 @@ def copy_bag(src: Path, dst: Path, storage: str) -> int:
     """Read every raw message with rosbags and write it to a new bag; the number of messages."""
     from rosbags.rosbag2 import Reader, StoragePlugin, Writer
 
-    from fourbar_ros.bag_io import jazzy_typestore
+    from fourbar_ros.bags.storage import jazzy_typestore
 
     plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
     count = 0
@@ -78,8 +78,8 @@ def copy_bag(src: Path, dst: Path, storage: str) -> int:
 
 def process(src: Path, dst: Path, storage: str) -> int:
     """`fourbar process SRC DST --params config/antenna.yaml --storage STORAGE`; the commands processed."""
-    from fourbar_ros.bag_process import process_bag
-    from fourbar_ros.config import load_config
+    from fourbar_ros.bags.process import process_bag
+    from fourbar_ros.config.antenna_config import load_config
 
     return process_bag(src, dst, load_config(CONFIG), storage=storage).commands
 
@@ -111,7 +111,7 @@ def speed(n: int, rounds: int, storage: str) -> dict[str, object]:
 
 def child(kind: str, src: Path, dst: Path, storage: str) -> None:
     """Run one copy or process in this (fresh) process and print its peak RSS."""
-    import fourbar_ros.bag_process  # noqa: F401  (the same imports in both kinds)
+    import fourbar_ros.bags.process  # noqa: F401  (the same imports in both kinds)
 
     start = time.perf_counter()
     (process if kind == 'process' else copy_bag)(src, dst, storage)

@@ -6,7 +6,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from .sweep import MethodResult
+from benchmarks.sweep import MethodResult
 
 
 def sanitize(x: Any) -> Any:
@@ -329,7 +329,7 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
                          '; '.join(f'{k}: {v}' for k, v in rest.items()))
         lines.append('')
     lines += [
-        '## A cheaper method for some users: `fourbar_ros.lookup.RockerTable`',
+        '## A cheaper method for some users: `fourbar_ros.core.lookup.RockerTable`',
         '',
         lookup_text(data.get('lookup')),
         '## Node and bag figures',

@@ -16,11 +16,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-from . import report, stress
-from .methods import SHIPPED, all_methods
-from .peers import peer_methods, peer_versions
-from .sweep import accuracy, dominators, pareto_front, timings
-from .timing import machine_info
+from benchmarks import report, stress
+from benchmarks.methods import SHIPPED, all_methods
+from benchmarks.peers import peer_methods, peer_versions
+from benchmarks.sweep import accuracy, dominators, pareto_front, timings
+from benchmarks.timing import machine_info
 
 
 def agent_bench(module: str, quick: bool) -> dict[str, Any] | None:
@@ -40,13 +40,12 @@ def agent_bench(module: str, quick: bool) -> dict[str, Any] | None:
 
 
 def lookup_summary(by: dict[str, Any]) -> dict[str, Any]:
-    """The offered table (fourbar_ros.lookup) on Turnantenna's tilt range, and its sweep figures against shipped."""
+    """The offered table (fourbar_ros.core.lookup) on Turnantenna's tilt range; its sweep figures against shipped."""
     import math
 
-    from fourbar_ros.lookup import RockerTable
-
-    from .cases import TURNANTENNA
-    from .methods import linkage
+    from benchmarks.cases import TURNANTENNA
+    from benchmarks.methods import linkage
+    from fourbar_ros.core.lookup import RockerTable
 
     tilt = (math.radians(-6.0), math.radians(7.0))
     tables = []

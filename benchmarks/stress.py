@@ -22,9 +22,9 @@ from dataclasses import dataclass
 import mpmath
 import numpy as np
 
-from .cases import COMMON_GEOMETRIES, TURNANTENNA
-from .methods import linkage
-from .reference import (
+from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
+from benchmarks.methods import linkage
+from benchmarks.reference import (
     DPS,
     UNIT_ROUNDOFF,
     Geometry,
@@ -216,7 +216,7 @@ Scalar = Callable[[float], tuple[float, float]]
 
 
 def _annex_scalar(g: Geometry) -> Scalar | None:
-    from .methods import NotApplicableError, annex_solver
+    from benchmarks.methods import NotApplicableError, annex_solver
 
     try:
         s = annex_solver(g, (0.0, 0.0)).scalar
@@ -226,8 +226,8 @@ def _annex_scalar(g: Geometry) -> Scalar | None:
 
 
 def _pylinkage_scalar(g: Geometry) -> Scalar | None:
-    from .methods import NotApplicableError
-    from .peers import pylinkage_solver
+    from benchmarks.methods import NotApplicableError
+    from benchmarks.peers import pylinkage_solver
 
     try:
         return pylinkage_solver(g, (0.0, 0.0)).scalar
@@ -248,7 +248,7 @@ def _shipped_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def _annex_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    from .methods import NotApplicableError, annex_solver
+    from benchmarks.methods import NotApplicableError, annex_solver
 
     try:
         v = annex_solver(g, (0.0, 0.0)).vector

@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import numpy.typing as npt
 
-from .cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
-from .methods import Method, NotApplicableError, Solver, linkage
-from .reference import Geometry, ReferenceArrays, angle_error, reference_arrays
-from .timing import Case, interleaved, pilot, scalar_loop
+from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
+from benchmarks.methods import Method, NotApplicableError, Solver, linkage
+from benchmarks.reference import Geometry, ReferenceArrays, angle_error, reference_arrays
+from benchmarks.timing import Case, interleaved, pilot, scalar_loop
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -65,7 +65,7 @@ def _rviz_config(template: Path, frame_id: str, namespace: str) -> str:
 
 
 def _setup(context: LaunchContext) -> list[object]:
-    from fourbar_ros.urdf import robot_description_for
+    from fourbar_ros.config.robot_model import robot_description_for
 
     params_file = LaunchConfiguration('params_file').perform(context)
     namespace = _namespace(LaunchConfiguration('namespace').perform(context))

@@ -29,8 +29,8 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:  # runnable without installing the package
     sys.path.insert(0, str(REPO))
 
-from fourbar_ros.bag_io import STORAGES, write_command_bag  # noqa: E402
-from fourbar_ros.config import AntennaConfig, load_config  # noqa: E402
+from fourbar_ros.bags.storage import STORAGES, write_command_bag  # noqa: E402
+from fourbar_ros.config.antenna_config import AntennaConfig, load_config  # noqa: E402
 
 #: First stamp of every bag: 2023-11-14T22:13:20Z, in ns since the epoch.
 T0_NS = 1_700_000_000 * 1_000_000_000

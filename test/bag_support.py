@@ -19,7 +19,7 @@ from typing import Any
 
 from ros_support import REPO, TIMEOUT
 
-from fourbar_ros.config import AntennaConfig
+from fourbar_ros.config.antenna_config import AntennaConfig
 
 BAG_DIR = REPO / 'test' / 'data' / 'bags'
 DEMO_BAG = REPO / 'fourbar_ros' / 'data' / 'demo_sweep'
@@ -77,9 +77,9 @@ def diag_values(msg: Any) -> dict[str, str]:
 # --------------------------------------------------------------------------- the CLI as a process
 
 def fourbar_command() -> list[str]:
-    """The `fourbar` console script next to this Python (else ``python -m fourbar_ros.cli``)."""
+    """The `fourbar` console script next to this Python (else ``python -m fourbar_ros.commands``)."""
     script = Path(sys.executable).parent / 'fourbar'
-    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.cli']
+    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.commands']
 
 
 class Tool:

@@ -46,7 +46,7 @@ class TestCommandIsAnswered(unittest.TestCase):
     """The launched node answers a command (real publisher and subscription in this process)."""
 
     def test_joint_states_answer_a_command(self) -> None:
-        from fourbar_ros.config import load_config
+        from fourbar_ros.config.antenna_config import load_config
 
         share = Path(get_package_share_directory('fourbar_ros'))
         cfg = load_config(share / 'config' / 'antenna.yaml')

@@ -32,7 +32,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from fourbar_ros.bag_replay import FREE_DOMAIN_IDS, free_domain_id
+from fourbar_ros.bags.replay import FREE_DOMAIN_IDS, free_domain_id
 
 REPO = Path(__file__).resolve().parent.parent
 #: Default deadline (s) for discovery and message waits; generous because the machine is shared.
@@ -48,7 +48,7 @@ M = TypeVar('M')
 
 @dataclass
 class DomainLease:
-    """A held ROS_DOMAIN_ID (fourbar_ros.bag_replay.free_domain_id's lock), given back by ``release()``."""
+    """A held ROS_DOMAIN_ID (fourbar_ros.bags.replay.free_domain_id's lock), given back by ``release()``."""
 
     domain_id: int
     _hold: ExitStack
@@ -279,7 +279,7 @@ def node_command() -> list[str]:
     script = Path(sys.executable).parent / 'fourbar_node'
     if script.exists():
         return [str(script)]
-    return [sys.executable, '-m', 'fourbar_ros.node']
+    return [sys.executable, '-m', 'fourbar_ros.node.fourbar_node']
 
 
 @dataclass

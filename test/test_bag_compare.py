@@ -14,10 +14,10 @@ import pytest
 from bag_support import BAG_DIR, CONFIG, Tool, run_tool, served
 from ros_support import RosSession, node_process
 
-from fourbar_ros.bag_compare import compare_bags
-from fourbar_ros.bag_io import AtomicBagWriter, jazzy_typestore, open_bag, read_commands
-from fourbar_ros.bag_process import process_bag
-from fourbar_ros.config import AntennaConfig, config_from_values, load_config
+from fourbar_ros.bags.compare import compare_bags
+from fourbar_ros.bags.process import process_bag
+from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_commands
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, load_config
 
 STORE = jazzy_typestore()
 
@@ -144,7 +144,7 @@ def test_ignored_fields(processed: Path, cfg: AntennaConfig, tmp_path: Path) -> 
 
 
 def test_command_defaults_are_the_modules() -> None:
-    from fourbar_ros import bag_compare
+    from fourbar_ros.bags import compare as bag_compare
     from fourbar_ros.commands import compare
 
     assert (compare.DEFAULT_ULPS, compare.FIELDS) == (bag_compare.DEFAULT_ULPS, bag_compare.FIELDS)

@@ -17,7 +17,7 @@ import yaml
 from bag_support import BAG_DIR, CONFIG, DEMO_BAG, committed_bags, read_with_mcap, storage_file
 from ros_support import REPO
 
-from fourbar_ros.bag_io import (
+from fourbar_ros.bags.storage import (
     COMMAND_TOPIC,
     FLOAT64,
     AtomicBagWriter,
@@ -29,8 +29,8 @@ from fourbar_ros.bag_io import (
     recorded_qos,
     write_command_bag,
 )
-from fourbar_ros.cli import main as cli_main
-from fourbar_ros.config import AntennaConfig, load_config
+from fourbar_ros.commands import main as cli_main
+from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 
 BAGS = committed_bags()
 KINDS = ('sweep', 'steps', 'fast_ramp', 'jitter', 'bad_values')
@@ -451,7 +451,7 @@ def test_replay_cli_bad_clock(args: list[str], words: str, capsys: pytest.Captur
 def test_progress_bar_draws_only_on_a_terminal() -> None:
     import io
 
-    from fourbar_ros.bag_replay import Progress
+    from fourbar_ros.bags.replay import Progress
 
     quiet = io.StringIO()  # not a TTY: silent by default
     bar = Progress(10, 'replay', stream=quiet)

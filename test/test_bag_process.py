@@ -20,8 +20,8 @@ import pytest
 from bag_support import BAG_DIR, CONFIG, Tool, committed_bags, run_tool
 from ros_support import wait_for
 
-from fourbar_ros.antenna import Driven
-from fourbar_ros.bag_io import (
+from fourbar_ros.bags.process import VelocityState, process_bag, velocities
+from fourbar_ros.bags.storage import (
     FLOAT64,
     AtomicBagWriter,
     BagError,
@@ -30,11 +30,11 @@ from fourbar_ros.bag_io import (
     recorded_qos,
     write_command_bag,
 )
-from fourbar_ros.bag_process import VelocityState, process_bag, velocities
-from fourbar_ros.command_policy import Policy, decide
-from fourbar_ros.config import AntennaConfig, config_from_values, default_config, load_config
-from fourbar_ros.joint_velocity import Sample, velocity_step
-from fourbar_ros.loads import pose_solver
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
+from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.loads import pose_solver
+from fourbar_ros.node.command_policy import Policy, decide
+from fourbar_ros.node.joint_velocity import Sample, velocity_step
 
 T0 = 1_700_000_000 * 1_000_000_000
 ULPS = 8  # positions: ulps of |q| + pi; torque: ulps of |tau| (1 + pi (|cot s| + |cot r|)) (see below)
@@ -181,7 +181,7 @@ def test_velocity_rule_equals_velocity_step_across_blocks() -> None:
 
 
 def test_no_rclpy_is_imported(tmp_path: Path) -> None:
-    code = ('import sys; from fourbar_ros.cli import main; rc = main(sys.argv[1:]); '
+    code = ('import sys; from fourbar_ros.commands import main; rc = main(sys.argv[1:]); '
             'assert not [m for m in sys.modules if m.split(".")[0] in ("rclpy", "rosidl_runtime_py")], '
             '"rclpy imported"; sys.exit(rc)')
     done = subprocess.run([sys.executable, '-c', code, 'process', str(BAG_DIR / 'sweep_mcap'),

@@ -14,7 +14,7 @@ from bag_support import CONFIG, Tool, read_with_mcap, read_with_sqlite, run_tool
 from diagnostic_msgs.msg import DiagnosticArray
 from ros_support import RosSession, node_process, wait_for
 
-from fourbar_ros.bag_io import fingerprint, jazzy_typestore, read_messages
+from fourbar_ros.bags.storage import fingerprint, jazzy_typestore, read_messages
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

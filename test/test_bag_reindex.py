@@ -25,7 +25,7 @@ from bag_support import Tool, read_with_mcap, read_with_sqlite, run_tool, storag
 from ros_support import REPO, TIMEOUT, RosSession, wait_for
 from std_msgs.msg import Float64
 
-from fourbar_ros.bag_io import (
+from fourbar_ros.bags.storage import (
     FLOAT64,
     AtomicBagWriter,
     BagError,
@@ -43,7 +43,7 @@ STORAGES = ('mcap', 'sqlite3')
 # A writer that flushes after FLUSHED messages, writes UNFLUSHED more and dies without any cleanup.
 KILLED_WRITER = '''
 import os, sys
-from fourbar_ros.bag_io import AtomicBagWriter, FLOAT64, DIAGNOSTIC_ARRAY, float64_cdr, recorded_qos
+from fourbar_ros.bags.storage import AtomicBagWriter, FLOAT64, DIAGNOSTIC_ARRAY, float64_cdr, recorded_qos
 out, storage, flushed, unflushed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
 bag = AtomicBagWriter(out, storage)
 bag.open()
@@ -65,7 +65,7 @@ def _killed_writer(out: Path, storage: str, flushed: int, unflushed: int) -> Non
 
 def _clean_bag(out: Path, storage: str, n: int) -> Path:
     """What a clean recording of the first ``n`` messages would have written."""
-    from fourbar_ros.bag_io import DIAGNOSTIC_ARRAY
+    from fourbar_ros.bags.storage import DIAGNOSTIC_ARRAY
 
     with AtomicBagWriter(out, storage) as bag:
         cmd = bag.add_topic('/antenna_angle_cmd', FLOAT64, [recorded_qos()])

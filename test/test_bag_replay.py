@@ -26,8 +26,8 @@ from bag_support import (
 from diagnostic_msgs.msg import DiagnosticArray
 from ros_support import RosSession, node_process
 
-from fourbar_ros.bag_io import read_commands, read_messages
-from fourbar_ros.config import AntennaConfig, load_config
+from fourbar_ros.bags.storage import read_commands, read_messages
+from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

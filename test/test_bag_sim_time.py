@@ -25,8 +25,8 @@ import pytest
 from bag_support import CONFIG, Tool, run_tool
 from ros_support import RosSession, node_process
 
-from fourbar_ros.bag_io import read_messages, write_command_bag
-from fourbar_ros.config import AntennaConfig, load_config
+from fourbar_ros.bags.storage import read_messages, write_command_bag
+from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

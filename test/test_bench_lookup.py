@@ -1,4 +1,4 @@
-"""fourbar_ros.lookup.RockerTable: its documented error bound holds against the 50-digit reference, in Python and
+"""fourbar_ros.core.lookup.RockerTable: its documented error bound holds against the 50-digit reference, in Python and
 in the C it emits; bad intervals and out-of-table angles are refused."""
 
 from __future__ import annotations
@@ -14,9 +14,9 @@ import pytest
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
 from benchmarks.methods import linkage
 from benchmarks.reference import Geometry, angle_error, reference_arrays
-from fourbar_ros.antenna import AntennaLinkage, Branch
-from fourbar_ros.errors import UnreachableError
-from fourbar_ros.lookup import RockerTable
+from fourbar_ros.core.antenna import AntennaLinkage, Branch
+from fourbar_ros.core.errors import UnreachableError
+from fourbar_ros.core.lookup import RockerTable
 
 TILT = (math.radians(-6.0), math.radians(7.0))
 

@@ -21,7 +21,7 @@ from benchmarks.methods import (
 from benchmarks.reference import Geometry, angle_error, reference_arrays
 from benchmarks.stress import exact_limit_cases, parallelogram_cases, reach_limit_cases
 from benchmarks.sweep import MethodResult, dominators, pareto_front
-from fourbar_ros.transforms import antenna_joint_positions
+from fourbar_ros.core.transforms import antenna_joint_positions
 
 METHODS = {m.name: m for m in all_methods()}
 COUPLER_LONG = COMMON_GEOMETRIES[1]

@@ -9,13 +9,13 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_ros.cli import NEGATIVE_NUMBER, build_parser
+from fourbar_ros.commands import NEGATIVE_NUMBER, build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def fourbar(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', *args], capture_output=True, text=True,
                           cwd=ROOT, timeout=120, check=False)
 
 

@@ -11,8 +11,8 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_ros.command_policy import Outcome, Policy, decide, in_reach
-from fourbar_ros.config import default_config
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.node.command_policy import Outcome, Policy, decide, in_reach
 
 ROOT = Path(__file__).resolve().parent.parent
 CFG = default_config()
@@ -21,7 +21,7 @@ REACH = CFG.linkage.reach()
 
 
 def fourbar(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', *args], capture_output=True, text=True,
                           cwd=ROOT, timeout=120, check=False)
 
 

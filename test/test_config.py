@@ -7,8 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_ros.antenna import AntennaLinkage, Branch, Driven
-from fourbar_ros.config import (
+from fourbar_ros.config.antenna_config import (
     AntennaConfig,
     ConfigError,
     config_from_values,
@@ -17,7 +16,8 @@ from fourbar_ros.config import (
     rcl_scalar,
     values_from_yaml,
 )
-from fourbar_ros.errors import FourBarError
+from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
+from fourbar_ros.core.errors import FourBarError
 
 REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'

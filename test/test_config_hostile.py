@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_ros.config import ConfigError, load_config
-from fourbar_ros.rcl_yaml import MAX_DEPTH, MAX_FILE_BYTES, parse, read_text
+from fourbar_ros.config.antenna_config import ConfigError, load_config
+from fourbar_ros.config.rcl_yaml import MAX_DEPTH, MAX_FILE_BYTES, parse, read_text
 
 ROOT = Path(__file__).resolve().parent.parent
 VALID = '/**:\n  ros__parameters:\n    load_torque: 2.5\n'
@@ -50,7 +50,7 @@ def big_valid_file() -> str:
 def run_measured(*args: str) -> dict[str, object]:
     """Run `fourbar ARGS` in a child with a capped address space; its exit status, output, peak RSS and time."""
     code = 'import json\n' + _MEASURE.format(cap=AS_CAP)
-    out = subprocess.run([sys.executable, '-c', code, sys.executable, '-m', 'fourbar_ros.cli', *args],
+    out = subprocess.run([sys.executable, '-c', code, sys.executable, '-m', 'fourbar_ros.commands', *args],
                          capture_output=True, text=True, cwd=ROOT, timeout=180, check=True)
     result: dict[str, object] = json.loads(out.stdout)
     return result
@@ -86,8 +86,8 @@ def test_cli_refuses_hostile_params_quickly_with_bounded_memory(hostile: dict[st
 _LOADER_CHECK = """
 import resource, sys
 resource.setrlimit(resource.RLIMIT_AS, ({cap}, {cap}))
-from fourbar_ros.config import ConfigError, load_config, unknown_in_node_sections
-from fourbar_ros.rcl_yaml import params_file_problem
+from fourbar_ros.config.antenna_config import ConfigError, load_config, unknown_in_node_sections
+from fourbar_ros.config.rcl_yaml import params_file_problem
 path = sys.argv[1]
 for f in (load_config, unknown_in_node_sections):
     try:
@@ -162,7 +162,7 @@ def test_other_malformed_documents_are_one_line(text: str) -> None:
     ('1' * 30, 1.1111111111111111e29),                    # beyond int64: strtol ERANGE, then a double
 ])
 def test_long_scalars_are_typed_in_linear_time(text: str, expected: object) -> None:
-    from fourbar_ros.rcl_yaml import rcl_scalar
+    from fourbar_ros.config.rcl_yaml import rcl_scalar
 
     got = rcl_scalar(text, False)
     assert type(got) is type(expected) and got == expected

@@ -15,8 +15,8 @@ import pytest
 from rclpy.node import Node
 from ros_support import RosSession
 
-from fourbar_ros.config import ConfigError, load_config, values_from_yaml
-from fourbar_ros.node import FourBarNode
+from fourbar_ros.config.antenna_config import ConfigError, load_config, values_from_yaml
+from fourbar_ros.node.fourbar_node import FourBarNode
 
 pytestmark = pytest.mark.ros
 

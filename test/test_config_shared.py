@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_ros.config import ConfigError, config_from_values, load_config, unknown_in_node_sections
+from fourbar_ros.config.antenna_config import ConfigError, config_from_values, load_config, unknown_in_node_sections
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -55,7 +55,7 @@ def test_unknown_names_in_sections_naming_this_node(shared: Path) -> None:
 
 def test_check_and_solve_warn_naming_them(shared: Path) -> None:
     for args in (['check'], ['solve', '--theta', '0.05']):
-        out = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', *args, '--params', str(shared)],
+        out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', *args, '--params', str(shared)],
                              capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
         assert out.returncode == 0, out.stderr
         lines = out.stderr.strip().splitlines()

@@ -20,8 +20,8 @@ from fourbar_ros import (
     SingularPositionError,
     UnreachableError,
 )
-from fourbar_ros.numeric import ArrayLike
-from fourbar_ros.transforms import antenna_joint_positions
+from fourbar_ros.core.numeric import ArrayLike
+from fourbar_ros.core.transforms import antenna_joint_positions
 
 TURNANTENNA = AntennaLinkage(frame=0.180, rocker_ab=0.060, coupler=0.102)
 

@@ -18,7 +18,7 @@ from fourbar_ros import (
     SingularPositionError,
     UnreachableError,
 )
-from fourbar_ros.transforms import fourbar_joint_positions, rot, trans
+from fourbar_ros.core.transforms import fourbar_joint_positions, rot, trans
 
 CRANK_ROCKER = FourBar(ground=4.0, crank=1.0, coupler=3.5, rocker=3.0)
 

@@ -1,12 +1,11 @@
-"""The shared dyad solve and the core's import structure: one closure for both linkages, one Branch, the inverse
-solve's errors, pickling, and imports that run one way (no cycle, no private name across modules, no config)."""
+"""The shared dyad solve: one closure for both linkages, one Branch, the inverse solve's errors, pickling.
+
+(The core's import structure is checked with the whole package's in test_layers.py.)"""
 
 from __future__ import annotations
 
-import ast
 import math
 import pickle
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,42 +18,9 @@ from fourbar_ros import (
     SingularPositionError,
     UnreachableError,
 )
-from fourbar_ros.dyad import closure_array, closure_for, dyad_constants
-
-PACKAGE = Path(__file__).resolve().parent.parent / 'fourbar_ros'
-
-#: The pure core, lowest first: each may import only modules before it in this list (and numpy, stdlib).
-CORE = ['errors', 'numeric', 'dyad', 'antenna', 'general', 'transforms', 'loads', 'lookup', 'synthesis',
-        'design_check']
+from fourbar_ros.core.dyad import closure_array, closure_for, dyad_constants
 
 TURNANTENNA = AntennaLinkage(frame=0.180, rocker_ab=0.060, coupler=0.102)
-
-
-def package_imports(module: str) -> list[tuple[str, list[str]]]:
-    """(imported fourbar_ros module, imported names) for every import of the package in fourbar_ros/<module>.py."""
-    tree = ast.parse((PACKAGE / f'{module}.py').read_text(encoding='utf-8'))
-    out = []
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom):
-            if node.level == 1:
-                target = node.module or ''
-            elif node.level == 0 and (node.module or '').startswith('fourbar_ros.'):
-                target = (node.module or '').removeprefix('fourbar_ros.')
-            else:
-                continue
-            out.append((target, [a.name for a in node.names]))
-        elif isinstance(node, ast.Import):
-            out += [(a.name.removeprefix('fourbar_ros.'), []) for a in node.names if a.name.startswith('fourbar_ros.')]
-    return out
-
-
-@pytest.mark.parametrize('module', CORE)
-def test_core_imports_only_lower_core_modules_and_no_private_names(module: str) -> None:
-    below = CORE[:CORE.index(module)]
-    for target, names in package_imports(module):
-        assert target in below, f'{module} imports fourbar_ros.{target}, not a lower core module ({below})'
-        private = [n for n in names if n.startswith('_')]
-        assert not private, f'{module} imports private names {private} from {target}'
 
 
 def test_antenna_and_general_solve_through_the_same_closure() -> None:

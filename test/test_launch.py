@@ -22,7 +22,7 @@ if (_why := ros2_cli_missing() or launch_missing()) is not None:
 from ros_cli_support import Background, echo_once, publish_until_echoed, run, wait_node  # psutil: with ros2cli
 from ros_support import lease_domain_id
 
-from fourbar_ros.config import load_config
+from fourbar_ros.config.antenna_config import load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

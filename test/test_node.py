@@ -23,10 +23,10 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from visualization_msgs.msg import MarkerArray
 
-from fourbar_ros.antenna import LinkageState
-from fourbar_ros.config import AntennaConfig, load_config
-from fourbar_ros.node import FourBarNode
-from fourbar_ros.transforms import antenna_joint_positions
+from fourbar_ros.config.antenna_config import AntennaConfig, load_config
+from fourbar_ros.core.antenna import LinkageState
+from fourbar_ros.core.transforms import antenna_joint_positions
+from fourbar_ros.node.fourbar_node import FourBarNode
 
 pytestmark = pytest.mark.ros
 
@@ -357,7 +357,7 @@ def test_diagnostics(ros: RosSession, make_rig: Any) -> None:
 
 
 def test_invalid_startup_parameters_raise(ros: RosSession) -> None:
-    from fourbar_ros.config import ConfigError
+    from fourbar_ros.config.antenna_config import ConfigError
 
     with pytest.raises(ConfigError, match=r'^theta_max: .*reach'):
         FourBarNode(context=ros.context, namespace='/bad_start', parameter_overrides=[

@@ -22,7 +22,7 @@ from ros_support import Collector, NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from fourbar_ros.config import load_config
+from fourbar_ros.config.antenna_config import load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

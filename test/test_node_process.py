@@ -17,7 +17,7 @@ from ros_support import Collector, NodeProcess, RosSession, node_command, sync_p
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from fourbar_ros.config import ConfigError, load_config
+from fourbar_ros.config.antenna_config import ConfigError, load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -22,7 +22,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from fourbar_ros.config import load_config
+from fourbar_ros.config.antenna_config import load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

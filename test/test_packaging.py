@@ -17,7 +17,7 @@ from ros_support import NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from fourbar_ros.config import load_config
+from fourbar_ros.config.antenna_config import load_config
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -36,7 +36,7 @@ def test_package_xml_validates_with_catkin_pkg() -> None:
 
 def test_setup_declares_the_console_script_and_ros_install_dir() -> None:
     setup_py = (REPO / 'setup.py').read_text(encoding='utf-8')
-    assert "'fourbar_node = fourbar_ros.node:main'" in setup_py
+    assert "'fourbar_node = fourbar_ros.node.fourbar_node:main'" in setup_py
     cfg = (REPO / 'setup.cfg').read_text(encoding='utf-8')
     assert 'install_scripts=$base/lib/fourbar_ros' in cfg and 'script_dir=$base/lib/fourbar_ros' in cfg
 
@@ -69,7 +69,9 @@ def test_colcon_install_has_share_files_and_no_benchmarks(colcon_install: Path) 
     assert sorted(p.name for p in bag.iterdir()) == sorted(p.name for p in (REPO / 'fourbar_ros' / 'data' /
                                                                             'demo_sweep').iterdir())
     site = prefix / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / 'site-packages'
-    assert (site / 'fourbar_ros' / 'urdf.py').is_file()
+    for layer in ('core', 'config', 'node', 'bags', 'commands'):  # find_packages keeps the layer folders
+        assert (site / 'fourbar_ros' / layer / '__init__.py').is_file(), layer
+    assert (site / 'fourbar_ros' / 'config' / 'robot_model.py').is_file()
     assert not (site / 'benchmarks').exists() and not (site / 'test').exists()
     assert os.access(prefix / 'lib' / 'fourbar_ros' / 'fourbar', os.X_OK)
 

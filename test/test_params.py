@@ -8,8 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_ros.config import ConfigError, check_value, default_config, values_from_yaml
-from fourbar_ros.params import PARAMETERS, PARAMETERS_BY_NAME, ParamSpec, defaults, is_foreign
+from fourbar_ros.config.antenna_config import ConfigError, check_value, default_config, values_from_yaml
+from fourbar_ros.config.params import PARAMETERS, PARAMETERS_BY_NAME, ParamSpec, defaults, is_foreign
 
 REPO = Path(__file__).resolve().parent.parent
 

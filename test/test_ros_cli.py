@@ -28,8 +28,8 @@ if (_why := ros2_cli_missing()) is not None:
 from ros_cli_support import TIMEOUT, Background, echo_once, publish_until_echoed, run  # psutil: with ros2cli
 from ros_support import lease_domain_id
 
-from fourbar_ros.config import load_config
-from fourbar_ros.urdf import COUPLER_JOINT, robot_description
+from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.config.robot_model import COUPLER_JOINT, robot_description
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -20,10 +20,10 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from reference_table import FLOAT_ROWS
 
-from fourbar_ros.cli import main as cli_main
-from fourbar_ros.errors import InvalidGeometryError, SingularPositionError
-from fourbar_ros.general import FourBar
-from fourbar_ros.synthesis import (
+from fourbar_ros.commands import main as cli_main
+from fourbar_ros.core.errors import InvalidGeometryError, SingularPositionError
+from fourbar_ros.core.general import FourBar
+from fourbar_ros.core.synthesis import (
     DegenerateDesignError,
     DesignError,
     UnbuildableDesignError,
@@ -535,10 +535,10 @@ def test_cli_negative_first_angle_via_pair_option(capsys: pytest.CaptureFixture[
 
 def test_console_script_exit_status() -> None:
     """The installed entry point, as a user runs it (a separate process)."""
-    ok = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'design', '--deg', '--pairs', '30,92.35',
+    ok = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'design', '--deg', '--pairs', '30,92.35',
                          '75,99.4', '125,120.3'], capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
     assert ok.returncode == 0, ok.stderr
     assert 'branch: +1 (open) at every position' in ok.stdout
-    bad = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'design', '--pairs', '0.1,0.2', '0.1,0.2',
+    bad = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'design', '--pairs', '0.1,0.2', '0.1,0.2',
                           '0.5,0.9'], capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
     assert bad.returncode == 2 and bad.stderr.startswith('fourbar design: error: degenerate positions')

@@ -19,10 +19,10 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
-from fourbar_ros.antenna import Branch, Driven
-from fourbar_ros.config import AntennaConfig, config_from_values, default_config, load_config
-from fourbar_ros.transforms import antenna_joint_positions
-from fourbar_ros.urdf import COUPLER_JOINT, coupler_joint_position, robot_description
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
+from fourbar_ros.config.robot_model import COUPLER_JOINT, coupler_joint_position, robot_description
+from fourbar_ros.core.antenna import Branch, Driven
+from fourbar_ros.core.transforms import antenna_joint_positions
 
 REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
@@ -198,7 +198,7 @@ def test_lengths_come_from_the_parameter_file(tmp_path: Path) -> None:
     text = text.replace('frame_id: fourbar_base', 'frame_id: mast')
     params = tmp_path / 'robot.yaml'
     params.write_text(text, encoding='utf-8')
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'urdf', '--params', str(params)],
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(params)],
                          capture_output=True, text=True, timeout=60, check=False)
     assert out.returncode == 0, out.stderr
     assert out.stdout == robot_description(load_config(params))
@@ -211,7 +211,7 @@ def test_lengths_come_from_the_parameter_file(tmp_path: Path) -> None:
 
 
 def test_default_output_is_the_shipped_configuration() -> None:
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'urdf', '--params', str(YAML)],
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(YAML)],
                          capture_output=True, text=True, timeout=60, check=False)
     assert out.returncode == 0, out.stderr
     assert out.stdout == robot_description(load_config(YAML))
@@ -221,7 +221,7 @@ def test_bad_parameter_file_is_one_line_and_exit_2(tmp_path: Path) -> None:
     params = tmp_path / 'bad.yaml'
     params.write_text('/**:\n  ros__parameters:\n    frame_length: -1.0\n', encoding='utf-8')
     out_file = tmp_path / 'model.urdf'
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'urdf', '--params', str(params),
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(params),
                           '-o', str(out_file)], capture_output=True, text=True, timeout=60, check=False)
     assert out.returncode == 2
     assert out.stdout == ''
@@ -231,7 +231,7 @@ def test_bad_parameter_file_is_one_line_and_exit_2(tmp_path: Path) -> None:
 
 def test_output_file_is_written_whole(tmp_path: Path) -> None:
     out_file = tmp_path / 'model.urdf'
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'urdf', '-o', str(out_file)],
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '-o', str(out_file)],
                          capture_output=True, text=True, timeout=60, check=False)
     assert out.returncode == 0, out.stderr
     assert out_file.read_text(encoding='utf-8') == robot_description(default_config())
@@ -242,7 +242,7 @@ def test_coupler_joint_name_comes_from_the_parameter_file(tmp_path: Path) -> Non
     params = tmp_path / 'named.yaml'
     params.write_text(YAML.read_text(encoding='utf-8').replace('coupler_joint: coupler_joint ',
                                                                 'coupler_joint: bc_joint '), encoding='utf-8')
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.cli', 'urdf', '--params', str(params)],
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(params)],
                          capture_output=True, text=True, timeout=60, check=False)
     assert out.returncode == 0, out.stderr
     movable = {j.attrib['name'] for j in ET.fromstring(out.stdout).findall('joint') if j.attrib['type'] != 'fixed'}

@@ -1,1 +1,68 @@
-"""Subcommands of the `fourbar` command line; each module here is one subcommand (see fourbar_ros.cli)."""
+"""The `fourbar` command line: one subcommand per module in fourbar_ros.commands.
+
+Each command module defines HELP (one line), add_arguments(parser) and run(args) -> exit status, and imports
+anything heavy (rclpy, rosbags, matplotlib) inside run(), so `fourbar solve` stays quick.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import pkgutil
+import re
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+from fourbar_ros.core.errors import FourBarError
+
+_NUMBER = r'(?:(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?|inf(?:inity)?|nan)'
+#: A token that starts with '-' but is a value: a number or a comma-separated list of numbers (-6e-1, -.5, -inf,
+#: -0.5,5.0). argparse's own rule only knows -5 and -0.5, so `--theta -6e-1` and `--pairs -0.5,5.0` read as flags.
+NEGATIVE_NUMBER = re.compile(rf'^-{_NUMBER}(?:,[+-]?{_NUMBER})*$', re.IGNORECASE)
+
+
+class Parser(argparse.ArgumentParser):
+    """argparse, taking every token that reads as a negative number (or a list of numbers) as a value.
+
+    As in argparse, this holds while no option itself looks like a negative number (none of ours does); the
+    subcommand parsers are of this class too (add_subparsers makes them of the parent's class).
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = NEGATIVE_NUMBER  # argparse's hook for this rule (an instance attribute)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every discovered subcommand."""
+    parser = Parser(prog='fourbar', description=__doc__.splitlines()[0] if __doc__ else None)
+    sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
+    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
+        if info.name.startswith('_'):
+            continue
+        module = importlib.import_module(f'{__name__}.{info.name}')
+        p = sub.add_parser(info.name, help=module.HELP, description=module.HELP)
+        module.add_arguments(p)
+        p.set_defaults(_run=module.run, _prog=f'fourbar {info.name}')
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the `fourbar` console script; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args._run(args))
+    except FourBarError as exc:  # bad input that a command did not word itself
+        print(f'{args._prog}: error: {exc}', file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+    except BrokenPipeError:  # e.g. `fourbar check | head`: the reader left; say nothing more
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -11,7 +11,7 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from ..config import (
+from fourbar_ros.config.antenna_config import (
     AntennaConfig,
     ConfigError,
     config_from_values,
@@ -19,12 +19,19 @@ from ..config import (
     unknown_in_node_sections,
     values_from_yaml,
 )
-from ..design_check import DEFAULT_SAMPLES, MAX_SAMPLES, CheckLimits, DesignReport, check_design, format_report
-from ..errors import FourBarError
-from ..rcl_yaml import read_text
+from fourbar_ros.config.rcl_yaml import read_text
+from fourbar_ros.core.design_check import (
+    DEFAULT_SAMPLES,
+    MAX_SAMPLES,
+    CheckLimits,
+    DesignReport,
+    check_design,
+    format_report,
+)
+from fourbar_ros.core.errors import FourBarError
 
 if TYPE_CHECKING:
-    from ..design_check import Curves
+    from fourbar_ros.core.design_check import Curves
 
 HELP = ('check the antenna linkage over its tilt range: reach margin, transmission angle, torque vs the drive\'s '
         'limits, sensitivity; exit 1 on failure')
@@ -169,8 +176,8 @@ def _plot(cfg: AntennaConfig, report: DesignReport, path: str, samples: int) -> 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from ..design_check import TRANSMISSION_RULE_OF_THUMB, sample_curves
-    from ..transforms import antenna_joint_positions
+    from fourbar_ros.core.design_check import TRANSMISSION_RULE_OF_THUMB, sample_curves
+    from fourbar_ros.core.transforms import antenna_joint_positions
 
     curves: Curves = sample_curves(cfg, samples)
     deg = [math.degrees(t) for t in curves.theta]

@@ -33,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Compare; exit 0 when equal within the tolerance, 1 when not, 2 on bad input."""
-    from ..bag_compare import compare_bags
-    from ..config import default_config, load_config
+    from fourbar_ros.bags.compare import compare_bags
+    from fourbar_ros.config.antenna_config import default_config, load_config
 
     cfg = load_config(args.params) if args.params is not None else default_config()
     ignore = [f for f in args.ignore.split(',') if f]

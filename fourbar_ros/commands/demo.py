@@ -45,10 +45,10 @@ def run(args: argparse.Namespace) -> int:
     import contextlib
     import shutil
 
-    from ..bag_demo import core_deviation, pair, plot, summary_lines
-    from ..bag_io import read_commands, read_messages
-    from ..bag_replay import free_domain_id, predictor
-    from ..config import load_config
+    from fourbar_ros.bags.demo import core_deviation, pair, plot, summary_lines
+    from fourbar_ros.bags.replay import free_domain_id, predictor
+    from fourbar_ros.bags.storage import read_commands, read_messages
+    from fourbar_ros.config.antenna_config import load_config
 
     prog = 'fourbar demo'
     start = time.monotonic()
@@ -101,9 +101,8 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
-    from ..bag_io import BagError, CommandStream
-    from ..bag_record import Recorder, discover
-    from ..bag_replay import (
+    from fourbar_ros.bags.record import Recorder, discover
+    from fourbar_ros.bags.replay import (
         NodeProcess,
         Progress,
         Replayer,
@@ -113,6 +112,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         interrupt_on_sigterm,
         spin_until,
     )
+    from fourbar_ros.bags.storage import BagError, CommandStream
 
     assert isinstance(stream, CommandStream)
     prog = 'fourbar demo'
@@ -178,7 +178,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
 
 def _stop_node(proc: object) -> None:
     """Stop the node process; say so if it did not exit cleanly."""
-    from ..bag_replay import NodeProcess
+    from fourbar_ros.bags.replay import NodeProcess
 
     assert isinstance(proc, NodeProcess)
     status = proc.stop()

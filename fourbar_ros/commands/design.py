@@ -7,8 +7,8 @@ import json
 import math
 import sys
 
-from ..errors import FourBarError
-from ..synthesis import MAX_CONDITION, Design, synthesize
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.synthesis import MAX_CONDITION, Design, synthesize
 
 HELP = 'design a four-bar (link lengths) from 3 or more (crank angle, rocker angle) pairs by Freudenstein\'s equation'
 

@@ -31,8 +31,8 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Process; exit 0 with a complete bag, 2 with one line on bad input (nothing written)."""
-    from ..bag_process import process_bag
-    from ..config import default_config, load_config
+    from fourbar_ros.bags.process import process_bag
+    from fourbar_ros.config.antenna_config import default_config, load_config
 
     cfg = load_config(args.params) if args.params is not None else default_config()  # ConfigError: exit 2
     previous = signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM, like Ctrl-C: the partial bag is removed

@@ -33,7 +33,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def _parse_stop_after(items: list[str]) -> dict[str, int]:
-    from ..bag_io import BagError
+    from fourbar_ros.bags.storage import BagError
 
     out: dict[str, int] = {}
     for item in items:
@@ -53,9 +53,9 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from ..bag_io import AtomicBagWriter, BagError
-    from ..bag_record import Recorder, discover, record_until
-    from ..bag_replay import close_context, init_context, spin_until
+    from fourbar_ros.bags.record import Recorder, discover, record_until
+    from fourbar_ros.bags.replay import close_context, init_context, spin_until
+    from fourbar_ros.bags.storage import AtomicBagWriter, BagError
 
     prog = 'fourbar record'
     if args.wait <= 0 or (args.duration is not None and not args.duration > 0):

@@ -19,7 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Rebuild the bag; exit 0 with a complete bag, 2 with one line when there is nothing to recover."""
-    from ..bag_io import reindex
+    from fourbar_ros.bags.storage import reindex
 
     result = reindex(args.path)  # BagError: one line, status 2 (cli)
     per_topic = ', '.join(f'{t}: {n}' for t, n in result.counts.items())

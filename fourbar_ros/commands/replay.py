@@ -48,8 +48,7 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
-    from ..bag_io import read_commands
-    from ..bag_replay import (
+    from fourbar_ros.bags.replay import (
         Predictor,
         Progress,
         Replayer,
@@ -60,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
         predictor,
         sibling_topic,
     )
+    from fourbar_ros.bags.storage import read_commands
 
     prog = 'fourbar replay'
     for name in ('rate', 'wait', 'deadline'):
@@ -81,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     stream = read_commands(args.bag)  # BagError: one line, status 2 (cli)
     answers_from_file: Predictor | None = None
     if args.params is not None:
-        from ..config import load_config
+        from fourbar_ros.config.antenna_config import load_config
 
         cfg = load_config(args.params)
         answers_from_file = predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits)

@@ -8,9 +8,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from ..config import default_config
-from ..errors import FourBarError
-from ..urdf import robot_description, robot_description_for
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.robot_model import robot_description, robot_description_for
+from fourbar_ros.core.errors import FourBarError
 
 HELP = 'print the URDF robot model (for robot_state_publisher) generated from the node\'s parameters'
 

@@ -31,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 import numpy.typing as npt
 
-from .numeric import FloatArray, OnInvalid
+from fourbar_ros.core.numeric import FloatArray, OnInvalid
 
 
 class DyadConstants(NamedTuple):

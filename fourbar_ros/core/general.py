@@ -19,7 +19,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .dyad import (
+from fourbar_ros.core.dyad import (
     Branch,
     DyadChangePointError,
     DyadConstants,
@@ -31,8 +31,8 @@ from .dyad import (
     dyad_constants,
     reach_half_angles,
 )
-from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
-from .numeric import DEAD_TOL, ArrayLike, OnInvalid, check_length
+from fourbar_ros.core.errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
+from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, OnInvalid, check_length
 
 
 class FourBarAngles(NamedTuple):
@@ -46,7 +46,7 @@ class FourBarAngles(NamedTuple):
 class FourBar:
     """A general planar four-bar (lengths in metres, any consistent unit); validated on construction.
 
-    Assembly branch (``branch``, a :class:`~fourbar_ros.dyad.Branch`) of every solve: Branch.UPPER (+1) puts C to
+    Assembly branch (``branch``, a :class:`~fourbar_ros.core.dyad.Branch`) of every solve: Branch.UPPER (+1) puts C to
     the left of the diagonal from B to O4 (the usual 'open' drawing of a crank-rocker with everything above the
     ground), Branch.LOWER (-1) to the right ('crossed').
     """

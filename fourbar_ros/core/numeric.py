@@ -1,5 +1,5 @@
 """Numeric conventions shared by the core's solvers: array types, the invalid-input policy, the dead-point
-tolerance and length validation. The bottom of the core: imports numpy and fourbar_ros.errors only."""
+tolerance and length validation. The bottom of the core: imports numpy and fourbar_ros.core.errors only."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from .errors import InvalidGeometryError
+from fourbar_ros.core.errors import InvalidGeometryError
 
 FloatArray = npt.NDArray[np.float64]
 #: A Python float (the math-module fast paths) or a float64 array (the vectorized paths); radians or metres.

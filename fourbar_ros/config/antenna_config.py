@@ -2,7 +2,7 @@
 
 ``load_config(path)`` reads the same YAML that ``fourbar_node --ros-args --params-file`` reads and
 applies the same rules the node applies to its parameters (at startup and on every run-time
-change): rclpy's type and range checks from ``fourbar_ros.params`` plus the cross-parameter
+change): rclpy's type and range checks from ``fourbar_ros.config.params`` plus the cross-parameter
 checks in ``config_from_values`` (the linkage assembles over the whole tilt range, no dead point
 of the driven rocker inside it, enumerations, distinct joint names).
 Units: metres, radians, N m, kg, seconds.
@@ -16,10 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fourbar_ros.antenna import AntennaLinkage, Branch, Driven
-from fourbar_ros.errors import FourBarError
-from fourbar_ros.loads import has_gravity_load
-from fourbar_ros.params import (
+from fourbar_ros.config.params import (
     PARAMETERS,
     PARAMETERS_BY_NAME,
     RANGE_REL_TOL,
@@ -27,7 +24,7 @@ from fourbar_ros.params import (
     ParamValue,
     is_foreign,
 )
-from fourbar_ros.rcl_yaml import (
+from fourbar_ros.config.rcl_yaml import (
     NODE_NAME,
     ConfigError,
     node_sections,
@@ -36,6 +33,9 @@ from fourbar_ros.rcl_yaml import (
     section_pattern,
     values_from_yaml,
 )
+from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.loads import has_gravity_load
 
 __all__ = [
     'NODE_NAME', 'AntennaConfig', 'ConfigError', 'check_value', 'config_from_values', 'declared_values',

@@ -1,7 +1,7 @@
 """URDF robot model of the tilt linkage, generated from the node's configuration. No ROS import.
 
 One source of truth: the lengths come from the same validated configuration the node uses
-(``fourbar_ros.config.load_config``), so the model cannot drift from the solver.
+(``fourbar_ros.config.antenna_config.load_config``), so the model cannot drift from the solver.
 
 Conventions (REP-103, metres, radians, z up). The linkage lies in the x-z plane of the root link
 (the node's ``frame_id``): pivot A at its origin, pivot D at (frame length, 0, 0); a point (x, y) of the
@@ -35,8 +35,8 @@ from collections.abc import Iterable
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from fourbar_ros.antenna import Driven
-from fourbar_ros.config import AntennaConfig, load_config, values_from_yaml
+from fourbar_ros.config.antenna_config import AntennaConfig, load_config, values_from_yaml
+from fourbar_ros.core.antenna import Driven
 
 #: Default JointState name of the coupler joint (parameter ``coupler_joint`` where the node declares it).
 COUPLER_JOINT = 'coupler_joint'
@@ -170,7 +170,7 @@ def robot_description_for(params: str | Path, node_name: str = 'fourbar_node', n
                           robot_name: str = 'fourbar') -> tuple[AntennaConfig, str]:
     """Validated configuration and URDF for the node ``namespace``/``node_name`` started with ``params``.
 
-    Raises ``fourbar_ros.config.ConfigError`` (one line) for a bad file.
+    Raises ``fourbar_ros.config.antenna_config.ConfigError`` (one line) for a bad file.
     """
     cfg = load_config(params, node_name, namespace)
     return cfg, robot_description(cfg, coupler_joint_name(cfg, params, node_name, namespace), robot_name)

@@ -16,10 +16,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.command_policy import Outcome, Policy, decide
-from fourbar_ros.config import AntennaConfig
-from fourbar_ros.errors import FourBarError
-from fourbar_ros.loads import motor_torque, solve
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.loads import motor_torque, solve
+from fourbar_ros.node.command_policy import Outcome, Policy, decide
 
 FloatArray = npt.NDArray[np.float64]
 

@@ -18,11 +18,11 @@ from collections.abc import Callable
 from functools import partial
 from typing import NamedTuple, Protocol
 
-from fourbar_ros.antenna import AntennaLinkage, Branch, Driven, LinkageState
+from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven, LinkageState
 
 
 class LoadSpec(Protocol):
-    """What the load model reads (``fourbar_ros.config.AntennaConfig`` provides it; any object with these
+    """What the load model reads (``fourbar_ros.config.antenna_config.AntennaConfig`` provides it; any object with these
     read-only attributes does)."""
 
     @property

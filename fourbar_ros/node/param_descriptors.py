@@ -1,4 +1,4 @@
-"""ROS parameter descriptors built from ``fourbar_ros.params.PARAMETERS`` (declaration only)."""
+"""ROS parameter descriptors built from ``fourbar_ros.config.params.PARAMETERS`` (declaration only)."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
 
-from fourbar_ros.params import PARAMETERS, ParamSpec, ParamValue
+from fourbar_ros.config.params import PARAMETERS, ParamSpec, ParamValue
 
 _TYPES = {float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING,
           int: ParameterType.PARAMETER_INTEGER, bool: ParameterType.PARAMETER_BOOL}

@@ -45,24 +45,24 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from visualization_msgs.msg import MarkerArray
 
-from fourbar_ros.antenna import Driven, LinkageState
-from fourbar_ros.command_policy import Decision, Outcome, Policy, decide
-from fourbar_ros.config import (
+from fourbar_ros.config.antenna_config import (
     AntennaConfig,
     ConfigError,
     config_from_values,
     declared_values,
     unknown_in_node_sections,
 )
-from fourbar_ros.diagnostic_values import Counters, SequenceGaps, summarize
-from fourbar_ros.errors import FourBarError
-from fourbar_ros.joint_velocity import Sample, velocity_step
-from fourbar_ros.loads import Pose, pose_solver, solve
-from fourbar_ros.marker_geometry import linkage_points
-from fourbar_ros.params import PARAMETERS_BY_NAME, is_foreign
-from fourbar_ros.ros_markers import LinkageMarkers
-from fourbar_ros.ros_params import declarations
-from fourbar_ros.state_cache import StateCache
+from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
+from fourbar_ros.core.antenna import Driven, LinkageState
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.loads import Pose, pose_solver, solve
+from fourbar_ros.node.command_policy import Decision, Outcome, Policy, decide
+from fourbar_ros.node.diagnostic_values import Counters, SequenceGaps, summarize
+from fourbar_ros.node.joint_velocity import Sample, velocity_step
+from fourbar_ros.node.marker_geometry import linkage_points
+from fourbar_ros.node.markers import LinkageMarkers
+from fourbar_ros.node.param_descriptors import declarations
+from fourbar_ros.node.state_cache import StateCache
 
 NODE_NAME = 'fourbar_node'
 #: Keep-last depth of the command subscription and the per-command outputs.
@@ -404,7 +404,7 @@ def params_file_problem(argv: list[str]) -> str | None:
 
     Checked before rclpy.init, because rcl would log its own multi-line error first.
     """
-    from fourbar_ros.rcl_yaml import params_file_problem as file_problem
+    from fourbar_ros.config.rcl_yaml import params_file_problem as file_problem
 
     for flag, path in itertools.pairwise(argv):
         if flag == '--params-file' and (problem := file_problem(path)) is not None:

@@ -12,8 +12,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .numeric import ArrayLike as AngleLike
-from .numeric import FloatArray
+from fourbar_ros.core.numeric import ArrayLike as AngleLike
+from fourbar_ros.core.numeric import FloatArray
 
 _ORIGIN = np.array([0.0, 0.0, 1.0])
 

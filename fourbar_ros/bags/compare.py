@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.antenna import Driven
-from fourbar_ros.bag_io import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
-from fourbar_ros.config import AntennaConfig
-from fourbar_ros.joint_state_cdr import decode_float64s, decode_joint_states
+from fourbar_ros.bags.joint_state_cdr import decode_float64s, decode_joint_states
+from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.core.antenna import Driven
 
 FloatArray = npt.NDArray[np.float64]
 DEFAULT_ULPS = 16.0

@@ -46,10 +46,10 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosbags.interfaces import QosDurability, QosReliability
 from std_msgs.msg import Float64
 
-from fourbar_ros.antenna import Reach
-from fourbar_ros.bag_io import CommandStream
-from fourbar_ros.command_policy import Policy, decide
-from fourbar_ros.errors import FourBarError
+from fourbar_ros.bags.storage import CommandStream
+from fourbar_ros.core.antenna import Reach
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.node.command_policy import Policy, decide
 
 #: rclpy's QoSProfile constructor is unannotated; a typed alias keeps mypy strict about the rest.
 make_qos = cast('Callable[..., QoSProfile]', QoSProfile)
@@ -510,7 +510,7 @@ def free_domain_id(candidates: Sequence[int] = FREE_DOMAIN_IDS,
     raise ReplayError(f'no free ROS_DOMAIN_ID among {candidates[0]}..{candidates[-1]}')
 
 
-NODE_MAIN = 'import sys; from fourbar_ros.node import main; sys.exit(main())'
+NODE_MAIN = 'import sys; from fourbar_ros.node.fourbar_node import main; sys.exit(main())'
 
 
 class NodeProcess:

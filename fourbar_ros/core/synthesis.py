@@ -1,6 +1,6 @@
 """Freudenstein function-generator synthesis: link lengths from (crank angle, rocker angle) pairs.
 
-Linkage and angles follow :class:`fourbar_ros.general.FourBar`: ground pivot O2 at the origin, O4 at (l1, 0),
+Linkage and angles follow :class:`fourbar_ros.core.general.FourBar`: ground pivot O2 at the origin, O4 at (l1, 0),
 crank l2 at O2 (angle t2 from +x), coupler l3, rocker l4 at O4 (angle t4 from +x); lengths in metres, angles in
 radians. Loop closure ``|l2 e^{i t2} - l1 - l4 e^{i t4}| = l3`` squared and divided by ``2 l2 l4`` is Freudenstein's
 equation
@@ -28,10 +28,10 @@ from typing import Any, Literal
 
 import numpy as np
 
-from fourbar_ros.dyad import Branch
-from fourbar_ros.errors import FourBarError, SingularPositionError, UnreachableError
-from fourbar_ros.general import FourBar
-from fourbar_ros.numeric import FloatArray
+from fourbar_ros.core.dyad import Branch
+from fourbar_ros.core.errors import FourBarError, SingularPositionError, UnreachableError
+from fourbar_ros.core.general import FourBar
+from fourbar_ros.core.numeric import FloatArray
 
 #: Default limit on the 2-norm condition number of the Freudenstein system. Beyond about 1/sqrt(eps) = 6.7e7 more
 #: than half of the double-precision digits of the constants can be lost to rounding alone.

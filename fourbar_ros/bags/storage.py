@@ -46,7 +46,7 @@ from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys import Stores, get_typestore
 
-from fourbar_ros.errors import FourBarError
+from fourbar_ros.core.errors import FourBarError
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -136,7 +136,7 @@ def _describe_topics(types: dict[str, str]) -> str:
     return 'topics: ' + ', '.join(f'{t} [{m}]' for t, m in sorted(types.items()))
 
 
-def _pick_command_topic(path: Path, types: dict[str, str], topic: str | None) -> str:
+def pick_command_topic(path: Path, types: dict[str, str], topic: str | None) -> str:
     if topic is not None:
         if topic not in types:
             raise BagError(f'{path}: no topic {topic} ({_describe_topics(types)})')
@@ -191,7 +191,7 @@ def read_commands(path: str | os.PathLike[str], topic: str | None = None) -> Com
     p = Path(path)
     store = jazzy_typestore()
     with open_bag(p) as reader:
-        chosen = _pick_command_topic(p, topic_types(reader), topic)
+        chosen = pick_command_topic(p, topic_types(reader), topic)
         conns = [c for c in reader.connections if c.topic == chosen]
         qos: list[Qos] = []
         for c in conns:
@@ -216,13 +216,13 @@ def read_commands(path: str | os.PathLike[str], topic: str | None = None) -> Com
         except Exception as exc:
             raise BagError(f'{p}: unreadable bag after {len(values)} messages '
                            f'({_one_line(exc)})') from exc
-        storage = _storage_of(reader)
+        storage = storage_of(reader)
     if not values:
         raise BagError(f'{p}: topic {chosen} has no messages')
     return CommandStream(p, chosen, storage, tuple(stamps), tuple(values), tuple(raws), tuple(qos))
 
 
-def _storage_of(reader: Reader) -> str:
+def storage_of(reader: Reader) -> str:
     """Storage plugin of an open bag: 'mcap' or 'sqlite3'."""
     path = Path(str(reader.path))
     if path.is_file():
@@ -271,7 +271,7 @@ def fingerprint(path: str | os.PathLike[str]) -> dict[str, Any]:
                                ext.serialization_format, tuple(ext.offered_qos_profiles))
         msgs = [(c.topic, int(t), bytes(d)) for c, t, d in reader.messages()]
         meta = _metadata(p) if p.is_dir() else {}
-        return {'version': meta.get('version'), 'storage': _storage_of(reader),
+        return {'version': meta.get('version'), 'storage': storage_of(reader),
                 'topics': topics, 'messages': msgs, 'custom_data': meta.get('custom_data') or {}}
 
 

@@ -1,14 +1,14 @@
 """Design check of the antenna tilt linkage over its configured tilt range (pure: no ROS).
 
-For ``[theta_min, theta_max]`` (rad) of a :class:`DesignSpec` (an :class:`~fourbar_ros.config.AntennaConfig`
-provides one) it reports:
+For ``[theta_min, theta_max]`` (rad) of a :class:`DesignSpec` (the configuration layer's ``AntennaConfig`` provides
+one) it reports:
 
 - reach margin at both ends: how much further theta (rad) may go before the linkage reaches its toggle
   (the reach limit, where the rockers' rates blow up);
 - the minimum transmission angle (rad) and where: the transmission angle mu in [0, pi] at the joint between the
   coupler and the non-driven rocker, measured as its distance from the dead point, min(mu, pi - mu) in [0, pi/2];
 - the peak required input torque (N m) at the driven rocker, for the configured load (constant torque plus the
-  antenna weight, :mod:`fourbar_ros.loads`, with its configured sign: the torque the node reports), as an
+  antenna weight, :mod:`fourbar_ros.core.loads`, with its configured sign: the torque the node reports), as an
   absolute value, against the reducer rating; and the motor-side torque, driving through the reducer
   (tau / (ratio * efficiency)), against the motor's limit;
 - the worst-case sensitivity of the rocker angles to theta, max |dq/dtheta| (dimensionless), and its inverse for
@@ -31,15 +31,15 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from fourbar_ros.antenna import Driven
-from fourbar_ros.errors import FourBarError
-from fourbar_ros.loads import LoadSpec, motor_torque
-from fourbar_ros.loads import solve as solve_state
-from fourbar_ros.numeric import FloatArray
+from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.loads import LoadSpec, motor_torque
+from fourbar_ros.core.loads import solve as solve_state
+from fourbar_ros.core.numeric import FloatArray
 
 
 class DesignSpec(LoadSpec, Protocol):
-    """What the check reads besides the load model's inputs (``fourbar_ros.config.AntennaConfig`` provides it)."""
+    """What the check reads besides the load model's inputs (the config layer's ``AntennaConfig`` provides it)."""
 
     @property
     def theta_min(self) -> float:

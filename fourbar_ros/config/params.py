@@ -1,8 +1,8 @@
 """The fourbar_node parameter spec: the single list the node declares and the YAML loader checks.
 
 Lengths in metres, angles in radians, torques in N m, masses in kg, times in seconds.
-Each entry is plain data (no ROS import); ``fourbar_ros.node`` turns it into
-``rcl_interfaces/ParameterDescriptor`` s and ``fourbar_ros.config`` validates files against it.
+Each entry is plain data (no ROS import); ``fourbar_ros.node.fourbar_node`` turns it into
+``rcl_interfaces/ParameterDescriptor`` s and ``fourbar_ros.config.antenna_config`` validates files against it.
 """
 
 from __future__ import annotations

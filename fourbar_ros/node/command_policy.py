@@ -16,7 +16,7 @@ import enum
 import math
 from typing import NamedTuple
 
-from fourbar_ros.antenna import Reach
+from fourbar_ros.core.antenna import Reach
 
 
 class Policy(enum.Enum):

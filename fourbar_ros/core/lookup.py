@@ -2,7 +2,7 @@ r"""A precomputed rocker-angle table over a tilt range: the cheap alternative to
 
 For users who accept a bounded error (say 1e-6 rad) in exchange for no trigonometry at run time, e.g. a small
 controller: :meth:`RockerTable.build` tabulates gamma and delta (radians) of an
-:class:`~fourbar_ros.antenna.AntennaLinkage` on a uniform grid over [theta_min, theta_max] and interpolates by
+:class:`~fourbar_ros.core.antenna.AntennaLinkage` on a uniform grid over [theta_min, theta_max] and interpolates by
 cubic Hermite (values and slopes from the exact core), doubling the grid until the error, measured against the
 exact solver at 16 points inside every interval, is at most half the requested tolerance. ``max_error`` (float64
 evaluation) and ``max_error_float32`` (coefficients and arithmetic in float32, as :meth:`to_c` emits; float32
@@ -24,9 +24,9 @@ from typing import TypeVar, overload
 import numpy as np
 import numpy.typing as npt
 
-from .antenna import AntennaLinkage, Branch, RockerAngles
-from .errors import UnreachableError
-from .numeric import ArrayLike, FloatArray, OnInvalid
+from fourbar_ros.core.antenna import AntennaLinkage, Branch, RockerAngles
+from fourbar_ros.core.errors import UnreachableError
+from fourbar_ros.core.numeric import ArrayLike, FloatArray, OnInvalid
 
 _SAMPLES_PER_INTERVAL = 16
 _F = TypeVar('_F', bound=np.floating)

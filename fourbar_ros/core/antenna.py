@@ -30,7 +30,7 @@ from typing import NamedTuple, overload
 import numpy as np
 import numpy.typing as npt
 
-from .dyad import (
+from fourbar_ros.core.dyad import (
     Branch,
     DyadChangePointError,
     DyadConstants,
@@ -42,8 +42,8 @@ from .dyad import (
     dyad_constants,
     reach_half_angles,
 )
-from .errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
-from .numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid, check_length
+from fourbar_ros.core.errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
+from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid, check_length
 
 __all__ = [
     'AntennaLinkage', 'Branch', 'Driven', 'InverseSolution', 'LinkageState', 'Reach', 'RockerAngles', 'RockerRates',

@@ -30,22 +30,22 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.antenna import Driven
-from fourbar_ros.bag_io import (
+from fourbar_ros.bags.joint_state_cdr import decode_float64s, encode_float64s, encode_joint_states
+from fourbar_ros.bags.storage import (
     FLOAT64,
     JOINT_STATE,
     AtomicBagWriter,
     BagError,
-    _pick_command_topic,
-    _storage_of,
     jazzy_typestore,
     open_bag,
+    pick_command_topic,
     recorded_qos,
+    storage_of,
     topic_types,
 )
-from fourbar_ros.command_policy import Outcome, Policy, decide
-from fourbar_ros.config import AntennaConfig
-from fourbar_ros.joint_state_cdr import decode_float64s, encode_float64s, encode_joint_states
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.core.antenna import Driven
+from fourbar_ros.node.command_policy import Outcome, Policy, decide
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -249,11 +249,11 @@ def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: A
     driven = 0 if cfg.driven is Driven.GAMMA else 1
     vel_state = VelocityState()
     with open_bag(src_path) as reader:
-        chosen = _pick_command_topic(src_path, topic_types(reader), topic)
+        chosen = pick_command_topic(src_path, topic_types(reader), topic)
         conns = [c for c in reader.connections if c.topic == chosen]
         joint_topic, torque_topic = sibling_topic(chosen, 'joint_states'), sibling_topic(chosen, 'input_torque')
         stats.topics = (joint_topic, torque_topic)
-        with AtomicBagWriter(dst, storage or _storage_of(reader)) as bag:
+        with AtomicBagWriter(dst, storage or storage_of(reader)) as bag:
             qos = [recorded_qos()]  # the node's publishers: reliable, volatile
             js_conn = bag.add_topic(joint_topic, JOINT_STATE, qos)
             tq_conn = bag.add_topic(torque_topic, FLOAT64, qos)

@@ -16,7 +16,7 @@ from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from fourbar_ros.errors import FourBarError
+from fourbar_ros.core.errors import FourBarError
 
 #: Node name the loader looks for besides the ``/**`` wildcard section.
 NODE_NAME = 'fourbar_node'
@@ -131,7 +131,7 @@ def parse(text: str, source: str = '<string>') -> Any:
     an alias is refused where it appears, nothing is ever expanded, and nesting deeper than ``MAX_DEPTH``
     is refused, so the result is never larger than the text. Raises ``ConfigError`` (one line).
     """
-    import yaml  # PyYAML, only for its parser; imported here to keep `import fourbar_ros.config` light
+    import yaml  # PyYAML, only for its parser; imported here to keep `import fourbar_ros.config.antenna_config` light
 
     loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
     scalar_event, mapping_start, sequence_start = yaml.ScalarEvent, yaml.MappingStartEvent, yaml.SequenceStartEvent

@@ -1,0 +1,1 @@
+"""The pure math: geometry, kinematics, statics, synthesis. numpy and the standard library only."""
