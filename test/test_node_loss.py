@@ -23,6 +23,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -46,11 +47,11 @@ def gamma(theta: float) -> float:
 class Rig:
     """The node process in namespace ``ns`` with a command publisher, joint_states and /diagnostics collectors."""
 
-    def __init__(self, ros: RosSession, ns: str) -> None:
+    def __init__(self, ros: RosSession, ns: str, executor: str) -> None:
         self.ros = ros
         self.ns = ns
         self.proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}',
-                                 '-p', 'diagnostics_period:=0.1'], ros.env())
+                                 '-p', 'diagnostics_period:=0.1'], ros.env(**{EXECUTOR_ENV: executor}))
         self.proc.start()
         self.pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
         self.js: Collector[Any] = ros.collect(JointState, f'{ns}/joint_states')
@@ -85,8 +86,9 @@ def counts(values: dict[str, str]) -> tuple[int, int]:
     return int(values['commands_received']), int(values['commands_lost'])
 
 
-def test_burst_losses_are_counted_and_warned(ros: RosSession) -> None:
-    rig = Rig(ros, '/loss_burst')
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_burst_losses_are_counted_and_warned(ros: RosSession, executor: str) -> None:
+    rig = Rig(ros, f'/loss_burst_{executor}', executor)
     try:
         _, before = rig.status()
         received0, lost0 = counts(before)
@@ -121,7 +123,12 @@ def test_burst_losses_are_counted_and_warned(ros: RosSession) -> None:
         statuses = [s for m in rig.diag.messages[first_status:] for s in m.status if s.name == status.name]
         warned = [s for s in statuses if s.level == DiagnosticStatus.WARN and 'commands lost' in s.message]
         assert warned, [s.message for s in statuses]
-        assert len(rig.js) == received - received0  # every received command was answered
+        # Every received command was answered: the node's own count. (Counting answers here would measure this
+        # test's reader too: with the events executor the node answers the burst faster than the test's
+        # single-threaded, keep-last 1000 reader takes them, and the reader drops the oldest.)
+        published = int(values['joint_states_published']) - int(before['joint_states_published'])
+        assert published == received - received0
+        assert len(rig.js) <= published
         # The loss is reported while it is recent: once nothing more is lost, the level is OK again.
         rig.pub.publish(Float64(data=0.01))
         status, values = rig.status(lambda s, v: counts(v)[0] > received)
@@ -132,8 +139,9 @@ def test_burst_losses_are_counted_and_warned(ros: RosSession) -> None:
 
 @pytest.mark.parametrize('payload', [b'', b'\x00\x01\x00\x00', b'\x00\x01\x00\x00\x00\x00\x00',
                                      b'\xff' * 12], ids=['empty', 'header_only', 'truncated', 'bad_header'])
-def test_malformed_payload_does_not_block_later_commands(ros: RosSession, payload: bytes) -> None:
-    rig = Rig(ros, f'/loss_raw_{len(payload)}_{payload[:1].hex()}')
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_malformed_payload_does_not_block_later_commands(ros: RosSession, payload: bytes, executor: str) -> None:
+    rig = Rig(ros, f'/loss_raw_{executor}_{len(payload)}_{payload[:1].hex()}', executor)
     try:
         _, before = rig.status()
         received0, lost0 = counts(before)

@@ -18,6 +18,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import ConfigError, load_config
+from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -41,8 +42,9 @@ def state(theta: float) -> Any:
     return CFG.linkage.state(theta, CFG.load_torque, CFG.driven, CFG.branch)
 
 
-def start(ros: RosSession, *extra: str, params: Path = YAML) -> NodeProcess:
-    proc = NodeProcess(['--ros-args', '--params-file', str(params), *extra], ros.env())
+def start(ros: RosSession, *extra: str, params: Path = YAML, executor: str | None = None) -> NodeProcess:
+    env = ros.env() if executor is None else ros.env(**{EXECUTOR_ENV: executor})
+    proc = NodeProcess(['--ros-args', '--params-file', str(params), *extra], env)
     proc.start()
     return proc
 
@@ -80,10 +82,11 @@ def test_console_script_is_used() -> None:
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
-def test_process_serves_commands_and_exits_cleanly(ros: RosSession, sig: int) -> None:
-    proc = start(ros, '-r', f'__ns:=/proc_{sig}')
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_process_serves_commands_and_exits_cleanly(ros: RosSession, sig: int, executor: str) -> None:
+    proc = start(ros, '-r', f'__ns:=/proc_{sig}_{executor}', executor=executor)
     try:
-        pub, js, tq = connect(ros, proc, f'/proc_{sig}')
+        pub, js, tq = connect(ros, proc, f'/proc_{sig}_{executor}')
         commands = [LO, 0.0, HI, math.nan, 0.9, 0.05, 0.05, -0.01]
         served = [LO, 0.0, HI, 0.05, 0.05, -0.01]
         for c in commands:
@@ -106,11 +109,12 @@ def test_process_serves_commands_and_exits_cleanly(ros: RosSession, sig: int) ->
         proc.kill()
 
 
-def test_runtime_parameter_rejection_in_the_process(ros: RosSession) -> None:
-    proc = start(ros, '-r', '__ns:=/proc_params', '-p', 'diagnostics_period:=0.1')
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_runtime_parameter_rejection_in_the_process(ros: RosSession, executor: str) -> None:
+    proc = start(ros, '-r', f'__ns:=/proc_params_{executor}', '-p', 'diagnostics_period:=0.1', executor=executor)
     try:
-        pub, js, tq = connect(ros, proc, '/proc_params')
-        client = AsyncParameterClient(ros.node, '/proc_params/fourbar_node')
+        pub, js, tq = connect(ros, proc, f'/proc_params_{executor}')
+        client = AsyncParameterClient(ros.node, f'/proc_params_{executor}/fourbar_node')
         assert client.wait_for_services(timeout_sec=30.0)
         response = wait_future(client.set_parameters([Parameter('theta_max', value=0.9)]))
         assert not response.results[0].successful

@@ -23,6 +23,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -81,7 +82,7 @@ class Stream:
                 next_t = time.monotonic()
 
 
-def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str) -> list[str]:
+def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str) -> list[str]:
     """Start and signal the node REPEATS times; return one line per failure (status, stderr tail)."""
     pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
     js = ros.collect(JointState, f'{ns}/joint_states')
@@ -90,7 +91,8 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str) -> list[str]:
     probes = [LO + (HI - LO) * (i + 0.5) / 600 for i in range(600)]
     try:
         for i in range(REPEATS):
-            proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'], ros.env())
+            proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'],
+                               ros.env(**{EXECUTOR_ENV: executor}))
             proc.start()
             try:
                 ros.wait_subscribers(pub)
@@ -123,7 +125,8 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str) -> list[str]:
 
 @pytest.mark.parametrize('loaded', [False, True], ids=['idle', 'stream_1kHz'])
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
-def test_every_stop_exits_0_without_traceback(ros: RosSession, sig: int, loaded: bool) -> None:
-    ns = f'/stop_{int(sig)}_{int(loaded)}'
-    failures = run_stops(ros, sig, loaded, ns)
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_every_stop_exits_0_without_traceback(ros: RosSession, sig: int, loaded: bool, executor: str) -> None:
+    ns = f'/stop_{int(sig)}_{int(loaded)}_{executor}'
+    failures = run_stops(ros, sig, loaded, ns, executor)
     assert not failures, f'{len(failures)} of {REPEATS} stops failed:\n' + '\n'.join(failures)

@@ -21,11 +21,12 @@ decisions in the pure modules command_policy, state_cache, joint_velocity, diagn
 
 from __future__ import annotations
 
+import argparse
 import itertools
 import signal
 import sys
 from collections.abc import Callable, Collection, Sequence
-from typing import Any, cast
+from typing import Any, NoReturn
 
 import rclpy
 import rclpy.utilities
@@ -34,7 +35,7 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ROSClock
 from rclpy.clock_type import ClockType
 from rclpy.exceptions import ParameterNotDeclaredException
-from rclpy.executors import Executor, SingleThreadedExecutor
+from rclpy.executors import Executor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -58,6 +59,15 @@ from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import Pose, pose_solver, solve
 from fourbar_ros.node.command_policy import Decision, Outcome, Policy, decide
 from fourbar_ros.node.diagnostic_values import Counters, SequenceGaps, summarize
+from fourbar_ros.node.executor import (
+    DEFAULT_EXECUTOR,
+    EXECUTOR_ENV,
+    EXECUTORS,
+    MessageInfoCallback,
+    Spinner,
+    create_executor,
+    executor_kind,
+)
 from fourbar_ros.node.joint_velocity import Sample, velocity_step
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
@@ -131,9 +141,9 @@ class FourBarNode(Node):
         self._marker_pub = self.create_publisher(MarkerArray, 'linkage_markers', STATUS_DEPTH,
                                                  qos_overriding_options=qos_options)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATUS_DEPTH)
-        # Two parameters: rclpy then passes the message info (its typing only knows the one-parameter form).
-        on_command = cast(Callable[[Any], None], self._on_command)
-        self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd', on_command,
+        # Two parameters: rclpy then passes the message info, in the form each executor uses.
+        self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd',
+                                                     MessageInfoCallback(self._on_command),
                                                      COMMAND_QOS, qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
@@ -427,9 +437,16 @@ class StopRequest:
 
     def __init__(self) -> None:
         self.signal: int | None = None
+        self._wakers: list[Callable[[], None]] = []
 
     def __call__(self, signum: int, frame: object) -> None:
         self.signal = signum
+        for wake in self._wakers:
+            wake()
+
+    def on_request(self, wake: Callable[[], None]) -> None:
+        """Call ``wake()`` from the handler when a stop arrives (e.g. to end a running spin slice)."""
+        self._wakers.append(wake)
 
     def install(self) -> None:
         """Handle SIGINT and SIGTERM in this process (main thread only)."""
@@ -443,9 +460,50 @@ class StopRequest:
 
 
 def spin_until_stopped(executor: Executor, stop: StopRequest, poll_s: float = STOP_POLL_S) -> None:
-    """Run callbacks until ``stop`` is requested (checked at least every ``poll_s`` s) or the context ends."""
-    while not stop.requested and executor.context.ok():
-        executor.spin_once(timeout_sec=poll_s)
+    """Run callbacks until ``stop`` is requested or the context ends.
+
+    Spins in slices of at most ``poll_s`` s (an EventsExecutor must never wait without a deadline, see
+    fourbar_ros.node.executor); a stop also ends the running slice, after the callback in progress.
+    """
+    spinner = Spinner(executor, poll_s)
+    stop.on_request(spinner.request_stop)
+    context_ok: Callable[[], bool] = executor.context.ok
+    while not stop.requested and context_ok():
+        spinner.spin_slice()
+
+
+class UsageError(ValueError):
+    """A bad command-line option of fourbar_node (not a ROS argument)."""
+
+
+class _OptionParser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:
+        raise UsageError(message)
+
+
+def node_options(argv: Sequence[str]) -> argparse.Namespace:
+    """The options of ``fourbar_node`` outside its ``--ros-args`` sections (``argv[0]`` is the program)."""
+    parser = _OptionParser(prog='fourbar_node', description='The antenna tilt four-bar node.',
+                           epilog='ROS arguments follow --ros-args, e.g. --ros-args --params-file config/antenna.yaml')
+    parser.add_argument('--executor', choices=EXECUTORS, default=None,
+                        help=f'rclpy executor that runs the callbacks (default: ${EXECUTOR_ENV}, else '
+                             f'{DEFAULT_EXECUTOR}); see docs/node.md')
+    return parser.parse_args(non_ros_args(argv)[1:])
+
+
+def non_ros_args(argv: Sequence[str]) -> list[str]:
+    """``argv`` without its ROS arguments: each ``--ros-args`` up to the next ``--`` (or the end), as rcl reads
+    them. Pure, so a bad ROS argument (say an unreadable --params-file) is left to its own one-line check."""
+    out: list[str] = []
+    in_ros = False
+    for arg in argv:
+        if in_ros:
+            in_ros = arg != '--'
+        elif arg == '--ros-args':
+            in_ros = True
+        else:
+            out.append(arg)
+    return out
 
 
 def main(args: list[str] | None = None) -> int:
@@ -455,6 +513,11 @@ def main(args: list[str] | None = None) -> int:
     stop = StopRequest()
     stop.install()  # before rclpy.init: a stop during startup also ends cleanly, after the node is built
     argv = sys.argv if args is None else args
+    try:
+        kind = executor_kind(node_options(argv).executor)
+    except ValueError as exc:  # UsageError, ExecutorChoiceError
+        print(f'fourbar_node: error: {exc}', file=sys.stderr)
+        return 2
     problem = params_file_problem(argv)
     if problem is not None:
         print(f'fourbar_node: error: {problem}', file=sys.stderr)
@@ -468,8 +531,11 @@ def main(args: list[str] | None = None) -> int:
     executor: Executor | None = None
     try:
         node = FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv))
-        executor = SingleThreadedExecutor()
+        executor = create_executor(kind)
         executor.add_node(node)
+        get_logger: Callable[[], RcutilsLogger] = node.get_logger
+        info: Callable[[str], object] = get_logger().info
+        info(f'callbacks run on the {kind} executor')
         spin_until_stopped(executor, stop)
     except (ConfigError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
         print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)

@@ -1,0 +1,212 @@
+"""The executor choice and the spinning helpers of fourbar_ros.node.executor.
+
+- MessageInfoCallback: rclpy picks the (msg, info) form for it, and it unpacks both call forms (two
+  arguments from the SingleThreadedExecutor, one tuple from rclpy 7.1.6's EventsExecutor).
+- executor_kind: option, then $FOURBAR_EXECUTOR, then the default; one line for an unknown name.
+- DeferredInterrupt: a signal during spin_once is raised after it returns, never inside a callback.
+- Spinner on a real EventsExecutor (in a child process, so a hang fails by a deadline instead of hanging the
+  run): a subscription with message info is served, and request_stop() from a callback ends a slice whose
+  queue never empties (a zero-period timer). The slice's own deadline alone would not: the events queue only
+  looks at its deadline when it is empty. fourbar_node's SIGINT/SIGTERM handler relies on this.
+- fourbar_node's --executor option and $FOURBAR_EXECUTOR: an unknown name exits 2 with one line.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import select
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+from typing import Any
+
+import pytest
+from ros_support import lease_domain_id, node_command
+
+from fourbar_ros.node.executor import (
+    DEFAULT_EXECUTOR,
+    EXECUTOR_ENV,
+    EXECUTORS,
+    DeferredInterrupt,
+    ExecutorChoiceError,
+    MessageInfoCallback,
+    executor_kind,
+)
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def test_message_info_callback_binds_like_a_two_parameter_function_and_accepts_both_forms() -> None:
+    got: list[tuple[Any, Any]] = []
+    cb = MessageInfoCallback(lambda msg, info: got.append((msg, info)))
+    signature = inspect.signature(cb)
+    with pytest.raises(TypeError):
+        signature.bind(object())  # rclpy's test for the message-only form fails ...
+    signature.bind(object(), object())  # ... and the one for the (msg, info) form passes
+    cb('m1', {'k': 1})  # SingleThreadedExecutor
+    cb(('m2', {'k': 2}))  # EventsExecutor of rclpy 7.1.6
+    assert got == [('m1', {'k': 1}), ('m2', {'k': 2})]
+
+
+def test_rclpy_subscription_takes_it_as_a_message_info_callback() -> None:
+    from rclpy.subscription import Subscription
+
+    class Probe:
+        callback = Subscription.callback  # rclpy's own property: its setter classifies the callback
+
+    probe: Any = Probe()
+    probe.callback = MessageInfoCallback(lambda msg, info: None)
+    assert probe._callback_type is Subscription.CallbackType.WithMessageInfo
+
+
+def test_executor_kind_option_then_environment_then_default(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delenv(EXECUTOR_ENV, raising=False)
+    assert executor_kind() == DEFAULT_EXECUTOR
+    monkeypatch.setenv(EXECUTOR_ENV, 'single')
+    assert executor_kind() == 'single'
+    assert executor_kind('events') == 'events'  # the option wins
+    monkeypatch.setenv(EXECUTOR_ENV, 'multi')
+    with pytest.raises(ExecutorChoiceError, match=rf"^{EXECUTOR_ENV}: unknown executor 'multi'"):
+        executor_kind()
+    with pytest.raises(ExecutorChoiceError, match=r"^executor: unknown executor ''"):
+        executor_kind('')
+
+
+class SignallingExecutor:
+    """Stands in for an executor: its spin_once delivers a signal to this process, then runs more Python
+    (as a callback would) and records whether it got there."""
+
+    def __init__(self, sig: int) -> None:
+        self.sig = sig
+        self.finished = False
+
+    def spin_once(self, timeout_sec: float | None = None) -> None:
+        signal.raise_signal(self.sig)  # Python runs the handler at the next bytecode, i.e. "in a callback"
+        self.finished = True
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_deferred_interrupt_is_raised_after_the_spin_not_inside_it(sig: int) -> None:
+    interrupt = DeferredInterrupt()
+    previous = signal.signal(sig, interrupt)
+    try:
+        executor: Any = SignallingExecutor(sig)
+        with pytest.raises(KeyboardInterrupt):
+            interrupt.spin_once(executor, 0.1)
+        assert executor.finished  # the "callback" ran to its end
+        assert not interrupt.pending
+        with pytest.raises(KeyboardInterrupt):  # outside a spin: at once, like Python's SIGINT handler
+            signal.raise_signal(sig)
+    finally:
+        signal.signal(sig, previous)
+
+
+SPINNER_SCRIPT = textwrap.dedent('''
+    import sys
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
+    from std_msgs.msg import Float64
+    from fourbar_ros.node.executor import MessageInfoCallback, Spinner, create_executor
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = Node('spinner_probe')
+    executor = create_executor('events')
+    executor.add_node(node)
+    spinner = Spinner(executor, slice_s=0.2)
+    infos = []
+    node.create_subscription(Float64, 'probe', MessageInfoCallback(lambda m, i: infos.append((m.data, i))), 10)
+    pub = node.create_publisher(Float64, 'probe', 10)
+    ticks = [0]
+    def flood():  # a zero-period timer: the events queue never empties while it runs
+        ticks[0] += 1
+        if infos and ticks[0] >= 200:
+            spinner.request_stop()
+    node.create_timer(0.0, flood)
+    for _ in range(3000):  # until the message is served (the timer keeps each slice busy)
+        pub.publish(Float64(data=1.5))
+        spinner.spin_slice()
+        if spinner.stopped:
+            break
+    assert infos and infos[0][0] == 1.5 and 'publication_sequence_number' in infos[0][1], infos[:1]
+    assert spinner.stopped and ticks[0] >= 200
+    executor.shutdown(timeout_sec=0.0)
+    node.destroy_node()
+    rclpy.shutdown()
+    print('stopped after', ticks[0], 'ticks')
+''')
+
+
+@pytest.mark.ros
+def test_events_spinner_serves_message_info_and_stops_a_never_empty_queue_on_request() -> None:
+    lease = lease_domain_id()
+    try:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
+        done = subprocess.run([sys.executable, '-c', SPINNER_SCRIPT], env=env, cwd=REPO, capture_output=True,
+                              text=True, timeout=120, check=False)
+    finally:
+        lease.release()
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith('stopped after'), done.stdout
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('how', ['option', 'environment'])
+def test_node_refuses_an_unknown_executor_with_one_line(how: str) -> None:
+    lease = lease_domain_id()
+    try:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
+        args = ['--executor', 'multi'] if how == 'option' else []
+        if how == 'environment':
+            env[EXECUTOR_ENV] = 'multi'
+        done = subprocess.run([*node_command(), *args, '--ros-args', '-r', '__ns:=/executor_choice'], env=env,
+                              capture_output=True, text=True, timeout=60, check=False)
+    finally:
+        lease.release()
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith('fourbar_node: error: ') and 'multi' in lines[0], done.stderr
+    assert all(name in lines[0] for name in EXECUTORS)
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize(('args', 'variable', 'expected'), [
+    ([], None, DEFAULT_EXECUTOR),
+    ([], 'single', 'single'),
+    (['--executor', 'single'], None, 'single'),
+    (['--executor', 'events'], 'single', 'events'),  # the option wins over the variable
+], ids=['default', 'environment', 'option', 'option_over_environment'])
+def test_node_runs_the_chosen_executor(args: list[str], variable: str | None, expected: str) -> None:
+    lease = lease_domain_id()
+    try:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id), PYTHONUNBUFFERED='1')
+        env.pop(EXECUTOR_ENV, None)
+        if variable is not None:
+            env[EXECUTOR_ENV] = variable
+        proc = subprocess.Popen([*node_command(), *args, '--ros-args', '-r', '__ns:=/executor_choice'], env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            assert proc.stderr is not None
+            ready, _, _ = select.select([proc.stderr], [], [], 60.0)  # a deadline, not a sleep
+            line = proc.stderr.readline() if ready else ''  # the node's first log line, written once it spins
+            proc.send_signal(signal.SIGTERM)
+            rest = proc.communicate(timeout=60)[1]
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    finally:
+        lease.release()
+    assert f'callbacks run on the {expected} executor' in line, line + rest
+    assert proc.returncode == 0, rest
+
+
+def test_non_ros_args_drop_every_ros_section() -> None:
+    from fourbar_ros.node.fourbar_node import non_ros_args
+
+    argv = ['fourbar_node', '--executor', 'single', '--ros-args', '-p', 'a:=1', '--', '--x', '--ros-args', '-r', 'b:=c']
+    assert non_ros_args(argv) == ['fourbar_node', '--executor', 'single', '--x']
+    assert non_ros_args(['fourbar_node', '--ros-args', '--params-file', '/missing.yaml']) == ['fourbar_node']
