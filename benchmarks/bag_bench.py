@@ -74,15 +74,11 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from fourbar_ros.bags.replay import (
-        NodeProcess,
-        Replayer,
-        ReplayError,
-        close_context,
-        free_domain_id,
-        init_context,
-        spin_until,
-    )
+    from fourbar_ros.bags.domain import free_domain_id
+    from fourbar_ros.bags.graph import ReplayError, spin_until
+    from fourbar_ros.bags.node_process import NodeProcess
+    from fourbar_ros.bags.replay import Replayer
+    from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import read_commands
 
     stream = read_commands(bag)

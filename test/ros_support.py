@@ -32,7 +32,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from fourbar_ros.bags.replay import FREE_DOMAIN_IDS, free_domain_id
+from fourbar_ros.bags.domain import FREE_DOMAIN_IDS, free_domain_id
 
 REPO = Path(__file__).resolve().parent.parent
 #: Default deadline (s) for discovery and message waits; generous because the machine is shared.
@@ -48,7 +48,7 @@ M = TypeVar('M')
 
 @dataclass
 class DomainLease:
-    """A held ROS_DOMAIN_ID (fourbar_ros.bags.replay.free_domain_id's lock), given back by ``release()``."""
+    """A held ROS_DOMAIN_ID (fourbar_ros.bags.domain.free_domain_id's lock), given back by ``release()``."""
 
     domain_id: int
     _hold: ExitStack

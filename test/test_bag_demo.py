@@ -12,7 +12,7 @@ import pytest
 from bag_support import CONFIG, DEMO_BAG, Tool
 from ros_support import DomainLease, lease_domain_id
 
-from fourbar_ros.bags.replay import domain_in_use
+from fourbar_ros.bags.domain import domain_in_use
 from fourbar_ros.bags.storage import read_commands, read_messages
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

@@ -21,7 +21,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 
-from fourbar_ros.bags.replay import ReplayError, handshake, make_qos, publisher_nodes, spin_until, wait_for_node_names
+from fourbar_ros.bags.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
+from fourbar_ros.bags.node_params import handshake
 from fourbar_ros.bags.storage import AtomicBagWriter, BagError, jazzy_typestore, time_from_ns
 
 #: History depth of the recording subscriptions: how far the recorder may fall behind a burst.
@@ -181,7 +182,7 @@ class Recorder:
     def handshake(self, executor: Executor, timeout_s: float) -> list[str]:
         """Wait until every publishing node has discovered this recorder's subscriptions.
 
-        A parameter-service round trip with each publishing node (see ``bag_replay.fetch_parameters``):
+        A parameter-service round trip with each publishing node (see ``node_params.fetch_parameters``):
         without it, the first messages could go out before a publisher has matched the new
         subscription, and be lost. Returns the nodes that could not be asked (no parameter services).
         """
