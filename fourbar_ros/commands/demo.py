@@ -46,7 +46,8 @@ def run(args: argparse.Namespace) -> int:
     import shutil
 
     from fourbar_ros.bags.demo import core_deviation, pair, plot, summary_lines
-    from fourbar_ros.bags.replay import free_domain_id, predictor
+    from fourbar_ros.bags.domain import free_domain_id
+    from fourbar_ros.bags.node_params import predictor
     from fourbar_ros.bags.storage import read_commands, read_messages
     from fourbar_ros.config.antenna_config import load_config
 
@@ -101,17 +102,12 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
+    from fourbar_ros.bags.graph import ReplayError, spin_until
+    from fourbar_ros.bags.node_process import NodeProcess
+    from fourbar_ros.bags.progress import Progress
     from fourbar_ros.bags.record import Recorder, discover
-    from fourbar_ros.bags.replay import (
-        NodeProcess,
-        Progress,
-        Replayer,
-        ReplayError,
-        close_context,
-        init_context,
-        interrupt_on_sigterm,
-        spin_until,
-    )
+    from fourbar_ros.bags.replay import Replayer
+    from fourbar_ros.bags.ros_context import close_context, init_context, interrupt_on_sigterm
     from fourbar_ros.bags.storage import BagError, CommandStream
 
     assert isinstance(stream, CommandStream)
@@ -178,7 +174,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
 
 def _stop_node(proc: object) -> None:
     """Stop the node process; say so if it did not exit cleanly."""
-    from fourbar_ros.bags.replay import NodeProcess
+    from fourbar_ros.bags.node_process import NodeProcess
 
     assert isinstance(proc, NodeProcess)
     status = proc.stop()

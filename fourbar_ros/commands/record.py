@@ -53,8 +53,9 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
+    from fourbar_ros.bags.graph import spin_until
     from fourbar_ros.bags.record import Recorder, discover, record_until
-    from fourbar_ros.bags.replay import close_context, init_context, spin_until
+    from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import AtomicBagWriter, BagError
 
     prog = 'fourbar record'

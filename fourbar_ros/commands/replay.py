@@ -48,17 +48,11 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
-    from fourbar_ros.bags.replay import (
-        Predictor,
-        Progress,
-        Replayer,
-        ReplayError,
-        close_context,
-        init_context,
-        interrupt_on_sigterm,
-        predictor,
-        sibling_topic,
-    )
+    from fourbar_ros.bags.graph import ReplayError
+    from fourbar_ros.bags.node_params import Predictor, predictor
+    from fourbar_ros.bags.progress import Progress
+    from fourbar_ros.bags.replay import Replayer, sibling_topic
+    from fourbar_ros.bags.ros_context import close_context, init_context, interrupt_on_sigterm
     from fourbar_ros.bags.storage import read_commands
 
     prog = 'fourbar replay'
