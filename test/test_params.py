@@ -79,3 +79,24 @@ def test_docs_table_lists_every_parameter() -> None:
     doc = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
     for p in PARAMETERS:
         assert f'| `{p.name}` |' in doc, p.name
+
+
+def test_configuration_fields_are_the_parameter_table() -> None:
+    """AntennaConfig declares one field per PARAMETERS entry (its ``attribute``) and nothing else but the linkage,
+    so a parameter added to the table without a field, or a field without a parameter, fails here."""
+    import dataclasses
+
+    from fourbar_ros.config.antenna_config import AntennaConfig
+
+    fields = [f.name for f in dataclasses.fields(AntennaConfig) if f.name != 'linkage']
+    assert fields == [spec.attribute for spec in PARAMETERS]
+
+
+def test_values_round_trip_through_the_configuration() -> None:
+    """config_from_values and as_values are inverses over the whole table (defaults and the non-default choices)."""
+    from fourbar_ros.config.antenna_config import config_from_values, default_config
+
+    values = default_config().as_values()
+    assert values == {spec.name: spec.default for spec in PARAMETERS}
+    changed = dict(values, driven_rocker='delta', branch='upper', out_of_limits='clamp', coupler_joint='c')
+    assert config_from_values(changed).as_values() == changed

@@ -50,6 +50,8 @@ _RANGE_SAMPLES = 512
 class AntennaConfig:
     """A validated configuration (build it with ``config_from_values`` or ``load_config``).
 
+    One field per entry of ``fourbar_ros.config.params.PARAMETERS`` (named by its ``attribute``; the table holds
+    each one's unit, range and description, and a test holds these fields to it), plus the linkage they make.
     Angles in rad, lengths in m, torques in N m (``load_torque`` about theta,
     ``output_torque_limit`` at the driven rocker, ``motor_torque_limit`` before the reducer).
     """
@@ -71,7 +73,8 @@ class AntennaConfig:
     reducer_efficiency: float
     motor_torque_limit: float
     output_torque_limit: float
-    joint_names: tuple[str, str]
+    gamma_joint: str
+    delta_joint: str
     coupler_joint: str
     hardware_id: str
     frame_id: str
@@ -87,37 +90,14 @@ class AntennaConfig:
         """True when the antenna weight adds an angle-dependent load."""
         return has_gravity_load(self)
 
+    @property
+    def joint_names(self) -> tuple[str, str]:
+        """JointState names of the rockers: (gamma's, delta's)."""
+        return self.gamma_joint, self.delta_joint
+
     def as_values(self) -> dict[str, ParamValue]:
         """Parameter name -> value (the inverse of ``config_from_values``)."""
-        return {
-            'frame_length': self.frame_length,
-            'rocker_ab_length': self.rocker_ab_length,
-            'coupler_length': self.coupler_length,
-            'rocker_cd_length': self.rocker_cd_length,
-            'theta_min': self.theta_min,
-            'theta_max': self.theta_max,
-            'driven_rocker': self.driven.value,
-            'branch': self.branch.name.lower(),
-            'load_torque': self.load_torque,
-            'antenna_mass': self.antenna_mass,
-            'com_offset_along': self.com_offset_along,
-            'com_offset_normal': self.com_offset_normal,
-            'gravity': self.gravity,
-            'reducer_ratio': self.reducer_ratio,
-            'reducer_efficiency': self.reducer_efficiency,
-            'motor_torque_limit': self.motor_torque_limit,
-            'output_torque_limit': self.output_torque_limit,
-            'gamma_joint': self.joint_names[0],
-            'delta_joint': self.joint_names[1],
-            'coupler_joint': self.coupler_joint,
-            'hardware_id': self.hardware_id,
-            'frame_id': self.frame_id,
-            'out_of_limits': self.out_of_limits,
-            'transmission_angle_min': self.transmission_angle_min,
-            'velocity_timeout': self.velocity_timeout,
-            'marker_period': self.marker_period,
-            'diagnostics_period': self.diagnostics_period,
-        }
+        return {spec.name: spec.to_value(getattr(self, spec.attribute)) for spec in PARAMETERS}
 
 
 def _type_name(value: object) -> str:
@@ -232,8 +212,9 @@ def config_from_values(values: Mapping[str, object], changed: Collection[str] | 
     v: dict[str, Any] = {}
     for spec in PARAMETERS:
         v[spec.name] = check_value(spec, values.get(spec.name, spec.default))
-    driven = Driven(v['driven_rocker'])
-    branch = Branch[v['branch'].upper()]
+    attributes: dict[str, Any] = {spec.attribute: spec.to_attribute(v[spec.name]) for spec in PARAMETERS}
+    driven: Driven = attributes['driven']
+    branch: Branch = attributes['branch']
     try:
         linkage = AntennaLinkage(frame=v['frame_length'], rocker_ab=v['rocker_ab_length'],
                                  coupler=v['coupler_length'], rocker_cd=v['rocker_cd_length'])
@@ -246,20 +227,7 @@ def config_from_values(values: Mapping[str, object], changed: Collection[str] | 
             if v[first] == v[second]:
                 raise _fault(f'{first} and {second} are both {v[first]!r}; joint names must differ',
                              (first, second), (first, second), changed)
-    return AntennaConfig(
-        frame_length=v['frame_length'], rocker_ab_length=v['rocker_ab_length'],
-        coupler_length=v['coupler_length'], rocker_cd_length=v['rocker_cd_length'],
-        theta_min=v['theta_min'], theta_max=v['theta_max'], driven=driven, branch=branch,
-        load_torque=v['load_torque'], antenna_mass=v['antenna_mass'],
-        com_offset_along=v['com_offset_along'], com_offset_normal=v['com_offset_normal'],
-        gravity=v['gravity'], reducer_ratio=v['reducer_ratio'],
-        reducer_efficiency=v['reducer_efficiency'], motor_torque_limit=v['motor_torque_limit'],
-        output_torque_limit=v['output_torque_limit'],
-        joint_names=(v['gamma_joint'], v['delta_joint']), coupler_joint=v['coupler_joint'],
-        hardware_id=v['hardware_id'], frame_id=v['frame_id'],
-        out_of_limits=v['out_of_limits'], transmission_angle_min=v['transmission_angle_min'],
-        velocity_timeout=v['velocity_timeout'], marker_period=v['marker_period'],
-        diagnostics_period=v['diagnostics_period'], linkage=linkage)
+    return AntennaConfig(**attributes, linkage=linkage)
 
 
 def default_config() -> AntennaConfig:

@@ -1,14 +1,18 @@
 """The fourbar_node parameter spec: the single list the node declares and the YAML loader checks.
 
 Lengths in metres, angles in radians, torques in N m, masses in kg, times in seconds.
-Each entry is plain data (no ROS import); ``fourbar_ros.node.fourbar_node`` turns it into
-``rcl_interfaces/ParameterDescriptor`` s and ``fourbar_ros.config.antenna_config`` validates files against it.
+Each entry is plain data (no ROS import); ``fourbar_ros.node.param_descriptors`` turns it into
+``rcl_interfaces/ParameterDescriptor`` s, and ``fourbar_ros.config.antenna_config`` builds ``AntennaConfig``
+(one field per entry), its ``as_values`` and its validation from it: this table is the one definition.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+
+from fourbar_ros.core.antenna import Branch, Driven
 
 ParamValue = float | int | str | bool
 
@@ -24,6 +28,8 @@ class ParamSpec:
     ``minimum``/``maximum`` are inclusive bounds for numbers (``None``: unbounded);
     ``choices`` lists the allowed strings of an enumeration (empty: any non-empty string).
     ``read_only`` parameters can only be set at startup.
+    ``field`` names the ``AntennaConfig`` attribute holding the value (default: the parameter's name);
+    ``decode``/``encode`` convert between the ROS value and that attribute's type (default: the same value).
     """
 
     name: str
@@ -35,6 +41,22 @@ class ParamSpec:
     maximum: float | None = None
     choices: tuple[str, ...] = ()
     read_only: bool = False
+    field: str = ''
+    decode: Callable[[ParamValue], object] | None = None
+    encode: Callable[[object], ParamValue] | None = None
+
+    @property
+    def attribute(self) -> str:
+        """The ``AntennaConfig`` attribute of this parameter."""
+        return self.field or self.name
+
+    def to_attribute(self, value: ParamValue) -> object:
+        """The checked ROS value as the configuration holds it (e.g. ``'gamma'`` -> ``Driven.GAMMA``)."""
+        return value if self.decode is None else self.decode(value)
+
+    def to_value(self, attribute: object) -> ParamValue:
+        """The configuration's attribute as the ROS parameter value (inverse of ``to_attribute``)."""
+        return attribute if self.encode is None else self.encode(attribute)  # type: ignore[return-value]
 
     def describe(self) -> str:
         """One-line description with unit and allowed values (the ROS descriptor's text)."""
@@ -45,6 +67,25 @@ class ParamSpec:
             parts.append('one of: ' + ', '.join(self.choices))
         return ' '.join(parts)
 
+
+def _driven(value: ParamValue) -> Driven:
+    return Driven(value)
+
+
+def _driven_value(driven: object) -> ParamValue:
+    if not isinstance(driven, Driven):
+        raise TypeError(f'expected a Driven, got {driven!r}')
+    return driven.value
+
+
+def _branch(value: ParamValue) -> Branch:
+    return Branch[str(value).upper()]
+
+
+def _branch_value(branch: object) -> ParamValue:
+    if not isinstance(branch, Branch):
+        raise TypeError(f'expected a Branch, got {branch!r}')
+    return branch.name.lower()
 
 
 # Angle defaults are the correctly rounded doubles of -6, +7 and 30 degrees.
@@ -66,10 +107,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               -math.pi, math.pi),
     ParamSpec('driven_rocker', str, 'gamma', '',
               'Rocker driven by the reducer: gamma (AB, at A) or delta (CD, at D).',
-              choices=('gamma', 'delta')),
+              choices=('gamma', 'delta'), field='driven', decode=_driven, encode=_driven_value),
     ParamSpec('branch', str, 'upper', '',
               'Assembly branch: upper (gamma + delta in [0, pi], the Annex A branch) or lower.',
-              choices=('upper', 'lower')),
+              choices=('upper', 'lower'), decode=_branch, encode=_branch_value),
     ParamSpec('load_torque', float, 3.5, 'N m',
               'Constant load torque about the antenna angle theta that the drive must supply '
               '(positive in the +theta direction); default: design wind load.',
