@@ -1,7 +1,10 @@
 """The `fourbar` command line: one subcommand per module in fourbar_ros.commands.
 
 Each command module defines HELP (one line), add_arguments(parser) and run(args) -> exit status, and imports
-anything heavy (rclpy, rosbags, matplotlib) inside run(), so `fourbar solve` stays quick.
+anything heavy (rclpy, rosbags, matplotlib) inside run(), so `fourbar solve` stays quick. A command reports
+bad input or a failure by raising a FourBarError (a CommandError where the exit status is not 2); `main` alone
+turns it into the one line `fourbar <command>: error: <message>` on stderr and the exit status. A result that
+is not an error (check's failed limit, compare's difference) is a returned 1.
 """
 
 from __future__ import annotations
@@ -21,6 +24,14 @@ _NUMBER = r'(?:(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?|inf(?:inity)?|nan)'
 #: A token that starts with '-' but is a value: a number or a comma-separated list of numbers (-6e-1, -.5, -inf,
 #: -0.5,5.0). argparse's own rule only knows -5 and -0.5, so `--theta -6e-1` and `--pairs -0.5,5.0` read as flags.
 NEGATIVE_NUMBER = re.compile(rf'^-{_NUMBER}(?:,[+-]?{_NUMBER})*$', re.IGNORECASE)
+
+
+class CommandError(FourBarError):
+    """A command's failure, with the exit status `main` returns for it (2: bad input, the default)."""
+
+    def __init__(self, message: str, status: int = 2) -> None:
+        super().__init__(message)
+        self.status = status
 
 
 class Parser(argparse.ArgumentParser):
@@ -54,9 +65,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args._run(args))
-    except FourBarError as exc:  # bad input that a command did not word itself
+    except FourBarError as exc:  # the one place an error becomes a message and a status
         print(f'{args._prog}: error: {exc}', file=sys.stderr)
-        return 2
+        return exc.status if isinstance(exc, CommandError) else 2
     except KeyboardInterrupt:
         return 130
     except BrokenPipeError:  # e.g. `fourbar check | head`: the reader left; say nothing more

@@ -11,6 +11,7 @@ import textwrap
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from fourbar_ros.commands import CommandError
 from fourbar_ros.config.antenna_config import (
     AntennaConfig,
     ConfigError,
@@ -133,25 +134,20 @@ def _limits(args: argparse.Namespace) -> CheckLimits:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Check; exit 0 (pass), 1 (a limit fails) or 2 (bad input, one line on stderr)."""
-    try:
-        if not 2 <= args.samples <= MAX_SAMPLES:
-            raise FourBarError(f'--samples={args.samples} must be between 2 and {MAX_SAMPLES}')
-        cfg = configuration(args)
-        limits = _limits(args)
-        warn_unknown_parameters('fourbar check', args.params)
-        if args.plot is not None:
-            _check_plot_path(args.plot)
-        report = check_design(cfg, limits, args.samples)
-    except FourBarError as exc:
-        print(f'fourbar check: error: {exc}', file=sys.stderr)
-        return 2
+    """Check; exit 0 (pass) or 1 (a limit fails); bad input raises (status 2, one line, from `main`)."""
+    if not 2 <= args.samples <= MAX_SAMPLES:
+        raise FourBarError(f'--samples={args.samples} must be between 2 and {MAX_SAMPLES}')
+    cfg = configuration(args)
+    limits = _limits(args)
+    warn_unknown_parameters('fourbar check', args.params)
+    if args.plot is not None:
+        _check_plot_path(args.plot)
+    report = check_design(cfg, limits, args.samples)
     if args.plot is not None:
         try:
             _plot(cfg, report, args.plot, args.samples)
         except OSError as exc:
-            print(f'fourbar check: error: cannot write {args.plot}: {exc.strerror or exc}', file=sys.stderr)
-            return 2
+            raise CommandError(f'cannot write {args.plot}: {exc.strerror or exc}') from None
     if args.json:
         print(json.dumps(report.to_dict()))
     else:

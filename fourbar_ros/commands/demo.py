@@ -12,11 +12,25 @@ import sys
 import time
 from pathlib import Path
 
+from fourbar_ros.bags.domain import FREE_DOMAIN_IDS
+from fourbar_ros.commands import CommandError
+
 HELP = ('the main job: start fourbar_node with a parameter file, replay the bundled sweep, record the '
         'outputs, print a summary and write a PNG plot')
 
 BUNDLED_SWEEP = Path(__file__).resolve().parent.parent / 'data' / 'demo_sweep'
 OUTPUT_TOPICS = ('joint_states', 'input_torque', '/diagnostics')
+
+
+def _id_ranges(ids: tuple[int, ...]) -> str:
+    """(90, 91, 92, 215, 216) -> '90..92 and 215..216'."""
+    runs: list[list[int]] = []
+    for i in ids:
+        if runs and i == runs[-1][-1] + 1:
+            runs[-1].append(i)
+        else:
+            runs.append([i])
+    return ' and '.join(f'{r[0]}..{r[-1]}' if len(r) > 1 else str(r[0]) for r in runs)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -30,7 +44,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
                         help='storage of the recorded outputs bag (default: mcap)')
     parser.add_argument('--domain-id', type=int, metavar='N',
-                        help='ROS_DOMAIN_ID to use (default: a free one, 101 down to 1)')
+                        help='ROS_DOMAIN_ID to use, 0..232 (default: the first free one of '
+                        f'{_id_ranges(FREE_DOMAIN_IDS)}, searched from a place set by the process id; free: no '
+                        'other fourbar run holds its lock file and no DDS participant on this host holds its '
+                        'discovery ports)')
     parser.add_argument('--timeout', type=float, default=30.0, metavar='S',
                         help='deadline for the node to come up and for each wait (default: 30)')
 
@@ -56,8 +73,7 @@ def run(args: argparse.Namespace) -> int:
     cfg = load_config(args.params)  # one-line ConfigError -> status 2
     stream = read_commands(args.bag)  # one-line BagError -> status 2
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
-        print(f'{prog}: error: --domain-id must be in 0..232, got {args.domain_id}', file=sys.stderr)
-        return 2
+        raise CommandError(f'--domain-id must be in 0..232, got {args.domain_id}')
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     outputs = out / 'outputs'
@@ -68,11 +84,8 @@ def run(args: argparse.Namespace) -> int:
     with domain as domain_id:
         print(f'{prog}: fourbar_node with {args.params} on ROS_DOMAIN_ID {domain_id} (this host only); '
               f'replaying {len(stream)} commands from {args.bag}', flush=True)
-        recorded = _run_ros(args, stream, domain_id, outputs, predictor(cfg.theta_min, cfg.theta_max,
-                                                                         cfg.out_of_limits))
-        if recorded is None:
-            return 1
-        replay_seconds, diagnostics = recorded
+        replay_seconds, diagnostics = _run_ros(args, stream, domain_id, outputs,
+                                               predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits))
 
     topics = read_messages(outputs, ['/joint_states', '/input_torque'])  # read back with rosbags
     data = pair(stream.values, cfg, [m for _, m in topics['/joint_states']],
@@ -93,8 +106,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: Path,
-             answers: object) -> tuple[float, dict[str, str]] | None:
-    """Node process + in-process replay and recording. Returns (replay seconds, last diagnostics)."""
+             answers: object) -> tuple[float, dict[str, str]]:
+    """Node process + in-process replay and recording. Returns (replay seconds, last diagnostics).
+
+    A node that fails or does not answer raises CommandError with status 1.
+    """
     import contextlib
     import os
 
@@ -157,8 +173,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         rec.close()
         return stats.seconds, final
     except (ReplayError, BagError) as exc:
-        print(f'{prog}: error: {exc}', file=sys.stderr)
-        return None
+        raise CommandError(str(exc), status=1) from None
     except (KeyboardInterrupt, ExternalShutdownException):
         print(f'{prog}: interrupted; no outputs bag written', file=sys.stderr)
         raise KeyboardInterrupt from None

@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.synthesis import MAX_CONDITION, Design, synthesize
@@ -85,17 +84,13 @@ def _text(design: Design, deg: bool) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Design and print; exit 2 with one line on stderr for bad, degenerate or unbuildable requests."""
-    try:
-        pairs = [parse_pair(t, args.deg) for t in [*args.pairs, *args.pair]]
-        if len(pairs) < 3:
-            raise FourBarError(f'need at least 3 pairs (--pairs T2,T4 T2,T4 T2,T4), got {len(pairs)}')
-        if not (math.isfinite(args.max_condition) and args.max_condition > 0.0):
-            raise FourBarError(f'--max-condition={args.max_condition} must be finite and > 0')
-        design = synthesize(pairs, args.ground, max_condition=args.max_condition, allow_flip=args.allow_flip)
-    except FourBarError as exc:
-        print(f'fourbar design: error: {exc}', file=sys.stderr)
-        return 2
+    """Design and print; bad, degenerate or unbuildable requests raise FourBarError (status 2 from `main`)."""
+    pairs = [parse_pair(t, args.deg) for t in [*args.pairs, *args.pair]]
+    if len(pairs) < 3:
+        raise FourBarError(f'need at least 3 pairs (--pairs T2,T4 T2,T4 T2,T4), got {len(pairs)}')
+    if not (math.isfinite(args.max_condition) and args.max_condition > 0.0):
+        raise FourBarError(f'--max-condition={args.max_condition} must be finite and > 0')
+    design = synthesize(pairs, args.ground, max_condition=args.max_condition, allow_flip=args.allow_flip)
     if args.json:
         print(json.dumps(design.to_dict()))
     else:

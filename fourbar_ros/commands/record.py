@@ -9,6 +9,8 @@ import sys
 from pathlib import Path
 from types import FrameType
 
+from fourbar_ros.commands import CommandError
+
 HELP = 'record topics (default: the node outputs) to a rosbag2 bag, mcap by default; Ctrl-C stops it cleanly'
 
 DEFAULT_TOPICS = ('joint_states', 'input_torque', '/diagnostics')
@@ -60,12 +62,9 @@ def run(args: argparse.Namespace) -> int:
 
     prog = 'fourbar record'
     if args.wait <= 0 or (args.duration is not None and not args.duration > 0):
-        print(f'{prog}: error: --wait and --duration must be positive', file=sys.stderr)
-        return 2
+        raise CommandError('--wait and --duration must be positive')
     if not (math.isfinite(args.flush_interval) and args.flush_interval > 0):
-        print(f'{prog}: error: --flush-interval must be a positive number of seconds, got {args.flush_interval}',
-              file=sys.stderr)
-        return 2
+        raise CommandError(f'--flush-interval must be a positive number of seconds, got {args.flush_interval}')
     stop_after = _parse_stop_after(args.stop_after)
     AtomicBagWriter(args.out, args.storage)  # checks OUT before touching ROS; writes nothing
 
@@ -83,17 +82,15 @@ def run(args: argparse.Namespace) -> int:
     try:
         try:
             plans = discover(node, executor, args.topics, args.wait, stop=lambda: bool(stopping))
-        except BagError as exc:
-            print(f'{prog}: error: {exc}', file=sys.stderr)
-            return 1
+        except BagError as exc:  # a topic without a publisher within --wait: status 1
+            raise CommandError(str(exc), status=1) from None
         if stopping:
             print(f'{prog}: interrupted before recording started; no bag written', file=sys.stderr)
             return 130
         wanted = {node.resolve_topic_name(t): n for t, n in stop_after.items()}
         unknown = sorted(set(wanted) - {p.name for p in plans})
         if unknown:
-            print(f'{prog}: error: --stop-after names a topic not recorded: {unknown[0]}', file=sys.stderr)
-            return 2
+            raise CommandError(f'--stop-after names a topic not recorded: {unknown[0]}')
         recorder = Recorder(node, args.out, plans, args.storage, flush_interval=args.flush_interval)
         rec = recorder
         spin_until(executor, lambda: rec.matched() or bool(stopping), args.wait)

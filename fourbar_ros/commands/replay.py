@@ -7,6 +7,8 @@ import math
 import sys
 from pathlib import Path
 
+from fourbar_ros.commands import CommandError
+
 HELP = ('replay a command bag into a running fourbar_node: recorded timing (--rate) '
         'or lock-step with its answers (--as-fast-as-node-keeps-up)')
 
@@ -44,7 +46,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Replay; exit 0 when every command went out (and, lock-step, every answer came back)."""
+    """Replay; exit 0 when every command went out (and, lock-step, every answer came back).
+
+    Bad input raises (status 2), a node that does not answer or goes away raises with status 1; `main` prints it.
+    """
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
@@ -59,20 +64,15 @@ def run(args: argparse.Namespace) -> int:
     for name in ('rate', 'wait', 'deadline'):
         value = getattr(args, name)
         if not (math.isfinite(value) and value > 0):
-            print(f'{prog}: error: --{name} must be a positive number, got {value}', file=sys.stderr)
-            return 2
+            raise CommandError(f'--{name} must be a positive number, got {value}')
     if args.clock is not None:
         if args.lockstep:
-            print(f'{prog}: error: --clock works with timed replay (--rate), not --as-fast-as-node-keeps-up',
-                  file=sys.stderr)
-            return 2
+            raise CommandError('--clock works with timed replay (--rate), not --as-fast-as-node-keeps-up')
         if not (math.isfinite(args.clock) and args.clock > 0):
-            print(f'{prog}: error: --clock must be a positive rate in Hz, got {args.clock}', file=sys.stderr)
-            return 2
+            raise CommandError(f'--clock must be a positive rate in Hz, got {args.clock}')
     if not 1 <= args.window <= 1000:
-        print(f'{prog}: error: --window must be in 1..1000, got {args.window}', file=sys.stderr)
-        return 2
-    stream = read_commands(args.bag)  # BagError: one line, status 2 (cli)
+        raise CommandError(f'--window must be in 1..1000, got {args.window}')
+    stream = read_commands(args.bag)  # BagError: one line, status 2 (main)
     answers_from_file: Predictor | None = None
     if args.params is not None:
         from fourbar_ros.config.antenna_config import load_config
@@ -116,10 +116,9 @@ def run(args: argparse.Namespace) -> int:
                 print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s at rate {args.rate:g} '
                       f'on {replayer.publisher.topic_name}{clock}', file=sys.stderr)
             return 0
-        except ReplayError as exc:
+        except ReplayError as exc:  # the node did not answer or went away: status 1
             progress.end()
-            print(f'{prog}: error: {exc}', file=sys.stderr)
-            return 1
+            raise CommandError(str(exc), status=1) from None
         except (KeyboardInterrupt, ExternalShutdownException):
             progress.end()
             print(f'{prog}: interrupted', file=sys.stderr)

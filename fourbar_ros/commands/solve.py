@@ -5,7 +5,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from dataclasses import replace
 
 from fourbar_ros.commands.check import warn_unknown_parameters
@@ -104,18 +103,14 @@ def _solve(linkage: AntennaLinkage, theta: float, cfg: AntennaConfig) -> tuple[d
 
 
 def run(args: argparse.Namespace) -> int:
-    """Solve and print; exit 2 with one line on stderr for unreachable angles or invalid geometry.
+    """Solve and print; unreachable angles or invalid geometry raise FourBarError (status 2 from `main`).
 
     JSON is strict (no NaN or Infinity): a quantity without a finite value is null and ``null_reasons`` says why.
     """
-    try:
-        cfg, linkage = _configuration(args)
-        theta = math.radians(args.theta) if args.deg else args.theta
-        values, reasons = _solve(linkage, theta, cfg)
-        warn_unknown_parameters('fourbar solve', args.params)
-    except FourBarError as exc:
-        print(f'fourbar solve: error: {exc}', file=sys.stderr)
-        return 2
+    cfg, linkage = _configuration(args)
+    theta = math.radians(args.theta) if args.deg else args.theta
+    values, reasons = _solve(linkage, theta, cfg)
+    warn_unknown_parameters('fourbar solve', args.params)
     if args.json:
         print(json.dumps({**values, 'load_torque': cfg.load_torque, 'driven': cfg.driven.value,
                           'branch': cfg.branch.name.lower(), 'null_reasons': reasons}, allow_nan=False))

@@ -8,6 +8,7 @@ import sys
 import tempfile
 from pathlib import Path
 
+from fourbar_ros.commands import CommandError
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.robot_model import robot_description, robot_description_for
 from fourbar_ros.core.errors import FourBarError
@@ -41,21 +42,21 @@ def _write(path: str, text: str) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Print (or write) the URDF; exit 2 with one line on stderr for a bad parameter file."""
+    """Print (or write) the URDF; a bad parameter file or output path raises (status 2 from `main`)."""
     try:
         if args.params is None:
             text = robot_description(default_config(), robot_name=args.robot_name)
         else:
             text = robot_description_for(args.params, args.node_name, args.namespace, args.robot_name)[1]
-    except (FourBarError, ValueError, OSError) as exc:
-        print(f'fourbar urdf: error: {exc}', file=sys.stderr)
-        return 2
+    except FourBarError:
+        raise
+    except (ValueError, OSError) as exc:
+        raise CommandError(str(exc)) from None
     if args.output is None:
         sys.stdout.write(text)
         return 0
     try:
         _write(args.output, text)
     except OSError as exc:
-        print(f'fourbar urdf: error: cannot write {args.output}: {exc}', file=sys.stderr)
-        return 2
+        raise CommandError(f'cannot write {args.output}: {exc}') from None
     return 0
