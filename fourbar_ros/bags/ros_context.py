@@ -11,6 +11,8 @@ import rclpy.utilities
 from rclpy.context import Context
 from rclpy.node import Node
 
+from fourbar_ros.node.executor import INTERRUPT
+
 
 def init_context(domain_id: int | None = None, handle_signals: bool = True) -> Context:
     """A fresh rclpy context (``domain_id`` None: from ROS_DOMAIN_ID, as rclpy does)."""
@@ -24,18 +26,19 @@ def init_context(domain_id: int | None = None, handle_signals: bool = True) -> C
 
 @contextlib.contextmanager
 def interrupt_on_sigterm() -> Iterator[None]:
-    """Turn SIGTERM into KeyboardInterrupt (like Ctrl-C) inside the block, so cleanup code runs.
+    """SIGTERM, like Ctrl-C, raises KeyboardInterrupt inside the block, so cleanup code runs.
 
     Use with ``init_context(handle_signals=False)``: rclpy's own handlers would invalidate the
-    context under a running publisher instead of interrupting the program.
+    context under a running publisher instead of interrupting the program. A signal that lands while
+    callbacks run (``graph.spin_until``, ``Replayer.run_timed``) is raised when that spin returns, not
+    inside a callback (fourbar_ros.node.executor.DeferredInterrupt).
     """
-    def raise_interrupt(_signum: int, _frame: object) -> None:
-        raise KeyboardInterrupt
-    previous = signal.signal(signal.SIGTERM, raise_interrupt)
+    previous = {sig: signal.signal(sig, INTERRUPT) for sig in (signal.SIGINT, signal.SIGTERM)}
     try:
         yield
     finally:
-        signal.signal(signal.SIGTERM, previous)
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
 
 
 def close_context(context: Context, *nodes: Node) -> None:

@@ -52,13 +52,13 @@ def _parse_stop_after(items: list[str]) -> dict[str, int]:
 
 def run(args: argparse.Namespace) -> int:
     """Record until Ctrl-C/SIGTERM, --duration or --stop-after; exit 0 with a complete bag."""
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
     from fourbar_ros.bags.graph import spin_until
     from fourbar_ros.bags.record import Recorder, discover, record_until
     from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import AtomicBagWriter, BagError
+    from fourbar_ros.node.executor import create_executor
 
     prog = 'fourbar record'
     if args.wait <= 0 or (args.duration is not None and not args.duration > 0):
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
     context = init_context(handle_signals=False)
     node = Node('fourbar_record', context=context)
-    executor = SingleThreadedExecutor(context=context)
+    executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
     executor.add_node(node)
     recorder: Recorder | None = None
     try:

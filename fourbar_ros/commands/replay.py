@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
 
     Bad input raises (status 2), a node that does not answer or goes away raises with status 1; `main` prints it.
     """
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
 
     from fourbar_ros.bags.graph import ReplayError
@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.replay import Replayer, sibling_topic
     from fourbar_ros.bags.ros_context import close_context, init_context, interrupt_on_sigterm
     from fourbar_ros.bags.storage import read_commands
+    from fourbar_ros.node.executor import create_executor
 
     prog = 'fourbar replay'
     for name in ('rate', 'wait', 'deadline'):
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     with interrupt_on_sigterm():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt: cleanup runs
         context = init_context(handle_signals=False)
         node = Node('fourbar_replay', context=context, start_parameter_services=False)
-        executor = SingleThreadedExecutor(context=context)
+        executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
         executor.add_node(node)
         progress = Progress(len(stream), 'replay', enabled=False if args.no_progress else None)
         try:
