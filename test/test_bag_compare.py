@@ -77,7 +77,7 @@ def test_a_bag_equals_itself_and_its_other_storage(processed: Path, cfg: Antenna
 
 
 def _set_position(msg: Any, value: float) -> None:
-    msg.position = np.array([value, msg.position[1]])
+    msg.position = np.array([value, *msg.position[1:]])
 
 
 CASES: dict[str, Callable[[str, int, Any], Any | None]] = {
@@ -86,7 +86,7 @@ CASES: dict[str, Callable[[str, int, Any], Any | None]] = {
         m, 'velocity', np.array([m.velocity[0], m.velocity[1] + 1e-9]))),
     'velocity dropped': changed('/joint_states', 5, lambda m: setattr(m, 'velocity', np.array([], dtype=float))),
     'effort by 1e-12 N m': changed('/joint_states', 3, lambda m: setattr(
-        m, 'effort', np.array([m.effort[0] + 1e-12, 0.0]))),
+        m, 'effort', np.array([m.effort[0] + 1e-12, *m.effort[1:]]))),
     'input torque by 1e-12 N m': changed('/input_torque', 11, lambda m: setattr(m, 'data', m.data + 1e-12)),
     'header stamp by 1 ns': changed('/joint_states', 2, lambda m: setattr(m.header.stamp, 'nanosec',
                                                                           m.header.stamp.nanosec + 1)),

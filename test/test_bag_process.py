@@ -40,7 +40,7 @@ T0 = 1_700_000_000 * 1_000_000_000
 ULPS = 8  # positions: ulps of |q| + pi; torque: ulps of |tau| (1 + pi (|cot s| + |cot r|)) (see below)
 
 
-def oracle(stamps: list[int], values: list[float], cfg: AntennaConfig) -> list[tuple[int, tuple[float, float],
+def oracle(stamps: list[int], values: list[float], cfg: AntennaConfig) -> list[tuple[int, tuple[float, ...],
                                                                                     list[float], float]]:
     """(stamp, positions, velocity, torque) the node publishes per command, one command at a time."""
     policy, reach, solve = Policy(cfg.out_of_limits), cfg.linkage.reach(), pose_solver(cfg)
@@ -51,9 +51,9 @@ def oracle(stamps: list[int], values: list[float], cfg: AntennaConfig) -> list[t
         if theta is None:
             continue
         gamma, delta, torque = solve(theta)
-        sample = Sample(stamp, (gamma, delta))
-        velocity, anchor = velocity_step(anchor, sample, cfg.velocity_timeout)
-        out.append((stamp, (gamma, delta), velocity, torque))
+        positions = (gamma, delta, gamma + theta)  # the coupler joint: gamma + theta
+        velocity, anchor = velocity_step(anchor, Sample(stamp, positions), cfg.velocity_timeout)
+        out.append((stamp, positions, velocity, torque))
     return out
 
 
@@ -83,7 +83,7 @@ def check_against_oracle(out: Path, stamps: list[int], values: list[float], cfg:
         assert js.header.frame_id == '' and list(js.name) == list(cfg.joint_names), i
         # Positions: numpy's and libm's sin/cos/atan2 may differ by 1-2 ulps; gamma and delta are sums of
         # atan2 results in [-pi, pi], so the two paths agree to a few ulps of |q| + pi.
-        for j in range(2):
+        for j in range(3):  # the coupler's gamma + theta: gamma's bound, the addition of theta exact or 1 ulp
             assert abs(js.position[j] - q[j]) <= ULPS * math.ulp(abs(q[j]) + math.pi), (i, j)
         # Velocity: same presence (the same rule on the same stamps); value: two position differences of
         # the bound above over dt, i.e. <= 2 ULPS ulps of (|q| + pi) / dt, taken as ulps of (|q| + pi) * 2 / dt.
@@ -91,13 +91,13 @@ def check_against_oracle(out: Path, stamps: list[int], values: list[float], cfg:
         if vel:
             dt = next(stamp - s for s, *_ in reversed(expected[:i]) if s != stamp) * 1e-9 \
                 if i and any(s != stamp for s, *_ in expected[:i]) else math.inf
-            for j in range(2):
+            for j in range(3):
                 bound = 2 * ULPS * math.ulp((abs(q[j]) + math.pi) * 2.0 / dt) + ULPS * math.ulp(abs(vel[j]))
                 assert abs(js.velocity[j] - vel[j]) <= bound, (i, j)
         # Torque: an angle error e moves tau by |tau| |cot| e (the sines' ratio) plus a few ulps of |tau| from
         # the product's association.
         bound = ULPS * math.ulp(abs(tau) * torque_condition(cfg, served[i]))
-        assert abs(js.effort[d] - tau) <= bound and js.effort[1 - d] == 0.0, i
+        assert abs(js.effort[d] - tau) <= bound and [js.effort[1 - d], js.effort[2]] == [0.0, 0.0], i
         assert abs(tq.data - tau) <= bound and tq.data == js.effort[d], i
     return len(expected)
 

@@ -127,15 +127,16 @@ def check_joint_states(cfg: AntennaConfig, msgs: list[JointState], served: list[
         s = core(cfg, theta)
         assert list(msg.name) == list(cfg.joint_names)
         # Identical scalar functions on the same theta (see TOL): equal.
-        assert msg.position[0] == s.gamma and msg.position[1] == s.delta
-        assert list(msg.effort) == [s.input_torque, 0.0]
+        # The coupler joint is gamma + theta, the same addition in the node: equal too.
+        assert list(msg.position) == [s.gamma, s.delta, s.gamma + theta]
+        assert list(msg.effort) == [s.input_torque, 0.0, 0.0]
         assert all(math.isfinite(x) for x in [*msg.position, *msg.velocity, *msg.effort])
         stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
         if prev is not None:
             prev_stamp = prev.header.stamp.sec * 10**9 + prev.header.stamp.nanosec
             dt = (stamp - prev_stamp) * 1e-9
             if 0.0 < dt <= cfg.velocity_timeout:
-                want = [(msg.position[i] - prev.position[i]) / dt for i in range(2)]
+                want = [(msg.position[i] - prev.position[i]) / dt for i in range(3)]
                 # The node's rule does the same operations (int ns difference * 1e-9, subtract, divide): equal.
                 assert list(msg.velocity) == want
             else:
@@ -147,7 +148,9 @@ def check_markers(msg: MarkerArray, theta: float) -> None:
     s = core(CFG, theta)
     ref = antenna_joint_positions(0.18, 0.06, 0.102, 0.06, theta, s.gamma, s.delta)
     frame, rockers, coupler, joints, antenna = msg.markers
-    assert [(p.x, p.y) for p in frame.points] == [(0.0, 0.0), (0.18, 0.0)]
+    # The linkage lies in the x-z plane of frame_id (REP-103: z up), as in the URDF: y is 0 everywhere.
+    assert all(p.y == 0.0 for m in msg.markers for p in m.points)
+    assert [(p.x, p.z) for p in frame.points] == [(0.0, 0.0), (0.18, 0.0)]
     assert len(rockers.points) == 4
     assert all(m.header.frame_id == 'fourbar_base' and m.ns == 'fourbar' for m in msg.markers)
     assert [m.id for m in msg.markers] == [0, 1, 2, 3, 4]
@@ -156,13 +159,13 @@ def check_markers(msg: MarkerArray, theta: float) -> None:
     # adds the solve's closure residual (ulps times the pose's condition, modest away from dead points).
     # Both are many orders below TOL = 1e-12 m.
     for point, want in zip(joints.points, (ref.a, ref.b, ref.c, ref.d), strict=True):
-        assert (point.x, point.y, point.z) == pytest.approx((want[0], want[1], 0.0), abs=TOL)
-    got = [c for p in coupler.points for c in (p.x, p.y)]
+        assert (point.x, point.y, point.z) == pytest.approx((want[0], 0.0, want[1]), abs=TOL)
+    got = [c for p in coupler.points for c in (p.x, p.z)]
     assert got == pytest.approx([*ref.b, *ref.c], abs=TOL)
     tail, tip = antenna.points
     # tip - tail = coupler * (cos theta, -sin theta) up to the rounding of two sums of ~0.2 m (~3e-17 m each)
     # against a 0.102 m arrow: the angle is within ~1e-15 rad of theta.
-    assert math.atan2(-(tip.y - tail.y), tip.x - tail.x) == pytest.approx(theta, abs=TOL)
+    assert math.atan2(-(tip.z - tail.z), tip.x - tail.x) == pytest.approx(theta, abs=TOL)
 
 
 def test_outputs_match_the_core(ros: RosSession, make_rig: Any) -> None:
@@ -187,7 +190,7 @@ def test_outputs_match_the_core(ros: RosSession, make_rig: Any) -> None:
     served = commands + probes(CFG)  # the sync probes were served too
     for msg in markers.messages:
         tail, tip = msg.markers[4].points
-        theta = math.atan2(-(tip.y - tail.y), tip.x - tail.x)
+        theta = math.atan2(-(tip.z - tail.z), tip.x - tail.x)
         nearest = min(served, key=lambda c: abs(c - theta))
         assert abs(nearest - theta) < 1e-12
         check_markers(msg, nearest)
@@ -205,7 +208,7 @@ def test_repeated_command_is_not_recomputed(make_rig: Any) -> None:
     assert rig.node.cache.reused - reused == 4
     check_joint_states(CFG, msgs, [0.03] * 5 + [0.04])
     for msg in msgs[1:5]:
-        assert list(msg.velocity) in ([0.0, 0.0], [])  # same pose: zero velocity (or none if stale)
+        assert list(msg.velocity) in ([0.0, 0.0, 0.0], [])  # same pose: zero velocity (or none if stale)
 
 
 BAD = [math.nan, math.inf, -math.inf, math.nextafter(HI, 1.0), math.nextafter(LO, -1.0), 0.5, 1.0, -3.0, 1e300]
@@ -324,7 +327,7 @@ def test_diagnostics(ros: RosSession, make_rig: Any) -> None:
     rig = make_rig(outputs=('joint_states',))
     diag = ros.collect(DiagnosticArray, '/diagnostics', 10)
     try:
-        name = f'{rig.ns}/fourbar_node: antenna tilt linkage'
+        name = 'fourbar_node: antenna tilt linkage'  # diagnostic_updater's form: node name, no namespace
         received = rig.received()
         rig.send([0.02, 0.5])
 

@@ -64,7 +64,7 @@ class Rig:
 
     def status(self, predicate: Any = lambda s, v: True) -> tuple[DiagnosticStatus, dict[str, str]]:
         """The next of this node's statuses (arriving from now on) whose (status, values) satisfy predicate."""
-        name = f'{self.ns}/fourbar_node: antenna tilt linkage'
+        name = 'fourbar_node: antenna tilt linkage'
         start = len(self.diag)
 
         def ours(msg: DiagnosticArray) -> bool:

@@ -95,9 +95,9 @@ def test_process_serves_commands_and_exits_cleanly(ros: RosSession, sig: int, ex
         tmsgs = tq.wait_count(len(served))
         for jm, tm, theta in zip(jmsgs, tmsgs, served, strict=True):
             s = state(theta)
-            assert list(jm.name) == ['rocker_ab_joint', 'rocker_cd_joint']
-            assert list(jm.position) == [s.gamma, s.delta]
-            assert list(jm.effort) == [s.input_torque, 0.0]
+            assert list(jm.name) == ['rocker_ab_joint', 'rocker_cd_joint', 'coupler_joint']
+            assert list(jm.position) == [s.gamma, s.delta, s.gamma + theta]
+            assert list(jm.effort) == [s.input_torque, 0.0, 0.0]
             assert tm.data == s.input_torque
             assert tm.data * s.dgamma_dtheta == pytest.approx(3.5, rel=TOL)
         # Nothing more arrives for the NaN and 0.9 commands: the answers above were in order and complete.
@@ -150,7 +150,7 @@ def test_diagnostics_from_the_process_show_skipped_outputs(ros: RosSession) -> N
         for c in (0.01, 0.02, math.inf):
             pub.publish(Float64(data=c))
         js.wait_count(2)
-        name = '/proc_diag/fourbar_node: antenna tilt linkage'
+        name = 'fourbar_node: antenna tilt linkage'
 
         def has_inf(msg: DiagnosticArray) -> bool:
             return any(s.name == name and any(kv.key == 'commands_rejected_not_finite' and kv.value == '1'

@@ -20,7 +20,7 @@ import numpy.typing as npt
 import pytest
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
-from fourbar_ros.config.robot_model import COUPLER_JOINT, coupler_joint_position, robot_description
+from fourbar_ros.config.robot_model import coupler_joint_position, robot_description
 from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.transforms import antenna_joint_positions
 
@@ -96,8 +96,8 @@ def link_poses(urdf: str, positions: dict[str, float]) -> dict[str, Matrix]:
 def joint_positions(cfg: AntennaConfig, theta: float) -> dict[str, float]:
     """The node's JointState for command theta (rad), from the core's solve."""
     gamma, delta = cfg.linkage.rocker_angles(theta, cfg.branch)
-    return {cfg.joint_names[0]: float(gamma), cfg.joint_names[1]: float(delta),
-            COUPLER_JOINT: coupler_joint_position(float(gamma), theta)}
+    return {cfg.gamma_joint: float(gamma), cfg.delta_joint: float(delta),
+            cfg.coupler_joint: coupler_joint_position(float(gamma), theta)}
 
 
 def _configs() -> list[tuple[str, AntennaConfig]]:
@@ -180,7 +180,7 @@ def test_model_has_every_node_joint_and_limits_spanning_the_tilt_range() -> None
     cfg = default_config()
     robot = ET.fromstring(robot_description(cfg))
     movable = {j.attrib['name']: j for j in robot.findall('joint') if j.attrib['type'] != 'fixed'}
-    assert set(movable) == {*cfg.joint_names, COUPLER_JOINT}
+    assert set(movable) == set(cfg.joint_names)
     for theta in (cfg.theta_min, cfg.theta_max, 0.0):
         for joint, value in joint_positions(cfg, theta).items():
             limit = movable[joint].find('limit')

@@ -44,6 +44,7 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.robot_model import coupler_joint_position
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.node.command_policy import Outcome, Policy, decide
 
@@ -266,7 +267,7 @@ def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: A
                 if not solved.all():
                     stats.not_solved += int(solved.size - np.count_nonzero(solved))
                     t, gamma, delta, torque = t[solved], gamma[solved], delta[solved], torque[solved]
-                positions = np.column_stack((gamma, delta))
+                positions = np.column_stack((gamma, delta, coupler_joint_position(gamma, served.theta[solved])))
                 effort = np.zeros_like(positions)
                 effort[:, driven] = torque
                 vel, have = velocities(t, positions, cfg.velocity_timeout, vel_state)

@@ -91,9 +91,9 @@ class AntennaConfig:
         return has_gravity_load(self)
 
     @property
-    def joint_names(self) -> tuple[str, str]:
-        """JointState names of the rockers: (gamma's, delta's)."""
-        return self.gamma_joint, self.delta_joint
+    def joint_names(self) -> tuple[str, str, str]:
+        """JointState names, in the order the node publishes them: rocker AB (gamma), rocker CD (delta), coupler."""
+        return self.gamma_joint, self.delta_joint, self.coupler_joint
 
     def as_values(self) -> dict[str, ParamValue]:
         """Parameter name -> value (the inverse of ``config_from_values``)."""

@@ -145,7 +145,8 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('hardware_id', str, 'fourbar_antenna_tilt', '',
               'Diagnostics hardware_id: names the hardware (the tilt drive), not a TF frame.'),
     ParamSpec('frame_id', str, 'fourbar_base', '',
-              'Frame of the markers: origin at pivot A, x along A->D, y up.'),
+              'Frame of the markers and root link of the URDF: origin at pivot A, x along A->D, z up; '
+              'the linkage lies in its x-z plane (REP-103).'),
     ParamSpec('out_of_limits', str, 'reject', '',
               'Policy for finite commands outside [theta_min, theta_max]: reject (drop) or '
               'clamp (to the nearest limit). NaN/inf are always rejected.',

@@ -35,11 +35,9 @@ from collections.abc import Iterable
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
-from fourbar_ros.config.antenna_config import AntennaConfig, load_config, values_from_yaml
+from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 from fourbar_ros.core.antenna import Driven
 
-#: Default JointState name of the coupler joint (parameter ``coupler_joint`` where the node declares it).
-COUPLER_JOINT = 'coupler_joint'
 #: Link names below the root (``frame_id``); the root link itself is named by ``frame_id``.
 LINKS = ('rocker_ab', 'coupler', 'rocker_cd', 'coupler_c', 'rocker_cd_c', 'antenna')
 #: Samples of the tilt range used for the joint limits (plus both ends).
@@ -111,13 +109,11 @@ def _joint(name: str, kind: str, parent: str, child: str, xyz: str, rpy: str = '
     return lines
 
 
-def robot_description(cfg: AntennaConfig, coupler_joint: str = COUPLER_JOINT, robot_name: str = 'fourbar') -> str:
-    """The URDF (XML text) of the linkage ``cfg`` describes; joint names as the node publishes them."""
-    gamma_joint, delta_joint = cfg.joint_names
+def robot_description(cfg: AntennaConfig, robot_name: str = 'fourbar') -> str:
+    """The URDF (XML text) of the linkage ``cfg`` describes; joint names as the node publishes them
+    (``cfg.joint_names``, distinct by the configuration's own validation)."""
+    gamma_joint, delta_joint, coupler_joint = cfg.joint_names
     root = cfg.frame_id
-    names = {gamma_joint, delta_joint, coupler_joint}
-    if len(names) != 3:
-        raise ValueError(f'joint names must differ: {gamma_joint!r}, {coupler_joint!r}, {delta_joint!r}')
     if root in LINKS:
         raise ValueError(f'frame_id {root!r} is also a link name of the model ({", ".join(LINKS)})')
     H, ab, h, cd = cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length, cfg.rocker_cd_length
@@ -153,19 +149,6 @@ def robot_description(cfg: AntennaConfig, coupler_joint: str = COUPLER_JOINT, ro
     return '\n'.join(lines) + '\n'
 
 
-def coupler_joint_name(cfg: AntennaConfig, params: str | Path | None = None, node_name: str = 'fourbar_node',
-                       namespace: str = '/') -> str:
-    """The node's ``coupler_joint`` parameter for ``cfg`` (read from the file where the configuration does not
-    carry it yet); default COUPLER_JOINT."""
-    name = getattr(cfg, 'coupler_joint', None)
-    if isinstance(name, str):
-        return name
-    if params is None:
-        return COUPLER_JOINT
-    values = values_from_yaml(Path(params).read_text(encoding='utf-8'), str(params), node_name, namespace)
-    return str(values.get('coupler_joint', COUPLER_JOINT))
-
-
 def robot_description_for(params: str | Path, node_name: str = 'fourbar_node', namespace: str = '/',
                           robot_name: str = 'fourbar') -> tuple[AntennaConfig, str]:
     """Validated configuration and URDF for the node ``namespace``/``node_name`` started with ``params``.
@@ -173,4 +156,4 @@ def robot_description_for(params: str | Path, node_name: str = 'fourbar_node', n
     Raises ``fourbar_ros.config.antenna_config.ConfigError`` (one line) for a bad file.
     """
     cfg = load_config(params, node_name, namespace)
-    return cfg, robot_description(cfg, coupler_joint_name(cfg, params, node_name, namespace), robot_name)
+    return cfg, robot_description(cfg, robot_name)

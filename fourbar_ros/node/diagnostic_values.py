@@ -167,3 +167,17 @@ def summarize(cfg: AntennaConfig, last: Decision | None, last_command: float | N
     values += [(k, str(v)) for k, v in counters.as_dict().items()]
     values += [('states_computed', str(states_computed)), ('states_reused', str(states_reused))]
     return Summary(level, message, values)
+
+
+#: The task part of the status name, ``<node name>: <task>`` as diagnostic_updater names a task's status.
+DIAGNOSTIC_TASK = 'antenna tilt linkage'
+
+
+def command_rate(commands: int, seconds: float) -> list[tuple[str, str]]:
+    """The command rate over the window since the previous status, under diagnostic_updater's frequency keys.
+
+    ``commands`` received in ``seconds`` of the steady clock (wall time, also under sim time).
+    """
+    hz = commands / seconds if seconds > 0.0 else 0.0
+    return [('Events in window', str(commands)), ('Duration of window (s)', repr(seconds)),
+            ('Actual frequency (Hz)', repr(hz))]

@@ -2,10 +2,12 @@
 
 Interface (relative names, so namespaces and remapping apply):
   sub  antenna_angle_cmd  std_msgs/Float64           commanded antenna angle theta, rad (+ tilts down)
-  pub  joint_states       sensor_msgs/JointState     position [gamma, delta] rad; velocity rad/s by finite
+  pub  joint_states       sensor_msgs/JointState     name [gamma_joint, delta_joint, coupler_joint], position
+                                                     [gamma, delta, gamma + theta] rad (every movable joint of
+                                                     `fourbar urdf`'s model); velocity rad/s by finite
                                                      difference of successive published positions (empty
                                                      when not meaningful); effort N m: driven rocker's torque,
-                                                     0.0 for the other rocker
+                                                     0.0 for the other joints
   pub  input_torque       std_msgs/Float64           torque the driven rocker needs, N m (+ in the sense of q)
   pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
   pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
@@ -25,6 +27,7 @@ import argparse
 import itertools
 import signal
 import sys
+import time
 from collections.abc import Callable, Collection, Sequence
 from typing import Any, NoReturn
 
@@ -54,11 +57,12 @@ from fourbar_ros.config.antenna_config import (
     unknown_in_node_sections,
 )
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
+from fourbar_ros.config.robot_model import coupler_joint_position
 from fourbar_ros.core.antenna import Driven, LinkageState
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import Pose, pose_solver, solve
 from fourbar_ros.node.command_policy import Decision, Outcome, Policy, decide
-from fourbar_ros.node.diagnostic_values import Counters, SequenceGaps, summarize
+from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
     DEFAULT_EXECUTOR,
     EXECUTOR_ENV,
@@ -124,6 +128,8 @@ class FourBarNode(Node):
         self.counters = Counters()
         self.gaps = SequenceGaps()
         self._lost_reported = 0  # commands_lost at the previous diagnostics status
+        #: (steady time in s, commands_received) at the previous diagnostics status: the command-rate window
+        self._rate_window = (time.monotonic(), 0)
         self.cache: StateCache[Pose] = StateCache(pose_solver(self._config))
         self._last_command: float | None = None
         self._last_decision: Decision | None = None
@@ -283,7 +289,7 @@ class FourBarNode(Node):
         if self._joint_pub.get_subscription_count() > 0:
             state = self._solve(theta)
             if state is not None:
-                self._publish_joints(state)
+                self._publish_joints(theta, state)
         if clamped is None:
             counters.commands_received += 1
             counters.commands_accepted += 1
@@ -306,15 +312,16 @@ class FourBarNode(Node):
             self._error(f'cannot solve theta={theta!r}: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
             return None
 
-    def _publish_joints(self, state: Pose) -> None:
+    def _publish_joints(self, theta: float, state: Pose) -> None:
         now = self._ros_clock.now()
         gamma, delta, torque = state
-        sample = Sample(now.nanoseconds, (gamma, delta))
+        positions = (gamma, delta, coupler_joint_position(gamma, theta))
         msg = self._joint_msg
         msg.header.stamp = now.to_msg()
-        msg.position = [gamma, delta]
-        msg.velocity, self._last_sample = velocity_step(self._last_sample, sample, self._velocity_timeout)
-        msg.effort = [torque, 0.0] if self._driven_first else [0.0, torque]
+        msg.position = list(positions)
+        msg.velocity, self._last_sample = velocity_step(self._last_sample, Sample(now.nanoseconds, positions),
+                                                        self._velocity_timeout)
+        msg.effort = [torque, 0.0, 0.0] if self._driven_first else [0.0, torque, 0.0]
         self._joint_pub.publish(msg)
         self.counters.joint_states_published += 1
 
@@ -359,10 +366,13 @@ class FourBarNode(Node):
         summary = summarize(self._config, last, self._last_command, state, self.counters,
                             self.cache.computed, self.cache.reused,
                             lost_since_last=self.counters.commands_lost - self._lost_reported)
+        since, received = self._rate_window
+        values = summary.values + command_rate(self.counters.commands_received - received, time.monotonic() - since)
+        # Named as diagnostic_updater names a task's status: '<node name>: <task>' (no namespace, no leading slash).
         return DiagnosticStatus(
-            level=bytes([int(summary.level)]), name=f'{self.get_fully_qualified_name()}: antenna tilt linkage',
-            message=summary.message, hardware_id=self._config.frame_id,
-            values=[KeyValue(key=k, value=v) for k, v in summary.values])
+            level=bytes([int(summary.level)]), name=f'{self.get_name()}: {DIAGNOSTIC_TASK}',
+            message=summary.message, hardware_id=self._config.hardware_id,
+            values=[KeyValue(key=k, value=v) for k, v in values])
 
     def _on_diagnostics_timer(self) -> None:
         if self._diag_pub.get_subscription_count() == 0:
@@ -373,6 +383,7 @@ class FourBarNode(Node):
         msg.header.stamp = self.get_clock().now().to_msg()
         self._diag_pub.publish(msg)
         self._lost_reported = self.counters.commands_lost
+        self._rate_window = (time.monotonic(), self.counters.commands_received)
 
     # ------------------------------------------------------------------ sim time
 

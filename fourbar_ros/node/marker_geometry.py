@@ -1,6 +1,7 @@
 """Points of the linkage drawing (frame, rockers, coupler, antenna) in the marker frame. No ROS.
 
-Frame: origin at pivot A, x along A->D, y up, metres (the Annex A convention). The antenna is drawn
+Plane coordinates (along A->D, up) in metres from pivot A (the Annex A convention); the markers put them in the x-z
+plane of ``frame_id`` (z up, REP-103). The antenna is drawn
 as an arrow from the coupler's midpoint along B->C, one coupler length long: theta > 0 points it down.
 """
 

@@ -43,12 +43,13 @@ class LinkageMarkers:
         self.array = MarkerArray(markers=[self.frame, self.rockers, self.coupler, self.joints, self.antenna])
 
     def update(self, pts: LinkagePoints, stamp: Time) -> MarkerArray:
-        """Set every marker's points (metres, z = 0) and stamp; return the array."""
+        """Set every marker's points and stamp; return the array. The drawing's (along A->D, up) metres go to
+        (x, z), y = 0: the linkage in the x-z plane of ``frame_id``, z up (REP-103), as in `fourbar urdf`'s model."""
         for marker, seq in ((self.frame, (pts.a, pts.d)), (self.rockers, (pts.a, pts.b, pts.d, pts.c)),
                             (self.coupler, (pts.b, pts.c)), (self.joints, (pts.a, pts.b, pts.c, pts.d)),
                             (self.antenna, (pts.antenna_tail, pts.antenna_tip))):
             marker.header.stamp = stamp
-            for point, (x, y) in zip(marker.points, seq, strict=True):
+            for point, (x, up) in zip(marker.points, seq, strict=True):
                 point.x = x
-                point.y = y
+                point.z = up
         return self.array
