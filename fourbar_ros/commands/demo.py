@@ -18,7 +18,9 @@ from fourbar_ros.commands import CommandError
 HELP = ('the main job: start fourbar_node with a parameter file, replay the bundled sweep, record the '
         'outputs, print a summary and write a PNG plot')
 
-BUNDLED_SWEEP = Path(__file__).resolve().parent.parent / 'data' / 'demo_sweep'
+#: Defaults, paths inside the package's share/ (found by config.share.share_path when the demo runs).
+DEFAULT_PARAMS = 'config/antenna.yaml'
+DEFAULT_BAG = 'bags/demo_sweep'
 OUTPUT_TOPICS = ('joint_states', 'input_torque', '/diagnostics')
 
 
@@ -35,10 +37,12 @@ def _id_ranges(ids: tuple[int, ...]) -> str:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `fourbar demo`."""
-    parser.add_argument('--params', type=Path, default=Path('config/antenna.yaml'), metavar='YAML',
-                        help='node parameter file (default: config/antenna.yaml)')
-    parser.add_argument('--bag', type=Path, default=BUNDLED_SWEEP, metavar='BAG',
-                        help='command bag to replay (default: the bundled sweep over the tilt range)')
+    parser.add_argument('--params', type=Path, metavar='YAML',
+                        help=f'node parameter file (default: the installed share/fourbar_ros/{DEFAULT_PARAMS}, '
+                        'else the one in the source tree)')
+    parser.add_argument('--bag', type=Path, metavar='BAG',
+                        help='command bag to replay (default: the bundled sweep over the tilt range, '
+                        f'share/fourbar_ros/{DEFAULT_BAG})')
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
                         help='output directory: outputs bag, demo.png, node.log (default: out/demo)')
     parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
@@ -67,9 +71,14 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.node_params import predictor
     from fourbar_ros.bags.storage import read_commands, read_messages
     from fourbar_ros.config.antenna_config import load_config
+    from fourbar_ros.config.share import share_path
 
     prog = 'fourbar demo'
     start = time.monotonic()
+    if args.params is None:
+        args.params = share_path(DEFAULT_PARAMS)
+    if args.bag is None:
+        args.bag = share_path(DEFAULT_BAG)
     cfg = load_config(args.params)  # one-line ConfigError -> status 2
     stream = read_commands(args.bag)  # one-line BagError -> status 2
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
