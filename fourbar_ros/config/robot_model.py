@@ -33,10 +33,12 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from pathlib import Path
+from typing import TypeVar
 from xml.sax.saxutils import quoteattr
 
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.numeric import FloatArray
 
 #: Link names below the root (``frame_id``); the root link itself is named by ``frame_id``.
 LINKS = ('rocker_ab', 'coupler', 'rocker_cd', 'coupler_c', 'rocker_cd_c', 'antenna')
@@ -70,7 +72,11 @@ def joint_ranges(cfg: AntennaConfig) -> dict[str, tuple[float, float]]:
     return {k: (min(v), max(v)) for k, v in values.items()}
 
 
-def coupler_joint_position(gamma: float, theta: float) -> float:
+#: A float or a float64 array: coupler_joint_position serves the node (one command) and fourbar process (blocks).
+Angles = TypeVar('Angles', float, FloatArray)
+
+
+def coupler_joint_position(gamma: Angles, theta: Angles) -> Angles:
     """Position (rad) of ``coupler_joint``: the coupler's angle from rocker AB, gamma + theta."""
     return gamma + theta
 
