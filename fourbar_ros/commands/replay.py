@@ -26,6 +26,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='timed replay: also publish /clock (rosgraph_msgs/Clock) with the bag\'s playback '
                         'time at HZ (default 40, as `ros2 bag play --clock`), for nodes with use_sim_time:=true; '
                         'put it after BAG or give HZ')
+    parser.add_argument('--bag-topic', metavar='NAME',
+                        help='the command topic (std_msgs/Float64) to read from BAG, e.g. a namespaced recording\'s '
+                        '/robot/antenna_angle_cmd (default: /antenna_angle_cmd, else the one */antenna_angle_cmd)')
     parser.add_argument('--topic', metavar='NAME',
                         help='publish on NAME instead of the recorded topic (e.g. /tilt/antenna_angle_cmd)')
     parser.add_argument('--answer-topic', metavar='NAME',
@@ -73,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f'--clock must be a positive rate in Hz, got {args.clock}')
     if not 1 <= args.window <= 1000:
         raise CommandError(f'--window must be in 1..1000, got {args.window}')
-    stream = read_commands(args.bag)  # BagError: one line, status 2 (main)
+    stream = read_commands(args.bag, args.bag_topic)  # BagError: one line, status 2 (main)
     answers_from_file: Predictor | None = None
     if args.params is not None:
         from fourbar_ros.config.antenna_config import load_config
