@@ -35,7 +35,7 @@ setup(
     entry_points={
         'console_scripts': [
             'fourbar = fourbar_ros.commands:main',
-            'fourbar_node = fourbar_ros.node.fourbar_node:main',
+            'fourbar_node = fourbar_ros.node:main',
         ],
     },
 )

@@ -36,7 +36,7 @@ def test_package_xml_validates_with_catkin_pkg() -> None:
 
 def test_setup_declares_the_console_script_and_ros_install_dir() -> None:
     setup_py = (REPO / 'setup.py').read_text(encoding='utf-8')
-    assert "'fourbar_node = fourbar_ros.node.fourbar_node:main'" in setup_py
+    assert "'fourbar_node = fourbar_ros.node:main'" in setup_py
     cfg = (REPO / 'setup.cfg').read_text(encoding='utf-8')
     assert 'install_scripts=$base/lib/fourbar_ros' in cfg and 'script_dir=$base/lib/fourbar_ros' in cfg
 

@@ -11,7 +11,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import IO
 
-NODE_MAIN = 'import sys; from fourbar_ros.node.fourbar_node import main; sys.exit(main())'
+NODE_MAIN = 'import sys; from fourbar_ros.node import main; sys.exit(main())'
 
 
 class NodeProcess:
