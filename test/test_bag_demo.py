@@ -3,13 +3,17 @@ recording, summary, PNG; it finishes by itself and leaves no node behind, also w
 
 from __future__ import annotations
 
+import os
 import re
 import signal
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from bag_support import CONFIG, DEMO_BAG, Tool
+from bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
+from colcon_support import colcon_install, ros2, ros2_cli_missing, sourced_env
 from ros_support import DomainLease, lease_domain_id
 
 from fourbar_ros.bags.domain import domain_in_use
@@ -28,8 +32,6 @@ def lease() -> Iterator[DomainLease]:
 
 
 def _env() -> dict[str, str]:
-    import os
-
     return {k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'}
 
 
@@ -79,3 +81,57 @@ def test_demo_bad_params_is_one_line(tmp_path: Path) -> None:
         assert demo.wait(60.0) == 2
     assert len(demo.lines) == 1 and demo.lines[0].startswith('fourbar demo: error: ')
     assert not (tmp_path / 'demo').exists()
+
+
+def _run_from(command: list[str], env: dict[str, str], cwd: Path, timeout: float = 300.0) -> tuple[int, str, str]:
+    """Run ``command`` in ``cwd`` to completion (own session, killed with its children on a timeout)."""
+    proc = subprocess.Popen(command, env=env, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=timeout)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.communicate()
+    return proc.returncode, out, err
+
+
+def _check_demo_output(rc: int, out: str, err: str, cwd: Path, params: Path, bag: Path) -> None:
+    assert rc == 0, err
+    first = out.splitlines()[0]
+    assert first.startswith(f'fourbar demo: fourbar_node with {params} on ROS_DOMAIN_ID '), first
+    assert first.endswith(f'replaying {len(read_commands(DEMO_BAG))} commands from {bag}'), first
+    png = cwd / 'out' / 'demo' / 'demo.png'  # the default --out, relative to where it was started
+    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    recorded = read_messages(cwd / 'out' / 'demo' / 'outputs')
+    assert len(recorded['/joint_states']) == len(read_commands(DEMO_BAG))
+
+
+def test_demo_with_no_arguments_from_another_directory(tmp_path: Path) -> None:
+    """No --params, --bag or --domain-id, started outside the checkout: the defaults come from the source tree
+    (this environment does not index fourbar_ros), the domain from the lease the test suite shares."""
+    if (Path(sys.prefix) / 'share' / 'fourbar_ros').exists():
+        pytest.skip('fourbar_ros is installed into this environment\'s share/ (not an editable install)')
+    env = {k: v for k, v in _env().items() if k != 'AMENT_PREFIX_PATH'}
+    rc, out, err = _run_from([*fourbar_command(), 'demo'], env, tmp_path)
+    _check_demo_output(rc, out, err, tmp_path, CONFIG, DEMO_BAG)
+    assert os.listdir(tmp_path) == ['out']
+
+
+def test_ros2_run_demo_uses_the_installed_share(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """`ros2 run fourbar_ros fourbar demo` over a colcon install, from an empty directory, with no arguments."""
+    if (why := ros2_cli_missing()) is not None:
+        pytest.skip(why)
+    prefix = colcon_install(tmp_path_factory) / 'fourbar_ros'
+    share = prefix / 'share' / 'fourbar_ros'
+    lease = lease_domain_id()  # sourced_env wants one; the demo leases its own free id from the same lock files
+    try:
+        env = sourced_env(_env(), prefix, lease.domain_id)
+        env.pop('ROS_DOMAIN_ID')
+        env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))
+        cwd = tmp_path_factory.mktemp('anywhere')
+        rc, out, err = _run_from([ros2(), 'run', 'fourbar_ros', 'fourbar', 'demo'], env, cwd)
+    finally:
+        lease.release()
+    _check_demo_output(rc, out, err, cwd, share / 'config' / 'antenna.yaml', share / 'bags' / 'demo_sweep')
+    assert os.listdir(cwd) == ['out']
