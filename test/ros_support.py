@@ -272,6 +272,38 @@ def sync_probe(publish: Callable[[float], None], collectors: Sequence[Collector[
         col.clear()
 
 
+# --------------------------------------------------------------------------- paced publishing
+
+class Ticker:
+    """Calls ``tick(now)`` (``now``: time.monotonic()) at ``hz`` from a thread, paced by a deadline; a tick that
+    falls more than 0.1 s behind (a busy machine) restarts the schedule instead of bursting to catch up."""
+
+    def __init__(self, hz: float, tick: Callable[[float], None]) -> None:
+        self._period = 1.0 / hz
+        self._tick = tick
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name='ticker', daemon=True)
+
+    def __enter__(self) -> Ticker:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        self._thread.join(timeout=10.0)
+
+    def _run(self) -> None:
+        next_t = time.monotonic()
+        while not self._stop.is_set():
+            self._tick(time.monotonic())
+            next_t += self._period
+            delay = next_t - time.monotonic()
+            if delay > 0:
+                self._stop.wait(delay)
+            elif delay < -0.1:
+                next_t = time.monotonic()
+
+
 # --------------------------------------------------------------------------- node process
 
 def node_command() -> list[str]:

@@ -11,14 +11,12 @@ from __future__ import annotations
 
 import re
 import signal
-import threading
-import time
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
-from ros_support import NodeProcess, RosSession, sync_probe, wait_for
+from ros_support import NodeProcess, RosSession, Ticker, sync_probe, wait_for
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -49,37 +47,19 @@ def gamma(theta: float) -> float:
     return float(CFG.linkage.state(theta, CFG.load_torque, CFG.driven, CFG.branch).gamma)
 
 
-class Stream:
+class Stream(Ticker):
     """Publishes accepted commands at ``STREAM_HZ`` from a thread (paced by a deadline, not by the node)."""
 
     def __init__(self, pub: Any) -> None:
+        super().__init__(STREAM_HZ, self._publish)
         self.pub = pub
         self.sent = 0
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name='cmd-stream', daemon=True)
+        self._msg = Float64()
 
-    def __enter__(self) -> Stream:
-        self._thread.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self._stop.set()
-        self._thread.join(timeout=10.0)
-
-    def _run(self) -> None:
-        period = 1.0 / STREAM_HZ
-        next_t = time.monotonic()
-        msg = Float64()
-        while not self._stop.is_set():
-            msg.data = LO + (HI - LO) * ((self.sent % 997) + 0.5) / 997
-            self.pub.publish(msg)
-            self.sent += 1
-            next_t += period
-            delay = next_t - time.monotonic()
-            if delay > 0:
-                self._stop.wait(delay)
-            elif delay < -0.1:  # fell behind (shared machine): do not burst to catch up
-                next_t = time.monotonic()
+    def _publish(self, _now: float) -> None:
+        self._msg.data = LO + (HI - LO) * ((self.sent % 997) + 0.5) / 997
+        self.pub.publish(self._msg)
+        self.sent += 1
 
 
 def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str) -> list[str]:

@@ -174,11 +174,6 @@ class CommandStream:
     def __len__(self) -> int:
         return len(self.values)
 
-    @property
-    def duration_s(self) -> float:
-        """Seconds from the first to the last command."""
-        return (self.stamps_ns[-1] - self.stamps_ns[0]) * 1e-9 if self.stamps_ns else 0.0
-
 
 def read_commands(path: str | os.PathLike[str], topic: str | None = None) -> CommandStream:
     """Read and validate the command stream of a bag (every message decoded before returning).
