@@ -65,9 +65,10 @@ def check_outputs(recorded: dict[str, list[tuple[int, Any]]], thetas: list[float
         # a CPU whose SIMD transcendentals differ by an ulp changes nothing here.
         assert js.position[0] == exp.gamma, where
         assert js.position[1] == exp.delta, where
-        assert js.effort[driven] == exp.torque and js.effort[1 - driven] == 0.0, where
+        assert js.position[2] == exp.gamma + exp.theta, where  # the coupler joint: the same addition
+        assert js.effort[driven] == exp.torque and js.effort[1 - driven] == js.effort[2] == 0.0, where
         assert tau.data == exp.torque, where
-        assert len(js.velocity) in (0, 2) and all(math.isfinite(v) for v in js.velocity), where
+        assert len(js.velocity) in (0, 3) and all(math.isfinite(v) for v in js.velocity), where
 
 
 def replay_through_node(ros: RosSession, bag: Path, out: Path, cfg: AntennaConfig, node_args: list[str],
