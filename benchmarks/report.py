@@ -340,9 +340,9 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         '',
         '- Reference: `benchmarks/reference.py`, derived from the loop-closure equations (B is an intersection of '
         'the circle about A with the circle about D - h (cos theta, -sin theta)), evaluated with mpmath at 60 '
-        'digits, each float input taken as exact; its tests check the NOTES table, loop closure to 1e-50 and '
-        'agreement with a 120-digit evaluation. Errors are taken against a double-double copy, so they resolve '
-        'far below one ulp.',
+        'digits, each float input taken as exact; its tests check the reference table '
+        '(test/data/turnantenna_reference.csv), loop closure to 1e-50 and agreement with a 120-digit '
+        'evaluation. Errors are taken against a double-double copy, so they resolve far below one ulp.',
         '- Same inputs: every method sees the same ascending angles per geometry; tables are built over the '
         'same interval they are asked about; Newton and mechanism start from the same mid-interval pose.',
         '- Timing: the process\'s CPU time (`time.process_time`, so time the scheduler gives other jobs is left '

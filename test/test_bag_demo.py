@@ -45,7 +45,7 @@ def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
     lines = {line.split()[0]: line for line in stdout.splitlines() if line.strip()}
     for key in ('theta', 'gamma', 'delta', 'torque', 'motor', 'rejected', 'check', 'replay', 'plot'):
         assert key in lines, stdout
-    assert lines['gamma'].startswith('gamma    +40.92 deg .. +57.33 deg')  # NOTES: 40.921..57.328 deg
+    assert lines['gamma'].startswith('gamma    +40.92 deg .. +57.33 deg')  # reference table: 40.921..57.328 deg
     assert lines['delta'].startswith('delta    +39.39 deg .. +56.38 deg')
     assert 'rejected 0 commands' in lines['rejected'] and '521 received' in lines['rejected']
     deviations = [float(x) for x in re.findall(r'= ([0-9.e+-]+) ', lines['check'] + ' ')]

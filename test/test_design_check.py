@@ -22,7 +22,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SHIPPED = ROOT / 'config' / 'antenna.yaml'
 BAD = ROOT / 'test' / 'data' / 'bad_antenna.yaml'
 
-# Independent 60-digit values (NOTES.md table, upper branch) at the ends of the shipped range.
+# Independent 60-digit values (test/data/turnantenna_reference.csv, upper branch) at the ends of the shipped range.
 DELTA_PLUS7 = math.radians(39.390113547656)
 DGAMMA_MINUS6, DGAMMA_PLUS7 = 1.518562886208, 0.916954003692
 DDELTA_PLUS7 = -1.542784836266
