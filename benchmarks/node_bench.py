@@ -1,27 +1,36 @@
 """fourbar_node against a bare rclpy relay, measured in the same run: ``python -m benchmarks.node_bench [--quick]``.
 
 Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py):
-- latency: command (std_msgs/Float64) to JointState round trip seen by a client, median and p99, for the node and
-  for a relay process (Float64 in, JointState out with the same fields filled, no math, same QoS),
-  alternating ping by ping so machine load hits both alike. Commands cycle through distinct angles, so the
-  node's repeat cache never helps. Measured with only joint_states subscribed (the other outputs are then
-  skipped) and again with every output subscribed.
+- latency: command (std_msgs/Float64) to JointState round trip seen by a client, median and p99, for the shipped
+  node and for a relay process on the same (default) executor (Float64 in, JointState out with the same fields
+  filled, no math, same QoS), alternating ping by ping so machine load hits both alike. Commands cycle
+  through distinct angles, so the node's repeat cache never helps. Measured with only joint_states subscribed
+  (the other outputs are then skipped) and again with every output subscribed.
 - rate: the highest command rate each sustains without loss: every command of a trial (``duration`` s at that
   rate) answered, and the last answer within 0.25 s of the last command (a backlog that grows over the trial
   shows up as lag). Doubling from 250 Hz to the first failure, then bisection; the full run alternates three
   rounds and reports each side's median round (all rounds are listed too).
+- executors: the same paced load for four processes, interleaved: a bare relay and fourbar_node, each on
+  rclpy's SingleThreadedExecutor and on its EventsExecutor (``--executor``; the node with the default
+  executor is started without the option, as a user starts it). Commands at 200 Hz, one outstanding at a
+  time, in blocks that rotate between the four every round (3 rounds); per process the round-trip median
+  and p99 and its CPU time per command (every thread of the process, idle timers included, from /proc).
+  Ratios are against the relay on the SingleThreadedExecutor. Targets (issue 13): the shipped node's median
+  latency <= 0.85x and CPU per command <= 0.6x that relay's.
 - skipped work: the node's command callback timed in-process (per call, microseconds) with subscribers (in a
   separate process) on joint_states only, on both per-command outputs (joint_states, input_torque), and on
   none, interleaved call by call with the relay's callback (so the node's extra CPU per command is measured
   even when machine load blurs the round trips); and the marker and diagnostics timer callbacks with and
   without a subscriber.
-Targets (issue 3): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is asserted by any test.
+Targets (issue 3, node vs relay on one executor): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is
+asserted by any test.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import statistics
 import subprocess
@@ -38,6 +47,7 @@ from fourbar_ros.bags.domain import free_domain_id
 REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 DEPTH = 1000
+PACED_HZ = 200.0  # command rate of the executor comparison (one outstanding at a time)
 LAG_S = 0.25  # a rate is sustained if the last answer comes at most this long after the last command
 
 
@@ -64,23 +74,41 @@ def relay_callback(node: Any, pub: Any) -> Callable[[Any], None]:
 
 
 def relay_main(argv: Sequence[str]) -> int:
-    """The baseline process: subscribe Float64 ``antenna_angle_cmd``, publish ``joint_states`` (relay_callback)."""
+    """The baseline process: subscribe Float64 ``antenna_angle_cmd``, publish ``joint_states`` (relay_callback).
+
+    ``--executor single|events`` (before ``--ros-args``) picks the executor; it is spun the way fourbar_node
+    spins its own (fourbar_ros.ros_executor), and SIGINT/SIGTERM end it.
+    """
+    import signal
+
     import rclpy
     import rclpy.utilities
-    from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
-    rclpy.init(args=list(argv))
+    from fourbar_ros.node.executor import Spinner, create_executor
+
+    args = list(argv)
+    kind = None
+    if '--executor' in args:
+        at = args.index('--executor')
+        kind = args[at + 1]
+        del args[at:at + 2]
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = Node('relay')
     pub = node.create_publisher(JointState, 'joint_states', DEPTH)
     node.create_subscription(Float64, 'antenna_angle_cmd', relay_callback(node, pub), DEPTH)
+    executor = create_executor(kind)
+    executor.add_node(node)
+    spinner = Spinner(executor)
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda _s, _f: spinner.request_stop())
     try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        spinner.spin()
     finally:
+        executor.shutdown(timeout_sec=0.0)
         destroy(node)
         rclpy.utilities.try_shutdown()
     return 0
@@ -135,7 +163,7 @@ class Child:
 
 def node_script() -> list[str]:
     script = Path(sys.executable).parent / 'fourbar_node'
-    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.node.fourbar_node']
+    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.node']
 
 
 def destroy(node: Any) -> None:
@@ -291,6 +319,77 @@ def max_rate(executor: Any, target: Target, thetas: list[float], duration: float
     return {'rate_hz': good, 'client_limited': client_limited}
 
 
+def process_cpu_s(pid: int) -> float | None:
+    """User + system CPU seconds of process ``pid`` (all its threads) so far; None without /proc."""
+    try:
+        with open(f'/proc/{pid}/stat', encoding='ascii') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
+def paced(executor: Any, target: Target, thetas: list[float], rate: float,
+          timeout: float = 1.0) -> tuple[list[float], int]:
+    """Send ``thetas`` at ``rate`` Hz, each waiting for its answer; (round trips in s, unanswered count)."""
+    period = 1.0 / rate
+    rtts: list[float] = []
+    lost = 0
+    due = time.perf_counter()
+    for theta in thetas:
+        wait = due - time.perf_counter()
+        if wait > 0.0:
+            time.sleep(wait)
+        due += period
+        rtt = ping(executor, target, theta, timeout)
+        if rtt is None:
+            lost += 1
+        else:
+            rtts.append(rtt)
+    return rtts, lost
+
+
+def executor_rounds(executor: Any, targets: dict[str, Target], pids: dict[str, int], thetas: list[float],
+                    per_round: int, rounds: int, rate: float, baseline: str) -> dict[str, Any]:
+    """Paced round trips and process CPU per command for each system, in interleaved rounds.
+
+    Each round gives every system a block of ``per_round`` commands at ``rate`` Hz (one outstanding at a
+    time), in an order rotated every round, so load that drifts over the run hits all alike. CPU per command
+    is the process's CPU time over its blocks (its executor, the middleware's threads, idle timers: all of
+    it) divided by the commands. Ratios are against ``baseline``.
+    """
+    names = list(targets)
+    rtts: dict[str, list[float]] = {k: [] for k in names}
+    medians: dict[str, list[float]] = {k: [] for k in names}
+    lost = dict.fromkeys(names, 0)
+    cpu: dict[str, float | None] = dict.fromkeys(names, 0.0)
+    for r in range(rounds):
+        block = [thetas[(r * per_round + i) % len(thetas)] for i in range(per_round)]
+        for name in names[r % len(names):] + names[:r % len(names)]:
+            before = process_cpu_s(pids[name])
+            got, missed = paced(executor, targets[name], block, rate)
+            after = process_cpu_s(pids[name])
+            used = cpu[name]
+            cpu[name] = None if used is None or before is None or after is None else used + after - before
+            rtts[name] += got
+            lost[name] += missed
+            medians[name].append(1e6 * statistics.median(got) if got else math.nan)
+    out: dict[str, Any] = {}
+    for name in names:
+        used = cpu[name]
+        out[name] = {'median_us': 1e6 * statistics.median(rtts[name]), 'p99_us': 1e6 * percentile(rtts[name], 0.99),
+                     'round_medians_us': [round(m, 1) for m in medians[name]], 'lost': lost[name],
+                     'cpu_per_command_us': None if used is None else 1e6 * used / (rounds * per_round)}
+    base = out[baseline]
+    for name in names:
+        row = out[name]
+        row['latency_ratio_median'] = row['median_us'] / base['median_us']
+        row['latency_ratio_p99'] = row['p99_us'] / base['p99_us']
+        cpu_us, base_cpu = row['cpu_per_command_us'], base['cpu_per_command_us']
+        row['cpu_ratio'] = cpu_us / base_cpu if cpu_us is not None and base_cpu else None
+    return out
+
+
 def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> dict[str, Any]:
     """Per-call cost (us) of the node's command callback, by which outputs have subscribers, interleaved call by
     call with the relay's callback (its JointState also subscribed); and of the marker and diagnostics timers."""
@@ -305,6 +404,7 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
                        parameter_overrides=[make_parameter('diagnostics_period', value=3600.0)])
     cfg = node.config
     msgs = [Float64(data=t) for t in commands(256, cfg.theta_min, cfg.theta_max)]
+    info: dict[str, Any] = {'publication_sequence_number': None}  # no sequence numbers: no loss accounting
     scenarios = {
         'none': [],
         'joint_states_only': ['/cost/joint_states:JointState'],
@@ -329,7 +429,7 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
                 for _ in range(repeats):
                     for m in msgs:
                         t0 = clock()
-                        node._on_command(m)
+                        node._on_command(m, info)
                         t1 = clock()
                         relay(m)
                         relay_calls.append(clock() - t1)
@@ -378,33 +478,47 @@ def run(quick: bool) -> dict[str, Any]:
     from rclpy.node import Node
 
     from fourbar_ros.config.antenna_config import load_config
+    from fourbar_ros.node.executor import DEFAULT_EXECUTOR, EXECUTORS
 
     cfg = load_config(YAML)
     n_lat, duration, bisections, repeats, rounds = (300, 1.0, 2, 5, 1) if quick else (2000, 2.0, 4, 15, 3)
+    per_round, paced_rounds = (100, 1) if quick else (400, 3)
     hold = ExitStack()
     domain_id = hold.enter_context(free_domain_id())  # the lock files the tests and tools use
     env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
-    children: list[Child] = []
+    children: dict[str, Child] = {}
     context = Context()
-    result: dict[str, Any] = {'quick': quick, 'domain_id': domain_id}
+    result: dict[str, Any] = {'quick': quick, 'domain_id': domain_id, 'default_executor': DEFAULT_EXECUTOR}
     try:
-        children.append(Child([sys.executable, '-m', 'benchmarks.node_bench', 'relay', '--ros-args', '-r',
-                               '__ns:=/relay'], env))
-        children.append(Child([*node_script(), '--ros-args', '--params-file', str(YAML), '-r', '__ns:=/node'], env))
+        for kind in EXECUTORS:
+            # The shipped node is started as a user starts it (no option); the other executor by its option.
+            option = [] if kind == DEFAULT_EXECUTOR else ['--executor', kind]
+            children[f'relay_{kind}'] = Child([sys.executable, '-m', 'benchmarks.node_bench', 'relay', '--executor',
+                                               kind, '--ros-args', '-r', f'__ns:=/relay_{kind}'], env)
+            children[f'node_{kind}'] = Child([*node_script(), *option, '--ros-args', '--params-file', str(YAML), '-r',
+                                              f'__ns:=/node_{kind}'], env)
         rclpy.init(context=context, domain_id=domain_id)
         client = Node('bench_client', context=context)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(client)
-        targets = {'relay': Target(client, '/relay'), 'node': Target(client, '/node')}
+        systems = {name: Target(client, f'/{name}') for name in children}
         thetas = commands(max(n_lat, 4096), cfg.theta_min, cfg.theta_max)
-        for target in targets.values():
+        for target in systems.values():
             connect(executor, target, thetas[0])
+        shipped = f'node_{DEFAULT_EXECUTOR}'
+        result['executors'] = {
+            'rate_hz': PACED_HZ, 'rounds': paced_rounds, 'commands_per_round': per_round,
+            'baseline': 'relay_single', 'shipped': shipped,
+            'systems': executor_rounds(executor, systems, {k: c.proc.pid for k, c in children.items()}, thetas,
+                                       per_round, paced_rounds, PACED_HZ, 'relay_single')}
+        # The node against a relay on the same (default) executor: what the node adds.
+        targets = {'relay': systems[f'relay_{DEFAULT_EXECUTOR}'], 'node': systems[shipped]}
         lat = latency(executor, targets, thetas[:n_lat])
         # The same with every output of the node subscribed.
         from std_msgs.msg import Float64
         from visualization_msgs.msg import MarkerArray
-        extra = [client.create_subscription(Float64, '/node/input_torque', lambda _m: None, DEPTH),
-                 client.create_subscription(MarkerArray, '/node/linkage_markers', lambda _m: None, DEPTH)]
+        extra = [client.create_subscription(Float64, f'/{shipped}/input_torque', lambda _m: None, DEPTH),
+                 client.create_subscription(MarkerArray, f'/{shipped}/linkage_markers', lambda _m: None, DEPTH)]
         wait_until(lambda: all(s.get_publisher_count() > 0 for s in extra), 30.0, 'node outputs')
         connect(executor, targets['node'], thetas[1])
         lat_all = latency(executor, targets, thetas[:n_lat // 2])
@@ -433,14 +547,18 @@ def run(quick: bool) -> dict[str, Any]:
         destroy(client)
         result['skipped_work'] = callback_costs(context, env, repeats)
     finally:
-        for child in children:
+        for child in children.values():
             child.close()
         context.try_shutdown()
         hold.close()
-    result['targets'] = {'latency_ratio_max': 1.10, 'rate_ratio_min': 0.9}
+    row = result['executors']['systems'][result['executors']['shipped']]
+    result['targets'] = {'latency_ratio_max': 1.10, 'rate_ratio_min': 0.9,
+                         'shipped_latency_over_single_relay_max': 0.85, 'shipped_cpu_over_single_relay_max': 0.6}
     result['meets_targets'] = {
         'latency': result['latency_ratio_median'] <= 1.10,
         'rate': result['rate_ratio'] is not None and result['rate_ratio'] >= 0.9,
+        'shipped_latency': row['latency_ratio_median'] <= 0.85,
+        'shipped_cpu': row['cpu_ratio'] is not None and row['cpu_ratio'] <= 0.6,
     }
     result['command'] = 'python -m benchmarks.node_bench' + (' --quick' if quick else '')
     return result
