@@ -68,10 +68,29 @@ def read_rates(bag: Path) -> tuple[float, float]:
 WINDOWS = (1, 16)
 
 
+def thread_cpu_s(pid: int) -> dict[str, float]:
+    """CPU seconds of process ``pid`` so far: its main thread (Python, the executor, the callbacks) and its
+    other threads (the middleware's receive and event threads); empty without /proc."""
+    out = {'main_thread': 0.0, 'other_threads': 0.0}
+    tick = os.sysconf('SC_CLK_TCK')
+    try:
+        tids = os.listdir(f'/proc/{pid}/task')
+    except OSError:
+        return {}
+    for tid in tids:
+        try:
+            with open(f'/proc/{pid}/task/{tid}/stat', encoding='ascii', errors='replace') as f:
+                fields = f.read().rsplit(')', 1)[1].split()
+        except OSError:  # the thread ended
+            continue
+        out['main_thread' if tid == str(pid) else 'other_threads'] += (int(fields[11]) + int(fields[12])) / tick
+    return out
+
+
 def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, Any]:
-    """Replay ``repeats`` times per window (interleaved) into one node process; rates and the loss check."""
+    """Per executor (the replayer's and the node's alike): replay ``repeats`` times per window, interleaved
+    with the other executor, into one node process each; rates, CPU per command and the loss check."""
     from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
     from fourbar_ros.bags.domain import free_domain_id
@@ -80,50 +99,81 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
     from fourbar_ros.bags.replay import Replayer
     from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import read_commands
+    from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS, create_executor
 
     stream = read_commands(bag)
-    rates: dict[int, list[float]] = {w: [] for w in WINDOWS}
-    answers = expected = 0
+    rates: dict[str, dict[int, list[float]]] = {k: {w: [] for w in WINDOWS} for k in EXECUTORS}
+    cpu: dict[str, dict[int, dict[str, float]]] = {k: {w: {} for w in WINDOWS} for k in EXECUTORS}
+    answers = dict.fromkeys(EXECUTORS, 0)
+    expected = dict.fromkeys(EXECUTORS, 0)
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    out: dict[str, Any] = {}
     with free_domain_id() as domain_id:
-        node_proc = NodeProcess(CONFIG, domain_id, env=dict(os.environ)).start()
+        # One node per executor, each with its own name: the diagnostics status is named after the node.
+        procs = {k: NodeProcess(CONFIG, domain_id, ros_args=['-r', f'__ns:=/{k}', '-r', f'__node:=fourbar_node_{k}'],
+                                env=dict(os.environ, **{EXECUTOR_ENV: k})).start() for k in EXECUTORS}
         context = init_context(domain_id=domain_id, handle_signals=False)
-        node = Node('fourbar_bag_bench', context=context, start_parameter_services=False)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        diag: list[dict[str, str]] = []
+        nodes = [Node(f'fourbar_bag_bench_{k}', context=context, start_parameter_services=False) for k in EXECUTORS]
+        executors = {k: create_executor(k, context) for k in EXECUTORS}
+        diag: dict[str, list[dict[str, str]]] = {k: [] for k in EXECUTORS}
+        replayers: dict[str, Replayer] = {}
         try:
-            replayer = Replayer(node, stream, answer_topic='/joint_states')
-            node.create_subscription(
-                DiagnosticArray, '/diagnostics',
-                lambda m: diag.append({kv.key: kv.value for kv in m.status[0].values} if m.status else {}), 10)
-            replayer.wait_for_node(executor, timeout_s)
-            predict = replayer.prepare_lockstep(executor, timeout_s)
+            for kind, node in zip(EXECUTORS, nodes, strict=True):
+                executor = executors[kind]
+                executor.add_node(node)
+                replayer = Replayer(node, stream, topic=f'/{kind}/antenna_angle_cmd',
+                                    answer_topic=f'/{kind}/joint_states')
+                node.create_subscription(
+                    DiagnosticArray, '/diagnostics',
+                    lambda m, k=kind: diag[k].append(  # type: ignore[misc]
+                        {kv.key: kv.value for kv in m.status[0].values}
+                        if m.status and m.status[0].name.startswith(f'fourbar_node_{k}:') else {}), 10)
+                replayer.wait_for_node(executor, timeout_s)
+                replayers[kind] = replayer
+            predicts = {k: replayers[k].prepare_lockstep(executors[k], timeout_s) for k in EXECUTORS}
             for _ in range(repeats):
                 for window in WINDOWS:
-                    stats = replayer.run_lockstep(executor, predict, 5.0, window=window)
-                    rates[window].append(stats.published / stats.seconds)
-                    answers += stats.answers
-                    expected += stats.expected_answers
+                    for kind in EXECUTORS:
+                        child = procs[kind].proc
+                        pids = {'node': child.pid if child is not None else -1, 'replayer': os.getpid()}
+                        before = {side: thread_cpu_s(pid) for side, pid in pids.items()}
+                        stats = replayers[kind].run_lockstep(executors[kind], predicts[kind], 5.0, window=window)
+                        rates[kind][window].append(stats.published / stats.seconds)
+                        answers[kind] += stats.answers
+                        expected[kind] += stats.expected_answers
+                        for side, pid in pids.items():
+                            for group, value in thread_cpu_s(pid).items():
+                                used = value - before[side].get(group, value)
+                                key = f'{side}_{group}'
+                                cpu[kind][window][key] = cpu[kind][window].get(key, 0.0) + used
             total = repeats * len(WINDOWS) * len(stream)
-
-            def counted() -> bool:
-                return any(d.get('commands_received') == str(total) for d in diag)
-            if not spin_until(executor, counted, timeout_s):
-                raise ReplayError(f'node diagnostics never counted {total} commands')
-            final = next(d for d in diag if d.get('commands_received') == str(total))
+            for kind in EXECUTORS:
+                def counted(k: str = kind) -> bool:
+                    return any(d.get('commands_received') == str(total) for d in diag[k])
+                if not spin_until(executors[kind], counted, timeout_s):
+                    raise ReplayError(f'{kind}: node diagnostics never counted {total} commands')
+                final = next(d for d in diag[kind] if d.get('commands_received') == str(total))
+                per_window = repeats * len(stream)
+                row: dict[str, Any] = {}
+                for window, values in rates[kind].items():
+                    row[f'replay_window{window}_cmd_per_s'] = statistics.median(values)
+                    row[f'replay_window{window}_cmd_per_s_all'] = [round(r, 1) for r in values]
+                    row[f'window{window}_cpu_us_per_command'] = {
+                        k: round(1e6 * v / per_window, 1) for k, v in sorted(cpu[kind][window].items())}
+                out[kind] = {**row, 'lost_commands': expected[kind] - answers[kind]
+                             + (total - int(final['commands_received'])),
+                             'node_joint_states_published': int(final['joint_states_published']),
+                             'commands_sent': total}
         finally:
-            executor.shutdown()
-            close_context(context, node)
-            node_proc.stop()
-    lost = expected - answers
-    published = int(final['joint_states_published'])
-    out: dict[str, Any] = {}
-    for window, values in rates.items():
-        out[f'replay_window{window}_cmd_per_s'] = statistics.median(values)
-        out[f'replay_window{window}_cmd_per_s_all'] = [round(r, 1) for r in values]
-    return {**out, 'lost_commands': lost + (total - int(final['commands_received'])),
-            'node_joint_states_published': published, 'commands_sent': total}
+            for executor in executors.values():
+                executor.shutdown(timeout_sec=0.0)
+            close_context(context, *nodes)
+            for proc in procs.values():
+                proc.stop()
+    for window in WINDOWS:
+        key = f'replay_window{window}_cmd_per_s'
+        out[f'window{window}_events_over_single'] = out['events'][key] / out['single'][key]
+    return out
 
 
 def run(quick: bool) -> dict[str, Any]:
@@ -142,10 +192,11 @@ def run(quick: bool) -> dict[str, Any]:
             decoded = statistics.median(r[1] for r in reads)
             out[storage] = {**replay, 'rosbags_raw_read_msg_per_s': raw,
                             'rosbags_decoded_read_cmd_per_s': decoded}
-            for window in WINDOWS:
-                rate = replay[f'replay_window{window}_cmd_per_s']
-                out[storage][f'window{window}_over_raw_read'] = rate / raw
-                out[storage][f'window{window}_over_decoded_read'] = rate / decoded
+            for kind in ('events', 'single'):
+                for window in WINDOWS:
+                    rate = replay[kind][f'replay_window{window}_cmd_per_s']
+                    out[storage][kind][f'window{window}_over_raw_read'] = rate / raw
+                    out[storage][kind][f'window{window}_over_decoded_read'] = rate / decoded
     return out
 
 
