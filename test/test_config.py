@@ -48,7 +48,7 @@ def test_shipped_yaml_is_turnantenna() -> None:
     assert cfg.reducer_ratio == 500.0 and cfg.reducer_efficiency == 1.0
     assert cfg.motor_torque_limit == 0.009 and cfg.output_torque_limit == 5.0
     assert cfg.out_of_limits == 'reject'
-    assert cfg.joint_names == ('rocker_ab_joint', 'rocker_cd_joint')
+    assert cfg.joint_names == ('rocker_ab_joint', 'rocker_cd_joint', 'coupler_joint')
 
 
 def test_shipped_yaml_equals_parameter_defaults() -> None:

@@ -105,8 +105,8 @@ def test_colcon_installed_node_serves_commands(colcon_install: Path) -> None:
             pub.publish(Float64(data=0.05))
             msg = js.wait_count(1)[0]
             s = cfg.linkage.state(0.05, cfg.load_torque)
-            assert list(msg.position) == pytest.approx([s.gamma, s.delta], abs=1e-12)
-            assert list(msg.effort) == pytest.approx([s.input_torque, 0.0], abs=1e-12)
+            assert list(msg.position) == pytest.approx([s.gamma, s.delta, s.gamma + 0.05], abs=1e-12)
+            assert list(msg.effort) == pytest.approx([s.input_torque, 0.0, 0.0], abs=1e-12)
             ros.uncollect(js)
             ros.node.destroy_publisher(pub)
             assert proc.stop(signal.SIGINT) == 0, proc.stderr
