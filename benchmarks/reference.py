@@ -204,7 +204,9 @@ def condition(g: Geometry, theta: float, branch: int = 1) -> tuple[float, float]
 
 
 def rates_mp(g: Geometry, theta: float, branch: int = 1) -> tuple[float, float]:
-    """(d gamma/d theta, d delta/d theta) from the same implicit-function formulas (for checks against test/data/turnantenna_reference.csv)."""
+    """(d gamma/d theta, d delta/d theta) from the same implicit-function formulas.
+
+    For checks against test/data/turnantenna_reference.csv."""
     gm, dm = rocker_angles_mp(g, theta, branch)
     with mpmath.workdps(DPS):
         _, a, h, b = _mp_lengths(g)
