@@ -29,6 +29,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 REPO = Path(__file__).resolve().parent.parent
 CONFIG = REPO / 'config' / 'antenna.yaml'
@@ -144,6 +145,16 @@ def memory(sizes: list[int], storage: str) -> list[dict[str, object]]:
                 rows.append(row)
                 shutil.rmtree(out, ignore_errors=True)
     return rows
+
+
+def run(quick: bool) -> dict[str, Any]:
+    """For ``python -m benchmarks.run``: the speed ratio (and, in a full run, peak memory at two bag sizes)."""
+    n, rounds = (20_000, 3) if quick else (200_000, 5)
+    figures: dict[str, Any] = {'speed': speed(n, rounds, 'mcap')}
+    figures['process_over_copy_ratio'] = figures['speed']['ratio']
+    figures['memory'] = {f'{r["kind"]}_{r["commands"]}_peak_rss_mib': r['max_rss_mib']
+                         for r in memory([20_000] if quick else [200_000, 2_000_000], 'mcap')}
+    return figures
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -336,6 +336,8 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         '',
         agent_table('node (benchmarks/node_bench.py)', data.get('node')),
         agent_table('bag (benchmarks/bag_bench.py)', data.get('bag')),
+        agent_table('fourbar process against a rosbags copy of the same bag (benchmarks/process_bench.py)',
+                    data.get('process')),
         '## How it is measured',
         '',
         '- Reference: `benchmarks/reference.py`, derived from the loop-closure equations (B is an intersection of '

@@ -2,7 +2,7 @@
 
 Runs the common sweep (accuracy of every method against the 50-digit reference), the timings (scalar and
 vectorized, interleaved medians on the Turnantenna geometry, with the ufunc floor and the Python call overhead
-as same-run baselines), the numerical stress suite, and the node and bag benchmarks when their modules exist;
+as same-run baselines), the numerical stress suite, and the node, bag (replay) and `fourbar process` benchmarks;
 writes results.json, markdown tables and PNG plots under --out and the README section --doc.
 """
 
@@ -97,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
     parts['stress'] = time.perf_counter() - t0
     agents: dict[str, dict[str, Any] | None] = {}
     if not args.skip_agents:
-        for key, module in (('node', 'node_bench'), ('bag', 'bag_bench')):
+        for key, module in (('node', 'node_bench'), ('bag', 'bag_bench'), ('process', 'process_bench')):
             print(f'{key} benchmark (benchmarks/{module}.py)', flush=True)
             t0 = time.perf_counter()
             agents[key] = agent_bench(module, quick)
@@ -158,6 +158,7 @@ def main(argv: list[str] | None = None) -> int:
         'lookup': lookup_summary(by),
         'node': agents.get('node'),
         'bag': agents.get('bag'),
+        'process': agents.get('process'),
         'machine': info,
         'quick': quick,
         'command': 'python -m benchmarks.run' + (' --quick' if quick else ''),
