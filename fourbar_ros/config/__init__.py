@@ -1,1 +1,2 @@
-"""The node's parameter table, the configuration built from it, and the rcl-compatible YAML reader."""
+"""The node's parameter table, the configuration built from it, the rcl-compatible YAML reader, the robot model (URDF)
+and the lookup of installed files (share/)."""
