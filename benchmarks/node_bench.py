@@ -379,7 +379,9 @@ def executor_rounds(executor: Any, targets: dict[str, Target], pids: dict[str, i
         used = cpu[name]
         out[name] = {'median_us': 1e6 * statistics.median(rtts[name]), 'p99_us': 1e6 * percentile(rtts[name], 0.99),
                      'round_medians_us': [round(m, 1) for m in medians[name]], 'lost': lost[name],
-                     'cpu_per_command_us': None if used is None else 1e6 * used / (rounds * per_round)}
+                     'cpu_per_command_us': None if used is None else 1e6 * used / (rounds * per_round),
+                     # the distribution, for the report's plot: round trip (us) at each percent 0, 1, ..., 100
+                     'percentiles_us': [round(1e6 * percentile(rtts[name], q / 100), 1) for q in range(101)]}
     base = out[baseline]
     for name in names:
         row = out[name]

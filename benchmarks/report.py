@@ -192,6 +192,37 @@ def plot(data: dict[str, Any], path: Path) -> None:
     plt.close(fig)
 
 
+def latency_plot(data: dict[str, Any], path: Path) -> bool:
+    """Distribution (CDF) of the paced round trips per executor and system; False if the run has none."""
+    systems = ((data.get('node') or {}).get('executors') or {}).get('systems') or {}
+    curves = {name: row['percentiles_us'] for name, row in systems.items() if row.get('percentiles_us')}
+    if not curves:
+        return False
+    import matplotlib
+
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    styles = {'relay_single': ('tab:gray', '--'), 'relay_events': ('tab:gray', '-'),
+              'node_single': ('tab:blue', '--'), 'node_events': ('tab:green', '-')}
+    for name, us in curves.items():
+        color, ls = styles.get(name, ('k', ':'))
+        ax.plot(us, [q / 100 for q in range(len(us))], color=color, ls=ls, lw=1.6, label=name)
+    ax.set_xscale('log')
+    ax.set_xlabel('command -> JointState round trip (us), paced 200 Hz')
+    ax.set_ylabel('fraction of commands')
+    ax.grid(True, which='both', alpha=0.3)
+    ax.legend(loc='lower right', fontsize=8)
+    ex = data['node']['executors']
+    ax.set_title(f'latency by executor ({ex["rounds"]} interleaved rounds of {ex["commands_per_round"]}; '
+                 f'shipped: {ex["shipped"]})', fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return True
+
+
 def summary(data: dict[str, Any]) -> str:
     """A few lines for the terminal."""
     h = data['headline']
@@ -213,6 +244,7 @@ def write_all(data: dict[str, Any], results: list[MethodResult], out: Path, doc:
     (out / 'methods.md').write_text(methods_table(data), encoding='utf-8')
     (out / 'stress.md').write_text(stress_table(data['stress']), encoding='utf-8')
     plot(data, out / 'pareto.png')
+    data['latency_plot'] = latency_plot(data, out / 'latency.png')
     doc.parent.mkdir(parents=True, exist_ok=True)
     doc.write_text(readme_section(data, out, doc), encoding='utf-8')
 
@@ -334,6 +366,7 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         lookup_text(data.get('lookup')),
         '## Node and bag figures',
         '',
+        *([f'![latency by executor]({rel}/latency.png)', ''] if data.get('latency_plot') else []),
         agent_table('node (benchmarks/node_bench.py)', data.get('node')),
         agent_table('bag (benchmarks/bag_bench.py)', data.get('bag')),
         agent_table('fourbar process against a rosbags copy of the same bag (benchmarks/process_bench.py)',
