@@ -288,8 +288,8 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         f'{"met" if h["floor_ratio"] is not None and h["floor_ratio"] <= 1.3 else "NOT met"}); '
         f'{_fmt(h["vector_ratio_to_annex"])}x the annex formula\'s time.',
         f'- Scalar (one Python float): {_ns(s["seconds_per_solve_scalar"])} ns per call, '
-        f'**{_fmt(h["scalar_ratio_to_annex"])}x the annex formula** as written (target: no slower, '
-        f'{"met" if h["scalar_ratio_to_annex"] is not None and h["scalar_ratio_to_annex"] <= 1.0 else "NOT met"}); '
+        f'**{_fmt(h["scalar_ratio_to_annex"])}x the annex formula** as written (the old "no slower" target is '
+        'retired: a scalar solve is under 1% of the node\'s per-command cost, see the node figures); '
         f'a bare Python call returning a tuple costs {_ns(data["baselines_seconds"]["python_call_per_call"])} ns '
         'in the same loop, and the stable form\'s bare math (a closure returning a plain tuple, no validation, '
         f'no NamedTuple) {_ns(data["baselines_seconds"]["stable_plain_scalar_per_call"])} ns: shipped is '
