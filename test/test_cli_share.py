@@ -44,6 +44,13 @@ def test_share_path_falls_back_to_the_source_tree(tmp_path: Path, monkeypatch: p
     assert (share_path('bags/demo_sweep') / 'metadata.yaml').is_file()
 
 
+def test_share_path_without_any_ros_environment(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A plain pip/venv setup has no AMENT_PREFIX_PATH: ament_index_python then raises OSError, which must not
+    escape (`make demo` on a fresh clone failed with that traceback)."""
+    monkeypatch.delenv('AMENT_PREFIX_PATH', raising=False)
+    assert share_path('config/antenna.yaml') == REPO / 'config' / 'antenna.yaml'
+
+
 def test_demo_default_params_come_from_the_installed_share(tmp_path: Path) -> None:
     """From a directory without config/, `fourbar demo` with no arguments reads the indexed share's file.
 

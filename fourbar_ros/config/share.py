@@ -24,7 +24,7 @@ def _installed_share() -> Path | None:
         return None
     try:
         return Path(get_package_share_directory(PACKAGE, print_warning=False))
-    except (PackageNotFoundError, ValueError):
+    except (PackageNotFoundError, ValueError, OSError):  # OSError: AMENT_PREFIX_PATH unset (no ROS environment)
         return None
 
 
