@@ -93,12 +93,11 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.node import Node
 
-    from fourbar_ros.bags.domain import free_domain_id
-    from fourbar_ros.bags.graph import ReplayError, spin_until
-    from fourbar_ros.bags.node_process import NodeProcess
-    from fourbar_ros.bags.replay import Replayer
-    from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import read_commands
+    from fourbar_ros.live.graph import ReplayError, spin_until
+    from fourbar_ros.live.node_process import NodeProcess, free_domain_id
+    from fourbar_ros.live.replay import Replayer
+    from fourbar_ros.live.ros_context import close_context, init_context
     from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS, create_executor
 
     stream = read_commands(bag)
@@ -110,8 +109,9 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
     out: dict[str, Any] = {}
     with free_domain_id() as domain_id:
         # One node per executor, each with its own name: the diagnostics status is named after the node.
-        procs = {k: NodeProcess(CONFIG, domain_id, ros_args=['-r', f'__ns:=/{k}', '-r', f'__node:=fourbar_node_{k}'],
-                                env=dict(os.environ, **{EXECUTOR_ENV: k})).start() for k in EXECUTORS}
+        procs = {k: NodeProcess(node_args(CONFIG, '-r', f'__ns:=/{k}', '-r', f'__node:=fourbar_node_{k}'),
+                                dict(os.environ, ROS_DOMAIN_ID=str(domain_id), **{EXECUTOR_ENV: k})).start()
+                 for k in EXECUTORS}
         context = init_context(domain_id=domain_id, handle_signals=False)
         nodes = [Node(f'fourbar_bag_bench_{k}', context=context, start_parameter_services=False) for k in EXECUTORS]
         executors = {k: create_executor(k, context) for k in EXECUTORS}

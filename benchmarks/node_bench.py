@@ -42,7 +42,7 @@ from contextlib import ExitStack
 from pathlib import Path
 from typing import Any
 
-from fourbar_ros.bags.domain import free_domain_id
+from fourbar_ros.live.node_process import free_domain_id
 
 REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'

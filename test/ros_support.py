@@ -1,28 +1,24 @@
 """Shared helpers for tests that use the real ROS 2 middleware (rclpy). Used by the node and bag tests.
 
-- ``DomainLease``/``lease_domain_id()``: a ROS_DOMAIN_ID no concurrent run holds (an flock per id).
+- ``DomainLease``/``lease_domain_id()``, ``NodeProcess``, ``node_command``: fourbar_ros.live.node_process, the
+  domain leases and node process the tools use (re-exported here for the tests).
 - ``RosSession``: an rclpy Context on that domain id, a client node and an executor spinning in a thread.
 - ``Collector``: a subscription that stores messages and lets a test wait for them with a deadline.
 - ``wait_for(predicate, timeout)``: poll a condition until a deadline (discovery, counts); never a bare sleep.
-- ``NodeProcess``: ``fourbar_node`` as a separate process (console script, ``--ros-args``), on the leased
-  domain id, always terminated and then killed on every path.
 - ``sync_probe``: prove every output path is connected end to end before a test starts counting messages.
 
 Each test module opens its own session (``with RosSession() as ros``) in a module fixture; nothing here is
-a pytest fixture, so there is nothing to register in conftest.py.
+a pytest fixture, so there is nothing to register in conftest.py. The node as a child process:
+``with NodeProcess(args, ros.env()) as node:`` (always ended and reaped on leaving the block).
 """
 
 from __future__ import annotations
 
 import os
-import signal
-import subprocess
-import sys
-import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator, Sequence
-from contextlib import ExitStack, contextmanager, suppress
+from collections.abc import Callable, Sequence
+from contextlib import suppress
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Generic, TypeVar
@@ -32,38 +28,16 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
-from fourbar_ros.bags.domain import FREE_DOMAIN_IDS, free_domain_id
+from fourbar_ros.live.node_process import DomainLease, NodeProcess, lease_domain_id, node_command
+
+__all__ = ['TIMEOUT', 'Collector', 'DomainLease', 'NodeProcess', 'RosSession', 'Ticker', 'lease_domain_id',
+           'node_command', 'sync_probe', 'wait_for', 'wait_future']
 
 REPO = Path(__file__).resolve().parent.parent
 #: Default deadline (s) for discovery and message waits; generous because the machine is shared.
 TIMEOUT = 30.0
-#: Domain ids tests may lease: the ranges that are safe on Linux (ports below the ephemeral range),
-#: minus 10-89, which developers use for manual experiments.
-TEST_DOMAIN_IDS: tuple[int, ...] = FREE_DOMAIN_IDS
 
 M = TypeVar('M')
-
-
-# --------------------------------------------------------------------------- domain ids
-
-@dataclass
-class DomainLease:
-    """A held ROS_DOMAIN_ID (fourbar_ros.bags.domain.free_domain_id's lock), given back by ``release()``."""
-
-    domain_id: int
-    _hold: ExitStack
-
-    def release(self) -> None:
-        """Give the id back (idempotent)."""
-        self._hold.close()
-
-
-def lease_domain_id(candidates: Sequence[int] = TEST_DOMAIN_IDS) -> DomainLease:
-    """A free id among ``candidates``: the same lock files and port check the bag tools and the demo use, so
-    concurrent pytest runs, benchmarks and demos on this machine never share a domain; a crashed run's lock
-    disappears with its process."""
-    hold = ExitStack()
-    return DomainLease(hold.enter_context(free_domain_id(candidates)), hold)
 
 
 # --------------------------------------------------------------------------- waiting
@@ -302,114 +276,6 @@ class Ticker:
                 self._stop.wait(delay)
             elif delay < -0.1:
                 next_t = time.monotonic()
-
-
-# --------------------------------------------------------------------------- node process
-
-def node_command() -> list[str]:
-    """How to start ``fourbar_node``: the console script next to this Python, else ``python -m``."""
-    script = Path(sys.executable).parent / 'fourbar_node'
-    if script.exists():
-        return [str(script)]
-    return [sys.executable, '-m', 'fourbar_ros.node.fourbar_node']
-
-
-@dataclass
-class NodeProcess:
-    """``fourbar_node --ros-args ...`` as a child process; ``stop()`` or leaving the ``with`` ends it."""
-
-    args: Sequence[str]
-    env: dict[str, str]
-    command: Sequence[str] = field(default_factory=node_command)
-    cwd: Path = REPO
-    proc: subprocess.Popen[bytes] | None = None
-    stdout: str = ''
-    stderr: str = ''
-    _out: Any = None
-    _err: Any = None
-
-    def __enter__(self) -> NodeProcess:
-        self.start()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.kill()
-
-    def start(self) -> None:
-        """Start the process (its own session, so signals reach only it). Output goes to temporary
-        files, not pipes, so a chatty node can never block on a full pipe."""
-        self._out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in _collect_output
-        self._err = tempfile.TemporaryFile()  # noqa: SIM115
-        self.proc = subprocess.Popen([*self.command, *self.args], env=self.env, cwd=self.cwd,
-                                     stdout=self._out, stderr=self._err, start_new_session=True)
-
-    def _collect_output(self) -> None:
-        for name in ('_out', '_err'):
-            f = getattr(self, name)
-            if f is None:
-                continue
-            f.seek(0)
-            setattr(self, 'stdout' if name == '_out' else 'stderr', f.read().decode('utf-8', 'replace'))
-            f.close()
-            setattr(self, name, None)
-
-    def stderr_now(self) -> str:
-        """What the running process wrote to stderr so far (the file stays open)."""
-        if self._err is None:
-            return self.stderr
-        self._err.seek(0)
-        return str(self._err.read().decode('utf-8', 'replace'))
-
-    def running(self) -> bool:
-        """True while the process has not exited."""
-        return self.proc is not None and self.proc.poll() is None
-
-    def wait_exit(self, timeout: float = TIMEOUT) -> int:
-        """Wait for the process to exit by itself; return its status and keep its output."""
-        assert self.proc is not None
-        try:
-            self.proc.wait(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            self.kill()
-            raise AssertionError(f'{self.command} did not exit within {timeout} s') from None
-        self._collect_output()
-        return self.proc.returncode
-
-    def stop(self, sig: int = signal.SIGINT, timeout: float = TIMEOUT) -> int:
-        """Send ``sig`` and wait for the exit status (killed after ``timeout`` s)."""
-        assert self.proc is not None
-        if self.proc.poll() is None:
-            self.proc.send_signal(sig)
-        return self.wait_exit(timeout)
-
-    def kill(self) -> None:
-        """Terminate, then kill; always reaps the process (safe to call repeatedly)."""
-        proc = self.proc
-        if proc is None:
-            return
-        for send, wait in ((proc.terminate, 5.0), (proc.kill, 10.0)):
-            if proc.poll() is not None:
-                break
-            send()
-            try:
-                proc.wait(timeout=wait)
-                break
-            except subprocess.TimeoutExpired:
-                continue
-        if proc.returncode is None:
-            proc.wait()
-        self._collect_output()
-
-
-@contextmanager
-def node_process(args: Sequence[str], env: dict[str, str]) -> Iterator[NodeProcess]:
-    """``with node_process([...], ros.env()) as p:`` — the node as a child process, always cleaned up."""
-    proc = NodeProcess(args, env)
-    proc.start()
-    try:
-        yield proc
-    finally:
-        proc.kill()
 
 
 def wait_future(future: Any, timeout: float = TIMEOUT, what: str = 'a service response') -> Any:

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 import pytest
 from bag_support import BAG_DIR, CONFIG, Tool, run_tool, served
-from ros_support import RosSession, node_process
+from ros_support import NodeProcess, RosSession
 
 from fourbar_ros.bags.compare import compare_bags
 from fourbar_ros.bags.process import process_bag
@@ -189,7 +189,7 @@ def test_live_node_recording_equals_processed_bag(bag_name: str, policy: str, ro
     n = len(served(stream.values, cfg, policy))
     live = tmp_path / 'live'
     env = ros.env()
-    with node_process(['--ros-args', '--params-file', str(params)], env) as node, \
+    with NodeProcess(['--ros-args', '--params-file', str(params)], env) as node, \
             Tool(['record', live, '--storage', stream.storage, '--stop-after', f'joint_states={n}',
                   '--stop-after', f'input_torque={n}'], env) as recorder:
         recorder.wait_line('recording')

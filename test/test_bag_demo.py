@@ -16,8 +16,8 @@ from bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
 from colcon_support import colcon_install, ros2, ros2_cli_missing, sourced_env
 from ros_support import DomainLease, lease_domain_id
 
-from fourbar_ros.bags.domain import domain_in_use
 from fourbar_ros.bags.storage import read_commands, read_messages
+from fourbar_ros.live.node_process import domain_in_use
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -451,7 +451,7 @@ def test_replay_cli_bad_clock(args: list[str], words: str, capsys: pytest.Captur
 def test_progress_bar_draws_only_on_a_terminal() -> None:
     import io
 
-    from fourbar_ros.bags.progress import Progress
+    from fourbar_ros.live.progress import Progress
 
     quiet = io.StringIO()  # not a TTY: silent by default
     bar = Progress(10, 'replay', stream=quiet)

@@ -12,7 +12,7 @@ import pytest
 import yaml
 from bag_support import CONFIG, Tool, read_with_mcap, read_with_sqlite, run_tool, storage_file
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_support import RosSession, node_process, wait_for
+from ros_support import NodeProcess, RosSession, wait_for
 
 from fourbar_ros.bags.storage import fingerprint, jazzy_typestore, read_messages
 
@@ -35,7 +35,7 @@ def _listing(root: Path) -> list[str]:
 def _record_until_signal(ros: RosSession, out: Path, storage: str, sig: int) -> tuple[int, list[str]]:
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics', qos=100)
     try:
-        with node_process(NODE_ARGS, ros.env()), \
+        with NodeProcess(NODE_ARGS, ros.env()), \
                 Tool(['record', out, '--storage', storage], ros.env()) as recorder:
             recorder.wait_line('recording')
             start = len(diagnostics)
@@ -82,7 +82,7 @@ def test_stop_by_signal_leaves_a_complete_bag(storage: str, sig: int, ros: RosSe
 def test_recorded_hashes_match_the_live_graph(ros: RosSession, tmp_path: Path) -> None:
     """The stored type hash is the one the node's publishers announce (rclpy's TopicEndpointInfo)."""
     out = tmp_path / 'rec'
-    with node_process(NODE_ARGS, ros.env()), Tool(['record', out], ros.env()) as recorder:
+    with NodeProcess(NODE_ARGS, ros.env()), Tool(['record', out], ros.env()) as recorder:
         recorder.wait_line('recording')
         live = {}
         for topic in ('/joint_states', '/input_torque', '/diagnostics'):
@@ -107,7 +107,7 @@ def test_sigkill_leaves_no_bag_at_out(ros: RosSession, tmp_path: Path) -> None:
 
 def test_duration_stops_by_itself(ros: RosSession, tmp_path: Path) -> None:
     out = tmp_path / 'rec'
-    with node_process(NODE_ARGS, ros.env()):
+    with NodeProcess(NODE_ARGS, ros.env()):
         rc, lines, _ = run_tool(['record', out, '--topics', '/diagnostics', '--duration', '0.5'], ros.env())
     assert rc == 0, lines
     assert list(read_messages(out)) == ['/diagnostics']

@@ -24,7 +24,7 @@ from bag_support import (
     served,
 )
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_support import RosSession, node_process
+from ros_support import NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
@@ -81,7 +81,7 @@ def replay_through_node(ros: RosSession, bag: Path, out: Path, cfg: AntennaConfi
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics', qos=100)
     env = ros.env()
     try:
-        with node_process(['--ros-args', '--params-file', str(CONFIG), *node_args], env) as node, \
+        with NodeProcess(['--ros-args', '--params-file', str(CONFIG), *node_args], env) as node, \
                 Tool(['record', out, '--storage', stream.storage, '--stop-after', f'joint_states={n}',
                       '--stop-after', f'input_torque={n}'], env) as recorder:
             recorder.wait_line('recording')
@@ -155,7 +155,7 @@ def test_lockstep_reports_a_missing_answer(ros: RosSession, tmp_path: Path) -> N
     params = tmp_path / 'clamp.yaml'
     params.write_text(CONFIG.read_text().replace('out_of_limits: reject', 'out_of_limits: clamp'))
     bag = committed_bags()[0].parent / 'bad_values_mcap'
-    with node_process(['--ros-args', '--params-file', str(CONFIG)], ros.env()):
+    with NodeProcess(['--ros-args', '--params-file', str(CONFIG)], ros.env()):
         rc, lines, _ = run_tool(['replay', bag, '--as-fast-as-node-keeps-up', '--params', params,
                                  '--deadline', '1', '--no-progress'], ros.env())
     assert rc == 1

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 from bag_support import CONFIG, expected_outputs, run_tool
-from ros_support import RosSession, node_process
+from ros_support import NodeProcess, RosSession
 from sensor_msgs.msg import JointState
 
 from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, float64_cdr, read_commands, recorded_qos
@@ -51,7 +51,7 @@ def test_namespaced_recording_replays_with_bag_topic(ros: RosSession, tmp_path: 
 
     answers = ros.collect(JointState, '/robot/joint_states')
     try:
-        with node_process(['--ros-args', '--params-file', str(CONFIG), '-r', '__ns:=/robot'], ros.env()) as node:
+        with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-r', '__ns:=/robot'], ros.env()) as node:
             ros.wait_publishers(answers)  # matched with the node's publisher before the first answer
             rc, lines, _ = run_tool(['replay', bag, '--bag-topic', '/robot/antenna_angle_cmd',
                                      '--as-fast-as-node-keeps-up', '--no-progress'], ros.env())

@@ -12,9 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from fourbar_ros.bags.domain import FREE_DOMAIN_IDS
 from fourbar_ros.commands import CommandError, build_parser, main
 from fourbar_ros.config.share import share_path
+from fourbar_ros.live.node_process import FREE_DOMAIN_IDS
 
 REPO = Path(__file__).resolve().parent.parent
 

@@ -12,8 +12,8 @@ import sys
 import time
 from pathlib import Path
 
-from fourbar_ros.bags.domain import FREE_DOMAIN_IDS
 from fourbar_ros.commands import CommandError
+from fourbar_ros.live.node_process import FREE_DOMAIN_IDS
 
 HELP = ('the main job: start fourbar_node with a parameter file, replay the bundled sweep, record the '
         'outputs, print a summary and write a PNG plot')
@@ -67,11 +67,11 @@ def run(args: argparse.Namespace) -> int:
     import shutil
 
     from fourbar_ros.bags.demo import core_deviation, pair, plot, summary_lines
-    from fourbar_ros.bags.domain import free_domain_id
-    from fourbar_ros.bags.node_params import predictor
     from fourbar_ros.bags.storage import read_commands, read_messages
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.config.share import share_path
+    from fourbar_ros.live.node_params import predictor
+    from fourbar_ros.live.node_process import free_domain_id
 
     prog = 'fourbar demo'
     start = time.monotonic()
@@ -127,19 +127,19 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
-    from fourbar_ros.bags.graph import ReplayError, spin_until
-    from fourbar_ros.bags.node_process import NodeProcess
-    from fourbar_ros.bags.progress import Progress
-    from fourbar_ros.bags.record import Recorder, discover
-    from fourbar_ros.bags.replay import Replayer
-    from fourbar_ros.bags.ros_context import close_context, init_context, interrupt_on_sigterm
     from fourbar_ros.bags.storage import BagError, CommandStream
+    from fourbar_ros.live.graph import ReplayError, spin_until
+    from fourbar_ros.live.node_process import NodeProcess, node_args
+    from fourbar_ros.live.progress import Progress
+    from fourbar_ros.live.record import Recorder, discover
+    from fourbar_ros.live.replay import Replayer
+    from fourbar_ros.live.ros_context import close_context, init_context, interrupt_on_sigterm
 
     assert isinstance(stream, CommandStream)
     prog = 'fourbar demo'
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read by the middleware at init
-    env = dict(os.environ)
-    proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env)
+    proc = NodeProcess(node_args(args.params), dict(os.environ, ROS_DOMAIN_ID=str(domain_id)),
+                       log_path=args.out / 'node.log')
     stack = contextlib.ExitStack()
     stack.enter_context(interrupt_on_sigterm())
     stack.callback(_stop_node, proc)  # on every path, last
@@ -154,8 +154,8 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         replayer = Replayer(node, stream, answer_topic='/joint_states')
         node.create_subscription(DiagnosticArray, '/diagnostics',
                                  lambda m: diagnostics.append(_diag_values(m)), 10)
-        plans = discover(node, executor, OUTPUT_TOPICS, args.timeout, stop=lambda: not proc.alive())
-        if not proc.alive():
+        plans = discover(node, executor, OUTPUT_TOPICS, args.timeout, stop=lambda: not proc.running())
+        if not proc.running():
             raise ReplayError(f'fourbar_node exited with status {proc.proc.poll() if proc.proc else "?"}: '
                               f'{proc.last_log_line()}')
         recorder = Recorder(node, outputs, plans, args.storage)
@@ -198,10 +198,14 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
 
 def _stop_node(proc: object) -> None:
     """Stop the node process; say so if it did not exit cleanly."""
-    from fourbar_ros.bags.node_process import NodeProcess
+    from fourbar_ros.live.node_process import NodeProcess, NodeStopError
 
     assert isinstance(proc, NodeProcess)
-    status = proc.stop()
-    if status not in (0, None):
+    try:
+        status = proc.stop() if proc.proc is not None else 0
+    except NodeStopError as exc:
+        print(f'fourbar demo: warning: {exc}; killed (see {proc.log_path})', file=sys.stderr)
+        return
+    if status != 0:
         print(f'fourbar demo: warning: fourbar_node exited with status {status} (see {proc.log_path})',
               file=sys.stderr)

@@ -54,10 +54,10 @@ def run(args: argparse.Namespace) -> int:
     """Record until Ctrl-C/SIGTERM, --duration or --stop-after; exit 0 with a complete bag."""
     from rclpy.node import Node
 
-    from fourbar_ros.bags.graph import spin_until
-    from fourbar_ros.bags.record import Recorder, discover, record_until
-    from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import AtomicBagWriter, BagError
+    from fourbar_ros.live.graph import spin_until
+    from fourbar_ros.live.record import Recorder, discover, record_until
+    from fourbar_ros.live.ros_context import close_context, init_context
     from fourbar_ros.node.executor import create_executor
 
     prog = 'fourbar record'

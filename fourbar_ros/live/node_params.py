@@ -11,8 +11,8 @@ from typing import Any
 from rclpy.executors import Executor
 from rclpy.node import Node
 
-from fourbar_ros.bags.graph import ReplayError, spin_until
 from fourbar_ros.core.antenna import Reach
+from fourbar_ros.live.graph import ReplayError, spin_until
 from fourbar_ros.node.command_policy import Policy, decide
 
 Predictor = Callable[[float], bool]

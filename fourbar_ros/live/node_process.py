@@ -1,84 +1,230 @@
-"""``fourbar_node`` as a child process with a parameter file and domain id, stopped in escalating steps."""
+"""``fourbar_node`` as a child process on a ROS_DOMAIN_ID nobody else on this host uses. No rclpy.
+
+The demo, the benchmarks and the tests start the node and lease domain ids through this one module, so
+concurrent runs on one machine (tests, benchmarks, demos) never share a domain.
+"""
 
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import os
 import signal
+import socket
 import subprocess
 import sys
-from collections.abc import Sequence
+import tempfile
+from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO
 
+from fourbar_ros.core.errors import FourBarError
+
+#: The console script ``fourbar_node`` (setup.py) as a ``python -c`` program, for an uninstalled tree.
 NODE_MAIN = 'import sys; from fourbar_ros.node import main; sys.exit(main())'
+#: Domain ids a fourbar run may take: safe on Linux (discovery ports outside the ephemeral range) and
+#: clear of the ranges developers use by hand (10-89).
+FREE_DOMAIN_IDS: tuple[int, ...] = (*range(90, 102), *range(215, 233))
+DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / 'fourbar_ros_domain_locks'
+
+
+class DomainError(FourBarError):
+    """No ROS_DOMAIN_ID is free on this host."""
+
+
+class NodeStopError(FourBarError):
+    """The node process did not exit within its deadline after a signal (it was killed)."""
+
+
+# --------------------------------------------------------------------------- domain ids
+
+def _port_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        try:
+            s.bind(('', port))
+        except OSError:
+            return False
+    return True
+
+
+def domain_in_use(domain_id: int, participants: int = 8) -> bool:
+    """True if a DDS participant of ``domain_id`` runs on this host.
+
+    Checks the first ``participants`` unicast discovery ports of the RTPS port mapping
+    (7400 + 250 d + 10 + 2 i), which a running participant holds exclusively.
+    """
+    base = 7400 + 250 * domain_id + 10
+    return not all(_port_free(base + 2 * i) for i in range(participants))
+
+
+class DomainLease:
+    """A held ROS_DOMAIN_ID: an flock on ``<lock_dir>/<id>.lock``; ``release()`` gives it back (idempotent).
+
+    A crashed run's lock disappears with its process.
+    """
+
+    def __init__(self, domain_id: int, fd: int) -> None:
+        self.domain_id = domain_id
+        self._fd: int | None = fd
+
+    def release(self) -> None:
+        """Give the id back."""
+        fd, self._fd = self._fd, None
+        if fd is not None:
+            os.close(fd)  # drops the flock
+
+
+def lease_domain_id(candidates: Sequence[int] = FREE_DOMAIN_IDS,
+                    lock_dir: Path = DOMAIN_LOCK_DIR) -> DomainLease:
+    """Reserve a ROS_DOMAIN_ID nobody on this host uses until ``release()``.
+
+    A domain is free when no other fourbar run holds its lock file and no DDS participant holds its
+    discovery ports. The search starts at an offset from the pid, so concurrent runs rarely contend.
+    """
+    lock_dir.mkdir(parents=True, exist_ok=True)
+    start = os.getpid() % len(candidates)
+    for domain in list(candidates[start:]) + list(candidates[:start]):
+        try:
+            fd = os.open(lock_dir / f'{domain}.lock', os.O_CREAT | os.O_RDWR, 0o666)
+        except OSError:
+            continue
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            continue
+        if domain_in_use(domain):
+            os.close(fd)
+            continue
+        return DomainLease(domain, fd)
+    raise DomainError(f'no free ROS_DOMAIN_ID among {candidates[0]}..{candidates[-1]}')
+
+
+@contextlib.contextmanager
+def free_domain_id(candidates: Sequence[int] = FREE_DOMAIN_IDS,
+                   lock_dir: Path = DOMAIN_LOCK_DIR) -> Iterator[int]:
+    """``lease_domain_id`` for the duration of a ``with`` block."""
+    lease = lease_domain_id(candidates, lock_dir)
+    try:
+        yield lease.domain_id
+    finally:
+        lease.release()
+
+
+# --------------------------------------------------------------------------- the node as a process
+
+def node_command() -> list[str]:
+    """How to start ``fourbar_node``: the console script next to this Python, else the same entry point
+    through this interpreter."""
+    script = Path(sys.executable).parent / 'fourbar_node'
+    if script.exists():
+        return [str(script)]
+    return [sys.executable, '-c', NODE_MAIN]
+
+
+def node_args(params: Path | None, *ros_args: str) -> list[str]:
+    """``--ros-args [--params-file PARAMS] ROS_ARGS...``: the node's arguments."""
+    return ['--ros-args', *(['--params-file', str(params)] if params is not None else []), *ros_args]
+
+
+def _read_all(f: IO[bytes]) -> str:
+    """The whole file, read without moving the offset the child process shares (pread)."""
+    fd = f.fileno()
+    return os.pread(fd, os.fstat(fd).st_size, 0).decode('utf-8', 'replace')
 
 
 class NodeProcess:
-    """``fourbar_node`` as a child process (own session) with a parameter file and domain id.
+    """``fourbar_node ARGS`` as a child process in its own session (signals reach only it).
 
-    ``stop()`` sends SIGINT and escalates to SIGTERM and SIGKILL; it is safe to call twice.
+    ``env`` must carry the ROS_DOMAIN_ID to use. Output goes to files, never pipes, so a chatty node can
+    never block: stdout and stderr to ``log_path`` together if given, else each to a temporary file,
+    whose text is in ``stdout`` and ``stderr`` once the process has exited. ``stop(sig)`` sends one
+    signal and waits for the exit; ``kill()`` (also on leaving a ``with`` block) ends it on every path.
     """
 
-    def __init__(self, params: Path | None, domain_id: int, log_path: Path | None = None,
-                 ros_args: Sequence[str] = (), env: dict[str, str] | None = None) -> None:
-        self.params = params
-        self.domain_id = domain_id
+    def __init__(self, args: Sequence[str], env: Mapping[str, str], *, command: Sequence[str] | None = None,
+                 cwd: Path | None = None, log_path: Path | None = None) -> None:
+        self.args = list(args)
+        self.env = dict(env)
+        self.command = list(command) if command is not None else node_command()
+        self.cwd = cwd
         self.log_path = log_path
-        self.ros_args = list(ros_args)
-        self.env = dict(os.environ if env is None else env)
-        self.env['ROS_DOMAIN_ID'] = str(domain_id)
         self.proc: subprocess.Popen[bytes] | None = None
-        self._log: IO[bytes] | None = None
-
-    def command(self) -> list[str]:
-        """The argv that starts the node (the same interpreter as this process)."""
-        args = [sys.executable, '-c', NODE_MAIN, '--ros-args']
-        if self.params is not None:
-            args += ['--params-file', str(self.params)]
-        return args + self.ros_args
+        self.stdout = ''
+        self.stderr = ''
+        self._out: IO[bytes] | None = None
+        self._err: IO[bytes] | None = None
 
     def start(self) -> NodeProcess:
-        """Start the node; its output goes to ``log_path`` (or is discarded)."""
-        self._log = self.log_path.open('wb') if self.log_path else None
-        self.proc = subprocess.Popen(
-            self.command(), env=self.env, stdin=subprocess.DEVNULL,
-            stdout=self._log or subprocess.DEVNULL, stderr=subprocess.STDOUT,
-            start_new_session=True)
+        """Start the process."""
+        if self.log_path is not None:
+            self._out = self._err = self.log_path.open('w+b')
+        else:
+            self._out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in _collect_output
+            self._err = tempfile.TemporaryFile()  # noqa: SIM115
+        self.proc = subprocess.Popen([*self.command, *self.args], env=self.env, cwd=self.cwd,
+                                     stdin=subprocess.DEVNULL, stdout=self._out, stderr=self._err,
+                                     start_new_session=True)
         return self
-
-    def alive(self) -> bool:
-        """True while the process runs."""
-        return self.proc is not None and self.proc.poll() is None
-
-    def last_log_line(self) -> str:
-        """The last non-empty line the node wrote (for error messages)."""
-        if self.log_path is None or not self.log_path.exists():
-            return ''
-        lines = [x for x in self.log_path.read_text(errors='replace').splitlines() if x.strip()]
-        return lines[-1].strip() if lines else ''
-
-    def stop(self, timeout_s: float = 10.0) -> int | None:
-        """Stop the node (SIGINT, then SIGTERM, then SIGKILL); return its exit status."""
-        proc = self.proc
-        if proc is None:
-            return None
-        try:
-            for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
-                if proc.poll() is not None:
-                    break
-                with contextlib.suppress(ProcessLookupError):
-                    proc.send_signal(sig)
-                with contextlib.suppress(subprocess.TimeoutExpired):
-                    proc.wait(timeout=timeout_s)
-            return proc.wait()
-        finally:
-            if self._log is not None:
-                self._log.close()
-                self._log = None
 
     def __enter__(self) -> NodeProcess:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
-        self.stop()
+        self.kill()
+
+    def running(self) -> bool:
+        """True while the process has not exited."""
+        return self.proc is not None and self.proc.poll() is None
+
+    def stderr_now(self) -> str:
+        """What the process wrote to stderr so far (with ``log_path``: all its output)."""
+        return _read_all(self._err) if self._err is not None else self.stderr
+
+    def last_log_line(self) -> str:
+        """The last non-empty line the node wrote to stderr (for error messages)."""
+        lines = [x.strip() for x in self.stderr_now().splitlines() if x.strip()]
+        return lines[-1] if lines else ''
+
+    def _collect_output(self) -> None:
+        out, err, self._out, self._err = self._out, self._err, None, None
+        if err is not None:
+            self.stderr = _read_all(err)
+            err.close()
+        if out is not None and out is not err:
+            self.stdout = _read_all(out)
+            out.close()
+
+    def wait_exit(self, timeout_s: float = 30.0) -> int:
+        """Wait for the process to exit by itself; return its status (NodeStopError, killed, at the deadline)."""
+        assert self.proc is not None, 'not started'
+        try:
+            self.proc.wait(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self.kill()
+            raise NodeStopError(f'{" ".join(self.command)} did not exit within {timeout_s:g} s') from None
+        self._collect_output()
+        return self.proc.returncode
+
+    def stop(self, sig: int = signal.SIGINT, timeout_s: float = 30.0) -> int:
+        """Send ``sig`` (unless it has exited already) and wait for the exit status, as ``wait_exit``."""
+        assert self.proc is not None, 'not started'
+        if self.proc.poll() is None:
+            with contextlib.suppress(ProcessLookupError):
+                self.proc.send_signal(sig)
+        return self.wait_exit(timeout_s)
+
+    def kill(self) -> None:
+        """SIGTERM, then SIGKILL; always reaps the process and keeps its output (safe to call repeatedly)."""
+        proc = self.proc
+        if proc is None:
+            return
+        for sig, wait_s in ((signal.SIGTERM, 5.0), (signal.SIGKILL, 10.0)):
+            if proc.poll() is not None:
+                break
+            with contextlib.suppress(ProcessLookupError):
+                proc.send_signal(sig)
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                proc.wait(timeout=wait_s)
+        proc.wait()
+        self._collect_output()

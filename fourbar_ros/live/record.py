@@ -21,9 +21,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 
-from fourbar_ros.bags.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
-from fourbar_ros.bags.node_params import handshake
 from fourbar_ros.bags.storage import AtomicBagWriter, BagError, jazzy_typestore, time_from_ns
+from fourbar_ros.live.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
+from fourbar_ros.live.node_params import handshake
 
 #: History depth of the recording subscriptions: how far the recorder may fall behind a burst.
 RECORD_DEPTH = 1000

@@ -34,7 +34,8 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosbags.interfaces import QosDurability, QosReliability
 from std_msgs.msg import Float64
 
-from fourbar_ros.bags.graph import (
+from fourbar_ros.bags.storage import CommandStream
+from fourbar_ros.live.graph import (
     ReplayError,
     make_qos,
     publisher_nodes,
@@ -42,9 +43,8 @@ from fourbar_ros.bags.graph import (
     subscriber_nodes,
     wait_for_node_names,
 )
-from fourbar_ros.bags.node_params import LIMIT_PARAMETERS, Predictor, fetch_parameters, handshake, predictor_from_values
-from fourbar_ros.bags.progress import Progress
-from fourbar_ros.bags.storage import CommandStream
+from fourbar_ros.live.node_params import LIMIT_PARAMETERS, Predictor, fetch_parameters, handshake, predictor_from_values
+from fourbar_ros.live.progress import Progress
 from fourbar_ros.node.executor import spin_once
 
 #: History depth of the replay publisher (timed mode may run ahead of a slow node by this much).
