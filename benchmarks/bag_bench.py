@@ -95,7 +95,7 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
 
     from fourbar_ros.bags.storage import read_commands
     from fourbar_ros.live.graph import ReplayError, spin_until
-    from fourbar_ros.live.node_process import NodeProcess, free_domain_id
+    from fourbar_ros.live.node_process import NodeProcess, free_domain_id, node_args
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
     from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS, create_executor

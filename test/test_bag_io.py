@@ -27,6 +27,7 @@ from fourbar_ros.bags.storage import (
     jazzy_typestore,
     read_commands,
     recorded_qos,
+    sibling_topic,
     write_command_bag,
 )
 from fourbar_ros.commands import main as cli_main
@@ -52,6 +53,17 @@ def regenerated(tmp_path_factory: pytest.TempPathFactory) -> Path:
     subprocess.run([sys.executable, str(REPO / 'scripts' / 'make_command_bags.py'), '--out', str(out)],
                    check=True, capture_output=True, cwd=REPO)
     return out
+
+
+@pytest.mark.parametrize(('command_topic', 'expected'), [
+    ('/antenna_angle_cmd', '/joint_states'),  # a bag's root namespace
+    ('/robot/antenna_angle_cmd', '/robot/joint_states'),  # a namespaced node's recording
+    ('/a/b/antenna_angle_cmd', '/a/b/joint_states'),
+    ('antenna_angle_cmd', 'joint_states'),  # a relative name stays relative, as the node's names resolve
+    ('robot/antenna_angle_cmd', 'robot/joint_states'),
+])
+def test_sibling_topic_is_in_the_command_topics_namespace(command_topic: str, expected: str) -> None:
+    assert sibling_topic(command_topic, 'joint_states') == expected
 
 
 def test_every_kind_is_committed_in_both_storages() -> None:

@@ -40,6 +40,7 @@ from fourbar_ros.bags.storage import (
     open_bag,
     pick_command_topic,
     recorded_qos,
+    sibling_topic,
     storage_of,
     topic_types,
 )
@@ -78,12 +79,6 @@ class ProcessStats:
                 f'({self.accepted} accepted, {self.clamped} clamped, {sum(self.rejected.values())} rejected'
                 f'{": " + rejected if rejected else ""}'
                 f'{f", {self.not_solved} not solvable" if self.not_solved else ""}) in {self.seconds:.2f} s')
-
-
-def sibling_topic(command_topic: str, name: str) -> str:
-    """``name`` in the command topic's namespace: /ns/antenna_angle_cmd -> /ns/NAME (the node's relative names)."""
-    ns = command_topic.rsplit('/', 1)[0]
-    return f'{ns}/{name}'
 
 
 # --------------------------------------------------------------------------- the node's rules on arrays

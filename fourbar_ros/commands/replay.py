@@ -56,11 +56,11 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
 
-    from fourbar_ros.bags.storage import read_commands
+    from fourbar_ros.bags.storage import read_commands, sibling_topic
     from fourbar_ros.live.graph import ReplayError
     from fourbar_ros.live.node_params import Predictor, predictor
     from fourbar_ros.live.progress import Progress
-    from fourbar_ros.live.replay import Replayer, sibling_topic
+    from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context, interrupt_on_sigterm
     from fourbar_ros.node.executor import create_executor
 

@@ -53,12 +53,6 @@ PUBLISH_DEPTH = 1000
 DEFAULT_CLOCK_HZ = 40.0
 
 
-def sibling_topic(command_topic: str, name: str) -> str:
-    """The topic ``name`` in the namespace of ``command_topic`` (``/ns/antenna_angle_cmd`` -> ``/ns/NAME``)."""
-    head = command_topic.rsplit('/', 1)[0] if '/' in command_topic else ''
-    return f'{head}/{name}' if head or command_topic.startswith('/') else name
-
-
 def publisher_qos(stream: CommandStream, depth: int = PUBLISH_DEPTH) -> QoSProfile:
     """Offer what the recorded publisher offered (reliability, durability), as ``ros2 bag play`` does.
 

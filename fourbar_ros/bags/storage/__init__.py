@@ -1,0 +1,41 @@
+"""rosbag2 bags with ``rosbags`` (no rclpy): read, write atomically, recover killed recordings.
+
+One adapter per storage (``mcap_storage``, ``sqlite3_storage``) behind a small protocol (``protocol``),
+like ``rosbags``' storage plugins; ``read``, ``write`` and ``reindex`` work on either. This face
+re-exports what the rest of the package uses.
+"""
+
+from fourbar_ros.bags.storage.adapters import STORAGES
+from fourbar_ros.bags.storage.common import (
+    COMMAND_TOPIC,
+    DEFAULT_STORAGE,
+    DIAGNOSTIC_ARRAY,
+    FLOAT64,
+    JOINT_STATE,
+    METADATA_VERSION,
+    BagError,
+    jazzy_typestore,
+    recorded_qos,
+    sibling_topic,
+    time_from_ns,
+)
+from fourbar_ros.bags.storage.read import (
+    CommandStream,
+    fingerprint,
+    open_bag,
+    pick_command_topic,
+    read_commands,
+    read_messages,
+    storage_of,
+    topic_types,
+)
+from fourbar_ros.bags.storage.reindex import ReindexResult, partial_dirs, reindex
+from fourbar_ros.bags.storage.write import AtomicBagWriter, float64_cdr, write_command_bag
+
+__all__ = [
+    'COMMAND_TOPIC', 'DEFAULT_STORAGE', 'DIAGNOSTIC_ARRAY', 'FLOAT64', 'JOINT_STATE', 'METADATA_VERSION',
+    'STORAGES', 'AtomicBagWriter', 'BagError', 'CommandStream', 'ReindexResult', 'fingerprint', 'float64_cdr',
+    'jazzy_typestore', 'open_bag', 'partial_dirs', 'pick_command_topic', 'read_commands', 'read_messages',
+    'recorded_qos', 'reindex', 'sibling_topic', 'storage_of', 'time_from_ns', 'topic_types',
+    'write_command_bag',
+]

@@ -1,0 +1,60 @@
+"""The small protocol each storage adapter (mcap, sqlite3) implements, like ``rosbags``' storage plugins.
+
+Reading a complete bag and writing one go through ``rosbags`` (its Reader and Writer pick the plugin);
+an adapter adds what rosbags does not offer: flushing an open writer, and scanning what a killed
+recording left in a storage file (``reindex``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+from rosbags.interfaces import Qos
+from rosbags.rosbag2 import StoragePlugin, Writer
+
+
+@dataclass(frozen=True)
+class FoundTopic:
+    """A topic as found in a storage file: what ``AtomicBagWriter.add_topic`` needs to write it again.
+
+    ``cid``: the file's own id of the topic (mcap channel id, sqlite3 topic id); ``digest``: RIHS01 hash.
+    """
+
+    cid: int
+    name: str
+    msgtype: str
+    msgdef: str
+    digest: str
+    serialization_format: str
+    qos: tuple[Qos, ...]
+
+
+#: A stored message: (topic id of the file, receive time in ns since the epoch, CDR bytes).
+StoredMessage = tuple[int, int, bytes]
+
+
+@dataclass
+class ScanState:
+    """How far a scan got: ``kept_bytes`` of complete records (mcap) or the file size (sqlite3), and why
+    reading stopped before the end (``dropped``; None when the whole file was readable)."""
+
+    kept_bytes: int = 0
+    dropped: str | None = None
+
+
+class StorageAdapter(Protocol):
+    """One rosbag2 storage: its name, file suffix and rosbags plugin, and what rosbags leaves out."""
+
+    name: str  #: storage identifier in metadata.yaml: 'mcap' or 'sqlite3'
+    suffix: str  #: storage file suffix: '.mcap' or '.db3'
+    plugin: StoragePlugin
+
+    def flush(self, writer: Writer) -> None:
+        """Hand every message written so far to the OS (no fsync)."""
+
+    def scan(self, file: Path, state: ScanState) -> Iterator[FoundTopic | StoredMessage]:
+        """Yield topics (when first seen) and messages of every complete record of ``file``, in stored order;
+        stop quietly at the first incomplete or corrupt one (noted in ``state``)."""
