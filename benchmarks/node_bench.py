@@ -15,14 +15,14 @@ Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py):
   executor is started without the option, as a user starts it). Commands at 200 Hz, one outstanding at a
   time, in blocks that rotate between the four every round (3 rounds); per process the round-trip median
   and p99 and its CPU time per command (every thread of the process, idle timers included, from /proc).
-  Ratios are against the relay on the SingleThreadedExecutor. Targets (issue 13): the shipped node's median
-  latency <= 0.85x and CPU per command <= 0.6x that relay's.
+  Ratios are against the relay on the SingleThreadedExecutor. Targets: the shipped node's median latency
+  <= 0.85x and CPU per command <= 0.6x that relay's.
 - skipped work: the node's command callback timed in-process (per call, microseconds) with subscribers (in a
   separate process) on joint_states only, on both per-command outputs (joint_states, input_torque), and on
   none, interleaved call by call with the relay's callback (so the node's extra CPU per command is measured
   even when machine load blurs the round trips); and the marker and diagnostics timer callbacks with and
   without a subscriber.
-Targets (issue 3, node vs relay on one executor): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is
+Targets (node vs relay on one executor): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is
 asserted by any test.
 """
 

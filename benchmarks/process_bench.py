@@ -9,7 +9,7 @@
   config/antenna.yaml: every command read, decided, solved, a JointState and a Float64 written per command
   (twice the messages of the copy);
 - ratio process/copy from the medians over ``--rounds`` interleaved rounds (copy, process, copy, ...),
-  every round listed. Target (issue 13): <= 2.
+  every round listed. Target: <= 2.
 - ``--memory N...``: peak RSS (VmHWM) of a fresh Python process that imports the package and then
   processes, or copies, an N-command bag; the difference between N shows whether memory grows with the bag.
 

@@ -124,10 +124,10 @@ def lookup_text(lk: dict[str, Any] | None) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def agent_table(title: str, figures: dict[str, Any] | None) -> str:
-    """Render a node/bag agent's dict (flattened one level) as a two-column table."""
+def figures_table(title: str, figures: dict[str, Any] | None) -> str:
+    """Render a benchmark's figures (a dict, flattened one level) as a two-column table."""
     if figures is None:
-        return f'{title}: module not present in this checkout, not measured.\n'
+        return f'{title}: not measured in this run (--skip-node-bags).\n'
     if 'error' in figures and len(figures) == 1:
         return f'{title}: its benchmark failed in this run: `{figures["error"]}`.\n'
     flat: list[tuple[str, Any]] = []
@@ -367,9 +367,9 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         '## Node and bag figures',
         '',
         *([f'![latency by executor]({rel}/latency.png)', ''] if data.get('latency_plot') else []),
-        agent_table('node (benchmarks/node_bench.py)', data.get('node')),
-        agent_table('bag (benchmarks/bag_bench.py)', data.get('bag')),
-        agent_table('fourbar process against a rosbags copy of the same bag (benchmarks/process_bench.py)',
+        figures_table('node (benchmarks/node_bench.py)', data.get('node')),
+        figures_table('bag (benchmarks/bag_bench.py)', data.get('bag')),
+        figures_table('fourbar process against a rosbags copy of the same bag (benchmarks/process_bench.py)',
                     data.get('process')),
         '## How it is measured',
         '',

@@ -88,6 +88,6 @@ def machine_info() -> dict[str, object]:
         'cores': os.cpu_count(),
         'load_average_1min': os.getloadavg()[0] if hasattr(os, 'getloadavg') else None,
         'env': {k: os.environ.get(k) for k in ('OPENBLAS_CORETYPE', 'OPENBLAS_L2_SIZE', 'OMP_NUM_THREADS')},
-        'note': 'shared machine (2 cores; other agents were running); figures are medians of interleaved repeats '
+        'note': 'shared machine (2 cores, other work running); figures are medians of interleaved repeats '
                 'and only ratios measured in the same run are meaningful',
     }
