@@ -22,7 +22,6 @@ from benchmarks.peers import peer_methods, peer_versions
 from benchmarks.sweep import accuracy, dominators, pareto_front, timings
 from benchmarks.timing import machine_info
 
-
 #: The benchmarks of the node and the bag tools: results.json key -> module of benchmarks/ with ``run(quick)``.
 NODE_AND_BAG_BENCHMARKS = {'node': 'node_bench', 'bag': 'bag_bench', 'process': 'process_bench'}
 
