@@ -15,7 +15,7 @@ velocity, effort with the torque at the driven rocker and 0.0 at the other, empt
 sends) and ``input_torque`` (std_msgs/Float64, N m) next to the command topic (``/antenna_angle_cmd`` ->
 ``/joint_states``, ``/input_torque``), both at the command's log time, joint_states first.
 Blocks of ``BLOCK`` commands are read, solved, serialized (joint_state_cdr) and written at a time, so
-memory does not grow with the bag; the output appears atomically (bag_io.AtomicBagWriter).
+memory does not grow with the bag; the output appears atomically (bags.storage.AtomicBagWriter).
 """
 
 from __future__ import annotations
@@ -233,7 +233,7 @@ def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: A
                 topic: str | None = None, storage: str | None = None, block: int = BLOCK,
                 on_block: Callable[[int], None] | None = None) -> ProcessStats:
     """Write to ``dst`` the joint_states and input_torque fourbar_node would publish for the commands of
-    ``src`` (see the module docstring). ``topic``: the command topic (default: bag_io's choice of
+    ``src`` (see the module docstring). ``topic``: the command topic (default: pick_command_topic's choice of
     ``/antenna_angle_cmd``); ``storage``: 'mcap' or 'sqlite3' (default: the input's). ``on_block(n)`` is
     called with the number of commands done after each block. Raises BagError (one line) for bad input;
     ``dst`` then does not appear.

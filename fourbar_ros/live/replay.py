@@ -1,4 +1,4 @@
-"""Replay a command bag into a running fourbar_node (rclpy), plus helpers to run the node as a process.
+"""Replay a command bag into a running fourbar_node (rclpy), timed or lock-step.
 
 Two modes:
 
