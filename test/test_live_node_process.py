@@ -60,7 +60,7 @@ def test_a_process_that_ignores_the_signal_is_killed_and_reported() -> None:
     proc = child(IGNORES_SIGNALS).start()
     try:
         wait_for(lambda: 'ready' in proc.stderr_now(), what='the child to start')
-        with pytest.raises(NodeStopError, match='did not exit within 0.5 s'):
+        with pytest.raises(NodeStopError, match=r'did not exit within 0\.5 s'):
             proc.stop(signal.SIGINT, timeout_s=0.5)
         assert proc.proc is not None and proc.proc.returncode == -signal.SIGKILL
     finally:
