@@ -19,15 +19,17 @@ effort * dq/dtheta (power balance: effort dq = load dtheta). Three ways, on ever
   differences of successive messages.
 
 The measured stream: q moving at Q_RATE rad/s, sampled at RATE_HZ (a step of 2e-3 rad per message), effort
-EFFORT. Accuracy (against :mod:`benchmarks.reference_driven`, 60 digits): at mid-range (every message of a sweep
-over the working pose's mid-range, see :class:`DrivenRange`) and at the reach limits (the last message of a stream running into each end,
-stopping 1e-6 rad and 1e-12 rad short of it). Positions in rad, rate and torque as relative errors; the exact
-method's errors also in ulps of their condition. Cost per message on Turnantenna: scalar (a Python loop, what a
-node does per message) and vectorized (a bag's array), as ratios to ``exact`` in the same interleaved run.
+EFFORT. Accuracy (against :mod:`benchmarks.reference_driven`, 60 digits): at mid-range (every message of a
+sweep over the working pose's mid-range, see :class:`DrivenRange`) and at the reach limits (the last message
+of a stream running into each end, stopping 1e-6 rad and 1e-12 rad short of it). Positions in rad, rate and
+torque as relative errors; the exact method's errors also in ulps of their condition. Cost per message on
+Turnantenna: scalar (a Python loop, what a node does per message) and vectorized (a bag's array), as ratios to
+``exact`` in the same interleaved run.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -97,7 +99,7 @@ def exact_peer(g: Geometry, r: DrivenRange) -> Peer:
     def one(q: float) -> tuple[float, float, float, float]:
         theta, other = from_rocker(q, branch=branch)
         dq_dtheta = rates_at(theta, q, other).dgamma_dtheta
-        return theta, other, Q_RATE / dq_dtheta, EFFORT * dq_dtheta  # type: ignore[return-value, operator]
+        return theta, other, Q_RATE / dq_dtheta, EFFORT * dq_dtheta  # type: ignore[return-value]
 
     def stream(q: FloatArray) -> Completed:
         rows = [one(x) for x in q.tolist()]
@@ -133,8 +135,9 @@ def cubic_peer(g: Geometry, r: DrivenRange, over_mid: bool) -> Peer:
         return Completed(*(np.array(c, dtype=np.float64) for c in zip(*rows, strict=True)))
 
     def vector(q: FloatArray) -> Completed:
-        rate = np.polyval(c_rate, q)
-        return Completed(np.polyval(c_theta, q), np.polyval(c_other, q), Q_RATE * rate, EFFORT / rate)
+        rate = np.asarray(np.polyval(c_rate, q), dtype=np.float64)
+        theta, other = np.asarray(np.polyval(c_theta, q), dtype=np.float64), np.polyval(c_other, q)
+        return Completed(theta, np.asarray(other, dtype=np.float64), Q_RATE * rate, EFFORT / rate)
 
     return Peer('cubic-mid' if over_mid else 'cubic', stream, vector, {})
 
@@ -198,7 +201,7 @@ def newton_peer(g: Geometry, r: DrivenRange) -> Peer:
 def lm_scipy_peer(g: Geometry, r: DrivenRange) -> Peer | None:
     """scipy's Levenberg-Marquardt (MINPACK) on the same equations, warm-started; None without scipy."""
     try:
-        from scipy.optimize import least_squares
+        from scipy.optimize import least_squares  # type: ignore[import-untyped, unused-ignore]
     except ImportError:
         return None
     h, b = g.coupler, g.rocker_cd
@@ -251,7 +254,7 @@ def limit_stream(r: DrivenRange, upper: bool, distance: float) -> FloatArray:
     """APPROACH messages STEP apart running into one end of the range, the last one ``distance`` short of it."""
     end, sense = (r.hi, -1.0) if upper else (r.lo, 1.0)
     last = end + sense * distance
-    return last + sense * STEP * np.arange(APPROACH - 1, -1, -1)
+    return np.asarray(last + sense * STEP * np.arange(APPROACH - 1, -1, -1), dtype=np.float64)
 
 
 # ---------------------------------------------------------------------------------------------- the errors
@@ -379,9 +382,9 @@ def costs(n_scalar: int, n_vector: int, repeats: int, g: Geometry = TURNANTENNA)
     cases: list[Case] = []
     for p in peers(g, r):
         q = q_scalar[:max(n_scalar // 10, 20)] if p.name == 'lm-scipy' else q_scalar
-        cases.append(Case(f'{p.name}/scalar', (lambda p=p, q=q: p.stream(q)), q.size))
+        cases.append(Case(f'{p.name}/scalar', functools.partial(p.stream, q), q.size))
         if p.vector is not None:
-            cases.append(Case(f'{p.name}/vector', (lambda p=p: p.vector(q_vector)), n_vector))  # type: ignore[misc]
+            cases.append(Case(f'{p.name}/vector', functools.partial(p.vector, q_vector), n_vector))
     timed = interleaved(cases, repeats)
     out: dict[str, Any] = {'geometry': g.name, 'n_scalar': n_scalar, 'n_vector': n_vector, 'repeats': repeats,
                            'methods': {}}
@@ -409,3 +412,98 @@ def run(quick: bool, geometries: Sequence[Geometry] = COMMON_GEOMETRIES) -> dict
         'geometries': {g.name: geometry_errors(g, max_mid) for g in geometries},
         'cost': costs(n_scalar, n_vector, repeats),
     }
+
+
+# ---------------------------------------------------------------------------------------------- the report
+
+_WHERE = {'mid': 'mid-range', 'limit_1e-06': '1e-6 rad from the limit', 'limit_1e-12': '1e-12 rad from the limit'}
+
+
+def _g(x: float | None) -> str:
+    return '-' if x is None else 'fail' if not math.isfinite(x) else f'{x:.2g}'
+
+
+def markdown(c: dict[str, Any] | None) -> str:
+    """The report section: errors (worst over the geometries), cost on Turnantenna, per-geometry positions."""
+    if not c or 'error' in c:
+        return f'Not measured in this run{": `" + c["error"] + "`" if c else ""}.\n'
+    geos = c['geometries']
+    names = list(next(iter(geos.values()))['methods'])
+    worst: dict[str, dict[str, dict[str, float]]] = {}
+    for per in geos.values():
+        for m, rows in per['methods'].items():
+            for where, row in rows.items():
+                w = worst.setdefault(m, {}).setdefault(where, {})
+                for k, v in row.items():
+                    w[k] = v if v is None or w.get(k) is None else max(w[k], v)
+    cost = c['cost']['methods']
+    st = c['stream']
+    lines = [
+        f'From the measured driven rocker ({c["driven"]}: angle, rate and effort, as `joint_state_broadcaster` '
+        'publishes them), each method gives the other rocker, the antenna angle theta, its rate and the load '
+        'torque. The measured stream moves at '
+        f'{st["q_rate_rad_s"]:g} rad/s, one message every {1.0 / st["rate_hz"]:g} s ({st["step_rad"]:g} rad), '
+        f'effort {st["effort_n_m"]:g} N m. `exact` is the core\'s closed form (`AntennaLinkage.from_rocker`, '
+        'and dq/dtheta from `rates_at`: theta_dot = q_dot / (dq/dtheta), load torque = effort dq/dtheta). '
+        f'`cubic` is `numpy.polyfit` of degree 3 per passive joint over the whole driven range ({c["fit_points"]} '
+        'exact samples), as a CAD exporter\'s relay does; `cubic-mid` the same fitted over the mid-range only. '
+        f'`gauss-newton` solves the loop equations to a {c["tolerance_rad"]:g} rad step, warm-started from the '
+        'previous message, as public joint-state transformers do; `lm-scipy` is scipy\'s Levenberg-Marquardt '
+        f'(`least_squares(method=\'lm\', xtol={c["tolerance_rad"]:g})`) on the same equations. '
+        '**The public relays publish positions only**: their rates and torques below come from the cubic\'s '
+        'derivative, or from finite differences of successive messages for the iterative solvers.',
+        '',
+        f'Errors against the 60-digit reference with the driven angle as input (`benchmarks/reference_driven.py`), '
+        f'the worst over {len(geos)} geometries ({", ".join(geos)}); positions in rad, rate and torque relative. '
+        'Mid-range: every message within half the distance from the working pose (theta = 0) to the nearest '
+        'singular point (on Turnantenna about its tilt range); near the limit: the last message of a stream '
+        'running into either reach limit of the driven rocker (its dead point: dq/dtheta = 0, theta_dot '
+        'unbounded).',
+        '',
+        '| method | publishes | where | theta (rad) | other rocker (rad) | theta_dot (rel.) | load torque (rel.) |',
+        '|---|---|---|---:|---:|---:|---:|',
+    ]
+    for m in names:
+        for where, label in _WHERE.items():
+            row = worst.get(m, {}).get(where)
+            if row is None:
+                continue
+            lines.append(f'| {m} | {c["publishes"].get(m, "")} | {label} | {_g(row["theta_rad"])} | '
+                         f'{_g(row["other_rad"])} | {_g(row["theta_dot_rel"])} | {_g(row["load_torque_rel"])} |')
+    ex = worst.get('exact', {})
+    lines += [
+        '',
+        'In ulps of their condition (the reference\'s condition number over the driven angle and the lengths), '
+        '`exact` errs by at most '
+        + ', '.join(f'{_g(r.get("position_ulps"))} (positions) and {_g(r.get("rate_ulps"))} (rate, torque) at '
+                    f'{_WHERE[w]}' for w, r in ex.items()) + '. '
+        'Near a reach limit the completion itself is ill-conditioned (theta moves as the square root of the '
+        'distance to the limit), so every method\'s rate there is only as good as that allows.',
+        '',
+        f'Cost per message on {c["cost"]["geometry"]} (process CPU time, median of {c["cost"]["repeats"]} '
+        'interleaved rounds; scalar: a Python loop, one call per message, what a node does; vectorized: one call '
+        'on an array, what a bag conversion does; the iterative solvers are sequential by nature, each message '
+        'warm-started from the last):',
+        '',
+        '| method | scalar us/message | scalar x exact | vectorized ns/message | vectorized x exact |',
+        '|---|---:|---:|---:|---:|',
+    ]
+    for m in names:
+        t = cost.get(m, {})
+        sc, vc = t.get('scalar_seconds'), t.get('vector_seconds')
+        lines.append(f'| {m} | {"-" if sc is None else f"{sc * 1e6:.3g}"} | {_g(t.get("scalar_ratio_to_exact"))} | '
+                     f'{"-" if vc is None else f"{vc * 1e9:.3g}"} | {_g(t.get("vector_ratio_to_exact"))} |')
+    lines += ['', 'theta error (rad) per geometry, mid-range / 1e-12 rad from the limit:', '',
+              '| geometry | ' + ' | '.join(names) + ' |', '|---|' + '---:|' * len(names)]
+    for name, per in geos.items():
+        cells = [f'{_g(per["methods"][m]["mid"]["theta_rad"])} / '
+                 f'{_g(per["methods"][m].get("limit_1e-12", {}).get("theta_rad"))}' for m in names]
+        lines.append(f'| {name} | ' + ' | '.join(cells) + ' |')
+    steps = []
+    for name, per in geos.items():
+        gn = per['solver_stats'].get('gauss-newton')
+        if gn and gn['messages']:
+            steps.append(f'{name} {gn["steps"] / gn["messages"]:.2g}'
+                         + (f' ({gn["not_converged"]} not converged)' if gn['not_converged'] else ''))
+    lines += ['', 'Newton steps per message (gauss-newton): ' + ', '.join(steps) + '.', '']
+    return '\n'.join(lines)

@@ -14,6 +14,7 @@ point), so theta's rate for a given q rate is unbounded and theta(q) has a squar
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 
@@ -120,6 +121,7 @@ class DrivenRange:
 TURNING_GRID = 256  #: samples of dq/dtheta's sign over [lo, hi] that locate theta's turning points
 
 
+@functools.cache
 def working_range(g: Geometry) -> DrivenRange:
     """The range of the driven rocker around the working pose (theta = 0 on the upper theta branch).
 

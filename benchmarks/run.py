@@ -95,6 +95,10 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     stress_out = stress.run(quick)
     parts['stress'] = time.perf_counter() - t0
+    print('completion against the public approaches (benchmarks/completion_peers.py)', flush=True)
+    t0 = time.perf_counter()
+    completion = agent_bench('completion_peers', quick)
+    parts['completion'] = time.perf_counter() - t0
     agents: dict[str, dict[str, Any] | None] = {}
     if not args.skip_agents:
         for key, module in (('node', 'node_bench'), ('bag', 'bag_bench'), ('process', 'process_bench')):
@@ -156,6 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                    'statistic': 'median of interleaved repeats, process CPU time (wall time in *_wall keys)'},
         'stress': stress_out,
         'lookup': lookup_summary(by),
+        'completion': completion,
         'node': agents.get('node'),
         'bag': agents.get('bag'),
         'process': agents.get('process'),
