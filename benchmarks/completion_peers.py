@@ -505,5 +505,7 @@ def markdown(c: dict[str, Any] | None) -> str:
         if gn and gn['messages']:
             steps.append(f'{name} {gn["steps"] / gn["messages"]:.2g}'
                          + (f' ({gn["not_converged"]} not converged)' if gn['not_converged'] else ''))
-    lines += ['', 'Newton steps per message (gauss-newton): ' + ', '.join(steps) + '.', '']
+    lines += ['', 'Newton steps per message (gauss-newton): ' + ', '.join(steps) + '.'
+              + ('' if 'lm-scipy' in names else ' `lm-scipy` was not run: scipy is not installed (`make bench-deps`).'),
+              '']
     return '\n'.join(lines)
