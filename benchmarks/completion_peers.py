@@ -358,7 +358,7 @@ def geometry_errors(g: Geometry, max_mid: int | None = None) -> dict[str, Any]:
                     if p.vector is not None:
                         row = _merge(row, errors(_tail(p.vector(q), q.size - 1), ref, p.name == 'exact'))
                     where[p.name][key] = _merge(where[p.name][key], row) if key in where[p.name] else row
-    return {'range_rad': [r.lo, r.hi], 'branch': r.branch, 'limited': r.limited, 'mid_messages': int(q_mid.size),
+    return {'range_rad': [r.lo, r.hi], 'mid_range_rad': [r.mid_lo, r.mid_hi], 'branch': r.branch, 'limited': r.limited, 'mid_messages': int(q_mid.size),
             'methods': where, 'solver_stats': {p.name: dict(p.stats) for p in ps if p.stats}}
 
 
@@ -371,7 +371,7 @@ def _tail(c: Completed, start: int) -> Completed:
 def costs(n_scalar: int, n_vector: int, repeats: int, g: Geometry = TURNANTENNA) -> dict[str, Any]:
     """CPU seconds per message (median of interleaved rounds), scalar and vectorized, and ratios to exact.
 
-    The scalar stream walks back and forth over the central half of the range STEP by STEP (n_scalar
+    The scalar stream walks back and forth over the mid-range STEP by STEP (n_scalar
     messages, fewer for lm-scipy: a tenth); the vectorized input is n_vector angles spread over the same span.
     """
     r = working_range(g)
