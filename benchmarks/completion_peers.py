@@ -358,7 +358,8 @@ def geometry_errors(g: Geometry, max_mid: int | None = None) -> dict[str, Any]:
                     if p.vector is not None:
                         row = _merge(row, errors(_tail(p.vector(q), q.size - 1), ref, p.name == 'exact'))
                     where[p.name][key] = _merge(where[p.name][key], row) if key in where[p.name] else row
-    return {'range_rad': [r.lo, r.hi], 'mid_range_rad': [r.mid_lo, r.mid_hi], 'branch': r.branch, 'limited': r.limited, 'mid_messages': int(q_mid.size),
+    return {'range_rad': [r.lo, r.hi], 'mid_range_rad': [r.mid_lo, r.mid_hi], 'branch': r.branch,
+            'limited': r.limited, 'mid_messages': int(q_mid.size),
             'methods': where, 'solver_stats': {p.name: dict(p.stats) for p in ps if p.stats}}
 
 
