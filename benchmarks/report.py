@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from benchmarks import completion_peers
 from benchmarks.sweep import MethodResult
 
 
@@ -364,6 +365,9 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         '## A cheaper method for some users: `fourbar_ros.core.lookup.RockerTable`',
         '',
         lookup_text(data.get('lookup')),
+        '## Completing the linkage from the measured driven joint, against the public approaches',
+        '',
+        completion_peers.markdown(data.get('completion')),
         '## Node and bag figures',
         '',
         *([f'![latency by executor]({rel}/latency.png)', ''] if data.get('latency_plot') else []),

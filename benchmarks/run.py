@@ -26,7 +26,7 @@ from benchmarks.timing import machine_info
 NODE_AND_BAG_BENCHMARKS = {'node': 'node_bench', 'bag': 'bag_bench', 'process': 'process_bench'}
 
 
-def node_or_bag_bench(module: str, quick: bool) -> dict[str, Any]:
+def guarded_bench(module: str, quick: bool) -> dict[str, Any]:
     """Figures from benchmarks.<module>.run(quick); a failure is reported in the figures, not raised, so
     one broken benchmark (say, no ROS on this machine) does not take the rest of the report down."""
     try:
@@ -92,12 +92,16 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     stress_out = stress.run(quick)
     parts['stress'] = time.perf_counter() - t0
+    print('completion against the public approaches (benchmarks/completion_peers.py)', flush=True)
+    t0 = time.perf_counter()
+    completion = guarded_bench('completion_peers', quick)
+    parts['completion'] = time.perf_counter() - t0
     node_and_bags: dict[str, dict[str, Any]] = {}
     if not args.skip_node_bags:
         for key, module in NODE_AND_BAG_BENCHMARKS.items():
             print(f'{key} benchmark (benchmarks/{module}.py)', flush=True)
             t0 = time.perf_counter()
-            node_and_bags[key] = node_or_bag_bench(module, quick)
+            node_and_bags[key] = guarded_bench(module, quick)
             parts[key] = time.perf_counter() - t0
 
     def ratio(a: float | None, b: float | None) -> float | None:
@@ -153,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
                    'statistic': 'median of interleaved repeats, process CPU time (wall time in *_wall keys)'},
         'stress': stress_out,
         'lookup': lookup_summary(by),
+        'completion': completion,
         **{key: node_and_bags.get(key) for key in NODE_AND_BAG_BENCHMARKS},
         'machine': info,
         'quick': quick,
