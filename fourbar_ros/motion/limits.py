@@ -37,22 +37,30 @@ _RETIME_NUDGE = 8.0 * math.ulp(1.0)
 
 @dataclass(frozen=True)
 class JointLimits:
-    """Limits at the driven rocker: velocity rad/s, acceleration rad/s^2, jerk rad/s^3 (the motor's / ratio), and
-    the motor's and reducer's torque limits as configured (N m: motor side, rocker side)."""
+    """Motor limits as configured: speed rad/s, acceleration rad/s^2, jerk rad/s^3 at the motor, the reducer ratio,
+    the motor's torque limit (N m, motor side) and the reducer's rated torque (N m, at the driven rocker)."""
 
     ratio: float
-    velocity: float
-    acceleration: float
-    jerk: float
+    motor_speed: float
+    motor_acceleration: float
+    motor_jerk: float
     motor_torque: float
     output_torque: float
 
     @classmethod
     def from_config(cls, cfg: AntennaConfig) -> JointLimits:
-        """The configuration's motor limits (at the motor) brought to the rocker through the reducer ratio."""
-        n = cfg.reducer_ratio
-        return cls(n, cfg.motor_speed_limit / n, cfg.motor_acceleration_limit / n, cfg.motor_jerk_limit / n,
+        """The configuration's limits."""
+        return cls(cfg.reducer_ratio, cfg.motor_speed_limit, cfg.motor_acceleration_limit, cfg.motor_jerk_limit,
                    cfg.motor_torque_limit, cfg.output_torque_limit)
+
+    def at_rocker(self, order: int) -> float:
+        """The limit on the driven rocker's order-th time derivative (1 velocity rad/s, 2 acceleration rad/s^2,
+        3 jerk rad/s^3): the motor's divided by the ratio."""
+        return self.motor(order) / self.ratio
+
+    def motor(self, order: int) -> float:
+        """The motor's limit on its order-th time derivative (1 speed, 2 acceleration, 3 jerk)."""
+        return (self.motor_speed, self.motor_acceleration, self.motor_jerk)[order - 1]
 
 
 @dataclass(frozen=True)
@@ -99,8 +107,7 @@ def point_magnitudes(traj: DrivenTrajectory) -> dict[int, FloatArray]:
     return {k: _per_point(n, *derivatives_at(traj.times, coefficients, k)) for k in orders}
 
 
-_QUANTITIES = {1: ('motor speed', 'rad/s', 'velocity'), 2: ('motor acceleration', 'rad/s^2', 'acceleration'),
-               3: ('motor jerk', 'rad/s^3', 'jerk')}
+_QUANTITIES = {1: ('motor speed', 'rad/s'), 2: ('motor acceleration', 'rad/s^2'), 3: ('motor jerk', 'rad/s^3')}
 
 
 def _worst(traj: DrivenTrajectory, quantity: str, unit: str, values: FloatArray, limit: float) -> Violation | None:
@@ -118,20 +125,19 @@ def torque_violation(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaCo
     return max((v for v in found if v is not None), key=lambda v: v.ratio, default=None)
 
 
-def motion_violations(traj: DrivenTrajectory, limits: JointLimits) -> list[Violation]:
-    """Per bounded derivative order, the worst point over its motor limit (motor-side values), if any."""
+def motion_violations(traj: DrivenTrajectory, limits: JointLimits) -> list[tuple[int, Violation]]:
+    """(derivative order, the worst point over the motor's limit on it) for each order over its limit."""
     out = []
     for order, values in point_magnitudes(traj).items():
-        quantity, unit, field = _QUANTITIES[order]
-        v = _worst(traj, quantity, unit, limits.ratio * values, limits.ratio * getattr(limits, field))
+        v = _worst(traj, *_QUANTITIES[order], limits.ratio * values, limits.motor(order))
         if v is not None:
-            out.append(v)
+            out.append((order, v))
     return out
 
 
 def worst_violation(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConfig) -> Violation | None:
     """The point furthest over any limit (largest value / limit), or None when every point is within them."""
-    found = [*motion_violations(traj, limits), torque_violation(traj, limits, cfg)]
+    found = [*(v for _, v in motion_violations(traj, limits)), torque_violation(traj, limits, cfg)]
     return max((v for v in found if v is not None), key=lambda v: v.ratio, default=None)
 
 
@@ -148,13 +154,12 @@ def enforce_limits(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConf
     if not motion:
         return traj
     if policy == 'reject':
-        raise LimitError(max(motion, key=lambda v: v.ratio).describe())
-    order = {'motor speed': 1, 'motor acceleration': 2, 'motor jerk': 3}
-    k = max(v.ratio ** (1.0 / order[v.quantity]) for v in motion)
-    for _ in range(8):  # rounding may leave a point an ulp over: nudge k up and check again
+        raise LimitError(max((v for _, v in motion), key=lambda v: v.ratio).describe())
+    k = max(v.ratio ** (1.0 / order) for order, v in motion)
+    for attempt in range(8):  # rounding may leave a point an ulp over: nudge k up and check again
         out = traj.scaled_in_time(k)
         left = motion_violations(out, limits)
         if not left:
             return out
-        k *= 1.0 + _RETIME_NUDGE * max(1.0, max(v.ratio for v in left) / (1.0 + 1e-12))
-    raise LimitError(f'retiming by {k:.6g} left {left[0].describe()}')  # pragma: no cover - rounding only
+        k *= 1.0 + _RETIME_NUDGE * 2.0 ** attempt
+    raise LimitError(f'retiming by {k:.6g} left {left[0][1].describe()}')  # pragma: no cover - rounding only
