@@ -24,9 +24,10 @@ from fourbar_ros.motion.errors import LimitError, TrajectoryError
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, static_efforts
 
-#: ruckig is given the limits times this, so that its rounding (seen at ~1e-13 relative) leaves every sampled point
-#: within the limits themselves.
-PLAN_SHRINK = 1.0 - 1e-9
+#: ruckig is given the limits times this: its own rounding (seen at ~1e-13 relative) and that of the controller's
+#: jerk at a point (positions over h^3: ~1e-9 relative at h = 10 ms, ~1e-6 at 1 ms) then leave every sampled point
+#: within the limits themselves; the motion is 1e-6 slower than time-optimal.
+PLAN_SHRINK = 1.0 - 1e-6
 
 __all__ = ['PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'plan_motion', 'plan_to_angle', 'setpoints', 'trajectory_points']
 
@@ -136,18 +137,22 @@ def driven_angles(cfg: AntennaConfig, theta: FloatArray) -> FloatArray:
 
 
 def _grid(duration: float, step: float) -> FloatArray:
-    """0, step, 2 step, ... and the end (s), the end not duplicated."""
-    n = int(math.floor(duration / step))
-    t = np.arange(n + 1) * step
-    return t if t[-1] >= duration else np.append(t, duration)
+    """0, step, 2 step, ... and the end (s); a grid time within step / 2 of the end gives way to the end."""
+    if duration <= 0.0:
+        return np.zeros(1)
+    t = np.arange(math.floor(duration / step) + 1) * step
+    return np.append(t[t < duration - 0.5 * step], duration) if duration > 0.5 * step else np.array([0.0, duration])
 
 
-def _merged(grid: FloatArray, extra: FloatArray, gap: float) -> FloatArray:
-    """The grid (s) with the extra times added, except those within gap of a grid time or of the extra before."""
-    extra = np.unique(extra)
-    extra = extra[np.append(True, np.diff(extra) > gap)]
-    far = np.abs(extra[:, None] - grid[None, :]).min(axis=1, initial=np.inf) > gap
-    return np.sort(np.concatenate([grid, extra[far]]))
+def _merged(grid: FloatArray, switches: FloatArray, gap: float) -> FloatArray:
+    """The grid (s, from 0 to the end) with the switch times added; grid times within gap of a switch time give way
+    to it (0 and the end stay), and switch times closer than gap / 1000 to the one before merge."""
+    switches = np.unique(switches)
+    switches = switches[np.append(True, np.diff(switches) > 1e-3 * gap)] if switches.size else switches
+    near = np.abs(grid[:, None] - switches[None, :]).min(axis=1, initial=np.inf) <= gap
+    near[0] = near[-1] = False
+    t = np.unique(np.concatenate([grid[~near], switches]))
+    return t
 
 
 def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spacing: float) -> DrivenTrajectory:
@@ -172,7 +177,8 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     theta, other = np.asarray(theta_a), np.asarray(other_a)
     gamma, delta = (q, other) if cfg.driven is Driven.GAMMA else (other, q)
     rates = cfg.linkage.rates_at(theta, gamma, delta)
-    efforts = static_efforts(cfg, theta, gamma, delta, np.asarray(rates.dgamma_dtheta))
+    g1 = np.asarray(rates.dgamma_dtheta)
+    efforts = static_efforts(cfg, theta, gamma, g1, g1 if cfg.driven is Driven.GAMMA else np.asarray(rates.ddelta_dtheta))
     out = DrivenTrajectory(times, q, q_dot, q_ddot, efforts, AntennaTrajectory(times, theta))
     over = worst_violation(out, limits, cfg)
     if over is not None:

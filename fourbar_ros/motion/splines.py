@@ -48,10 +48,14 @@ def evaluate(coefficients: FloatArray, s: FloatArray, order: int = 0) -> FloatAr
     return out
 
 
-def derivative_bound(coefficients: FloatArray) -> FloatArray:
-    """Per segment, an upper bound on |d p/d s| over s in [0, 1]: the sum of k |c_k| (as |s^(k-1)| <= 1)."""
-    k = np.arange(1, coefficients.shape[1], dtype=np.float64)
-    bound: FloatArray = np.abs(coefficients[:, 1:]) @ k
+def derivative_bound(coefficients: FloatArray, order: int = 1) -> FloatArray:
+    """Per segment, an upper bound on |d^order p/d s^order| over s in [0, 1]: the sum over k of
+    k (k - 1) ... (k - order + 1) |c_k| (as |s^(k - order)| <= 1)."""
+    k = np.arange(coefficients.shape[1], dtype=np.float64)
+    falling = np.ones_like(k)
+    for i in range(order):
+        falling *= k - i
+    bound: FloatArray = np.abs(coefficients) @ falling
     return bound
 
 

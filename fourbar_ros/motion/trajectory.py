@@ -27,7 +27,8 @@ from fourbar_ros.core.loads import load_torque as total_load_torque
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import TrajectoryError
 
-__all__ = ['AntennaTrajectory', 'DrivenTrajectory', 'SplineKind', 'antenna_trajectory', 'to_driven']
+__all__ = ['AntennaTrajectory', 'DrivenTrajectory', 'SplineKind', 'antenna_trajectory', 'check_tilt_range',
+           'check_times', 'static_efforts', 'to_driven']
 
 
 class SplineKind(enum.IntEnum):
@@ -158,19 +159,21 @@ def check_tilt_range(cfg: AntennaConfig, theta: FloatArray, times: FloatArray) -
             f'[{cfg.theta_min!r}, {cfg.theta_max!r}] rad')
 
 
-def static_efforts(cfg: AntennaConfig, theta: FloatArray, gamma: FloatArray, delta: FloatArray,
-                   dgamma_dtheta: FloatArray) -> FloatArray:
-    """Static input torque (N m at the driven rocker) holding the configured load at each solved pose.
+def static_efforts(cfg: AntennaConfig, theta: FloatArray, gamma: FloatArray, dgamma_dtheta: FloatArray,
+                   dq_dtheta: FloatArray) -> FloatArray:
+    """Static input torque (N m at the driven rocker, sense of increasing q) holding the configured load (N m about
+    theta) at each solved pose: by power balance tau_in dq = tau_load dtheta, tau_in = tau_load / (dq/dtheta).
 
-    A constant load is one vectorized ``torque_at``; a gravity load is evaluated point by point through the core's
-    load model (``fourbar_ros.core.loads``, scalar), then mapped the same way.
+    dq/dtheta is the driven rocker's rate (the mechanical advantage): never zero inside a validated tilt range (the
+    configuration has no dead point there). A constant load needs no more; a gravity load is evaluated point by
+    point through the core's load model (``fourbar_ros.core.loads``, scalar).
     """
     if has_gravity_load(cfg):
-        load = np.array([total_load_torque(cfg, float(t), float(g), float(r))
-                         for t, g, r in zip(theta, gamma, dgamma_dtheta, strict=True)])
+        load: FloatArray | float = np.array([total_load_torque(cfg, float(t), float(g), float(r))
+                                             for t, g, r in zip(theta, gamma, dgamma_dtheta, strict=True)])
     else:
-        load = np.full_like(theta, cfg.load_torque)
-    efforts: FloatArray = np.asarray(cfg.linkage.torque_at(theta, gamma, delta, load, cfg.driven))
+        load = cfg.load_torque
+    efforts: FloatArray = load / dq_dtheta
     return efforts
 
 
@@ -178,7 +181,7 @@ def to_driven(cfg: AntennaConfig, traj: AntennaTrajectory) -> DrivenTrajectory:
     """The driven-joint trajectory of a validated antenna trajectory: positions, velocities and accelerations by the
     chain rule through the core's exact derivatives (only those the input's fields call for), and the static effort.
 
-    Vectorized: one position solve, the rates, the second derivatives when accelerations are given, and the effort.
+    Vectorized: one position solve, both rates, the driven rocker's second derivative when accelerations are given.
     """
     link = cfg.linkage
     theta = traj.theta
@@ -191,8 +194,7 @@ def to_driven(cfg: AntennaConfig, traj: AntennaTrajectory) -> DrivenTrajectory:
     if traj.theta_dot is not None:
         velocities = q1 * traj.theta_dot
         if traj.theta_ddot is not None:
-            second = link.second_derivatives_at(theta, gamma, delta, rates)
-            q2 = np.asarray(second.d2gamma_dtheta2 if gamma_driven else second.d2delta_dtheta2)
+            q2 = np.asarray(link.second_derivative_at(theta, gamma, delta, rates, cfg.driven))
             accelerations = q2 * traj.theta_dot * traj.theta_dot + q1 * traj.theta_ddot
-    efforts = static_efforts(cfg, theta, np.asarray(gamma), np.asarray(delta), np.asarray(rates.dgamma_dtheta))
+    efforts = static_efforts(cfg, theta, np.asarray(gamma), np.asarray(rates.dgamma_dtheta), q1)
     return DrivenTrajectory(traj.times, positions, velocities, accelerations, efforts, traj)
