@@ -97,7 +97,8 @@ def main(argv: list[str] | None = None) -> int:
     parts['stress'] = time.perf_counter() - t0
     agents: dict[str, dict[str, Any] | None] = {}
     if not args.skip_agents:
-        for key, module in (('node', 'node_bench'), ('bag', 'bag_bench'), ('process', 'process_bench')):
+        for key, module in (('node', 'node_bench'), ('bag', 'bag_bench'), ('process', 'process_bench'),
+                            ('trajectory', 'trajectory_bench')):
             print(f'{key} benchmark (benchmarks/{module}.py)', flush=True)
             t0 = time.perf_counter()
             agents[key] = agent_bench(module, quick)

@@ -29,7 +29,8 @@ from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, s
 #: within the limits themselves; the motion is 1e-6 slower than time-optimal.
 PLAN_SHRINK = 1.0 - 1e-6
 
-__all__ = ['PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'plan_motion', 'plan_to_angle', 'setpoints', 'trajectory_points']
+__all__ = ['PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles', 'plan_motion', 'plan_to_angle',
+           'setpoints', 'trajectory_points']
 
 
 @dataclass(frozen=True)
@@ -83,7 +84,7 @@ class Plan:
 
 def _ruckig() -> Any:
     try:
-        import ruckig
+        import ruckig  # type: ignore[import-not-found,unused-ignore]  # a compiled module without type stubs
     except ImportError:
         raise TrajectoryError('motion planning needs the Python module ruckig: pip install ruckig==0.19.4') from None
     return ruckig
@@ -145,14 +146,19 @@ def _grid(duration: float, step: float) -> FloatArray:
 
 
 def _merged(grid: FloatArray, switches: FloatArray, gap: float) -> FloatArray:
-    """The grid (s, from 0 to the end) with the switch times added; grid times within gap of a switch time give way
-    to it (0 and the end stay), and switch times closer than gap / 1000 to the one before merge."""
-    switches = np.unique(switches)
-    switches = switches[np.append(True, np.diff(switches) > 1e-3 * gap)] if switches.size else switches
-    near = np.abs(grid[:, None] - switches[None, :]).min(axis=1, initial=np.inf) <= gap
+    """The grid (s, from 0 to the end) with the switch times added, no two times within gap: a switch time within
+    gap of 0 or of the end is left out (0 and the end stay), a grid time within gap of a switch time gives way to it,
+    and of switch times within gap of each other the first stays. A left-out switch makes its segment inexact; the
+    limit check then judges that segment like any other."""
+    end = grid[-1]
+    kept: list[float] = []
+    for t in np.unique(switches):
+        if gap < t < end - gap and (not kept or t - kept[-1] > gap):
+            kept.append(float(t))
+    sw = np.array(kept)
+    near = np.abs(grid[:, None] - sw[None, :]).min(axis=1, initial=np.inf) <= gap
     near[0] = near[-1] = False
-    t = np.unique(np.concatenate([grid[~near], switches]))
-    return t
+    return np.unique(np.concatenate([grid[~near], sw]))
 
 
 def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spacing: float) -> DrivenTrajectory:
@@ -178,7 +184,8 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     gamma, delta = (q, other) if cfg.driven is Driven.GAMMA else (other, q)
     rates = cfg.linkage.rates_at(theta, gamma, delta)
     g1 = np.asarray(rates.dgamma_dtheta)
-    efforts = static_efforts(cfg, theta, gamma, g1, g1 if cfg.driven is Driven.GAMMA else np.asarray(rates.ddelta_dtheta))
+    q1 = g1 if cfg.driven is Driven.GAMMA else np.asarray(rates.ddelta_dtheta)
+    efforts = static_efforts(cfg, theta, gamma, g1, q1)
     out = DrivenTrajectory(times, q, q_dot, q_ddot, efforts, AntennaTrajectory(times, theta))
     over = worst_violation(out, limits, cfg)
     if over is not None:

@@ -31,6 +31,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import Driven
@@ -39,6 +40,8 @@ from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import TrajectoryError
 from fourbar_ros.motion.splines import derivative_bound, evaluate, hermite_coefficients
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, to_driven
+
+IndexArray = npt.NDArray[np.intp]
 
 __all__ = ['SAMPLES', 'Refined', 'deviation_bounds', 'dtheta_dq_bounds', 'q_band', 'refine']
 
@@ -91,7 +94,7 @@ def _antenna_coefficients(a: AntennaTrajectory) -> FloatArray:
     return hermite_coefficients(a.times, a.theta, a.theta_dot, a.theta_ddot)
 
 
-def deviation_bounds(cfg: AntennaConfig, traj: DrivenTrajectory, segments: FloatArray | None = None,
+def deviation_bounds(cfg: AntennaConfig, traj: DrivenTrajectory, segments: IndexArray | None = None,
                      lam: tuple[float, float] | None = None) -> FloatArray:
     """Per segment (all, or the indices given), the bound on |antenna deviation| (rad) between its points; inf where
     Q may leave the admitted band. Raises UnreachableError where the request itself leaves [theta_min, theta_max]."""
@@ -122,7 +125,7 @@ def deviation_bounds(cfg: AntennaConfig, traj: DrivenTrajectory, segments: Float
     return bounds
 
 
-def _midpoints(a: AntennaTrajectory, segments: FloatArray) -> AntennaTrajectory:
+def _midpoints(a: AntennaTrajectory, segments: IndexArray) -> AntennaTrajectory:
     """The points at the middle times of the given segments, on the requested path T."""
     tc = _antenna_coefficients(a)[segments]
     h = np.diff(a.times)[segments]
@@ -136,7 +139,7 @@ def _midpoints(a: AntennaTrajectory, segments: FloatArray) -> AntennaTrajectory:
                              theta_dot, theta_ddot)
 
 
-def _insert(a: AntennaTrajectory, segments: FloatArray, mid: AntennaTrajectory) -> AntennaTrajectory:
+def _insert(a: AntennaTrajectory, segments: IndexArray, mid: AntennaTrajectory) -> AntennaTrajectory:
     at = segments + 1
 
     def put(x: FloatArray | None, y: FloatArray | None) -> FloatArray | None:
