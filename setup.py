@@ -19,7 +19,7 @@ setup(
         (f'share/{PACKAGE}/rviz', glob('rviz/*.rviz')),
         (f'share/{PACKAGE}/bags/demo_sweep', glob(f'{PACKAGE}/data/demo_sweep/*')),
     ],
-    install_requires=['setuptools', 'numpy', 'PyYAML'],
+    install_requires=['setuptools', 'numpy', 'PyYAML', 'ruckig'],  # ruckig: jerk-limited motion planning
     extras_require={
         'bags': ['rosbags', 'mcap', 'mcap-ros2-support'],
         'plot': ['matplotlib'],

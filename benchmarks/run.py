@@ -96,6 +96,10 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     completion = guarded_bench('completion_peers', quick)
     parts['completion'] = time.perf_counter() - t0
+    print('antenna trajectory conversion and replanning (benchmarks/trajectory_bench.py)', flush=True)
+    t0 = time.perf_counter()
+    trajectory = guarded_bench('trajectory_bench', quick)
+    parts['trajectory'] = time.perf_counter() - t0
     node_and_bags: dict[str, dict[str, Any]] = {}
     if not args.skip_node_bags:
         for key, module in NODE_AND_BAG_BENCHMARKS.items():
@@ -158,6 +162,7 @@ def main(argv: list[str] | None = None) -> int:
         'stress': stress_out,
         'lookup': lookup_summary(by),
         'completion': completion,
+        'trajectory': trajectory,
         **{key: node_and_bags.get(key) for key in NODE_AND_BAG_BENCHMARKS},
         'machine': info,
         'quick': quick,

@@ -69,7 +69,7 @@ def test_colcon_install_has_share_files_and_no_benchmarks(colcon_install: Path) 
     assert sorted(p.name for p in bag.iterdir()) == sorted(p.name for p in (REPO / 'fourbar_ros' / 'data' /
                                                                             'demo_sweep').iterdir())
     site = prefix / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / 'site-packages'
-    for layer in ('core', 'config', 'node', 'bags', 'commands'):  # find_packages keeps the layer folders
+    for layer in ('core', 'config', 'motion', 'node', 'bags', 'commands'):  # find_packages keeps the layer folders
         assert (site / 'fourbar_ros' / layer / '__init__.py').is_file(), layer
     assert (site / 'fourbar_ros' / 'config' / 'robot_model.py').is_file()
     assert not (site / 'benchmarks').exists() and not (site / 'test').exists()

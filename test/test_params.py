@@ -100,3 +100,11 @@ def test_values_round_trip_through_the_configuration() -> None:
     assert values == {spec.name: spec.default for spec in PARAMETERS}
     changed = dict(values, driven_rocker='delta', branch='upper', out_of_limits='clamp', coupler_joint='c')
     assert config_from_values(changed).as_values() == changed
+
+
+@pytest.mark.parametrize('spec', [p for p in PARAMETERS if p.type is int], ids=lambda p: p.name)
+def test_integers_are_bounded_and_reject_outside_and_doubles(spec: ParamSpec) -> None:
+    assert spec.minimum is not None and spec.maximum is not None and spec.minimum <= spec.default <= spec.maximum
+    for bad in (int(spec.minimum) - 1, int(spec.maximum) + 1, float(spec.default), True):
+        with pytest.raises(ConfigError, match=f'^{spec.name}: '):
+            check_value(spec, bad)

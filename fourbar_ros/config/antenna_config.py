@@ -73,6 +73,13 @@ class AntennaConfig:
     reducer_efficiency: float
     motor_torque_limit: float
     output_torque_limit: float
+    motor_speed_limit: float
+    motor_acceleration_limit: float
+    motor_jerk_limit: float
+    trajectory_tolerance: float
+    limit_policy: str
+    control_rate: float
+    max_trajectory_points: int
     gamma_joint: str
     delta_joint: str
     coupler_joint: str
@@ -134,6 +141,13 @@ def check_value(spec: ParamSpec, value: object) -> ParamValue:
             raise ConfigError(f'{name}: {value!r} {spec.unit} is below the minimum {lo!r}'.replace('  ', ' '), (name,))
         if hi is not None and value > hi and not math.isclose(value, hi, rel_tol=RANGE_REL_TOL):
             raise ConfigError(f'{name}: {value!r} {spec.unit} is above the maximum {hi!r}'.replace('  ', ' '), (name,))
+        return value
+    if spec.type is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f'{name}: expected an integer, got {_type_name(value)} {value!r}', (name,))
+        lo, hi = spec.minimum, spec.maximum
+        if (lo is not None and value < lo) or (hi is not None and value > hi):
+            raise ConfigError(f'{name}: {value!r} is outside [{lo!r}, {hi!r}]', (name,))
         return value
     if spec.type is str:
         if not isinstance(value, str):

@@ -135,6 +135,27 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Torque the motor can hold/deliver before the reducer.', 1e-12, 1.0e6),
     ParamSpec('output_torque_limit', float, 5.0, 'N m',
               'Rated torque of the reducer output at the driven rocker.', 1e-12, 1.0e6),
+    # Motion of the driven joint (trajectory conversion, limits, planning). Motor-side limits: the reducer ratio
+    # brings them to the rocker. Defaults: a small stepper through the 500:1 reducer, 300 rpm top speed.
+    ParamSpec('motor_speed_limit', float, 31.41592653589793, 'rad/s',
+              'Motor speed limit, at the motor (rocker limit = this / reducer_ratio); 300 rpm by default.',
+              1e-9, 1.0e6),
+    ParamSpec('motor_acceleration_limit', float, 100.0, 'rad/s^2',
+              'Motor acceleration limit, at the motor (rocker limit = this / reducer_ratio).', 1e-9, 1.0e9),
+    ParamSpec('motor_jerk_limit', float, 1000.0, 'rad/s^3',
+              'Motor jerk limit, at the motor (rocker limit = this / reducer_ratio).', 1e-9, 1.0e12),
+    ParamSpec('trajectory_tolerance', float, 1.0e-4, 'rad',
+              'Largest deviation of the antenna angle allowed between the points of a converted trajectory, as '
+              'the controller interpolates the driven joint; points are inserted until it holds.', 1e-9, 0.1),
+    ParamSpec('limit_policy', str, 'reject', '',
+              'Trajectory points over a motor speed, acceleration or jerk limit: reject the trajectory, naming '
+              'the worst point, or retime it (slow it down uniformly until every point is within). A static '
+              'torque over its limit is always rejected.', choices=('reject', 'retime')),
+    ParamSpec('control_rate', float, 100.0, 'Hz',
+              'Rate of the setpoint stream of a planned motion (forward command mode).', 0.1, 10000.0),
+    ParamSpec('max_trajectory_points', int, 10000, '',
+              'Most points a trajectory may have, received or sent (inserted points included): bounds memory.',
+              2, 1000000),
     ParamSpec('gamma_joint', str, 'rocker_ab_joint', '',
               'JointState name of the rocker AB joint (gamma).'),
     ParamSpec('delta_joint', str, 'rocker_cd_joint', '',

@@ -47,6 +47,7 @@ from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid,
 
 __all__ = [
     'AntennaLinkage', 'Branch', 'Driven', 'InverseSolution', 'LinkageState', 'Reach', 'RockerAngles', 'RockerRates',
+    'RockerSecondDerivatives',
 ]
 
 _TWO_PI = 2.0 * math.pi
@@ -74,6 +75,14 @@ class RockerRates(NamedTuple):
 
     dgamma_dtheta: ArrayLike
     ddelta_dtheta: ArrayLike
+
+
+class RockerSecondDerivatives(NamedTuple):
+    """d2 gamma/d theta2 and d2 delta/d theta2 (rad/rad^2): the rockers' angular accelerations per unit antenna
+    rate squared (at constant antenna rate)."""
+
+    d2gamma_dtheta2: ArrayLike
+    d2delta_dtheta2: ArrayLike
 
 
 class InverseSolution(NamedTuple):
@@ -265,6 +274,94 @@ class AntennaLinkage:
             den_a = np.sin(np.add(gamma, delta))
             return RockerRates(h * np.sin(np.subtract(delta, theta)) / (self.rocker_ab * den_a),
                                -h * np.sin(np.add(gamma, theta)) / (self._cd * den_a))
+
+    def rocker_second_derivatives(self, theta: ArrayLike, branch: Branch = Branch.UPPER,
+                                  on_invalid: OnInvalid = 'raise') -> RockerSecondDerivatives:
+        """d2 gamma/d theta2 and d2 delta/d theta2 (rad/rad^2) at theta (radians) on the given branch.
+
+        Unbounded at the reach limit (like the rates; they grow as 1/sin^3(gamma + delta)): scalars raise
+        SingularPositionError there; arrays give NaN where sin(gamma + delta) is exactly 0 (the sign of the
+        unbounded value is that of the side the limit is approached from, which the pose alone does not tell).
+        """
+        g, d = self.rocker_angles(theta, branch, on_invalid)
+        return self.second_derivatives_at(theta, g, d)
+
+    def second_derivatives_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
+                              rates: RockerRates | None = None) -> RockerSecondDerivatives:
+        """Both second derivatives (rad/rad^2) from an already solved pose (rad) and, if given, its rates_at."""
+        g2, d2 = self._second(theta, gamma, delta, rates, True, True)
+        return RockerSecondDerivatives(g2, d2)  # type: ignore[arg-type]
+
+    def second_derivative_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike, rates: RockerRates | None,
+                             rocker: Driven) -> ArrayLike:
+        """d2 q/d theta2 (rad/rad^2) of one rocker q (gamma or delta) only; see second_derivatives_at."""
+        want_g = rocker is Driven.GAMMA
+        g2, d2 = self._second(theta, gamma, delta, rates, want_g, not want_g)
+        return g2 if want_g else d2  # type: ignore[return-value]
+
+    def _second(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike, rates: RockerRates | None,
+                want_g: bool, want_d: bool) -> tuple[ArrayLike | None, ArrayLike | None]:
+        r"""The loop differentiated twice. With u = delta - theta, v = gamma + theta, X = gamma + delta, rates g', d':
+
+            AB g'' sin X = -(h cos u + AB g'^2 cos X + CD d'^2)      = -N_g
+            CD d'' sin X = -(h cos v + AB g'^2 + CD d'^2 cos X)      = -N_d
+
+        For cos X >= 0 every term after h cos u (h cos v) is >= 0. For cos X < 0, where AB g'^2 cos X and CD d'^2
+        cancel as X -> pi (exactly so with equal rockers), cos X = 2 cos^2(X/2) - 1,
+        AB g'^2 = h^2 sin^2 u / (AB sin^2 X), CD d'^2 = h^2 sin^2 v / (CD sin^2 X) and
+        sin^2 v - sin^2 u = sin(v - u) sin X give:
+
+            N_g = h cos u + 2 AB g'^2 cos^2(X/2) + (AB - CD) CD d'^2 / AB + h^2 sin(v - u) / (AB sin X)
+            N_d = h cos v + 2 CD d'^2 cos^2(X/2) + (CD - AB) AB g'^2 / CD - h^2 sin(v - u) / (CD sin X)
+
+        (AB - CD is exact: a difference of two floats within a factor 2, or else not cancelling).
+        """
+        a, b, h = self.rocker_ab, self._cd, self.coupler
+        ab_diff = a - b
+        if rates is None:
+            rates = self.rates_at(theta, gamma, delta)
+        g1, d1 = rates
+        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+            x = gamma + delta
+            sx = math.sin(x)
+            if sx == 0.0:
+                raise SingularPositionError(
+                    f'theta={theta!r} rad is at the reach limit: the rocker second derivatives are unbounded there')
+            cx = math.cos(x)
+            ag, bd = a * g1 * g1, b * d1 * d1
+            if cx >= 0.0:
+                ng = h * math.cos(delta - theta) + ag * cx + bd if want_g else 0.0
+                nd = h * math.cos(gamma + theta) + ag + bd * cx if want_d else 0.0
+            else:
+                c2 = math.cos(0.5 * x)
+                c2 = 2.0 * c2 * c2
+                k = h * h * math.sin(gamma - delta + 2.0 * theta) / sx
+                ng = h * math.cos(delta - theta) + ag * c2 + (ab_diff * bd + k) / a if want_g else 0.0
+                nd = h * math.cos(gamma + theta) + bd * c2 - (ab_diff * ag + k) / b if want_d else 0.0
+            return (-ng / (a * sx) if want_g else None), (-nd / (b * sx) if want_d else None)
+        arrays = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (theta, gamma, delta, g1, d1)))
+        shape = arrays[0].shape
+        t, g, d, g1a, d1a = (v.reshape(-1) for v in arrays)
+        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+            xa = g + d
+            s_x = np.sin(xa)
+            c_x = np.cos(xa)
+            a_g = a * g1a * g1a
+            b_d = b * d1a * d1a
+            folded = c_x < 0.0
+            n_g = h * np.cos(d - t) + np.where(folded, 0.0, a_g * c_x + b_d) if want_g else None
+            n_d = h * np.cos(g + t) + np.where(folded, 0.0, a_g + b_d * c_x) if want_d else None
+            if folded.any():
+                half_c = np.cos(0.5 * xa[folded])
+                half_c = 2.0 * half_c * half_c
+                kf = h * h * np.sin(g[folded] - d[folded] + 2.0 * t[folded]) / s_x[folded]
+                if n_g is not None:
+                    n_g[folded] += a_g[folded] * half_c + (ab_diff * b_d[folded] + kf) / a
+                if n_d is not None:
+                    n_d[folded] += b_d[folded] * half_c - (ab_diff * a_g[folded] + kf) / b
+            limit = s_x == 0.0
+            return (None if n_g is None else np.where(limit, np.nan, -n_g / (a * s_x)).reshape(shape),
+                    None if n_d is None else np.where(limit, np.nan, -n_d / (b * s_x)).reshape(shape))
 
     def rocker_velocities(self, theta: ArrayLike, theta_rate: ArrayLike,
                           branch: Branch = Branch.UPPER) -> RockerRates:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
 from fourbar_ros.config.params import PARAMETERS, ParamSpec, ParamValue
 
@@ -19,6 +19,8 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     if spec.type is float and spec.minimum is not None and spec.maximum is not None:
         d.floating_point_range = [FloatingPointRange(from_value=float(spec.minimum),
                                                      to_value=float(spec.maximum), step=0.0)]
+    if spec.type is int and spec.minimum is not None and spec.maximum is not None:
+        d.integer_range = [IntegerRange(from_value=int(spec.minimum), to_value=int(spec.maximum), step=1)]
     if spec.choices:
         d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
     return d

@@ -1,0 +1,95 @@
+"""Trajectory conversion and replanning cost: ``python -m benchmarks.trajectory_bench [--quick]``.
+
+Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py), CPU-time medians of interleaved rounds
+(benchmarks/timing.py), so machine load hits every case of a round alike:
+- conversion: ``to_driven`` on a 10,000-point antenna trajectory with positions, velocities and accelerations
+  (positions, velocities, accelerations and efforts out) on Turnantenna's default configuration, against the numpy
+  floor of the transcendental calls it needs, each once on the 10,000 values it is applied to: the position solve's
+  sin and cos of theta/2, one sqrt and two atan2 (``benchmarks.sweep.floor_ufuncs``), then sin(gamma + delta),
+  sin(delta - theta), sin(gamma + theta) (both rates, which the second derivative needs) and cos(gamma + delta),
+  cos(delta - theta) (the driven rocker's second derivative). Target: ratio <= 2.
+- replanning: one ``plan_motion`` call from a mid-motion state (ruckig), median per call in microseconds, beside a
+  sampled trajectory (``trajectory_points`` at 0.05 s) of the same plan; compare with the node's per-command
+  callback (benchmarks/node_bench.py, ~150 us).
+No figure here is asserted by any test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import time
+from typing import Any
+
+import numpy as np
+
+from benchmarks.cases import TURNANTENNA
+from benchmarks.sweep import floor_inputs, floor_ufuncs
+from benchmarks.timing import Case, interleaved
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_motion, trajectory_points
+from fourbar_ros.motion.trajectory import antenna_trajectory, to_driven
+
+POINTS = 10_000
+
+
+def conversion(rounds: int) -> dict[str, Any]:
+    """CPU seconds of the conversion and of its transcendental floor, and their ratio."""
+    cfg = default_config()
+    t = np.linspace(0.0, 20.0, POINTS)
+    mid, amp = 0.5 * (cfg.theta_min + cfg.theta_max), 0.5 * (cfg.theta_max - cfg.theta_min)
+    w = 2.0 * np.pi / 20.0
+    traj = antenna_trajectory(cfg, t, mid + amp * np.sin(w * t), amp * w * np.cos(w * t),
+                              -amp * w * w * np.sin(w * t))
+    gamma, delta = (np.asarray(a) for a in cfg.linkage.rocker_angles(traj.theta, cfg.branch))
+    theta = traj.theta
+    solve_inputs = floor_inputs(TURNANTENNA, theta)
+    x, u, v = gamma + delta, delta - theta, gamma + theta
+
+    def floor() -> object:
+        return (floor_ufuncs(solve_inputs), np.sin(x), np.sin(u), np.sin(v), np.cos(x), np.cos(u))
+
+    times = interleaved([Case('conversion', lambda: to_driven(cfg, traj), 1), Case('floor', floor, 1)], rounds)
+    conv, fl = times['conversion'][0], times['floor'][0]
+    return {'points': POINTS, 'conversion_s': conv, 'floor_s': fl, 'ratio': conv / fl, 'ratio_target': 2.0,
+            'conversion_wall_s': times['conversion'][1], 'floor_wall_s': times['floor'][1]}
+
+
+def replanning(calls: int) -> dict[str, Any]:
+    """Median microseconds of one plan_motion call from a moving state, and of sampling that plan."""
+    cfg = default_config()
+    limits = JointLimits.from_config(cfg)
+    q = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max]))
+    start = JointMotionState(float(q[0]) + 0.01, 0.5 * limits.at_rocker(1), 0.1 * limits.at_rocker(2))
+    plan_s, sample_s = [], []
+    for i in range(calls):
+        target = float(q[1]) - 1e-4 * (i % 7)  # distinct targets: no result can be reused
+        c0 = time.process_time()
+        plan = plan_motion(start, target, limits)
+        c1 = time.process_time()
+        trajectory_points(cfg, limits, plan, 0.05)
+        c2 = time.process_time()
+        plan_s.append(c1 - c0)
+        sample_s.append(c2 - c1)
+    return {'calls': calls, 'plan_median_us': 1e6 * statistics.median(plan_s),
+            'points_at_0.05s_median_us': 1e6 * statistics.median(sample_s), 'plan_duration_s': plan.duration,
+            'compare_with': 'node per-command callback, ~150 us (benchmarks/node_bench.py)'}
+
+
+def run(quick: bool) -> dict[str, Any]:
+    """For ``python -m benchmarks.run``."""
+    return {'conversion': conversion(7 if quick else 21), 'replanning': replanning(200 if quick else 2000)}
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
+    parser.add_argument('--quick', action='store_true', help='fewer rounds')
+    args = parser.parse_args(argv)
+    print(json.dumps(run(args.quick), indent=2))
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

@@ -1,0 +1,165 @@
+"""Motor and reducer limits, checked at every point of a driven-joint trajectory; reject or retime.
+
+The reducer ratio N is constant, so motor speed, acceleration and jerk are N times the driven rocker's: the motor
+limits are constant limits in rocker space (limit / N). Torque: the motor needs input_torque / (N * efficiency)
+(``fourbar_ros.core.loads.motor_torque``), and the reducer's output carries the input torque itself (its rated
+torque). The checked motion is the controller's: at every point, the velocity, acceleration and jerk of its
+interpolating segments on both sides of the point (for linear segments the velocity only: their acceleration is a
+step the controller cannot follow smoothly, so send velocities to bound it), and the point's effort.
+
+Retiming plays the same path k >= 1 times slower: the order-n time derivatives scale by 1/k^n, the segment
+polynomials in s and so the path (and its interpolation error) are unchanged, and the static torque is unchanged:
+a torque over its limit is rejected under either policy.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.core.loads import motor_torque
+from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.motion.errors import LimitError
+from fourbar_ros.motion.splines import derivatives_at, hermite_coefficients
+from fourbar_ros.motion.trajectory import DrivenTrajectory, SplineKind
+
+__all__ = ['JointLimits', 'LimitPolicy', 'Violation', 'enforce_limits', 'worst_violation']
+
+LimitPolicy = Literal['reject', 'retime']
+
+#: Relative step added to the retiming factor when rounding leaves a point a few ulps over a limit.
+_RETIME_NUDGE = 8.0 * math.ulp(1.0)
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Motor limits as configured: speed rad/s, acceleration rad/s^2, jerk rad/s^3 at the motor, the reducer ratio,
+    the motor's torque limit (N m, motor side) and the reducer's rated torque (N m, at the driven rocker)."""
+
+    ratio: float
+    motor_speed: float
+    motor_acceleration: float
+    motor_jerk: float
+    motor_torque: float
+    output_torque: float
+
+    @classmethod
+    def from_config(cls, cfg: AntennaConfig) -> JointLimits:
+        """The configuration's limits."""
+        return cls(cfg.reducer_ratio, cfg.motor_speed_limit, cfg.motor_acceleration_limit, cfg.motor_jerk_limit,
+                   cfg.motor_torque_limit, cfg.output_torque_limit)
+
+    def at_rocker(self, order: int) -> float:
+        """The limit on the driven rocker's order-th time derivative (1 velocity rad/s, 2 acceleration rad/s^2,
+        3 jerk rad/s^3): the motor's divided by the ratio."""
+        return self.motor(order) / self.ratio
+
+    def motor(self, order: int) -> float:
+        """The motor's limit on its order-th time derivative (1 speed, 2 acceleration, 3 jerk)."""
+        return (self.motor_speed, self.motor_acceleration, self.motor_jerk)[order - 1]
+
+
+@dataclass(frozen=True)
+class Violation:
+    """The worst point over a limit: its index, time (s), the quantity, its value and limit (motor side for the
+    motor's quantities), and the ratio value / limit (> 1)."""
+
+    index: int
+    time: float
+    quantity: str
+    unit: str
+    value: float
+    limit: float
+
+    @property
+    def ratio(self) -> float:
+        return self.value / self.limit
+
+    def describe(self) -> str:
+        """One line: which point, what, by how much."""
+        return (f'point {self.index} (t = {self.time:.6g} s): {self.quantity} {self.value:.6g} {self.unit} exceeds '
+                f'its limit {self.limit:.6g} {self.unit} by {self.value - self.limit:.3g} {self.unit} '
+                f'({100.0 * (self.ratio - 1.0):.3g}%)')
+
+
+def _per_point(n: int, start: FloatArray, end: FloatArray) -> FloatArray:
+    """Largest |value| at each point from the segments starting and ending there (one-sided values)."""
+    out = np.zeros(n)
+    out[:-1] = np.abs(start)
+    out[1:] = np.maximum(out[1:], np.abs(end))
+    return out
+
+
+def point_magnitudes(traj: DrivenTrajectory) -> dict[int, FloatArray]:
+    """Derivative order (1 velocity, 2 acceleration, 3 jerk) -> |rocker quantity| at each point, as the controller's
+    segments reach it from either side (orders the trajectory's kind does not bound are left out)."""
+    n = len(traj)
+    kind = traj.kind
+    orders = (1,) if kind is SplineKind.LINEAR else (1, 2, 3)
+    if n == 1:  # no segment: only what the point carries
+        given = {1: traj.velocities, 2: traj.accelerations}
+        return {k: np.abs(v) for k, v in given.items() if v is not None}
+    coefficients = hermite_coefficients(traj.times, traj.positions, traj.velocities, traj.accelerations)
+    return {k: _per_point(n, *derivatives_at(traj.times, coefficients, k)) for k in orders}
+
+
+_QUANTITIES = {1: ('motor speed', 'rad/s'), 2: ('motor acceleration', 'rad/s^2'), 3: ('motor jerk', 'rad/s^3')}
+
+
+def _worst(traj: DrivenTrajectory, quantity: str, unit: str, values: FloatArray, limit: float) -> Violation | None:
+    i = int(np.argmax(values))
+    if not values[i] > limit:
+        return None
+    return Violation(i, float(traj.times[i]), quantity, unit, float(values[i]), limit)
+
+
+def torque_violation(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConfig) -> Violation | None:
+    """The worst point whose static torque exceeds the motor's limit or the reducer's rated torque, if any."""
+    effort = np.abs(traj.efforts)
+    found = [_worst(traj, 'motor torque', 'N m', np.abs(motor_torque(cfg, effort)), limits.motor_torque),  # type: ignore[arg-type]
+             _worst(traj, 'reducer output torque', 'N m', effort, limits.output_torque)]
+    return max((v for v in found if v is not None), key=lambda v: v.ratio, default=None)
+
+
+def motion_violations(traj: DrivenTrajectory, limits: JointLimits) -> list[tuple[int, Violation]]:
+    """(derivative order, the worst point over the motor's limit on it) for each order over its limit."""
+    out = []
+    for order, values in point_magnitudes(traj).items():
+        v = _worst(traj, *_QUANTITIES[order], limits.ratio * values, limits.motor(order))
+        if v is not None:
+            out.append((order, v))
+    return out
+
+
+def worst_violation(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConfig) -> Violation | None:
+    """The point furthest over any limit (largest value / limit), or None when every point is within them."""
+    found = [*(v for _, v in motion_violations(traj, limits)), torque_violation(traj, limits, cfg)]
+    return max((v for v in found if v is not None), key=lambda v: v.ratio, default=None)
+
+
+def enforce_limits(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConfig,
+                   policy: LimitPolicy) -> DrivenTrajectory:
+    """``traj`` if every point is within the limits; else, by policy, LimitError naming the worst point ('reject'),
+    or the trajectory retimed by the smallest factor k >= 1 that brings speed (1/k), acceleration (1/k^2) and jerk
+    (1/k^3) within them ('retime'). A torque over its limit is rejected under both policies (time cannot change a
+    static torque). The returned trajectory has been checked point by point."""
+    torque = torque_violation(traj, limits, cfg)
+    if torque is not None:
+        raise LimitError(f'{torque.describe()}; a static torque does not depend on timing')
+    motion = motion_violations(traj, limits)
+    if not motion:
+        return traj
+    if policy == 'reject':
+        raise LimitError(max((v for _, v in motion), key=lambda v: v.ratio).describe())
+    k = max(v.ratio ** (1.0 / order) for order, v in motion)
+    for attempt in range(8):  # rounding may leave a point an ulp over: nudge k up and check again
+        out = traj.scaled_in_time(k)
+        left = motion_violations(out, limits)
+        if not left:
+            return out
+        k *= 1.0 + _RETIME_NUDGE * 2.0 ** attempt
+    raise LimitError(f'retiming by {k:.6g} left {left[0][1].describe()}')  # pragma: no cover - rounding only

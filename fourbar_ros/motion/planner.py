@@ -1,0 +1,205 @@
+"""Plain angle commands to motion the motor can follow: time-optimal, jerk-limited profiles of the driven joint.
+
+``ruckig`` computes the profile from the current driven-joint state (position rad, velocity rad/s, acceleration
+rad/s^2) to the target at rest, within the rocker-space velocity, acceleration and jerk limits (the motor's / the
+reducer ratio, ``JointLimits``). Its profile is a piecewise cubic in position, continuous in position, velocity and
+acceleration, and starts at exactly the state it is given: replanning mid-motion from ``Plan.state_at(t)`` of the
+running plan leaves no jump. Sampled, a plan becomes a ``DrivenTrajectory`` (points at a spacing, with the static
+effort at each pose) or a setpoint stream at a control rate. The ruckig module is imported on first use.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.errors import UnreachableError
+from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.motion.errors import LimitError, TrajectoryError
+from fourbar_ros.motion.limits import JointLimits, worst_violation
+from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, static_efforts
+
+#: ruckig is given the limits times this: its own rounding (seen at ~1e-13 relative) and that of the controller's
+#: jerk at a point (positions over h^3: ~1e-9 relative at h = 10 ms, ~1e-6 at 1 ms) then leave every sampled point
+#: within the limits themselves; the motion is 1e-6 slower than time-optimal.
+PLAN_SHRINK = 1.0 - 1e-6
+
+__all__ = ['PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles', 'plan_motion', 'plan_to_angle',
+           'setpoints', 'trajectory_points']
+
+
+@dataclass(frozen=True)
+class JointMotionState:
+    """Driven-joint state: position rad, velocity rad/s, acceleration rad/s^2."""
+
+    position: float
+    velocity: float = 0.0
+    acceleration: float = 0.0
+
+
+@dataclass(frozen=True)
+class Setpoints:
+    """A setpoint stream: times s from the plan's start (1/control_rate apart, the end included) and positions rad."""
+
+    times: FloatArray
+    positions: FloatArray
+
+
+class Plan:
+    """A planned motion of the driven joint (wraps a ruckig trajectory); times in s from the plan's start."""
+
+    def __init__(self, trajectory: Any) -> None:
+        self._trajectory = trajectory
+        self.duration = float(trajectory.duration)
+
+    def state_at(self, t: float) -> JointMotionState:
+        """Position, velocity and acceleration at time t s (clamped to [0, duration]): where a replan starts."""
+        p, v, a = self._trajectory.at_time(min(max(t, 0.0), self.duration))
+        return JointMotionState(float(p[0]), float(v[0]), float(a[0]))
+
+    def sample(self, times: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Positions, velocities, accelerations at the given times (s, within [0, duration])."""
+        at = self._trajectory.at_time
+        out = np.array([[x[0] for x in at(float(t))] for t in times]).reshape(-1, 3)
+        return out[:, 0], out[:, 1], out[:, 2]
+
+    def switch_times(self) -> FloatArray:
+        """Times (s) where the profile's jerk changes (its phase boundaries, inside (0, duration)): sample points
+        there and each segment between points lies on one cubic piece, which the controller's quintic reproduces."""
+        profile = self._trajectory.profiles[0][0]
+        phases = [*profile.brake.t, *profile.accel.t, *profile.t]
+        t = np.cumsum(phases)
+        return t[(t > 0.0) & (t < self.duration)]
+
+    def position_range(self) -> tuple[float, float]:
+        """Lowest and highest position (rad) over the whole motion."""
+        e = self._trajectory.position_extrema[0]
+        return float(e.min), float(e.max)
+
+
+def _ruckig() -> Any:
+    try:
+        import ruckig  # type: ignore[import-not-found,unused-ignore]  # a compiled module without type stubs
+    except ImportError:
+        raise TrajectoryError('motion planning needs the Python module ruckig: pip install ruckig==0.19.4') from None
+    return ruckig
+
+
+def plan_motion(start: JointMotionState, target: float, limits: JointLimits) -> Plan:
+    """The time-optimal jerk-limited motion from ``start`` to rest at ``target`` (rad), within ``limits``.
+
+    Raises TrajectoryError (one line) for a non-finite state or target, or if ruckig finds no profile.
+    """
+    values = (start.position, start.velocity, start.acceleration, target)
+    if not all(math.isfinite(v) for v in values):
+        raise TrajectoryError(f'non-finite motion input: start {start}, target {target!r} rad')
+    rk = _ruckig()
+    inp = rk.InputParameter(1)
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [start.position], [start.velocity], [
+        start.acceleration]
+    inp.target_position, inp.target_velocity, inp.target_acceleration = [target], [0.0], [0.0]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = ([PLAN_SHRINK * limits.at_rocker(k)] for k in (1, 2, 3))
+    trajectory = rk.Trajectory(1)
+    result = rk.Ruckig(1).calculate(inp, trajectory)
+    if result not in (rk.Result.Working, rk.Result.Finished):
+        raise TrajectoryError(f'no motion from {start} to {target!r} rad within the limits: ruckig says {result}')
+    return Plan(trajectory)
+
+
+def plan_to_angle(cfg: AntennaConfig, limits: JointLimits, start: JointMotionState, theta: float) -> Plan:
+    """The motion to antenna angle theta (rad, within [theta_min, theta_max]) from the driven-joint state ``start``.
+
+    Raises UnreachableError for theta outside the range (the caller applies its reject/clamp policy first) or when
+    the motion would pass beyond the range on the way (the drive cannot stop in time from its current velocity).
+    """
+    if not cfg.theta_min <= theta <= cfg.theta_max:
+        raise UnreachableError(f'theta = {theta!r} rad is outside [theta_min, theta_max] = '
+                               f'[{cfg.theta_min!r}, {cfg.theta_max!r}] rad')
+    q = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max, theta]))
+    plan = plan_motion(start, float(q[2]), limits)
+    lo, hi = plan.position_range()
+    q_lo, q_hi = sorted((float(q[0]), float(q[1])))
+    if lo < q_lo or hi > q_hi:
+        raise UnreachableError(
+            f'the motion to theta = {theta!r} rad passes the driven joint through [{lo!r}, {hi!r}] rad, beyond '
+            f'its range [{q_lo!r}, {q_hi!r}] rad for [theta_min, theta_max]: it cannot stop in time')
+    return plan
+
+
+def driven_angles(cfg: AntennaConfig, theta: FloatArray) -> FloatArray:
+    """The driven rocker's angles (rad) at antenna angles theta (rad)."""
+    angles = cfg.linkage.rocker_angles(theta, cfg.branch)
+    return np.asarray(angles.gamma if cfg.driven is Driven.GAMMA else angles.delta)
+
+
+def _grid(duration: float, step: float) -> FloatArray:
+    """0, step, 2 step, ... and the end (s); a grid time within step / 2 of the end gives way to the end."""
+    if duration <= 0.0:
+        return np.zeros(1)
+    t = np.arange(math.floor(duration / step) + 1) * step
+    return np.append(t[t < duration - 0.5 * step], duration) if duration > 0.5 * step else np.array([0.0, duration])
+
+
+def _merged(grid: FloatArray, switches: FloatArray, gap: float) -> FloatArray:
+    """The grid (s, from 0 to the end) with the switch times added, no two times within gap: a switch time within
+    gap of 0 or of the end is left out (0 and the end stay), a grid time within gap of a switch time gives way to it,
+    and of switch times within gap of each other the first stays. A left-out switch makes its segment inexact; the
+    limit check then judges that segment like any other."""
+    end = grid[-1]
+    kept: list[float] = []
+    for t in np.unique(switches):
+        if gap < t < end - gap and (not kept or t - kept[-1] > gap):
+            kept.append(float(t))
+    sw = np.array(kept)
+    near = np.abs(grid[:, None] - sw[None, :]).min(axis=1, initial=np.inf) <= gap
+    near[0] = near[-1] = False
+    return np.unique(np.concatenate([grid[~near], sw]))
+
+
+def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spacing: float) -> DrivenTrajectory:
+    """The plan as trajectory points ``spacing`` s apart plus its phase boundaries (the end included): positions,
+    velocities, accelerations (quintic segments for the controller, each on one cubic piece of the profile) and the
+    static effort at each pose; the antenna path beside them.
+
+    Every point is checked against the limits (``worst_violation``): LimitError names the worst one, e.g. a pose
+    needing more torque than the motor or the reducer gives, or a start state already over a limit. Segments are at
+    least spacing / 2 long: the controller's jerk at a point comes from positions over h^3, so much shorter segments
+    would turn rounding into jerk. Raises TrajectoryError for a spacing that is not positive or that gives more
+    than max_trajectory_points.
+    """
+    if not (math.isfinite(spacing) and spacing > 0.0):
+        raise TrajectoryError(f'point spacing {spacing!r} s must be finite and positive')
+    if plan.duration / spacing + 2 > cfg.max_trajectory_points:
+        raise TrajectoryError(f'a {plan.duration:.6g} s motion at {spacing!r} s spacing exceeds '
+                              f'max_trajectory_points = {cfg.max_trajectory_points}')
+    times = _merged(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing)
+    q, q_dot, q_ddot = plan.sample(times)
+    theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.branch)
+    theta, other = np.asarray(theta_a), np.asarray(other_a)
+    gamma, delta = (q, other) if cfg.driven is Driven.GAMMA else (other, q)
+    rates = cfg.linkage.rates_at(theta, gamma, delta)
+    g1 = np.asarray(rates.dgamma_dtheta)
+    q1 = g1 if cfg.driven is Driven.GAMMA else np.asarray(rates.ddelta_dtheta)
+    efforts = static_efforts(cfg, theta, gamma, g1, q1)
+    out = DrivenTrajectory(times, q, q_dot, q_ddot, efforts, AntennaTrajectory(times, theta))
+    over = worst_violation(out, limits, cfg)
+    if over is not None:
+        raise LimitError(over.describe())
+    return out
+
+
+def setpoints(cfg: AntennaConfig, plan: Plan, rate: float | None = None) -> Setpoints:
+    """The plan's positions at ``rate`` Hz (default: the configured control_rate), from 0 to the end included."""
+    hz = cfg.control_rate if rate is None else rate
+    if not (math.isfinite(hz) and hz > 0.0):
+        raise TrajectoryError(f'control rate {hz!r} Hz must be finite and positive')
+    if plan.duration * hz + 2 > cfg.max_trajectory_points:
+        raise TrajectoryError(f'a {plan.duration:.6g} s motion at {hz!r} Hz exceeds '
+                              f'max_trajectory_points = {cfg.max_trajectory_points} setpoints')
+    times = _grid(plan.duration, 1.0 / hz)
+    return Setpoints(times, plan.sample(times)[0])

@@ -1,0 +1,267 @@
+"""The motion layer: trajectory conversion, the interpolation-error bound, limits (reject/retime), ruckig planning."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
+from fourbar_ros.core.errors import UnreachableError
+from fourbar_ros.motion.errors import LimitError, TrajectoryError
+from fourbar_ros.motion.limits import JointLimits, enforce_limits, point_magnitudes, worst_violation
+from fourbar_ros.motion.planner import (
+    JointMotionState,
+    driven_angles,
+    plan_motion,
+    plan_to_angle,
+    setpoints,
+    trajectory_points,
+)
+from fourbar_ros.motion.refine import deviation_bounds, refine
+from fourbar_ros.motion.splines import evaluate, hermite_coefficients
+from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, antenna_trajectory, to_driven
+
+CFG = default_config()
+DELTA_CFG = config_from_values({'driven_rocker': 'delta'})
+LIMITS = JointLimits.from_config(CFG)
+
+
+def sine(cfg: AntennaConfig, n: int, duration: float, kind: int = 5, cycles: float = 1.0) -> AntennaTrajectory:
+    """A sine sweep over most of the tilt range: theta, its exact rate and acceleration as the kind asks."""
+    t = np.linspace(0.0, duration, n)
+    mid, amp = 0.5 * (cfg.theta_min + cfg.theta_max), 0.45 * (cfg.theta_max - cfg.theta_min)
+    w = 2.0 * math.pi * cycles / duration
+    return antenna_trajectory(cfg, t, mid + amp * np.sin(w * t), amp * w * np.cos(w * t) if kind > 1 else None,
+                              -amp * w * w * np.sin(w * t) if kind > 3 else None)
+
+
+# ----------------------------------------------------------------------------- conversion
+
+@pytest.mark.parametrize('cfg', [CFG, DELTA_CFG], ids=['gamma', 'delta'])
+def test_conversion_is_the_chain_rule_through_the_core(cfg: AntennaConfig) -> None:
+    a = sine(cfg, 101, 10.0)
+    d = to_driven(cfg, a)
+    link = cfg.linkage
+    gamma_driven = cfg.driven.value == 'gamma'
+    q = link.rocker_angles(a.theta, cfg.branch)
+    rates = link.rocker_rates(a.theta, cfg.branch)
+    second = link.rocker_second_derivatives(a.theta, cfg.branch)
+    q1 = rates.dgamma_dtheta if gamma_driven else rates.ddelta_dtheta
+    q2 = second.d2gamma_dtheta2 if gamma_driven else second.d2delta_dtheta2
+    assert a.theta_dot is not None and a.theta_ddot is not None
+    assert d.velocities is not None and d.accelerations is not None
+    # The same core operations on the same values: identical floats.
+    np.testing.assert_array_equal(d.positions, q.gamma if gamma_driven else q.delta)
+    np.testing.assert_array_equal(d.velocities, q1 * a.theta_dot)
+    # The second derivative of both rockers (the reference here) and of the driven one only (the conversion) may
+    # round differently by a few ulps of each term: within 8 ulps of the terms' magnitudes.
+    terms = np.abs(q2 * a.theta_dot ** 2) + np.abs(q1 * a.theta_ddot)
+    assert np.all(np.abs(d.accelerations - (q2 * a.theta_dot ** 2 + q1 * a.theta_ddot))
+                  <= 8 * np.finfo(float).eps * terms)
+    # Effort by power balance (load / q') against the core's torque_at (load AB sin X / (h sin u)): two roundings
+    # of three factors each, so within 8 ulps relative.
+    core = np.asarray(link.torque_at(a.theta, q.gamma, q.delta, cfg.load_torque, cfg.driven))
+    np.testing.assert_allclose(d.efforts, core, rtol=8 * np.finfo(float).eps, atol=0)
+    assert np.all(d.efforts * q1 * a.theta_dot == pytest.approx(cfg.load_torque * a.theta_dot, rel=1e-14))
+
+
+def test_conversion_keeps_the_fields_given() -> None:
+    for kind, fields in ((1, (False, False)), (3, (True, False)), (5, (True, True))):
+        d = to_driven(CFG, sine(CFG, 11, 1.0, kind))
+        assert (d.velocities is not None, d.accelerations is not None) == fields
+        assert int(d.kind) == kind
+
+
+def test_gravity_load_effort_matches_the_scalar_load_model() -> None:
+    from fourbar_ros.core.loads import solve
+    cfg = config_from_values({'antenna_mass': 2.0, 'com_offset_along': 0.01})
+    d = to_driven(cfg, sine(cfg, 7, 1.0))
+    expected = [float(solve(cfg, float(t)).input_torque) for t in d.antenna.theta]
+    np.testing.assert_allclose(d.efforts, expected, rtol=16 * np.finfo(float).eps)
+
+
+@pytest.mark.parametrize(('args', 'kind', 'match'), [
+    (([], []), TrajectoryError, '^empty trajectory'),
+    (([0.0, 1.0], [0.0]), TrajectoryError, r'^theta: 1 values for 2 points'),
+    (([0.0, 1.0], [0.0, math.nan]), TrajectoryError, r'^theta\[1\] = nan is not finite'),
+    (([0.0, 1.0, 1.0], [0.0, 0.0, 0.0]), TrajectoryError, r'^time not increasing at point 2'),
+    (([-1.0, 1.0], [0.0, 0.0]), TrajectoryError, 'negative'),
+    (([0.0, 1.0], [0.0, 0.5]), UnreachableError, r'^point 1 \(t = 1.0 s\): theta = 0.5 rad'),
+    (([0.0, 1.0], [0.0, 0.0], None, [0.0, 0.0]), TrajectoryError, r'^accelerations without velocities'),
+])
+def test_bad_trajectories_raise_one_line(args: tuple[object, ...], kind: type[Exception], match: str) -> None:
+    with pytest.raises(kind, match=match) as info:
+        antenna_trajectory(CFG, *args)
+    assert '\n' not in str(info.value)
+
+
+def test_too_many_points_are_refused() -> None:
+    cfg = config_from_values({'max_trajectory_points': 10})
+    with pytest.raises(TrajectoryError, match=r'^11 points exceed max_trajectory_points = 10'):
+        antenna_trajectory(cfg, np.arange(11.0), np.zeros(11))
+
+
+# ----------------------------------------------------------------------------- interpolation error
+
+def dense_deviation(cfg: AntennaConfig, d: DrivenTrajectory, samples: int = 1024) -> float:
+    """Largest |Theta(Q(s)) - T(s)| (rad) on a dense sample of every segment: an independent look at the bound."""
+    s = np.linspace(0.0, 1.0, samples + 1)[None, :]
+    q = evaluate(hermite_coefficients(d.times, d.positions, d.velocities, d.accelerations), s)
+    a = d.antenna
+    t = evaluate(hermite_coefficients(a.times, a.theta, a.theta_dot, a.theta_ddot), s)
+    theta, _ = cfg.linkage.from_rocker(q, cfg.driven, cfg.branch)
+    return float(np.max(np.abs(np.asarray(theta) - t)))
+
+
+#: The deviation is computed from two rounded angles near 0.1 rad (from_rocker's and the spline's, each a few
+#: ulps): 1e-15 rad covers that rounding.
+ROUNDING = 1e-15
+
+
+@settings(max_examples=25, deadline=None, derandomize=True)
+@given(kind=st.sampled_from([1, 3, 5]), n=st.integers(2, 8), duration=st.floats(0.5, 30.0),
+       cycles=st.floats(0.1, 2.0), tol_exp=st.floats(-7.0, -3.0), delta=st.booleans())
+def test_refined_trajectories_stay_within_the_tolerance(kind: int, n: int, duration: float, cycles: float,
+                                                         tol_exp: float, delta: bool) -> None:
+    cfg = config_from_values({'trajectory_tolerance': 10.0 ** tol_exp, 'driven_rocker': 'delta' if delta else
+                              'gamma', 'max_trajectory_points': 100000})
+    d = to_driven(cfg, sine(cfg, n, duration, kind, cycles))
+    r = refine(cfg, d)
+    assert r.bound <= cfg.trajectory_tolerance
+    assert dense_deviation(cfg, r.trajectory) <= cfg.trajectory_tolerance + ROUNDING
+    assert r.inserted == len(r.trajectory) - n
+    # The request is unchanged: the original points are still there and the inserted ones lie on its path.
+    assert np.isin(d.times, r.trajectory.times).all()
+
+
+def test_unrefined_trajectories_do_exceed_the_tolerance() -> None:
+    """The property above is not vacuous: the controller's interpolation of the raw conversion leaves the path."""
+    cfg = config_from_values({'trajectory_tolerance': 1e-6})
+    for kind in (1, 3, 5):
+        d = to_driven(cfg, sine(cfg, 5, 10.0, kind))
+        assert dense_deviation(cfg, d) > cfg.trajectory_tolerance
+        assert np.max(deviation_bounds(cfg, d)) >= dense_deviation(cfg, d)
+
+
+def test_refinement_is_bounded_by_max_points() -> None:
+    cfg = config_from_values({'trajectory_tolerance': 1e-9, 'max_trajectory_points': 20})
+    with pytest.raises(TrajectoryError, match='refining needs more than max_trajectory_points = 20'):
+        refine(cfg, to_driven(cfg, sine(cfg, 4, 10.0, 1)))
+
+
+# ----------------------------------------------------------------------------- limits
+
+def fast(kind: int = 5) -> DrivenTrajectory:
+    """A sweep of the tilt range in 0.5 s: far over the motor's speed, acceleration and jerk."""
+    return to_driven(CFG, sine(CFG, 41, 0.5, kind))
+
+
+def test_reject_names_the_worst_point() -> None:
+    with pytest.raises(LimitError, match=r'^point \d+ \(t = [0-9.e-]+ s\): motor \w+ [0-9.e+]+ rad/s\S* exceeds '
+                                         r'its limit [0-9.e+]+ rad/s\S* by [0-9.e+]+ rad/s\S* \([0-9.e+]+%\)$'):
+        enforce_limits(fast(), LIMITS, CFG, 'reject')
+
+
+@pytest.mark.parametrize('kind', [1, 3, 5])
+def test_retime_brings_every_point_within_the_limits(kind: int) -> None:
+    d = fast(kind)
+    assert worst_violation(d, LIMITS, CFG) is not None
+    out = enforce_limits(d, LIMITS, CFG, 'retime')
+    assert worst_violation(out, LIMITS, CFG) is None
+    # Checked directly too: every point's own velocity and acceleration, and the controller's one-sided values.
+    n = LIMITS.ratio
+    if out.velocities is not None:
+        assert np.all(n * np.abs(out.velocities) <= LIMITS.motor_speed)
+    if out.accelerations is not None:
+        assert np.all(n * np.abs(out.accelerations) <= LIMITS.motor_acceleration)
+    for order, values in point_magnitudes(out).items():
+        assert np.all(n * values <= LIMITS.motor(order))
+    # The smallest factor: some limit is reached to within the retiming's rounding.
+    ratios = [float(np.max(n * v)) / LIMITS.motor(o) for o, v in point_magnitudes(out).items()]
+    assert max(ratios) > 1.0 - 1e-9
+    np.testing.assert_array_equal(out.positions, d.positions)
+    np.testing.assert_array_equal(out.efforts, d.efforts)
+
+
+def test_torque_over_its_limit_is_rejected_under_both_policies() -> None:
+    cfg = config_from_values({'motor_torque_limit': 0.001})
+    d = to_driven(cfg, sine(cfg, 11, 100.0))
+    for policy in ('reject', 'retime'):
+        with pytest.raises(LimitError, match=r'motor torque .* a static torque does not depend on timing$'):
+            enforce_limits(d, JointLimits.from_config(cfg), cfg, policy)  # type: ignore[arg-type]
+
+
+def test_a_slow_trajectory_passes_unchanged() -> None:
+    d = to_driven(CFG, sine(CFG, 41, 200.0))
+    assert enforce_limits(d, LIMITS, CFG, 'reject') is d
+
+
+# ----------------------------------------------------------------------------- planning
+
+#: ruckig has no rosdep key (pip only, docs/motion.md): the planning tests skip where it is missing.
+needs_ruckig = pytest.mark.skipif(importlib.util.find_spec('ruckig') is None, reason='ruckig not installed (pip only)')
+Q_MIN, Q_MAX = (float(v) for v in driven_angles(CFG, np.array([CFG.theta_min, CFG.theta_max])))
+
+
+@needs_ruckig
+def test_plan_reaches_the_target_within_the_limits() -> None:
+    plan = plan_to_angle(CFG, LIMITS, JointMotionState(Q_MIN), CFG.theta_max)
+    end = plan.state_at(plan.duration)
+    assert end.position == pytest.approx(Q_MAX, abs=1e-12) and end.velocity == pytest.approx(0.0, abs=1e-12)
+    points = trajectory_points(CFG, LIMITS, plan, 0.05)
+    assert worst_violation(points, LIMITS, CFG) is None
+    assert points.times[0] == 0.0 and points.times[-1] == plan.duration
+    assert np.all(np.diff(points.times) >= 0.025)
+    theta = np.asarray(points.antenna.theta)
+    assert theta[0] == pytest.approx(CFG.theta_min, abs=1e-12) and theta[-1] == pytest.approx(CFG.theta_max, abs=1e-12)
+    stream = setpoints(CFG, plan)
+    assert np.allclose(np.diff(stream.times)[:-1], 1.0 / CFG.control_rate)
+    assert stream.positions[-1] == pytest.approx(Q_MAX, abs=1e-12)
+    assert np.all(LIMITS.ratio * np.abs(np.diff(stream.positions) / np.diff(stream.times)) <= LIMITS.motor_speed)
+
+
+@needs_ruckig
+@pytest.mark.parametrize('at', [0.3, 1.0, 2.5])
+def test_replanning_mid_motion_has_no_jump(at: float) -> None:
+    first = plan_to_angle(CFG, LIMITS, JointMotionState(Q_MIN), CFG.theta_max)
+    state = first.state_at(at)
+    second = plan_to_angle(CFG, LIMITS, state, 0.0)
+    start = second.state_at(0.0)
+    # ruckig starts from the state it is given: position, velocity and acceleration continue exactly (up to its
+    # evaluation at t = 0, a few ulps).
+    assert start.position == pytest.approx(state.position, abs=1e-15)
+    assert start.velocity == pytest.approx(state.velocity, abs=1e-18)
+    assert start.acceleration == pytest.approx(state.acceleration, abs=1e-17)
+    # ... and stay continuous just after the switch: bounded by the jerk limit over a short time.
+    dt = 1e-4
+    after = second.state_at(dt)
+    j = LIMITS.at_rocker(3)
+    assert abs(after.acceleration - state.acceleration) <= j * dt * (1 + 1e-9)
+    assert abs(after.velocity - state.velocity) <= (abs(state.acceleration) + j * dt) * dt * (1 + 1e-9)
+    points = trajectory_points(CFG, LIMITS, second, 0.05)
+    assert worst_violation(points, LIMITS, CFG) is None
+
+
+@needs_ruckig
+def test_plans_that_cannot_stop_within_the_range_are_refused() -> None:
+    fast_start = JointMotionState(Q_MAX - 1e-3, 0.9 * LIMITS.at_rocker(1))
+    with pytest.raises(UnreachableError, match='cannot stop in time'):
+        plan_to_angle(CFG, LIMITS, fast_start, CFG.theta_max)
+
+
+@needs_ruckig
+def test_planner_bad_input() -> None:
+    with pytest.raises(TrajectoryError, match=r'^non-finite motion input'):
+        plan_motion(JointMotionState(math.nan), 0.8, LIMITS)
+    with pytest.raises(UnreachableError, match='outside'):
+        plan_to_angle(CFG, LIMITS, JointMotionState(Q_MIN), 0.5)
+    plan = plan_motion(JointMotionState(Q_MIN), Q_MAX, LIMITS)
+    with pytest.raises(TrajectoryError, match='max_trajectory_points'):
+        trajectory_points(CFG, LIMITS, plan, 1e-5)
+    with pytest.raises(TrajectoryError, match='positive'):
+        trajectory_points(CFG, LIMITS, plan, 0.0)
