@@ -120,6 +120,7 @@ class Reach:
 
     theta_gap: float
     theta_max: float
+    name: str = 'theta'  #: the angle's name in messages (a rocker's reach names the rocker)
 
     def contains(self, theta: float) -> bool:
         """True if theta (radians, finite) is reachable; NaN and inf are not."""
@@ -135,7 +136,7 @@ class Reach:
 
         if self.theta_gap == 0.0:
             return f'[{fmt(-self.theta_max)}, {fmt(self.theta_max)}]'
-        return f'{fmt(self.theta_gap)} <= |theta| <= {fmt(self.theta_max)}'
+        return f'{fmt(self.theta_gap)} <= |{self.name}| <= {fmt(self.theta_max)}'
 
 
 @dataclass(frozen=True)
@@ -425,14 +426,20 @@ class AntennaLinkage:
 
     # ---------------------------------------------------------------- inverse
 
+    def rocker_reach(self, driven: Driven = Driven.GAMMA) -> Reach:
+        """The angles (rad, modulo 2 pi) the given rocker can take: its gap and maximum, named after the rocker."""
+        gap, top = self._rocker_dyad(driven)[2]
+        return Reach(theta_gap=gap, theta_max=top, name=driven.value)
+
     def from_rocker(self, q: ArrayLike, driven: Driven = Driven.GAMMA,
-                    branch: Branch = Branch.UPPER) -> InverseSolution:
+                    branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> InverseSolution:
         """Antenna angle and the other rocker's angle (radians) from a measured rocker angle q (radians).
 
         The motor side knows its rocker; this is the four-bar with that rocker as the crank. Branch.UPPER puts C
         to the left of the line from B to D when gamma is measured (B to the left of C to A when delta is), which
         is the annex's working pose; Branch.LOWER is the crossed pose. Raises UnreachableError if the rocker cannot
-        take q (for arrays: if any element cannot).
+        take q (NaN, inf or outside rocker_reach(driven); for arrays: if any element cannot, unless on_invalid='nan',
+        which gives NaN there).
         """
         # The four-bar with the measured rocker as crank: its diagonal (rocker end -> other pivot) is the dyad's
         # P -> Q with x = -q; the dyad's angle at P is the coupler's direction from +x (-theta with AB as the crank,
@@ -451,7 +458,7 @@ class AntennaLinkage:
             return InverseSolution(_wrap(sign * coupler_dir), _wrap(other))
         qa = np.asarray(q, dtype=np.float64)
         try:
-            coupler_a, other_a = closure_array(k, np.negative(qa), which, 'raise')
+            coupler_a, other_a = closure_array(k, np.negative(qa), which, on_invalid)
         except DyadOpenError:
             bad = ~closes(k, np.negative(qa))
             raise UnreachableError(
