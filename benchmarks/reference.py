@@ -14,7 +14,8 @@ A, D', B by its angles instead: a different route to the same pose.)
 Every float input (lengths, theta) is taken as an exact binary number; results lie in (-pi, pi] and are handed
 to float code as double-double pairs (hi, lo) so that errors far below one ulp can be measured.
 The condition number and :func:`rates_mp` use the implicit-function derivatives of the same loop equations;
-:func:`rates_numeric_mp` differentiates the angles numerically instead (an independent check of both).
+:func:`rates_numeric_mp` differentiates the angles numerically instead (an independent check of both); so do
+:func:`second_derivatives_mp` and :func:`second_derivatives_numeric_mp` for the second derivatives.
 """
 
 from __future__ import annotations
@@ -233,6 +234,40 @@ def rates_numeric_mp(g: Geometry, theta: float, branch: int = 1, limit_slack: fl
         dg, dd = mpmath.diff(part(0), x), mpmath.diff(part(1), x)
     with mpmath.workdps(dps):
         return +dg, +dd
+
+
+def second_derivatives_numeric_mp(g: Geometry, theta: float, branch: int = 1, limit_slack: float = 0.0,
+                                  dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """(d2 gamma/d theta2, d2 delta/d theta2) in rad/rad^2 by numerical differentiation of the angles (as
+    :func:`rates_numeric_mp`); mpmath.diff's step shrinks with the precision, so it stays inside the reach for a
+    theta far closer to the limit than 1e-20 of it."""
+    def part(i: int) -> Callable[[mpmath.mpf], mpmath.mpf]:
+        return lambda t: _angles(g, t, branch, limit_slack)[i]
+
+    with mpmath.workdps(dps + 20):
+        x = mpmath.mpf(theta)
+        d2g, d2d = mpmath.diff(part(0), x, 2), mpmath.diff(part(1), x, 2)
+    with mpmath.workdps(dps):
+        return +d2g, +d2d
+
+
+def second_derivatives_mp(g: Geometry, theta: float, branch: int = 1) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """The same by the implicit-function theorem: differentiating F1, F2 (see :func:`condition`) twice gives
+    J (g'', d'') = (a g'^2 cos g + b d'^2 cos d + h cos t, a g'^2 sin g - b d'^2 sin d - h sin t)
+    with the Jacobian J = [[-a sin g, -b sin d], [a cos g, -b cos d]] (determinant a b sin(g + d))."""
+    gm, dm = rocker_angles_mp(g, theta, branch)
+    with mpmath.workdps(DPS):
+        _, a, h, b = _mp_lengths(g)
+        t = mpmath.mpf(theta)
+        det = a * b * mpmath.sin(gm + dm)
+        v1, v2 = -h * mpmath.sin(t), -h * mpmath.cos(t)  # minus dF/dt
+        dg = b * (mpmath.cos(dm) * v1 - mpmath.sin(dm) * v2) / det
+        dd = a * (mpmath.cos(gm) * v1 + mpmath.sin(gm) * v2) / det
+        w1 = -(a * dg**2 * mpmath.cos(gm) + b * dd**2 * mpmath.cos(dm) + h * mpmath.cos(t))  # minus the right side
+        w2 = -(a * dg**2 * mpmath.sin(gm) - b * dd**2 * mpmath.sin(dm) - h * mpmath.sin(t))
+        d2g = b * (mpmath.cos(dm) * w1 - mpmath.sin(dm) * w2) / det
+        d2d = a * (mpmath.cos(gm) * w1 + mpmath.sin(gm) * w2) / det
+        return d2g, d2d
 
 
 def angle_error_mp(value: float, ref: mpmath.mpf) -> float:

@@ -36,14 +36,19 @@ def _numeric(action: argparse.Action) -> type | None:
     return type(value) if type(value) in (int, float) else None
 
 
-def _required(parser: argparse.ArgumentParser) -> list[str]:
-    """Arguments that make a parse succeed: a placeholder for each positional, a 0 for each required option."""
+def _required(parser: argparse.ArgumentParser, option: str) -> list[str]:
+    """Arguments that make a parse succeed with ``option`` added: a placeholder for each positional, a 0 for each
+    required option and for the first of each required group of exclusive options (none if ``option`` is in it)."""
     argv: list[str] = []
     for a in parser._actions:
         if not a.option_strings and a.nargs != argparse.PARSER and a.dest != 'help':
             argv.append('placeholder')
         elif a.required:
             argv += [a.option_strings[0], '0']
+    for group in parser._mutually_exclusive_groups:
+        members = [a.option_strings[0] for a in group._group_actions]
+        if group.required and option not in members:
+            argv += [members[0], '0']
     return argv
 
 
@@ -61,7 +66,7 @@ def test_every_command_with_numbers_is_covered() -> None:
 @pytest.mark.parametrize(('command', 'option', 'dest', 'kind'), NUMERIC_OPTIONS)
 def test_negative_values_of_every_numeric_option(command: str, option: str, dest: str, kind: type) -> None:
     texts = ['-2', '-0', '-007'] if kind is int else ['-6e-1', '-0.5', '-.5', '-5', '-1E+3', '-inf', '-2.5e-300']
-    base = _required(subparsers()[command])
+    base = _required(subparsers()[command], option)
     for text in texts:
         argv = [command, *[t for t in base if t != option], option, text]
         if option in base:  # a required option: give it only once

@@ -15,8 +15,16 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from mpmath import mpf
+from ulp_bounds import second_derivative_scales
 
-from benchmarks.reference import Geometry, rates_numeric_mp, reach_mp, rocker_angles_mp
+from benchmarks.reference import (
+    Geometry,
+    rates_numeric_mp,
+    reach_float,
+    reach_mp,
+    rocker_angles_mp,
+    second_derivatives_numeric_mp,
+)
 from benchmarks.reference import angle_error_mp as angle_error
 from fourbar_ros import AntennaLinkage, Branch, InvalidGeometryError, SingularPositionError
 
@@ -69,6 +77,42 @@ def check(link: AntennaLinkage, theta: float, branch: Branch = Branch.UPPER) -> 
     assert angle_error(float(ga[0]), g_ref) <= BOUND * EPS * cg
     assert angle_error(float(da[0]), d_ref) <= BOUND * EPS * cd
     return max(eg / (EPS * cg), ed / (EPS * cd))
+
+
+def geometry(link: AntennaLinkage) -> Geometry:
+    return Geometry('link', link.frame, link.rocker_ab, link.coupler, float(link.rocker_cd or 0))
+
+
+def check_second(link: AntennaLinkage, theta: float, branch: Branch = Branch.UPPER) -> float:
+    """Assert the bound for the second derivatives at one pose (scalar and array paths, each from its own angles);
+    return the worst error in units of its bound's eps (0 where both paths' pose is the limit's own,
+    sin(gamma + delta) == 0, which each path must report).
+
+    The reference differentiates the 60-digit angles numerically (benchmarks.reference). The bound is BOUND ulps
+    of ulp_bounds.second_derivative_scales: the angles' condition-weighted magnitudes carried through the
+    closed form, plus its terms' rounding.
+    """
+    ref = second_derivatives_numeric_mp(geometry(link), theta, int(branch), limit_slack=LIMIT_SLACK)
+    g, d = link.rocker_angles(theta, branch)
+    ga, da = link.rocker_angles(np.array([theta]), branch)
+    worst = 0.0
+    for path, (gp, dp) in (('scalar', (g, d)), ('array', (float(ga[0]), float(da[0])))):
+        if math.sin(gp + dp) == 0.0:  # the limit itself: unbounded, reported (the reference is huge but finite)
+            if path == 'scalar':
+                with pytest.raises(SingularPositionError, match='reach limit'):
+                    link.rocker_second_derivatives(theta, branch)
+            else:
+                assert np.isnan(link.rocker_second_derivatives(np.array([theta]), branch)).all()
+            continue
+        got = (link.rocker_second_derivatives(theta, branch) if path == 'scalar' else
+               [float(v[0]) for v in link.rocker_second_derivatives(np.array([theta]), branch)])
+        scales = second_derivative_scales(link.rocker_ab, float(link.rocker_cd or 0), link.coupler, theta, gp, dp,
+                                          *condition(link, theta, gp, dp))
+        for name, value, want, scale in zip(('d2gamma', 'd2delta'), got, ref, scales, strict=True):
+            err = float(abs(mpf(value) - want)) / (EPS * float(scale))
+            assert err <= BOUND, (link, theta, branch, path, name, value, float(want), err)
+            worst = max(worst, err)
+    return worst
 
 
 def random_links(seed: int, n: int, low: float = 0.05, high: float = 2.0) -> list[AntennaLinkage]:
@@ -230,3 +274,58 @@ def test_annex_formula_fails_the_same_bound() -> None:
             domain_errors += 1
         assert all(math.isfinite(v) for v in link.rocker_angles(limit))
     assert domain_errors > 0
+
+
+# ---------------------------------------------------------------- second derivatives
+
+
+def test_second_derivatives_random_geometries_both_branches() -> None:
+    rng = np.random.default_rng(21)
+    for link in random_links(2, 30):
+        r = link.reach()
+        for _ in range(3):
+            mag = rng.uniform(r.theta_gap, r.theta_max) * 0.999 + r.theta_gap * 0.001
+            theta = float(mag * rng.choice([-1.0, 1.0]))
+            for branch in Branch:
+                check_second(link, theta, branch)
+
+
+@pytest.mark.parametrize('digits', [1, 3, 6, 9, 12, 15])
+def test_second_derivatives_toward_the_reach_limit(digits: int) -> None:
+    # As test_toward_the_reach_limit: 10^-digits inside the exact outer limit, where they grow as 1/sin^3.
+    for link in [AntennaLinkage(0.180, 0.060, 0.102), *random_links(100 + digits, 4)]:
+        limit = reach_mp(geometry(link))[1]
+        theta = float(limit * (1 - mpf(10) ** -digits))
+        if theta < link.reach().theta_gap:
+            continue
+        for branch in Branch:
+            check_second(link, theta, branch)
+            check_second(link, -theta, branch)
+
+
+@pytest.mark.parametrize('digits', [1, 3, 6, 9, 12])
+def test_second_derivatives_toward_the_gap_limit(digits: int) -> None:
+    # Rockers that differ by more than |frame - coupler| fold flat at theta_gap: gamma + delta -> pi, where the
+    # closed form's terms AB g'^2 cos X and CD d'^2 would cancel (the more so the closer the rockers' lengths).
+    for link in (AntennaLinkage(1.0, 0.5, 0.9, 0.3), AntennaLinkage(1.0, 0.5, 1.0 - 1e-6, 0.5 - 1e-3),
+                 AntennaLinkage(0.4, 0.2, 0.45, 0.26)):
+        gap = reach_mp(geometry(link))[0]
+        assert gap > 0
+        theta = float(gap * (1 + mpf(10) ** -digits))
+        for branch in Branch:
+            check_second(link, theta, branch)
+
+
+def test_second_derivatives_at_the_limit_floats() -> None:
+    # The last float inside the exact limit, the package's own limit float and their neighbours inside: either the
+    # pose is the limit's own (reported) or the values meet the bound (which there allows no correct digit).
+    seen_limit = 0
+    for link in [AntennaLinkage(0.180, 0.060, 0.102), *random_links(7, 12)]:
+        for start in {reach_float(geometry(link))[1], link.reach().theta_max}:
+            t = start
+            for _ in range(3):
+                if link.reach().contains(t) and t <= reach_float(geometry(link))[1]:
+                    check_second(link, t)
+                    seen_limit += math.sin(sum(link.rocker_angles(t))) == 0.0  # the scalar (math module) path
+                t = math.nextafter(t, 0.0)
+    assert seen_limit > 0  # the limit's own pose is among them (sin(gamma + delta) rounds to 0 there)

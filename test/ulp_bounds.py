@@ -81,3 +81,40 @@ def sine_ratio_scale(coef: ArrayLike, num_angle: ArrayLike, num_scale: ArrayLike
         v = np.abs(np.asarray(coef) * np.sin(n) / sin_d)
         return (v * (1.0 + np.asarray(den_scale) * np.abs(np.cos(d) / sin_d))
                 + np.asarray(num_scale) * np.abs(np.asarray(coef) * np.cos(n) / sin_d))
+
+
+def second_derivative_scales(ab: float, cd: float, coupler: float, theta: ArrayLike, gamma: ArrayLike,
+                             delta: ArrayLike, gamma_scale: ArrayLike,
+                             delta_scale: ArrayLike) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Scales (rad/rad^2) of d2 gamma/d theta2 and d2 delta/d theta2 computed from angles accurate to the given
+    scales (rad): the loop differentiated twice, q'' = F_q(theta, gamma, delta) with
+
+        AB sin X g'' = -(h cos(delta - theta) + AB g'^2 cos X + CD d'^2),  CD sin X d'' = -(h cos(gamma + theta)
+        + AB g'^2 + CD d'^2 cos X),  X = gamma + delta, g' and d' the rates (themselves functions of the angles).
+
+    Angles n ulps of their scales off move q'' by n ulps of |dF_q/dgamma| gamma_scale + |dF_q/ddelta| delta_scale;
+    q'''s own rounding is a few ulps of its terms' magnitudes (sum |term| / |AB sin X|). The partial derivatives
+    are taken by complex step (F at gamma + i e: Im / e is the derivative to rounding, with no difference taken).
+    Near the reach limit sin X -> 0 and the angle errors are amplified by about 3 |cot X| |q''|.
+    """
+    t, g, d = (np.asarray(v, dtype=np.complex128) for v in (theta, gamma, delta))
+    step = 1e-60
+
+    def second(g_: npt.NDArray[np.complex128], d_: npt.NDArray[np.complex128]
+               ) -> tuple[npt.NDArray[np.complex128], ...]:
+        s, c = np.sin(g_ + d_), np.cos(g_ + d_)
+        g1 = coupler * np.sin(d_ - t) / (ab * s)
+        d1 = -coupler * np.sin(g_ + t) / (cd * s)
+        terms_g = (coupler * np.cos(d_ - t), ab * g1 * g1 * c, cd * d1 * d1)
+        terms_d = (coupler * np.cos(g_ + t), ab * g1 * g1, cd * d1 * d1 * c)
+        return (-sum(terms_g) / (ab * s), -sum(terms_d) / (cd * s),
+                sum(np.abs(v) for v in terms_g) / np.abs(ab * s), sum(np.abs(v) for v in terms_d) / np.abs(cd * s))
+
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+        _, _, round_g, round_d = second(g, d)
+        by_g = second(g + 1j * step, d)
+        by_d = second(g, d + 1j * step)
+        sg, sd = np.abs(np.asarray(gamma_scale)), np.abs(np.asarray(delta_scale))
+        scale_g = (np.abs(by_g[0].imag) * sg + np.abs(by_d[0].imag) * sd) / step + round_g.real
+        scale_d = (np.abs(by_g[1].imag) * sg + np.abs(by_d[1].imag) * sd) / step + round_d.real
+    return scale_g, scale_d

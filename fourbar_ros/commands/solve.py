@@ -1,4 +1,5 @@
-"""`fourbar solve`: rocker angles, rates, mechanical advantage and input torque at one antenna angle."""
+"""`fourbar solve`: rocker angles, rates and their derivatives, mechanical advantage and input torque at one antenna
+angle, or at the pose a measured rocker angle completes."""
 
 from __future__ import annotations
 
@@ -13,16 +14,22 @@ from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.errors import DeadPointError, FourBarError, SingularPositionError, UnreachableError
 from fourbar_ros.node.command_policy import angle_text, out_of_reach_text
 
-HELP = 'solve the linkage at one antenna angle: rocker angles, rates, mechanical advantage, input torque'
+HELP = ('solve the linkage at one antenna angle (or a measured rocker angle): rocker angles, rates, second '
+        'derivatives, mechanical advantage, input torque')
 
 _GEOMETRY_FLAGS = ('frame', 'rocker', 'rocker_cd', 'coupler')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `fourbar solve`."""
-    parser.add_argument('--theta', type=float, required=True, help='antenna angle (rad; deg with --deg), '
-                        'positive tilts the antenna down')
-    parser.add_argument('--deg', action='store_true', help='--theta is in degrees')
+    given = parser.add_mutually_exclusive_group(required=True)
+    given.add_argument('--theta', type=float, help='antenna angle (rad; deg with --deg), positive tilts the antenna '
+                       'down')
+    for rocker in Driven:
+        given.add_argument(f'--{rocker.value}', type=float, metavar='V',
+                           help=f'measured {rocker.value} rocker angle (rad; deg with --deg): the pose it completes '
+                           '(on --branch, as from_rocker counts branches)')
+    parser.add_argument('--deg', action='store_true', help='the given angle is in degrees')
     parser.add_argument('--params', metavar='YAML', help='ROS parameter file (e.g. config/antenna.yaml); '
                         'default: the built-in Turnantenna configuration')
     parser.add_argument('--frame', type=float, metavar='H', help='frame AD length (m)')
@@ -64,28 +71,49 @@ def _configuration(args: argparse.Namespace) -> tuple[AntennaConfig, AntennaLink
     return (replace(cfg, **overrides) if overrides else cfg), linkage  # type: ignore[arg-type]
 
 
-_KEYS = ('theta', 'gamma', 'delta', 'dgamma_dtheta', 'ddelta_dtheta', 'input_torque', 'mechanical_advantage',
-         'transmission_angle')
+_KEYS = ('theta', 'gamma', 'delta', 'dgamma_dtheta', 'ddelta_dtheta', 'd2gamma_dtheta2', 'd2delta_dtheta2',
+         'input_torque', 'mechanical_advantage', 'transmission_angle')
+_RATES = ('dgamma_dtheta', 'ddelta_dtheta', 'd2gamma_dtheta2', 'd2delta_dtheta2', 'mechanical_advantage')
 
 
-def _solve(linkage: AntennaLinkage, theta: float, cfg: AntennaConfig) -> tuple[dict[str, float | None], dict[str, str]]:
-    """Every quantity of `_KEYS` (None where it has no finite value) and, for each None, why.
+def _pose(linkage: AntennaLinkage, args: argparse.Namespace, cfg: AntennaConfig) -> tuple[float, float, float]:
+    """(theta, gamma, delta) in rad from --theta, or completed from a measured --gamma / --delta on cfg.branch.
+
+    Raises FourBarError if theta is out of reach (as a number: angles are not wrapped), if the rocker cannot take
+    the measured angle (the message names the value and the rocker's range), or if the angle is not finite.
+    """
+    measured = next((d for d in Driven if getattr(args, d.value) is not None), None)
+    value = args.theta if measured is None else getattr(args, measured.value)
+    value = math.radians(value) if args.deg else value
+    if measured is None:
+        if math.isfinite(value) and abs(value) > math.pi:  # the core would wrap it (its theta is periodic)
+            raise UnreachableError(f'theta={angle_text(value)} {out_of_reach_text(linkage.reach(), value)}')
+        gamma, delta = linkage.rocker_angles(value, cfg.branch)
+        return value, float(gamma), float(delta)
+    theta, other = linkage.from_rocker(value, measured, cfg.branch)
+    return (float(theta), value, float(other)) if measured is Driven.GAMMA else (float(theta), float(other), value)
+
+
+def _solve(linkage: AntennaLinkage, pose: tuple[float, float, float],
+           cfg: AntennaConfig) -> tuple[dict[str, float | None], dict[str, str]]:
+    """Every quantity of `_KEYS` at the pose (theta, gamma, delta in rad; None where it has no finite value) and,
+    for each None, why.
 
     The pose exists wherever the linkage reaches (also at the reach limit, where the rockers are in line); only the
-    rates (and the mechanical advantage, a rate) are unbounded there, and the torque is unbounded at a dead point.
-    Raises FourBarError if theta is out of reach (as a number: angles are not wrapped) or not finite.
+    rates, their derivatives and the mechanical advantage (a rate) are unbounded there, and the torque is unbounded
+    at a dead point.
     """
-    if math.isfinite(theta) and abs(theta) > math.pi:  # the core would wrap it (its theta is periodic)
-        raise UnreachableError(f'theta={angle_text(theta)} {out_of_reach_text(linkage.reach(), theta)}')
-    gamma, delta = linkage.rocker_angles(theta, cfg.branch)
-    values: dict[str, float | None] = {'theta': theta, 'gamma': float(gamma), 'delta': float(delta)}
+    theta, gamma, delta = pose
+    values: dict[str, float | None] = {'theta': theta, 'gamma': gamma, 'delta': delta}
     reasons: dict[str, str] = {}
     try:
         rates = linkage.rates_at(theta, gamma, delta)
+        second = linkage.second_derivatives_at(theta, gamma, delta, rates)
         values['dgamma_dtheta'], values['ddelta_dtheta'] = float(rates[0]), float(rates[1])
+        values['d2gamma_dtheta2'], values['d2delta_dtheta2'] = float(second[0]), float(second[1])
         values['mechanical_advantage'] = values['dgamma_dtheta' if cfg.driven is Driven.GAMMA else 'ddelta_dtheta']
     except SingularPositionError:
-        for key in ('dgamma_dtheta', 'ddelta_dtheta', 'mechanical_advantage'):
+        for key in _RATES:
             values[key] = None
             reasons[key] = 'unbounded: theta is at the reach limit (the rockers are parallel)'
     try:
@@ -108,8 +136,9 @@ def run(args: argparse.Namespace) -> int:
     JSON is strict (no NaN or Infinity): a quantity without a finite value is null and ``null_reasons`` says why.
     """
     cfg, linkage = _configuration(args)
-    theta = math.radians(args.theta) if args.deg else args.theta
-    values, reasons = _solve(linkage, theta, cfg)
+    pose = _pose(linkage, args, cfg)
+    theta = pose[0]
+    values, reasons = _solve(linkage, pose, cfg)
     warn_unknown_parameters('fourbar solve', args.params)
     if args.json:
         print(json.dumps({**values, 'load_torque': cfg.load_torque, 'driven': cfg.driven.value,
@@ -122,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
         if value is None:
             print(f'{key:>22}: none ({reasons[key]})')
             continue
-        unit = ' N m' if key == 'input_torque' else (' rad' if key in deg else '')
+        unit = ' N m' if key == 'input_torque' else ' rad' if key in deg else ' /rad' if key.startswith('d2') else ''
         extra = f'  ({math.degrees(value):.12f} deg)' if key in deg else ''
         print(f'{key:>22}: {value!r}{unit}{extra}')
     print(f'{"load_torque":>22}: {cfg.load_torque!r} N m (about theta)')

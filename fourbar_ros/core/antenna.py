@@ -120,6 +120,7 @@ class Reach:
 
     theta_gap: float
     theta_max: float
+    name: str = 'theta'  #: the angle's name in messages (a rocker's reach names the rocker)
 
     def contains(self, theta: float) -> bool:
         """True if theta (radians, finite) is reachable; NaN and inf are not."""
@@ -135,7 +136,7 @@ class Reach:
 
         if self.theta_gap == 0.0:
             return f'[{fmt(-self.theta_max)}, {fmt(self.theta_max)}]'
-        return f'{fmt(self.theta_gap)} <= |theta| <= {fmt(self.theta_max)}'
+        return f'{fmt(self.theta_gap)} <= |{self.name}| <= {fmt(self.theta_max)}'
 
 
 @dataclass(frozen=True)
@@ -301,23 +302,17 @@ class AntennaLinkage:
 
     def _second(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike, rates: RockerRates | None,
                 want_g: bool, want_d: bool) -> tuple[ArrayLike | None, ArrayLike | None]:
-        r"""The loop differentiated twice. With u = delta - theta, v = gamma + theta, X = gamma + delta, rates g', d':
+        r"""The loop differentiated twice. With X = gamma + delta and the rates g', d':
 
-            AB g'' sin X = -(h cos u + AB g'^2 cos X + CD d'^2)      = -N_g
-            CD d'' sin X = -(h cos v + AB g'^2 + CD d'^2 cos X)      = -N_d
+            AB g'' sin X = -(h cos(delta - theta) + AB g'^2 cos X + CD d'^2)
+            CD d'' sin X = -(h cos(gamma + theta) + AB g'^2 + CD d'^2 cos X)
 
-        For cos X >= 0 every term after h cos u (h cos v) is >= 0. For cos X < 0, where AB g'^2 cos X and CD d'^2
-        cancel as X -> pi (exactly so with equal rockers), cos X = 2 cos^2(X/2) - 1,
-        AB g'^2 = h^2 sin^2 u / (AB sin^2 X), CD d'^2 = h^2 sin^2 v / (CD sin^2 X) and
-        sin^2 v - sin^2 u = sin(v - u) sin X give:
-
-            N_g = h cos u + 2 AB g'^2 cos^2(X/2) + (AB - CD) CD d'^2 / AB + h^2 sin(v - u) / (AB sin X)
-            N_d = h cos v + 2 CD d'^2 cos^2(X/2) + (CD - AB) AB g'^2 / CD - h^2 sin(v - u) / (CD sin X)
-
-        (AB - CD is exact: a difference of two floats within a factor 2, or else not cancelling).
+        For cos X < 0 the terms can cancel (as X -> pi, the rockers folding), but not beyond the condition: their
+        rounding acts as a relative eps on the lengths, and near either limit it stays below the effect of the
+        angles' own rounding on sin X (relative 3 eps / |sin X|). test_core_precision holds both paths to 8 ulps of
+        that condition against the 60-digit reference, at either limit and near it.
         """
         a, b, h = self.rocker_ab, self._cd, self.coupler
-        ab_diff = a - b
         if rates is None:
             rates = self.rates_at(theta, gamma, delta)
         g1, d1 = rates
@@ -329,39 +324,21 @@ class AntennaLinkage:
                     f'theta={theta!r} rad is at the reach limit: the rocker second derivatives are unbounded there')
             cx = math.cos(x)
             ag, bd = a * g1 * g1, b * d1 * d1
-            if cx >= 0.0:
-                ng = h * math.cos(delta - theta) + ag * cx + bd if want_g else 0.0
-                nd = h * math.cos(gamma + theta) + ag + bd * cx if want_d else 0.0
-            else:
-                c2 = math.cos(0.5 * x)
-                c2 = 2.0 * c2 * c2
-                k = h * h * math.sin(gamma - delta + 2.0 * theta) / sx
-                ng = h * math.cos(delta - theta) + ag * c2 + (ab_diff * bd + k) / a if want_g else 0.0
-                nd = h * math.cos(gamma + theta) + bd * c2 - (ab_diff * ag + k) / b if want_d else 0.0
-            return (-ng / (a * sx) if want_g else None), (-nd / (b * sx) if want_d else None)
-        arrays = np.broadcast_arrays(*(np.asarray(v, dtype=np.float64) for v in (theta, gamma, delta, g1, d1)))
-        shape = arrays[0].shape
-        t, g, d, g1a, d1a = (v.reshape(-1) for v in arrays)
+            return ((-(h * math.cos(delta - theta) + (ag * cx + bd)) / (a * sx) if want_g else None),
+                    (-(h * math.cos(gamma + theta) + (bd * cx + ag)) / (b * sx) if want_d else None))
         with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
-            xa = g + d
+            xa = np.add(gamma, delta)
             s_x = np.sin(xa)
             c_x = np.cos(xa)
-            a_g = a * g1a * g1a
-            b_d = b * d1a * d1a
-            folded = c_x < 0.0
-            n_g = h * np.cos(d - t) + np.where(folded, 0.0, a_g * c_x + b_d) if want_g else None
-            n_d = h * np.cos(g + t) + np.where(folded, 0.0, a_g + b_d * c_x) if want_d else None
-            if folded.any():
-                half_c = np.cos(0.5 * xa[folded])
-                half_c = 2.0 * half_c * half_c
-                kf = h * h * np.sin(g[folded] - d[folded] + 2.0 * t[folded]) / s_x[folded]
-                if n_g is not None:
-                    n_g[folded] += a_g[folded] * half_c + (ab_diff * b_d[folded] + kf) / a
-                if n_d is not None:
-                    n_d[folded] += b_d[folded] * half_c - (ab_diff * a_g[folded] + kf) / b
+            a_g = a * np.multiply(g1, g1)
+            b_d = b * np.multiply(d1, d1)
             limit = s_x == 0.0
-            return (None if n_g is None else np.where(limit, np.nan, -n_g / (a * s_x)).reshape(shape),
-                    None if n_d is None else np.where(limit, np.nan, -n_d / (b * s_x)).reshape(shape))
+            g2 = d2 = None
+            if want_g:
+                g2 = np.where(limit, np.nan, -(h * np.cos(np.subtract(delta, theta)) + (a_g * c_x + b_d)) / (a * s_x))
+            if want_d:
+                d2 = np.where(limit, np.nan, -(h * np.cos(np.add(gamma, theta)) + (b_d * c_x + a_g)) / (b * s_x))
+        return g2, d2
 
     def rocker_velocities(self, theta: ArrayLike, theta_rate: ArrayLike,
                           branch: Branch = Branch.UPPER) -> RockerRates:
@@ -449,14 +426,20 @@ class AntennaLinkage:
 
     # ---------------------------------------------------------------- inverse
 
+    def rocker_reach(self, driven: Driven = Driven.GAMMA) -> Reach:
+        """The angles (rad, modulo 2 pi) the given rocker can take: its gap and maximum, named after the rocker."""
+        gap, top = self._rocker_dyad(driven)[2]
+        return Reach(theta_gap=gap, theta_max=top, name=driven.value)
+
     def from_rocker(self, q: ArrayLike, driven: Driven = Driven.GAMMA,
-                    branch: Branch = Branch.UPPER) -> InverseSolution:
+                    branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> InverseSolution:
         """Antenna angle and the other rocker's angle (radians) from a measured rocker angle q (radians).
 
         The motor side knows its rocker; this is the four-bar with that rocker as the crank. Branch.UPPER puts C
         to the left of the line from B to D when gamma is measured (B to the left of C to A when delta is), which
         is the annex's working pose; Branch.LOWER is the crossed pose. Raises UnreachableError if the rocker cannot
-        take q (for arrays: if any element cannot).
+        take q (NaN, inf or outside rocker_reach(driven); for arrays: if any element cannot, unless on_invalid='nan',
+        which gives NaN there).
         """
         # The four-bar with the measured rocker as crank: its diagonal (rocker end -> other pivot) is the dyad's
         # P -> Q with x = -q; the dyad's angle at P is the coupler's direction from +x (-theta with AB as the crank,
@@ -475,7 +458,7 @@ class AntennaLinkage:
             return InverseSolution(_wrap(sign * coupler_dir), _wrap(other))
         qa = np.asarray(q, dtype=np.float64)
         try:
-            coupler_a, other_a = closure_array(k, np.negative(qa), which, 'raise')
+            coupler_a, other_a = closure_array(k, np.negative(qa), which, on_invalid)
         except DyadOpenError:
             bad = ~closes(k, np.negative(qa))
             raise UnreachableError(

@@ -1,0 +1,111 @@
+r"""The whole linkage from a measured driven rocker: angles, rates by the chain rule, and the load the effort holds.
+
+A motor with an encoder measures one rocker q (gamma or delta, rad), maybe its rate q_dot (rad/s) and its effort
+tau_in (N m, in the sense of increasing q). ``complete`` returns the antenna angle theta, the other rocker, the
+coupler joint (gamma + theta, the coupler's angle from rocker AB, as the robot model has it), their rates and the
+load torque on the antenna implied by the effort, all from the core's exact inverse and rates (no differencing).
+
+With q' = dq/dtheta (AntennaLinkage.rates_at) and X = gamma + delta, u = delta - theta, v = gamma + theta:
+
+    gamma driven: dtheta/dq = AB sin X / (h sin u),  d delta/dq = -AB sin v / (CD sin u)
+    delta driven: dtheta/dq = -CD sin X / (h sin v), d gamma/dq = -CD sin u / (AB sin v)
+
+(the quotients of the rates, with sin X cancelled: finite where the antenna is at its reach limit), and by power
+balance tau_in dq = tau_load dtheta, tau_load = tau_in q'. At the driven rocker's own reach limit (sin u = 0 driving
+gamma, sin v = 0 driving delta: the other rocker in line with the coupler, a dead point) dtheta/dq is unbounded:
+scalars raise DeadPointError, arrays give NaN there (within the statics' dead-point tolerance, as torque_at).
+Where the antenna is at its reach limit (sin X = 0) q' is unbounded: a scalar effort raises SingularPositionError,
+arrays give NaN load torque there.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
+from fourbar_ros.core.errors import DeadPointError
+from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid
+
+__all__ = ['Completion', 'complete']
+
+
+class Completion(NamedTuple):
+    """The linkage completed from a measured rocker: angles in rad, rates in rad/s, torque in N m.
+
+    The rates are None unless q_rate was given, load_torque None unless effort was given.
+    """
+
+    theta: ArrayLike
+    other: ArrayLike  #: the rocker not measured (delta when gamma is driven), rad
+    coupler_joint: ArrayLike  #: gamma + theta, rad
+    theta_rate: ArrayLike | None
+    other_rate: ArrayLike | None
+    coupler_joint_rate: ArrayLike | None
+    load_torque: ArrayLike | None  #: on the antenna, in the sense of increasing theta
+
+
+def complete(link: AntennaLinkage, q: ArrayLike, driven: Driven, branch: Branch, q_rate: ArrayLike | None = None,
+             effort: ArrayLike | None = None, on_invalid: OnInvalid = 'raise') -> Completion:
+    """Complete the linkage from the measured rocker angle q (rad) of the ``driven`` rocker on from_rocker's
+    ``branch``; q_rate (rad/s) and effort (N m) optional. Computes only what is asked.
+
+    Raises UnreachableError for a q the rocker cannot take (NaN, inf, outside link.rocker_reach(driven)); arrays
+    with on_invalid='nan' give NaN there instead. See the module docstring for the singular poses.
+    """
+    theta, other = link.from_rocker(q, driven, branch, on_invalid)
+    gamma_driven = driven is Driven.GAMMA
+    gamma, delta = (q, other) if gamma_driven else (other, q)
+    coupler = gamma + theta
+    if q_rate is None and effort is None:
+        return Completion(theta, other, coupler, None, None, None, None)
+    scalar = isinstance(theta, float) and isinstance(other, float)
+    theta_rate = other_rate = coupler_rate = load = None
+    if q_rate is not None:
+        dtheta, dother = (_inverse_rates_scalar if scalar else _inverse_rates_array)(link, q, theta, gamma, delta,
+                                                                                 driven)
+        theta_rate = dtheta * q_rate
+        other_rate = dother * q_rate
+        coupler_rate = (q_rate if gamma_driven else other_rate) + theta_rate
+    if effort is not None:
+        rates = link.rates_at(theta, gamma, delta)  # scalars: SingularPositionError at the antenna's reach limit
+        mechanical_advantage = rates.dgamma_dtheta if gamma_driven else rates.ddelta_dtheta
+        if scalar:
+            load = float(effort) * mechanical_advantage
+        else:
+            with np.errstate(invalid='ignore'):
+                load = np.multiply(effort, mechanical_advantage)
+                load[~np.isfinite(load)] = np.nan
+    return Completion(theta, other, coupler, theta_rate, other_rate, coupler_rate, load)
+
+
+
+def _inverse_rates_scalar(link: AntennaLinkage, q: ArrayLike, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
+                          driven: Driven) -> tuple[float, float]:
+    """(dtheta/dq, d other/dq) for one pose (math module); DeadPointError at the driven rocker's reach limit."""
+    t, g, d = float(theta), float(gamma), float(delta)
+    h, ab, cd = link.coupler, link.rocker_ab, float(link.rocker_cd or 0.0)
+    x, u, v = g + d, d - t, g + t
+    lever = math.sin(u if driven is Driven.GAMMA else v)
+    if abs(lever) <= DEAD_TOL * (1.0 + abs(float(q)) + abs(t)):
+        raise DeadPointError(
+            f'q={float(q)!r} rad is at the {driven.value} rocker\'s reach limit (a dead point: the other rocker in '
+            f'line with the coupler): the antenna\'s rate is unbounded there')
+    if driven is Driven.GAMMA:
+        return ab * math.sin(x) / (h * lever), -ab * math.sin(v) / (cd * lever)
+    return -cd * math.sin(x) / (h * lever), -cd * math.sin(u) / (ab * lever)
+
+
+def _inverse_rates_array(link: AntennaLinkage, q: ArrayLike, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
+                         driven: Driven) -> tuple[FloatArray, FloatArray]:
+    """(dtheta/dq, d other/dq) element-wise (numpy); NaN at the driven rocker's reach limit."""
+    h, ab, cd = link.coupler, link.rocker_ab, float(link.rocker_cd or 0.0)
+    x, u, v = np.add(gamma, delta), np.subtract(delta, theta), np.add(gamma, theta)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        lever = np.sin(u if driven is Driven.GAMMA else v)
+        lever[np.abs(lever) <= DEAD_TOL * (1.0 + np.abs(q) + np.abs(theta))] = np.nan
+        if driven is Driven.GAMMA:
+            return ab * np.sin(x) / (h * lever), -ab * np.sin(v) / (cd * lever)
+        return -cd * np.sin(x) / (h * lever), -cd * np.sin(u) / (ab * lever)
