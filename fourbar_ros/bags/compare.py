@@ -43,14 +43,13 @@ import numpy.typing as npt
 from fourbar_ros.bags.joint_state_cdr import decode_float64s, decode_joint_states
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.interface import COMPARED_FIELDS, INPUT_TORQUE, JOINT_STATES, sibling_topic
 from fourbar_ros.core.antenna import Driven
 
 FloatArray = npt.NDArray[np.float64]
 DEFAULT_ULPS = 16.0
-#: What ``ignore`` may name.
 #: Messages per block and topic.
 BLOCK = 65536
-FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque')
 
 
 @dataclass
@@ -266,9 +265,9 @@ class Comparer:
 
     def __init__(self, cfg: AntennaConfig, ulps: float = DEFAULT_ULPS, atol: float | None = None,
                  ignore: Sequence[str] = (), limit: int = 10) -> None:
-        unknown = sorted(set(ignore) - set(FIELDS))
+        unknown = sorted(set(ignore) - set(COMPARED_FIELDS))
         if unknown:
-            raise BagError(f'cannot ignore {", ".join(unknown)} (choose from {", ".join(FIELDS)})')
+            raise BagError(f'cannot ignore {", ".join(unknown)} (choose from {", ".join(COMPARED_FIELDS)})')
         if not (math.isfinite(ulps) and ulps >= 0) or (atol is not None and not (math.isfinite(atol) and atol >= 0)):
             raise BagError('tolerances must be finite and >= 0')
         self.cfg, self.ulps, self.atol, self.ignore = cfg, ulps, atol, frozenset(ignore)
@@ -382,8 +381,9 @@ def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str],
         if ta != tb:
             result.add(Difference(topic, 0, 'type', ta, tb))
             continue
-        sibling = f'{topic.rsplit("/", 1)[0]}/joint_states'
-        pair_joints = ta == FLOAT64 and topic.endswith('/input_torque') and types_a.get(sibling) == JOINT_STATE
+        sibling = sibling_topic(topic, JOINT_STATES.name)
+        pair_joints = (ta == FLOAT64 and sibling_topic(topic, INPUT_TORQUE.name) == topic
+                       and types_a.get(sibling) == JOINT_STATE)
         joints_iter = topic_blocks(path_a, sibling, JOINT_STATE, block) if pair_joints else None
         blocks_b = topic_blocks(path_b, topic, tb, block)
         blocks_a = topic_blocks(path_a, topic, ta, block)

@@ -8,6 +8,8 @@ import sys
 from pathlib import Path
 from types import FrameType
 
+from fourbar_ros.config.interface import STORAGES
+
 HELP = ('write the joint_states and input_torque fourbar_node would publish for a command bag, '
         'computed without the middleware (stamps = the commands\' log times)')
 
@@ -21,7 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--topic', metavar='NAME',
                         help='command topic (std_msgs/Float64) in IN (default: /antenna_angle_cmd, else the one '
                         '*/antenna_angle_cmd); the outputs go next to it')
-    parser.add_argument('--storage', choices=('mcap', 'sqlite3'),
+    parser.add_argument('--storage', choices=STORAGES,
                         help='storage plugin of OUT (default: that of IN)')
 
 

@@ -12,7 +12,7 @@ Interface (relative names, so namespaces and remapping apply):
   pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
   pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
                                                      every marker_period s, only when subscribed and changed
-QoS: keep-last 1000 for the command (best effort, see COMMAND_QOS) and the per-command outputs (reliable),
+QoS (fourbar_ros.config.interface): keep-last 1000 for the command (best effort) and the per-command outputs (reliable),
 reliable keep-last 10 for markers and diagnostics; commands the queues drop are counted (commands_lost).
 Each can be overridden with ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
 Markers are not per command (drawing them costs more than the rest of a command): a timer publishes them
@@ -56,6 +56,15 @@ from fourbar_ros.config.antenna_config import (
     declared_values,
     unknown_in_node_sections,
 )
+from fourbar_ros.config.interface import (
+    COMMAND,
+    DIAGNOSTICS,
+    INPUT_TORQUE,
+    JOINT_STATES,
+    MARKERS,
+    NODE_NAME,
+    Topic,
+)
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
 from fourbar_ros.config.robot_model import coupler_joint_position
 from fourbar_ros.core.antenna import Driven, LinkageState
@@ -78,18 +87,14 @@ from fourbar_ros.node.markers import LinkageMarkers
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.state_cache import StateCache
 
-NODE_NAME = 'fourbar_node'
-#: Keep-last depth of the command subscription and the per-command outputs.
-STREAM_DEPTH = 1000
-#: The command subscription: best effort, keep-last STREAM_DEPTH. It matches reliable and best-effort
-#: publishers alike, and one payload the middleware cannot take (an empty one) cannot stall the commands that
-#: follow it from that publisher, as it does on a reliable subscription (Fast DDS keeps waiting for it). Lost
-#: commands are counted either way (``commands_lost``); on one host best effort loses no more than reliable
-#: keep-last, whose queues drop the oldest when full.
 _qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
-COMMAND_QOS = _qos_profile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
-#: Keep-last depth of markers and diagnostics (latest state only matters).
-STATUS_DEPTH = 10
+
+
+def qos(topic: Topic) -> QoSProfile:
+    """The rclpy profile of one of the node's topics (keep-last depth, reliability; see config.interface)."""
+    return _qos_profile(depth=topic.depth, reliability=ReliabilityPolicy[topic.reliability.name])
+
+
 WARN_THROTTLE_S = 1.0
 #: Steady-clock delay (s) after which a node on sim time without /clock says so.
 NO_CLOCK_WARN_S = 3.0
@@ -140,17 +145,16 @@ class FourBarNode(Node):
         self._apply(self._config)
 
         qos_options = QoSOverridingOptions.with_default_policies()
-        self._joint_pub = self.create_publisher(JointState, 'joint_states', STREAM_DEPTH,
+        self._joint_pub = self.create_publisher(JointState, JOINT_STATES.name, qos(JOINT_STATES),
                                                 qos_overriding_options=qos_options)
-        self._torque_pub = self.create_publisher(Float64, 'input_torque', STREAM_DEPTH,
+        self._torque_pub = self.create_publisher(Float64, INPUT_TORQUE.name, qos(INPUT_TORQUE),
                                                  qos_overriding_options=qos_options)
-        self._marker_pub = self.create_publisher(MarkerArray, 'linkage_markers', STATUS_DEPTH,
+        self._marker_pub = self.create_publisher(MarkerArray, MARKERS.name, qos(MARKERS),
                                                  qos_overriding_options=qos_options)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATUS_DEPTH)
+        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.name, qos(DIAGNOSTICS))
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
-        self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd',
-                                                     MessageInfoCallback(self._on_command),
-                                                     COMMAND_QOS, qos_overriding_options=qos_options)
+        self._command_sub = self.create_subscription(Float64, COMMAND.name, MessageInfoCallback(self._on_command),
+                                                     qos(COMMAND), qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
         # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
