@@ -45,6 +45,7 @@ from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_types
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.interface import COMPARED_FIELDS, INPUT_TORQUE, JOINT_STATES, sibling_topic
 from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.errors import one_line
 
 FloatArray = npt.NDArray[np.float64]
 DEFAULT_ULPS = 16.0
@@ -80,10 +81,6 @@ def _rows(seqs: list[Any], width: int) -> FloatArray:
     return out
 
 
-def _first_line(exc: BaseException) -> str:
-    return (str(exc).strip() or type(exc).__name__).splitlines()[0].rstrip('.')
-
-
 def topic_types_of(path: str | os.PathLike[str]) -> dict[str, str]:
     """Topic -> type of the JointState and Float64 topics of a bag. Raises BagError (one line)."""
     with open_bag(path) as reader:
@@ -99,7 +96,7 @@ def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[by
             return store.deserialize_cdr(raw, msgtype)
         except Exception as exc:
             raise BagError(f'{path}: message {start + j} on {topic} is not a valid {msgtype} '
-                           f'({_first_line(exc)})') from exc
+                           f'({one_line(exc)})') from exc
 
     td = TopicData(msgtype, np.array(logs, dtype=np.int64))
     if msgtype == FLOAT64:
@@ -149,7 +146,7 @@ def topic_blocks(path: str | os.PathLike[str], topic: str, msgtype: str,
             raise
         except Exception as exc:
             raise BagError(f'{p}: unreadable bag after {done + len(raws)} messages on {topic} '
-                           f'({_first_line(exc)})') from exc
+                           f'({one_line(exc)})') from exc
         if raws:
             yield _decode(p, topic, msgtype, logs, raws, done)
 

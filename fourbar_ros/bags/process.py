@@ -46,6 +46,7 @@ from fourbar_ros.bags.storage import (
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.robot_model import coupler_joint_position
 from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.errors import one_line
 from fourbar_ros.node.command_policy import Outcome, Policy, decide
 
 FloatArray = npt.NDArray[np.float64]
@@ -208,7 +209,7 @@ def _command_blocks(reader: Any, conns: list[Any], path: Path, topic: str,
                     out[j] = float(msg.data)
                 except Exception as exc:
                     raise BagError(f'{path}: message {done + j} on {topic} is not a valid {FLOAT64} '
-                                   f'({_first_line(exc)})') from exc
+                                   f'({one_line(exc)})') from exc
             values = out
         return np.array(stamps, dtype=np.int64), values
 
@@ -224,14 +225,9 @@ def _command_blocks(reader: Any, conns: list[Any], path: Path, topic: str,
     except BagError:
         raise
     except Exception as exc:
-        raise BagError(f'{path}: unreadable bag after {done + len(raws)} messages ({_first_line(exc)})') from exc
+        raise BagError(f'{path}: unreadable bag after {done + len(raws)} messages ({one_line(exc)})') from exc
     if raws:
         yield flush()
-
-
-def _first_line(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0].rstrip('.')
 
 
 def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,

@@ -140,8 +140,9 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from fourbar_ros.bags.progress import Progress
     from fourbar_ros.bags.record import Recorder, discover
     from fourbar_ros.bags.replay import Replayer
-    from fourbar_ros.bags.ros_context import close_context, init_context, interrupt_on_sigterm
+    from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import BagError, CommandStream
+    from fourbar_ros.node.run import stop_on_signals
 
     assert isinstance(stream, CommandStream)
     prog = 'fourbar demo'
@@ -149,7 +150,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     env = dict(os.environ)
     proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env)
     stack = contextlib.ExitStack()
-    stack.enter_context(interrupt_on_sigterm())
+    stack.enter_context(stop_on_signals())
     stack.callback(_stop_node, proc)  # on every path, last
     proc.start()
     context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt

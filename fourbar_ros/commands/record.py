@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
-import signal
 import sys
 from pathlib import Path
-from types import FrameType
 
 from fourbar_ros.commands import CommandError
 from fourbar_ros.config.interface import DEFAULT_STORAGE, RECORDED_OUTPUTS, STORAGES
@@ -60,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import AtomicBagWriter, BagError
     from fourbar_ros.node.executor import create_executor
+    from fourbar_ros.node.run import stop_on_signals
 
     prog = 'fourbar record'
     if args.wait <= 0 or (args.duration is not None and not args.duration > 0):
@@ -69,12 +69,8 @@ def run(args: argparse.Namespace) -> int:
     stop_after = _parse_stop_after(args.stop_after)
     AtomicBagWriter(args.out, args.storage)  # checks OUT before touching ROS; writes nothing
 
-    stopping: list[int] = []
-
-    def on_signal(signum: int, _frame: FrameType | None) -> None:
-        stopping.append(signum)
-
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    stack = contextlib.ExitStack()
+    stop = stack.enter_context(stop_on_signals(raises=None))  # a stop ends the recording, which is then closed
     context = init_context(handle_signals=False)
     node = Node('fourbar_record', context=context)
     executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
@@ -82,10 +78,10 @@ def run(args: argparse.Namespace) -> int:
     recorder: Recorder | None = None
     try:
         try:
-            plans = discover(node, executor, args.topics, args.wait, stop=lambda: bool(stopping))
+            plans = discover(node, executor, args.topics, args.wait, stop=lambda: stop.requested)
         except BagError as exc:  # a topic without a publisher within --wait: status 1
             raise CommandError(str(exc), status=1) from None
-        if stopping:
+        if stop.requested:
             print(f'{prog}: interrupted before recording started; no bag written', file=sys.stderr)
             return 130
         wanted = {node.resolve_topic_name(t): n for t, n in stop_after.items()}
@@ -94,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f'--stop-after names a topic not recorded: {unknown[0]}')
         recorder = Recorder(node, args.out, plans, args.storage, flush_interval=args.flush_interval)
         rec = recorder
-        spin_until(executor, lambda: rec.matched() or bool(stopping), args.wait)
+        spin_until(executor, lambda: rec.matched() or stop.requested, args.wait)
         for fqn in rec.handshake(executor, args.wait):
             print(f'{prog}: warning: {fqn} has no parameter services; its first messages may be missed',
                   file=sys.stderr)
@@ -103,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
               f'to {rec.bag.work_dir})', file=sys.stderr, flush=True)
 
         def done() -> bool:
-            return bool(stopping) or (bool(wanted) and all(rec.counts[t] >= n for t, n in wanted.items()))
+            return stop.requested or (bool(wanted) and all(rec.counts[t] >= n for t, n in wanted.items()))
         seconds = record_until(executor, rec, done, args.duration)
         recorder = None
         path = rec.close()
@@ -116,5 +112,4 @@ def run(args: argparse.Namespace) -> int:
             recorder.abort()
         executor.shutdown()
         close_context(context, node)
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        stack.close()

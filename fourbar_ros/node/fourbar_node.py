@@ -23,28 +23,20 @@ decisions in the pure modules command_policy, state_cache, joint_velocity, diagn
 
 from __future__ import annotations
 
-import argparse
-import itertools
-import signal
-import sys
 import time
 from collections.abc import Callable, Collection, Sequence
-from typing import Any, NoReturn
+from typing import Any
 
-import rclpy
-import rclpy.utilities
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ROSClock
 from rclpy.clock_type import ClockType
 from rclpy.exceptions import ParameterNotDeclaredException
-from rclpy.executors import Executor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from visualization_msgs.msg import MarkerArray
@@ -68,18 +60,12 @@ from fourbar_ros.config.interface import (
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
 from fourbar_ros.config.robot_model import coupler_joint_position
 from fourbar_ros.core.antenna import Driven, LinkageState
-from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
 from fourbar_ros.node.command_policy import Decision, Outcome, Policy, decide
 from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
-    DEFAULT_EXECUTOR,
-    EXECUTOR_ENV,
-    EXECUTORS,
     MessageInfoCallback,
-    Spinner,
-    create_executor,
-    executor_kind,
 )
 from fourbar_ros.node.joint_velocity import Sample, velocity_step
 from fourbar_ros.node.marker_geometry import linkage_points
@@ -113,6 +99,7 @@ class FourBarNode(Node):
         logger = get_logger()
         self._ros_clock = self.get_clock()
         self._warn: Callable[..., object] = logger.warning
+        self.info: Callable[..., object] = logger.info
         self._error: Callable[..., object] = logger.error
         self._debug: Callable[..., object] = logger.debug
         try:
@@ -122,7 +109,7 @@ class FourBarNode(Node):
             for path in params_files:
                 explicit.update(unknown_in_node_sections(path, self.get_name(), self.get_namespace()))
         except ConfigError:
-            _destroy(self)
+            destroy_node(self)
             raise
         self._report_unknown_overrides(explicit)
         self.declare_parameters('', list(declarations(self._config.as_values())))
@@ -236,7 +223,7 @@ class FourBarNode(Node):
 
     def _count_undeclared(self, exc: ParameterNotDeclaredException) -> None:
         self.counters.parameter_changes_rejected += 1
-        self._warn(f'parameter change rejected: {_one_line(exc)}')
+        self._warn(f'parameter change rejected: {one_line(exc)}')
 
     # Every run-time change (the set_parameters and set_parameters_atomically services, ros2 param, in-process
     # calls) passes through these two; rclpy refuses unknown names, wrong types, out-of-range values and
@@ -402,168 +389,7 @@ class FourBarNode(Node):
         self._clock_warned = waiting
 
 
-def _destroy(node: Node) -> None:
+def destroy_node(node: Node) -> None:
+    """``node.destroy_node()`` (rclpy's is unannotated)."""
     destroy: Callable[[], object] = node.destroy_node
     destroy()
-
-
-def _one_line(exc: BaseException) -> str:
-    text = ' '.join(str(exc).split())
-    return text or exc.__class__.__name__
-
-
-def params_files(argv: list[str]) -> list[str]:
-    """The ``--params-file`` paths among ``argv``, in order."""
-    return [path for flag, path in itertools.pairwise(argv) if flag == '--params-file']
-
-
-def command_line_names(argv: list[str]) -> list[str]:
-    """The parameter names set with ``-p name:=value`` (or ``--param``) among ``argv``."""
-    return [arg.split(':=', 1)[0].rsplit(':', 1)[-1] for flag, arg in itertools.pairwise(argv)
-            if flag in ('-p', '--param') and ':=' in arg]
-
-
-def params_file_problem(argv: list[str]) -> str | None:
-    """One line if a ``--params-file`` argument cannot be read, is larger than 1 MiB, is not YAML or holds an
-    alias (rcl refuses those too), else None.
-
-    Checked before rclpy.init, because rcl would log its own multi-line error first.
-    """
-    from fourbar_ros.config.rcl_yaml import params_file_problem as file_problem
-
-    for flag, path in itertools.pairwise(argv):
-        if flag == '--params-file' and (problem := file_problem(path)) is not None:
-            return problem
-    return None
-
-
-#: Longest time (s) the spin loop waits for work before it looks at the stop flag again.
-STOP_POLL_S = 0.1
-
-
-class StopRequest:
-    """Set by SIGINT/SIGTERM; the spin loop ends when it sees it.
-
-    rclpy's own handlers shut the context down from the signal while a callback may still be running, so
-    get_subscription_count, publish or the next wait set raise RCLError ("context is invalid") and SIGINT's
-    KeyboardInterrupt can land inside take_message. This handler only sets a flag (Python runs it in the main
-    thread between bytecodes); the loop then returns and main() destroys the node and shuts down, in order.
-    """
-
-    def __init__(self) -> None:
-        self.signal: int | None = None
-        self._wakers: list[Callable[[], None]] = []
-
-    def __call__(self, signum: int, frame: object) -> None:
-        self.signal = signum
-        for wake in self._wakers:
-            wake()
-
-    def on_request(self, wake: Callable[[], None]) -> None:
-        """Call ``wake()`` from the handler when a stop arrives (e.g. to end a running spin slice)."""
-        self._wakers.append(wake)
-
-    def install(self) -> None:
-        """Handle SIGINT and SIGTERM in this process (main thread only)."""
-        signal.signal(signal.SIGINT, self)
-        signal.signal(signal.SIGTERM, self)
-
-    @property
-    def requested(self) -> bool:
-        """True once a stop signal arrived."""
-        return self.signal is not None
-
-
-def spin_until_stopped(executor: Executor, stop: StopRequest, poll_s: float = STOP_POLL_S) -> None:
-    """Run callbacks until ``stop`` is requested or the context ends.
-
-    Spins in slices of at most ``poll_s`` s (an EventsExecutor must never wait without a deadline, see
-    fourbar_ros.node.executor); a stop also ends the running slice, after the callback in progress.
-    """
-    spinner = Spinner(executor, poll_s)
-    stop.on_request(spinner.request_stop)
-    context_ok: Callable[[], bool] = executor.context.ok
-    while not stop.requested and context_ok():
-        spinner.spin_slice()
-
-
-class UsageError(ValueError):
-    """A bad command-line option of fourbar_node (not a ROS argument)."""
-
-
-class _OptionParser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        raise UsageError(message)
-
-
-def node_options(argv: Sequence[str]) -> argparse.Namespace:
-    """The options of ``fourbar_node`` outside its ``--ros-args`` sections (``argv[0]`` is the program)."""
-    parser = _OptionParser(prog='fourbar_node', description='The antenna tilt four-bar node.',
-                           epilog='ROS arguments follow --ros-args, e.g. --ros-args --params-file config/antenna.yaml')
-    parser.add_argument('--executor', choices=EXECUTORS, default=None,
-                        help=f'rclpy executor that runs the callbacks (default: ${EXECUTOR_ENV}, else '
-                             f'{DEFAULT_EXECUTOR}); see docs/node.md')
-    return parser.parse_args(non_ros_args(argv)[1:])
-
-
-def non_ros_args(argv: Sequence[str]) -> list[str]:
-    """``argv`` without its ROS arguments: each ``--ros-args`` up to the next ``--`` (or the end), as rcl reads
-    them. Pure, so a bad ROS argument (say an unreadable --params-file) is left to its own one-line check."""
-    out: list[str] = []
-    in_ros = False
-    for arg in argv:
-        if in_ros:
-            in_ros = arg != '--'
-        elif arg == '--ros-args':
-            in_ros = True
-        else:
-            out.append(arg)
-    return out
-
-
-def main(args: list[str] | None = None) -> int:
-    """Console script ``fourbar_node``: exit 0 on Ctrl-C/SIGTERM, 2 with one line on bad parameters."""
-    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-
-    stop = StopRequest()
-    stop.install()  # before rclpy.init: a stop during startup also ends cleanly, after the node is built
-    argv = sys.argv if args is None else args
-    try:
-        kind = executor_kind(node_options(argv).executor)
-    except ValueError as exc:  # UsageError, ExecutorChoiceError
-        print(f'fourbar_node: error: {exc}', file=sys.stderr)
-        return 2
-    problem = params_file_problem(argv)
-    if problem is not None:
-        print(f'fourbar_node: error: {problem}', file=sys.stderr)
-        return 2
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
-        print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
-        return 2
-    node: FourBarNode | None = None
-    executor: Executor | None = None
-    try:
-        node = FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv))
-        executor = create_executor(kind)
-        executor.add_node(node)
-        get_logger: Callable[[], RcutilsLogger] = node.get_logger
-        info: Callable[[str], object] = get_logger().info
-        info(f'callbacks run on the {kind} executor')
-        spin_until_stopped(executor, stop)
-    except (ConfigError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
-        print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
-        return 2
-    finally:
-        # Nothing runs callbacks any more (one thread): destroy the node, then shut the context down.
-        if executor is not None:
-            executor.shutdown(timeout_sec=0.0)
-        if node is not None:
-            _destroy(node)
-        rclpy.utilities.try_shutdown()
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())
