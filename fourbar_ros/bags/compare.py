@@ -11,7 +11,7 @@ value's *scale*, the magnitude its rounding errors are relative to when two corr
   rounding error is an absolute few ulps of pi, not of |q| (a q near 0 is not known to ulps of itself);
 - velocity v = (q - q_anchor) / dt (rad/s): scale = |v| + (|q| + |q_anchor| + 2 pi) / dt: the difference of two
   positions, each known to ulps of |q| + pi, divided by the interval (dt and the anchor, the first message of
-  the run of equal stamps before it, as joint_velocity's rule picks it, taken from A);
+  the run of equal stamps before it, as the velocity rule (fourbar_ros.rules.velocity) picks it, taken from A);
 - effort and input torque tau = tau_load * lever * sin(s) / sin(r) (N m), s = gamma + delta and r the driven
   rocker's angle to the coupler (delta - theta driving gamma, gamma + theta driving delta; theta recovered from
   the positions with the configuration's geometry): scale = |tau| (1 + pi (|cot s| + |cot r|)): an angle error
@@ -46,6 +46,8 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.interface import COMPARED_FIELDS, INPUT_TORQUE, JOINT_STATES, sibling_topic
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import one_line
+from fourbar_ros.rules.outputs import driven_index
+from fourbar_ros.rules.velocity import VelocityState, anchors
 
 FloatArray = npt.NDArray[np.float64]
 DEFAULT_ULPS = 16.0
@@ -158,40 +160,17 @@ def position_scale(q: FloatArray) -> FloatArray:
     return np.abs(q) + math.pi
 
 
-@dataclass
-class AnchorState:
-    """The velocity rule's anchor (stamp ns, positions rad) after the previous block; None before any."""
-
-    stamp_ns: int | None = None
-    positions: FloatArray = field(default_factory=lambda: np.zeros(0))
-
-
 def velocity_scale(stamps_ns: npt.NDArray[np.int64], positions: FloatArray, velocities: FloatArray,
-                   state: AnchorState | None = None) -> FloatArray:
-    """|v| + (|q| + |q_anchor| + 2 pi) / dt per element; |v| where no interval is known. ``state`` carries the
-    anchor from block to block (updated)."""
-    state = state if state is not None else AnchorState()
-    n, k = positions.shape
-    if n == 0:
+                   state: VelocityState | None = None) -> FloatArray:
+    """|v| + (|q| + |q_anchor| + 2 pi) / dt per element (the anchor as the velocity rule picks it); |v| where no
+    interval is known. ``state`` carries the anchor from block to block (updated)."""
+    if positions.shape[0] == 0:
         return np.abs(velocities)
-    carried = state.stamp_ns is not None and state.positions.shape == (k,)
-    if carried:
-        t = np.concatenate((np.array([state.stamp_ns], dtype=np.int64), stamps_ns))
-        q = np.concatenate((state.positions.reshape(1, k), positions))
-    else:
-        t, q = stamps_ns, positions
-    new_run = np.ones(t.size, dtype=np.bool_)
-    new_run[1:] = t[1:] != t[:-1]
-    run_start = np.maximum.accumulate(np.where(new_run, np.arange(t.size), 0))
-    anchor = np.zeros(t.size, dtype=np.intp)
-    anchor[1:] = run_start[:-1]
-    dt = (t - t[anchor]).astype(np.float64) * 1e-9
+    a = anchors(stamps_ns, positions, state if state is not None else VelocityState())
     with np.errstate(divide='ignore', invalid='ignore'):
-        spread = (np.abs(q) + np.abs(q[anchor]) + 2.0 * math.pi) / dt[:, None]
-    spread[~(dt > 0.0)] = 0.0
-    state.stamp_ns = int(t[run_start[-1]])
-    state.positions = q[run_start[-1]].copy()
-    out: FloatArray = np.abs(velocities) + (spread[1:] if carried else spread)
+        spread = (np.abs(a.positions) + np.abs(a.anchor_positions) + 2.0 * math.pi) / a.dt[:, None]
+    spread[~(a.dt > 0.0)] = 0.0
+    out: FloatArray = np.abs(velocities) + spread
     return out
 
 
@@ -312,7 +291,7 @@ class Comparer:
         if len(bad) > self.result.limit:
             self.result.mismatches += len(bad) - self.result.limit
 
-    def joint_states(self, topic: str, a: TopicData, b: TopicData, offset: int, anchor: AnchorState) -> None:
+    def joint_states(self, topic: str, a: TopicData, b: TopicData, offset: int, anchor: VelocityState) -> None:
         """One block of JointStates (message ``offset`` on)."""
         assert a.positions is not None and b.positions is not None and a.stamp_ns is not None
         assert a.efforts is not None and b.efforts is not None and a.velocities is not None
@@ -342,7 +321,7 @@ class Comparer:
         assert a.efforts is not None and a.positions is not None
         scale = np.abs(a.efforts)
         if a.positions.shape[1] == 2:
-            d = 0 if self.cfg.driven is Driven.GAMMA else 1
+            d = driven_index(self.cfg)
             scale[:, d] = scale[:, d] * torque_condition(self.cfg, a.positions)
         return scale
 
@@ -384,7 +363,7 @@ def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str],
         joints_iter = topic_blocks(path_a, sibling, JOINT_STATE, block) if pair_joints else None
         blocks_b = topic_blocks(path_b, topic, tb, block)
         blocks_a = topic_blocks(path_a, topic, ta, block)
-        anchor = AnchorState()
+        anchor = VelocityState()
         count_a = count_b = 0
         for a in blocks_a:
             b = next(blocks_b, None)

@@ -148,7 +148,9 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     prog = 'fourbar demo'
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read by the middleware at init
     env = dict(os.environ)
-    proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env)
+    # One JointState per answered command: the recording is paired with the commands (no idle republishing).
+    proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env,
+                       ros_args=['-p', 'joint_state_rate:=0.0'])
     stack = contextlib.ExitStack()
     stack.enter_context(stop_on_signals())
     stack.callback(_stop_node, proc)  # on every path, last

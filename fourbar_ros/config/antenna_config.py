@@ -83,6 +83,7 @@ class AntennaConfig:
     velocity_timeout: float
     marker_period: float
     diagnostics_period: float
+    joint_state_rate: float
     linkage: AntennaLinkage = field(compare=False, repr=False)
 
     @property

@@ -7,7 +7,8 @@ Interface (relative names, so namespaces and remapping apply):
                                                      `fourbar urdf`'s model); velocity rad/s by finite
                                                      difference of successive published positions (empty
                                                      when not meaningful); effort N m: driven rocker's torque,
-                                                     0.0 for the other joints
+                                                     0.0 for the other joints. Every 1/joint_state_rate s the
+                                                     last served pose again, freshly stamped, velocity 0.0
   pub  input_torque       std_msgs/Float64           torque the driven rocker needs, N m (+ in the sense of q)
   pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
   pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
@@ -17,8 +18,9 @@ reliable keep-last 10 for markers and diagnostics; commands the queues drop are 
 Each can be overridden with ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
 Markers are not per command (drawing them costs more than the rest of a command): a timer publishes them
 at most every marker_period s.
-The node only adapts messages and parameters; the math is in fourbar_ros.antenna/loads and the
-decisions in the pure modules command_policy, state_cache, joint_velocity, diagnostic_values.
+The node only adapts messages and parameters; the math is in fourbar_ros.core, what a command publishes in
+fourbar_ros.rules (policy, outputs, velocity), and the node's own bookkeeping in state_cache and diagnostic_values.
+Names, topics and QoS: fourbar_ros.config.interface; start, spin and stop: fourbar_ros.node.run.
 """
 
 from __future__ import annotations
@@ -58,20 +60,19 @@ from fourbar_ros.config.interface import (
     Topic,
 )
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
-from fourbar_ros.config.robot_model import coupler_joint_position
-from fourbar_ros.core.antenna import Driven, LinkageState
+from fourbar_ros.core.antenna import LinkageState
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
-from fourbar_ros.node.command_policy import Decision, Outcome, Policy, decide
 from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
     MessageInfoCallback,
 )
-from fourbar_ros.node.joint_velocity import Sample, velocity_step
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.state_cache import StateCache
+from fourbar_ros.rules.outputs import JointStateRule
+from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
 
 _qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
 
@@ -126,7 +127,9 @@ class FourBarNode(Node):
         self._last_command: float | None = None
         self._last_decision: Decision | None = None
         self._served: float | None = None
-        self._last_sample: Sample | None = None
+        #: (served theta rad, configuration generation, its pose): what the joint_state_rate timer republishes
+        self._held: tuple[float, int, Pose] | None = None
+        self._answered = False  # a per-command JointState went out since the last joint_state_rate tick
         self._generation = 0  # bumped by every configuration change
         self._marker_key: tuple[float, int, int] | None = None
         self._apply(self._config)
@@ -144,6 +147,9 @@ class FourBarNode(Node):
                                                      qos(COMMAND), qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
+        if self._config.joint_state_rate > 0.0:
+            self._joint_state_timer = self.create_timer(1.0 / self._config.joint_state_rate,
+                                                        self._on_joint_state_timer)
         # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
         # this one runs on the steady clock so that case is reported, once per episode.
         self._clock_warned = False
@@ -183,18 +189,17 @@ class FourBarNode(Node):
     def _apply(self, cfg: AntennaConfig) -> None:
         self._config = cfg
         self._theta_min, self._theta_max = cfg.theta_min, cfg.theta_max
-        self._velocity_timeout = cfg.velocity_timeout
         self._policy = Policy(cfg.out_of_limits)
         self._reach = cfg.linkage.reach()
-        self._driven_first = cfg.driven is Driven.GAMMA
+        self._joint_rule = JointStateRule(cfg)  # a velocity across a configuration change means nothing
+        self._pose = pose_solver(cfg)
         # One JointState and one Float64, refilled per command: publish() serializes synchronously, so reuse is
         # safe, and it spares building a message (~5 us, a sixth of the node's cost over a bare relay).
         self._joint_msg = JointState()
         self._joint_msg.name = list(cfg.joint_names)
         self._torque_msg = Float64()
         self._markers = LinkageMarkers(cfg.frame_id)
-        self.cache.reset(pose_solver(cfg))
-        self._last_sample = None  # a velocity across a configuration change means nothing
+        self.cache.reset(self._pose)
         self._generation += 1
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -305,16 +310,33 @@ class FourBarNode(Node):
 
     def _publish_joints(self, theta: float, state: Pose) -> None:
         now = self._ros_clock.now()
-        gamma, delta, torque = state
-        positions = (gamma, delta, coupler_joint_position(gamma, theta))
         msg = self._joint_msg
         msg.header.stamp = now.to_msg()
-        msg.position = list(positions)
-        msg.velocity, self._last_sample = velocity_step(self._last_sample, Sample(now.nanoseconds, positions),
-                                                        self._velocity_timeout)
-        msg.effort = [torque, 0.0, 0.0] if self._driven_first else [0.0, torque, 0.0]
+        msg.position, msg.velocity, msg.effort = self._joint_rule.sample(theta, state, now.nanoseconds)
         self._joint_pub.publish(msg)
         self.counters.joint_states_published += 1
+        self._held = (theta, self._generation, state)
+        self._answered = True
+
+    def _on_joint_state_timer(self) -> None:
+        """Republish the last served pose with a fresh stamp and zero velocities (not a sample of the velocity
+        rule, not counted), so a subscriber that arrives after the command gets the pose too. Only after a
+        whole period without a per-command JointState: a command stream is never interleaved with repeats."""
+        served = self._served
+        answered, self._answered = self._answered, False
+        if served is None or answered or self._joint_pub.get_subscription_count() == 0:
+            return
+        held = self._held
+        if held is None or held[:2] != (served, self._generation):  # not published yet (nobody listened then)
+            try:
+                held = (served, self._generation, self._pose(served))  # outside the cache: its counters stay
+            except FourBarError:  # the served angle is invalid under a newer configuration
+                return
+            self._held = held
+        msg = self._joint_msg
+        msg.header.stamp = self._ros_clock.now().to_msg()
+        msg.position, msg.velocity, msg.effort = self._joint_rule.held(served, held[2])
+        self._joint_pub.publish(msg)
 
     # ------------------------------------------------------------------ markers
 
