@@ -162,7 +162,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     recorder: Recorder | None = None
     diagnostics: list[dict[str, str]] = []
     try:
-        replayer = Replayer(node, stream, answer_topic=JOINTS)
+        replayer = Replayer(node, stream, answer_topic=TORQUE)
         node.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
                                  lambda m: diagnostics.append(_diag_values(m)), DIAGNOSTICS.depth)
         plans = discover(node, executor, OUTPUT_TOPICS, args.timeout, stop=lambda: not proc.alive())
