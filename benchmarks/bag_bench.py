@@ -50,7 +50,7 @@ def make_bag(path: Path, n: int, storage: str) -> Path:
 
 
 def read_rates(bag: Path) -> tuple[float, float]:
-    """(raw messages/s with rosbags' Reader, decoded commands/s with bag_io.read_commands)."""
+    """(raw messages/s with rosbags' Reader, decoded commands/s with storage.read_commands)."""
     from rosbags.rosbag2 import Reader
 
     from fourbar_ros.bags.storage import read_commands

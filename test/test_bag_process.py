@@ -1,7 +1,7 @@
 """`fourbar process`: the node's rules applied to a command bag without the middleware.
 
-The oracle is the node's per-command logic written out in Python on the scalar path: command_policy.decide,
-loads.pose_solver (math module) and joint_velocity.velocity_step, one command at a time, stamped with the
+The oracle is the node's per-command logic written out in Python on the scalar path: rules.policy.decide,
+loads.pose_solver (math module) and rules.velocity.velocity_step, one command at a time, stamped with the
 command's log time. fourbar process must give the same messages: same count, stamps, names, velocity presence,
 and values within bounds that follow from the two float paths (stated at each assertion).
 """

@@ -4,7 +4,7 @@ Like ``ros2 bag record``: each topic is subscribed with the reliability and dura
 publisher offers, messages are stored as received (raw CDR, receive time from the node clock),
 and the bag stores each topic's message definition, type hash and the offered QoS profiles as
 the ROS graph reports them, so ``ros2 bag info``/``play`` on a full ROS install and the ``mcap``
-reader accept it. The bag appears at its path only when closed (``bag_io.AtomicBagWriter``).
+reader accept it. The bag appears at its path only when closed (``storage.AtomicBagWriter``).
 """
 
 from __future__ import annotations

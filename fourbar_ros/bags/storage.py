@@ -46,7 +46,7 @@ from rosbags.rosbag2.storage_mcap import McapWriter
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 from rosbags.typesys import Stores, get_typestore
 
-from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.errors import FourBarError, one_line
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
@@ -95,11 +95,6 @@ def recorded_qos(*, reliable: bool = True, transient_local: bool = False) -> Qos
         INFINITE, INFINITE, QosLiveliness.AUTOMATIC, INFINITE, False)
 
 
-def _one_line(exc: BaseException) -> str:
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0].rstrip('.')
-
-
 # --------------------------------------------------------------------------- reading
 
 @contextmanager
@@ -117,7 +112,7 @@ def open_bag(path: str | os.PathLike[str]) -> Iterator[Reader]:
         reader = Reader(p)
         reader.open()
     except Exception as exc:  # rosbags raises ReaderError, OSError, sqlite3 and YAML errors
-        raise BagError(f'{p}: unreadable bag ({_one_line(exc)})') from exc
+        raise BagError(f'{p}: unreadable bag ({one_line(exc)})') from exc
     try:
         yield reader
     finally:
@@ -202,7 +197,7 @@ def read_commands(path: str | os.PathLike[str], topic: str | None = None) -> Com
                     msg: Any = store.deserialize_cdr(raw, FLOAT64)
                 except Exception as exc:
                     raise BagError(f'{p}: message {len(values)} on {chosen} is not a valid '
-                                   f'{FLOAT64} ({_one_line(exc)})') from exc
+                                   f'{FLOAT64} ({one_line(exc)})') from exc
                 stamps.append(int(stamp))
                 values.append(float(msg.data))
                 raws.append(raw)
@@ -210,7 +205,7 @@ def read_commands(path: str | os.PathLike[str], topic: str | None = None) -> Com
             raise
         except Exception as exc:
             raise BagError(f'{p}: unreadable bag after {len(values)} messages '
-                           f'({_one_line(exc)})') from exc
+                           f'({one_line(exc)})') from exc
         storage = storage_of(reader)
     if not values:
         raise BagError(f'{p}: topic {chosen} has no messages')
@@ -245,7 +240,7 @@ def read_messages(path: str | os.PathLike[str],
                 out.setdefault(conn.topic, []).append(
                     (int(stamp), store.deserialize_cdr(bytes(data), conn.msgtype)))
         except Exception as exc:
-            raise BagError(f'{p}: unreadable bag ({_one_line(exc)})') from exc
+            raise BagError(f'{p}: unreadable bag ({one_line(exc)})') from exc
     return out
 
 
@@ -326,7 +321,7 @@ class AtomicBagWriter:
             tmp = Path(tempfile.mkdtemp(prefix=f'.{self.path.name}.', suffix='.partial',
                                         dir=self.path.parent))
         except OSError as exc:
-            raise BagError(f'{self.path}: cannot write here ({_one_line(exc)})') from exc
+            raise BagError(f'{self.path}: cannot write here ({one_line(exc)})') from exc
         self._tmpdir = tmp
         try:
             self._writer = Writer(tmp / self.path.name, version=METADATA_VERSION,
@@ -374,7 +369,7 @@ class AtomicBagWriter:
             raise
         except Exception as exc:
             raise BagError(f'{self.path}: cannot add topic {topic} [{msgtype}] '
-                           f'({_one_line(exc)})') from exc
+                           f'({one_line(exc)})') from exc
         self.counts[topic] = 0
         return conn
 
@@ -405,7 +400,7 @@ class AtomicBagWriter:
         except BaseException as exc:
             self.abort()
             if isinstance(exc, Exception) and not isinstance(exc, BagError):
-                raise BagError(f'{self.path}: could not write bag ({_one_line(exc)})') from exc
+                raise BagError(f'{self.path}: could not write bag ({one_line(exc)})') from exc
             raise
         shutil.rmtree(tmp, ignore_errors=True)
         self._tmpdir = None
@@ -545,7 +540,7 @@ def _scan_mcap(file: Path, result: ReindexResult) -> Iterator[_Topic | tuple[int
             except Exception as exc:  # the stream ends (mid-record, or with no footer), or a record is corrupt
                 if result.kept_bytes < size:
                     result.dropped = (f'{size - result.kept_bytes} bytes after the last complete record: '
-                                      f'{_one_line(exc)}')
+                                      f'{one_line(exc)}')
                 return
             result.kept_bytes = f.tell()
             if isinstance(record, McapSchema):
@@ -598,7 +593,7 @@ def _scan_sqlite3(file: Path, result: ReindexResult) -> Iterator[_Topic | tuple[
             for tid, stamp, data in con.execute('SELECT topic_id, timestamp, data FROM messages ORDER BY id'):
                 yield int(tid), int(stamp), bytes(data)
         except sqlite3.Error as exc:
-            result.dropped = _one_line(exc)
+            result.dropped = one_line(exc)
         result.kept_bytes = result.source_bytes
     finally:
         con.close()
@@ -690,7 +685,7 @@ def reindex(path: str | os.PathLike[str]) -> ReindexResult:
     except BagError:
         raise
     except Exception as exc:
-        raise BagError(f'{file}: cannot recover ({_one_line(exc)})') from exc
+        raise BagError(f'{file}: cannot recover ({one_line(exc)})') from exc
     if in_place:
         old = Path(tempfile.mkdtemp(prefix=f'.{target.name}.', suffix='.original', dir=target.parent))
         os.rename(target, old / target.name)
