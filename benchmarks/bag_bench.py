@@ -6,7 +6,7 @@
   ``fourbar replay`` does before it starts), messages per second, median of repeats;
 - replay: ``fourbar replay --as-fast-as-node-keeps-up [--window 16]`` done in-process (the same
   ``Replayer``) into ``fourbar_node`` started as a process with config/antenna.yaml: strict lock-step
-  (window 1: each command waits for its JointState) and pipelined (window 16: at most 16 answers
+  (window 1: each command waits for its answer on input_torque) and pipelined (window 16: at most 16 answers
   outstanding, far below the node's queue of 1000), interleaved. Nothing is lost by construction; the run
   also checks it (every answer arrived, and the node's diagnostics count every command received and every
   JointState published). Commands per second, median of repeats.
@@ -122,7 +122,7 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
                 executor = executors[kind]
                 executor.add_node(node)
                 replayer = Replayer(node, stream, topic=f'/{kind}/antenna_angle_cmd',
-                                    answer_topic=f'/{kind}/joint_states')
+                                    answer_topic=f'/{kind}/input_torque')
                 node.create_subscription(
                     DiagnosticArray, '/diagnostics',
                     lambda m, k=kind: diag[k].append(  # type: ignore[misc]

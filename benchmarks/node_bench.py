@@ -494,11 +494,12 @@ def run(quick: bool) -> dict[str, Any]:
     try:
         for kind in EXECUTORS:
             # The shipped node is started as a user starts it (no option); the other executor by its option.
+            # The joint_states republish is off: the client counts one JointState per command.
             option = [] if kind == DEFAULT_EXECUTOR else ['--executor', kind]
             children[f'relay_{kind}'] = Child([sys.executable, '-m', 'benchmarks.node_bench', 'relay', '--executor',
                                                kind, '--ros-args', '-r', f'__ns:=/relay_{kind}'], env)
             children[f'node_{kind}'] = Child([*node_script(), *option, '--ros-args', '--params-file', str(YAML), '-r',
-                                              f'__ns:=/node_{kind}'], env)
+                                              f'__ns:=/node_{kind}', '-p', 'joint_state_rate:=0.0'], env)
         rclpy.init(context=context, domain_id=domain_id)
         client = Node('bench_client', context=context)
         executor = SingleThreadedExecutor(context=context)

@@ -6,6 +6,7 @@
 - ``Collector``: a subscription that stores messages and lets a test wait for them with a deadline.
 - ``wait_for(predicate, timeout)``: poll a condition until a deadline (discovery, counts); never a bare sleep.
 - ``sync_probe``: prove every output path is connected end to end before a test starts counting messages.
+- ``ONE_JOINT_STATE_PER_COMMAND``: node arguments that turn the joint_states republish off.
 
 Each test module opens its own session (``with RosSession() as ros``) in a module fixture; nothing here is
 a pytest fixture, so there is nothing to register in conftest.py. The node as a child process:
@@ -206,10 +207,18 @@ class RosSession:
 
 # --------------------------------------------------------------------------- end-to-end sync
 
+#: fourbar_node arguments (after ``--ros-args``) for exactly one JointState per served command: no republish.
+ONE_JOINT_STATE_PER_COMMAND: tuple[str, ...] = ('-p', 'joint_state_rate:=0.0')
+
+
 def sync_probe(publish: Callable[[float], None], collectors: Sequence[Collector[Any]],
                probes: Sequence[float], matches: Callable[[Collector[Any], Any, float], bool],
                timeout: float = TIMEOUT, interval: float = 0.05) -> None:
     """Send probe commands until every collector has answered, then wait for the answers still in flight.
+
+    Every collector must carry exactly one message per served command: ``input_torque``, or ``joint_states``
+    of a node started with ``ONE_JOINT_STATE_PER_COMMAND`` (the node otherwise republishes its last pose on
+    joint_states after a pause, and a repeat would count as one answer too many).
 
     Discovery is not symmetric: this side may see the node's publishers before the node sees this side's
     subscriptions, and the node skips outputs nobody subscribes to. So probe ``probes[i]`` one at a time

@@ -2,7 +2,7 @@
 processes on a leased ROS_DOMAIN_ID. Each valid command must give exactly one JointState and one input_torque
 equal to the core's values (bit for bit: the same scalar code on the same floats), each bad command none,
 counted in /diagnostics; the recording must read back with rosbags and with an independent reader (mcap
-package or sqlite3 + rclpy)."""
+package or sqlite3 + rclpy). The node's joint_states republish is off (``ONE_JOINT_STATE_PER_COMMAND``)."""
 
 from __future__ import annotations
 
@@ -24,7 +24,7 @@ from bag_support import (
     served,
 )
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_support import NodeProcess, RosSession
+from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
@@ -81,7 +81,8 @@ def replay_through_node(ros: RosSession, bag: Path, out: Path, cfg: AntennaConfi
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics', qos=100)
     env = ros.env()
     try:
-        with NodeProcess(['--ros-args', '--params-file', str(CONFIG), *node_args], env) as node, \
+        with NodeProcess(['--ros-args', '--params-file', str(CONFIG), *ONE_JOINT_STATE_PER_COMMAND, *node_args],
+                         env) as node, \
                 Tool(['record', out, '--storage', stream.storage, '--stop-after', f'joint_states={n}',
                       '--stop-after', f'input_torque={n}'], env) as recorder:
             recorder.wait_line('recording')
@@ -159,4 +160,4 @@ def test_lockstep_reports_a_missing_answer(ros: RosSession, tmp_path: Path) -> N
         rc, lines, _ = run_tool(['replay', bag, '--as-fast-as-node-keeps-up', '--params', params,
                                  '--deadline', '1', '--no-progress'], ros.env())
     assert rc == 1
-    assert len(lines) == 1 and lines[0].startswith('fourbar replay: error: no answer on /joint_states to command ')
+    assert len(lines) == 1 and lines[0].startswith('fourbar replay: error: no answer on /input_torque to command ')

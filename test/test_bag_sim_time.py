@@ -23,7 +23,7 @@ from pathlib import Path
 
 import pytest
 from bag_support import CONFIG, Tool, run_tool
-from ros_support import NodeProcess, RosSession
+from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import read_messages, write_command_bag
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
@@ -71,7 +71,8 @@ def test_velocity_under_sim_time_from_a_replayed_clock(rate: float, clock_hz: fl
     bag = write_command_bag(tmp_path / 'ramp', stamps, values)
     out = tmp_path / 'joints'
     env = ros.env()
-    with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-p', 'use_sim_time:=true'], env) as node, \
+    with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-p', 'use_sim_time:=true',
+                      *ONE_JOINT_STATE_PER_COMMAND], env) as node, \
             Tool(['record', out, '--topics', 'joint_states', '--stop-after', f'joint_states={N}'], env) as recorder:
         recorder.wait_line('recording')
         rc, lines, _ = run_tool(['replay', bag, '--no-progress', '--rate', str(rate), '--clock', str(clock_hz)],

@@ -1,5 +1,5 @@
-"""The package's layers import one way: core < config < motion < node < bags < live < commands; no cycles; pure
-core and motion.
+"""The package's layers import one way: core < config < motion < rules < node < bags < live < commands; no
+cycles; pure core, motion and rules.
 
 Read from the source with ``ast`` (nothing of the package is imported), so a violation is reported even in
 modules whose imports would fail here. Lazy imports inside functions count too.
@@ -19,7 +19,7 @@ import fourbar_ros
 
 PACKAGE_DIR = Path(fourbar_ros.__file__).parent
 #: Lowest first; a module may import only its own layer and the layers before it.
-LAYERS = ('core', 'config', 'motion', 'node', 'bags', 'live', 'commands')
+LAYERS = ('core', 'config', 'motion', 'rules', 'node', 'bags', 'live', 'commands')
 #: Third-party modules the core must never import (ROS, YAML, bags, plotting).
 IMPURE = ('rclpy', 'rosbags', 'mcap', 'mcap_ros2', 'yaml', 'ruamel', 'matplotlib', 'std_msgs', 'sensor_msgs',
           'diagnostic_msgs', 'visualization_msgs', 'geometry_msgs', 'rcl_interfaces', 'builtin_interfaces',
@@ -155,19 +155,20 @@ print(AntennaLinkage(0.180, 0.060, 0.102).rocker_angles(0.0, Branch.UPPER).gamma
     assert float(done.stdout) > 0.0
 
 
-#: What the motion layer may not import: ROS (it runs without rclpy; the node wires it in).
+#: What the motion and rules layers may not import: ROS (they run without rclpy; the node wires them in).
+ROS_FREE_LAYERS = (LAYERS.index('motion'), LAYERS.index('rules'))
 ROS = tuple(m for m in IMPURE if m not in ('yaml', 'ruamel', 'matplotlib', 'rosbags', 'mcap', 'mcap_ros2'))
 
 
-@pytest.mark.parametrize('name', sorted(n for n in MODULES if _layer(n) == LAYERS.index('motion')))
-def test_motion_module_imports_no_ros(name: str) -> None:
+@pytest.mark.parametrize('name', sorted(n for n in MODULES if _layer(n) in ROS_FREE_LAYERS))
+def test_ros_free_module_imports_no_ros(name: str) -> None:
     third_party = {m.split('.')[0] for m in _imports(name, MODULES[name])}
     assert not third_party & set(ROS), f'{name} imports {sorted(third_party & set(ROS))}'
 
 
-def test_motion_imports_with_ros_blocked() -> None:
-    """Every motion module imports in a process where no ROS package can load."""
-    motion = sorted(n for n in MODULES if _layer(n) == LAYERS.index('motion'))
+def test_ros_free_layers_import_with_ros_blocked() -> None:
+    """Every motion and rules module imports in a process where no ROS package can load."""
+    motion = sorted(n for n in MODULES if _layer(n) in ROS_FREE_LAYERS)
     assert motion
     script = f"""
 import importlib, importlib.abc

@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from ros_support import Collector, NodeProcess, RosSession, sync_probe
+from ros_support import ONE_JOINT_STATE_PER_COMMAND, Collector, NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -45,13 +45,15 @@ def gamma(theta: float) -> float:
 
 
 class Rig:
-    """The node process in namespace ``ns`` with a command publisher, joint_states and /diagnostics collectors."""
+    """The node process in namespace ``ns`` (one JointState per served command, counted) with a command
+    publisher, joint_states and /diagnostics collectors."""
 
     def __init__(self, ros: RosSession, ns: str, executor: str) -> None:
         self.ros = ros
         self.ns = ns
         self.proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}',
-                                 '-p', 'diagnostics_period:=0.1'], ros.env(**{EXECUTOR_ENV: executor}))
+                                 '-p', 'diagnostics_period:=0.1', *ONE_JOINT_STATE_PER_COMMAND],
+                                ros.env(**{EXECUTOR_ENV: executor}))
         self.proc.start()
         self.pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
         self.js: Collector[Any] = ros.collect(JointState, f'{ns}/joint_states')

@@ -1,5 +1,6 @@
 """fourbar_node as a user starts it: its console script with ``--ros-args --params-file config/antenna.yaml``,
-a separate process on this run's ROS domain id; outputs checked against the core; signals and bad startups."""
+a separate process on this run's ROS domain id; outputs checked against the core; signals and bad startups.
+The joint_states republish is off here (``ONE_JOINT_STATE_PER_COMMAND``): answers are counted per command."""
 
 from __future__ import annotations
 
@@ -13,7 +14,15 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from ros_support import Collector, NodeProcess, RosSession, node_command, sync_probe, wait_future
+from ros_support import (
+    ONE_JOINT_STATE_PER_COMMAND,
+    Collector,
+    NodeProcess,
+    RosSession,
+    node_command,
+    sync_probe,
+    wait_future,
+)
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -44,7 +53,7 @@ def state(theta: float) -> Any:
 
 def start(ros: RosSession, *extra: str, params: Path = YAML, executor: str | None = None) -> NodeProcess:
     env = ros.env() if executor is None else ros.env(**{EXECUTOR_ENV: executor})
-    proc = NodeProcess(['--ros-args', '--params-file', str(params), *extra], env)
+    proc = NodeProcess(['--ros-args', '--params-file', str(params), *ONE_JOINT_STATE_PER_COMMAND, *extra], env)
     proc.start()
     return proc
 
@@ -253,8 +262,8 @@ def test_robot_wide_params_file_other_nodes_parameters_are_ignored(ros: RosSessi
         '/**:\n  ros__parameters:\n    robot_description: "<robot name=\'r\'/>"\n    publish_frequency: 50.0\n', 1)
     path.write_text(text + '\n/robot/fourbar_node:\n  ros__parameters:\n    frame_lenght: 0.18\n'
                     '/robot/other_node:\n  ros__parameters:\n    other_typo: 1\n', encoding='utf-8')
-    proc = NodeProcess(['--ros-args', '--params-file', str(path), '-r', '__ns:=/robot', '-p', 'cli_typo:=2'],
-                       ros.env())
+    proc = NodeProcess(['--ros-args', '--params-file', str(path), '-r', '__ns:=/robot', '-p', 'cli_typo:=2',
+                        *ONE_JOINT_STATE_PER_COMMAND], ros.env())
     proc.start()
     try:
         pub, js, tq = connect(ros, proc, '/robot')

@@ -16,7 +16,7 @@ from typing import Any
 
 import pytest
 from builtin_interfaces.msg import Time
-from ros_support import Collector, NodeProcess, RosSession, Ticker, sync_probe, wait_for
+from ros_support import ONE_JOINT_STATE_PER_COMMAND, Collector, NodeProcess, RosSession, Ticker, sync_probe, wait_for
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -50,7 +50,7 @@ def test_sim_time_velocity_is_unbiased_with_a_40_hz_clock() -> None:
             clock_pub.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
 
         proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', '__ns:=/sim',
-                            '-p', 'use_sim_time:=true'], ros.env())
+                            '-p', 'use_sim_time:=true', *ONE_JOINT_STATE_PER_COMMAND], ros.env())
         proc.start()
         try:
             with Ticker(CLOCK_HZ, publish_clock):

@@ -1,6 +1,6 @@
 """Every stop ends fourbar_node with status 0 and no traceback: SIGINT and SIGTERM, idle and under a 1 kHz stream.
 
-Each case starts the console script ``REPEATS`` times, proves it serves (an answer on joint_states), and
+Each case starts the console script ``REPEATS`` times, proves it serves (answers on input_torque), and
 signals it: idle (no command in flight) or while a 1 kHz command stream runs and its answers are subscribed
 (so the signal lands during take/solve/publish calls). Before the fix (rclpy's own signal handlers, which shut
 the context down under a running callback) SIGTERM failed 4-5 of 20 idle and 19 of 20 under load, SIGINT
@@ -43,8 +43,9 @@ def ros() -> Iterator[RosSession]:
         yield session
 
 
-def gamma(theta: float) -> float:
-    return float(CFG.linkage.state(theta, CFG.load_torque, CFG.driven, CFG.branch).gamma)
+def torque(theta: float) -> float:
+    """The node's input_torque (N m) at antenna angle ``theta`` (rad)."""
+    return float(CFG.linkage.state(theta, CFG.load_torque, CFG.driven, CFG.branch).input_torque)
 
 
 class Stream(Ticker):
@@ -83,8 +84,8 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str) -
                         js.wait_count(SERVED_BEFORE_SIGNAL)
                         status = proc.stop(sig)
                 else:
-                    sync_probe(lambda t: pub.publish(Float64(data=t)), [js], probes,
-                               lambda col, msg, p: bool(msg.position[0] == gamma(p)))
+                    sync_probe(lambda t: pub.publish(Float64(data=t)), [tq], probes,
+                               lambda col, msg, p: bool(msg.data == torque(p)))
                     status = proc.stop(sig)
             finally:
                 proc.kill()

@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 from colcon_support import colcon_install as build_once
 from colcon_support import sourced_env as colcon_env
-from ros_support import NodeProcess, RosSession, sync_probe
+from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
@@ -93,7 +93,8 @@ def test_colcon_installed_node_serves_commands(colcon_install: Path) -> None:
                                env=env, cwd=colcon_install, capture_output=True, text=True,
                                check=True).stdout.strip()
         assert where.startswith(str(prefix)), where   # the installed copy, not the source tree
-        with NodeProcess(['--ros-args', '--params-file', str(REPO / 'config' / 'antenna.yaml')], env,
+        with NodeProcess(['--ros-args', '--params-file', str(REPO / 'config' / 'antenna.yaml'),
+                          *ONE_JOINT_STATE_PER_COMMAND], env,
                          command=[str(executable)], cwd=colcon_install) as proc:
             pub = ros.publisher(Float64, 'antenna_angle_cmd')
             js = ros.collect(JointState, 'joint_states')

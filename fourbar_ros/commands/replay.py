@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
+from fourbar_ros.config.interface import INPUT_TORQUE, sibling_topic
 
 HELP = ('replay a command bag into a running fourbar_node: recorded timing (--rate) '
         'or lock-step with its answers (--as-fast-as-node-keeps-up)')
@@ -21,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help='play F times as fast as recorded (default: 1.0)')
     mode.add_argument('--as-fast-as-node-keeps-up', dest='lockstep', action='store_true',
                       help='publish each command once the node answered the previous one on '
-                      'joint_states (nothing is lost, whatever the speed)')
+                      'input_torque (nothing is lost, whatever the speed)')
     parser.add_argument('--clock', nargs='?', type=float, const=40.0, default=None, metavar='HZ',
                         help='timed replay: also publish /clock (rosgraph_msgs/Clock) with the bag\'s playback '
                         'time at HZ (default 40, as `ros2 bag play --clock`), for nodes with use_sim_time:=true; '
@@ -32,8 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--topic', metavar='NAME',
                         help='publish on NAME instead of the recorded topic (e.g. /tilt/antenna_angle_cmd)')
     parser.add_argument('--answer-topic', metavar='NAME',
-                        help='lock-step: the node\'s JointState topic (default: joint_states next to the '
-                        'command topic)')
+                        help='lock-step: the node\'s input torque topic, std_msgs/Float64, one message per '
+                        'served command (default: input_torque next to the command topic)')
     parser.add_argument('--params', type=Path, metavar='YAML',
                         help='lock-step: predict which commands the node answers from this parameter file '
                         '(default: ask the node for its theta_min, theta_max, out_of_limits)')
@@ -56,13 +57,14 @@ def run(args: argparse.Namespace) -> int:
     from rclpy.executors import ExternalShutdownException
     from rclpy.node import Node
 
-    from fourbar_ros.bags.storage import read_commands, sibling_topic
+    from fourbar_ros.bags.storage import read_commands
     from fourbar_ros.live.graph import ReplayError
     from fourbar_ros.live.node_params import Predictor, predictor
     from fourbar_ros.live.progress import Progress
     from fourbar_ros.live.replay import Replayer
-    from fourbar_ros.live.ros_context import close_context, init_context, interrupt_on_sigterm
+    from fourbar_ros.live.ros_context import close_context, init_context
     from fourbar_ros.node.executor import create_executor
+    from fourbar_ros.node.run import stop_on_signals
 
     prog = 'fourbar replay'
     for name in ('rate', 'wait', 'deadline'):
@@ -84,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         cfg = load_config(args.params)
         answers_from_file = predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits)
 
-    with interrupt_on_sigterm():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt: cleanup runs
+    with stop_on_signals():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt (not inside a callback): cleanup runs
         context = init_context(handle_signals=False)
         node = Node('fourbar_replay', context=context, start_parameter_services=False)
         executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
@@ -94,7 +96,8 @@ def run(args: argparse.Namespace) -> int:
             topic = args.topic or stream.topic
             answer_topic = None
             if args.lockstep:
-                answer_topic = args.answer_topic or sibling_topic(node.resolve_topic_name(topic), 'joint_states')
+                answer_topic = (args.answer_topic
+                                or sibling_topic(node.resolve_topic_name(topic), INPUT_TORQUE.name))
             replayer = Replayer(node, stream, topic, answer_topic, clock=args.clock is not None)
             replayer.wait_for_node(executor, args.wait)
             if not args.lockstep:

@@ -37,6 +37,7 @@ from typing import TypeVar
 from xml.sax.saxutils import quoteattr
 
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
+from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.numeric import FloatArray
 
@@ -155,7 +156,7 @@ def robot_description(cfg: AntennaConfig, robot_name: str = 'fourbar') -> str:
     return '\n'.join(lines) + '\n'
 
 
-def robot_description_for(params: str | Path, node_name: str = 'fourbar_node', namespace: str = '/',
+def robot_description_for(params: str | Path, node_name: str = NODE_NAME, namespace: str = '/',
                           robot_name: str = 'fourbar') -> tuple[AntennaConfig, str]:
     """Validated configuration and URDF for the node ``namespace``/``node_name`` started with ``params``.
 

@@ -5,9 +5,10 @@ Two modes:
 - timed: each command is published at its recorded time offset divided by ``rate``
   (``rate=2`` plays twice as fast), like ``ros2 bag play --rate``;
 - lock-step: after each command the node is expected to answer, wait (with a deadline) for its
-  ``joint_states`` message before publishing the next one, so nothing queues up and nothing is
+  ``input_torque`` message (published exactly once per served command; ``joint_states`` also carries
+  republished poses) before publishing the next one, so nothing queues up and nothing is
   lost whatever the node's speed. Which commands the node answers is predicted with the node's
-  own rule (``command_policy.decide``) from its live ``theta_min``, ``theta_max`` and
+  own rule (``rules.policy.decide``) from its live ``theta_min``, ``theta_max`` and
   ``out_of_limits`` parameters (or a parameter file): rejected commands get no answer to wait for,
   and the next answered command proves the node has consumed them (one subscription, in order).
 
@@ -45,7 +46,7 @@ from fourbar_ros.live.graph import (
 )
 from fourbar_ros.live.node_params import LIMIT_PARAMETERS, Predictor, fetch_parameters, handshake, predictor_from_values
 from fourbar_ros.live.progress import Progress
-from fourbar_ros.node.executor import spin_once
+from fourbar_ros.node.run import spin_once
 
 #: History depth of the replay publisher (timed mode may run ahead of a slow node by this much).
 PUBLISH_DEPTH = 1000
@@ -94,8 +95,8 @@ def _clock_type() -> Any:
 class Replayer:
     """Publishes a CommandStream on ``topic`` (default: its recorded topic) from ``node``.
 
-    With ``answer_topic`` (lock-step), counts the node's answers there (``sensor_msgs/JointState``
-    by default, received raw: the replayer never decodes them).
+    With ``answer_topic`` (lock-step), counts the node's answers there (``std_msgs/Float64`` by default: the
+    node's ``input_torque``, one per served command; received raw: the replayer never decodes them).
     """
 
     def __init__(self, node: Node, stream: CommandStream, topic: str | None = None,
@@ -115,8 +116,7 @@ class Replayer:
         self.subscription = None
         if answer_topic is not None:
             if answer_type is None:
-                from sensor_msgs.msg import JointState
-                answer_type = JointState
+                answer_type = Float64
             self.subscription = node.create_subscription(
                 answer_type, answer_topic, self._on_answer,
                 make_qos(history=HistoryPolicy.KEEP_LAST, depth=PUBLISH_DEPTH,

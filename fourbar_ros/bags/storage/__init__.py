@@ -9,14 +9,10 @@ from fourbar_ros.bags.storage.adapters import STORAGES
 from fourbar_ros.bags.storage.common import (
     COMMAND_TOPIC,
     DEFAULT_STORAGE,
-    DIAGNOSTIC_ARRAY,
-    FLOAT64,
-    JOINT_STATE,
     METADATA_VERSION,
     BagError,
     jazzy_typestore,
     recorded_qos,
-    sibling_topic,
     time_from_ns,
 )
 from fourbar_ros.bags.storage.read import (
@@ -31,6 +27,7 @@ from fourbar_ros.bags.storage.read import (
 )
 from fourbar_ros.bags.storage.reindex import ReindexResult, partial_dirs, reindex
 from fourbar_ros.bags.storage.write import AtomicBagWriter, float64_cdr, write_command_bag
+from fourbar_ros.config.interface import DIAGNOSTIC_ARRAY, FLOAT64, JOINT_STATE, sibling_topic  # re-exported
 
 __all__ = [
     'COMMAND_TOPIC', 'DEFAULT_STORAGE', 'DIAGNOSTIC_ARRAY', 'FLOAT64', 'JOINT_STATE', 'METADATA_VERSION',

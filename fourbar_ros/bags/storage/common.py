@@ -8,16 +8,16 @@ from typing import TYPE_CHECKING, Literal
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.typesys import Stores, get_typestore
 
+from fourbar_ros.config.interface import COMMAND
+from fourbar_ros.config.interface import DEFAULT_STORAGE as _DEFAULT
 from fourbar_ros.core.errors import FourBarError
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
 
-COMMAND_TOPIC = '/antenna_angle_cmd'
-FLOAT64 = 'std_msgs/msg/Float64'
-JOINT_STATE = 'sensor_msgs/msg/JointState'
-DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
-DEFAULT_STORAGE = 'mcap'
+#: The command topic as a recording at the root namespace holds it.
+COMMAND_TOPIC = f'/{COMMAND.name}'
+DEFAULT_STORAGE = _DEFAULT.value
 METADATA_VERSION: Literal[9] = 9  # rosbag2 metadata version of ROS 2 Jazzy
 
 # RMW_DURATION_INFINITE as rosbag2 stores it: 2**63 - 1 ns split into seconds and nanoseconds.
@@ -27,22 +27,6 @@ INFINITE = QosTime(_INFINITE_NS // 1_000_000_000, _INFINITE_NS % 1_000_000_000)
 
 class BagError(FourBarError):
     """A bag that is missing, unreadable, lacks the expected topic or type, or cannot be written."""
-
-
-def one_line(exc: BaseException) -> str:
-    """The first line of an exception's message (its type name if the message is empty)."""
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0].rstrip('.')
-
-
-def sibling_topic(command_topic: str, name: str) -> str:
-    """The topic ``name`` in the namespace of ``command_topic``, as the node's relative names resolve.
-
-    ``/antenna_angle_cmd`` -> ``/NAME``; ``/ns/antenna_angle_cmd`` -> ``/ns/NAME``; a relative command
-    topic gives a relative name (``antenna_angle_cmd`` -> ``NAME``, ``ns/antenna_angle_cmd`` -> ``ns/NAME``).
-    """
-    head, slash, _ = command_topic.rpartition('/')
-    return f'{head}{slash}{name}'
 
 
 @lru_cache(maxsize=1)

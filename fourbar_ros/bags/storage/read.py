@@ -20,7 +20,9 @@ from rosbags.interfaces import ConnectionExtRosbag2, Qos
 from rosbags.rosbag2 import Reader
 
 from fourbar_ros.bags.storage.adapters import adapter_of_file
-from fourbar_ros.bags.storage.common import COMMAND_TOPIC, FLOAT64, BagError, jazzy_typestore, one_line
+from fourbar_ros.bags.storage.common import COMMAND_TOPIC, BagError, jazzy_typestore
+from fourbar_ros.config.interface import FLOAT64
+from fourbar_ros.core.errors import one_line
 
 
 @contextmanager

@@ -11,10 +11,11 @@ from pathlib import Path
 from rosbags.interfaces import Connection
 
 from fourbar_ros.bags.storage.adapters import adapter_of_file
-from fourbar_ros.bags.storage.common import BagError, one_line
+from fourbar_ros.bags.storage.common import BagError
 from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StorageAdapter
 from fourbar_ros.bags.storage.read import open_bag
 from fourbar_ros.bags.storage.write import AtomicBagWriter, fsync_path
+from fourbar_ros.core.errors import one_line
 
 
 @dataclass

@@ -9,8 +9,9 @@ from pathlib import Path
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
-from fourbar_ros.bags.storage.common import one_line, parse_offered_qos, type_hash
+from fourbar_ros.bags.storage.common import parse_offered_qos, type_hash
 from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StoredMessage
+from fourbar_ros.core.errors import one_line
 
 
 class Sqlite3Storage:

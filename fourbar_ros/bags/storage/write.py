@@ -26,13 +26,13 @@ from fourbar_ros.bags.storage.adapters import adapter
 from fourbar_ros.bags.storage.common import (
     COMMAND_TOPIC,
     DEFAULT_STORAGE,
-    FLOAT64,
     METADATA_VERSION,
     BagError,
     jazzy_typestore,
-    one_line,
     recorded_qos,
 )
+from fourbar_ros.config.interface import FLOAT64
+from fourbar_ros.core.errors import one_line
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore
