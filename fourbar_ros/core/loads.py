@@ -76,10 +76,16 @@ def com_height_rate(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dt
 def com_height_rate(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike:
     """d y_com / d theta (m/rad): how fast the antenna's centre of mass rises as theta grows. Floats take the
     math module's functions, arrays numpy's (element-wise the same operations)."""
-    cos, sin = (np.cos, np.sin) if isinstance(theta, np.ndarray) else (math.cos, math.sin)
+    cos_gamma: ArrayLike
+    cos_theta: ArrayLike
+    sin_theta: ArrayLike
+    if isinstance(theta, np.ndarray):
+        cos_gamma, cos_theta, sin_theta = np.cos(gamma), np.cos(theta), np.sin(theta)
+    else:
+        cos_gamma, cos_theta, sin_theta = math.cos(gamma), math.cos(theta), math.sin(theta)
     along = 0.5 * cfg.linkage.coupler + cfg.com_offset_along
-    rate: ArrayLike = (cfg.linkage.rocker_ab * cos(gamma) * dgamma_dtheta
-                       - along * cos(theta) - cfg.com_offset_normal * sin(theta))
+    rate: ArrayLike = (cfg.linkage.rocker_ab * cos_gamma * dgamma_dtheta
+                       - along * cos_theta - cfg.com_offset_normal * sin_theta)
     return rate
 
 
