@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from fourbar_ros.core.dyad import Branch
 from fourbar_ros.core.errors import FourBarError, SingularPositionError, UnreachableError
@@ -218,7 +219,7 @@ def relative_system(pairs: Iterable[Sequence[float]]) -> tuple[FloatArray, Float
         return m / scale, rhs, scale
 
 
-def rounding_bound(pairs: FloatArray, m: FloatArray, y: FloatArray, residuals: FloatArray,
+def rounding_bound(pairs: FloatArray, m: FloatArray, y: npt.NDArray[np.floating[Any]], residuals: FloatArray,
                    scale: FloatArray) -> tuple[float, float]:
     """Bound on the rounding error of the solved K1 and K2 (dimensionless), from the solve's own data.
 
