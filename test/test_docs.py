@@ -43,7 +43,7 @@ def blocks() -> list[tuple[Path, CodeBlock]]:
 
 def marks(block: CodeBlock) -> list[Any]:
     """The block's marks, evaluated as pytest-codeblocks evaluates them."""
-    return [eval(mark, {'pytest': pytest, 'sys': sys}) for mark in block.marks]  # noqa: S307 - our own docs
+    return [eval(mark, {'pytest': pytest, 'sys': sys}) for mark in block.marks]  # our own docs
 
 
 def _mark_names(block: CodeBlock) -> set[str]:
@@ -63,7 +63,8 @@ def test_every_block_is_run_text_or_visibly_not_run() -> None:
         for mark in marks(block):
             if mark.name == 'skip':
                 reason = mark.kwargs['reason']
-                assert f'(not run by the tests: {reason})' in path.read_text(encoding='utf-8'), (
+                visible = ' '.join(path.read_text(encoding='utf-8').split())  # Markdown joins the lines
+                assert f'(not run by the tests: {reason})' in visible, (
                     f'{where}: say "(not run by the tests: {reason})" where a reader sees it')
 
 
@@ -123,3 +124,34 @@ def test_same_output_compares_text_exactly_and_numbers_within_the_tolerance() ->
     assert not same_output('K2 = 3.0000000000009\n', 'K1 = 3.000000000000989\n', rel=1e-13)
     assert not same_output('error 4.441e-16 rad\n', 'error 8.882e-16 rad\n', rel=0.1)
     assert same_output('error 4.441e-16 rad\n', 'error 8.882e-16 rad\n', abs_=1e-15)
+
+
+def test_documented_joint_names_are_the_nodes() -> None:
+    """docs/node.md and docs/ros.md name the joints the node publishes (the parameters' values, not their names)."""
+    from fourbar_ros.config.antenna_config import default_config
+
+    ab, cd, coupler = default_config().joint_names
+    node = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
+    ros = (REPO / 'docs' / 'ros.md').read_text(encoding='utf-8')
+    assert f'`name` = [`{ab}`, `{cd}`, `{coupler}`]' in node
+    assert f'joint `{ab}`' in ros and f'joint `{cd}`' in ros and f'joint `{coupler}`' in ros
+    assert 'joint `gamma_joint`' not in ros and 'joint `delta_joint`' not in ros
+
+
+def test_documented_keys_absent_before_the_first_command_are_the_nodes() -> None:
+    """The diagnostics keys docs/node.md lists as absent until the first command: exactly those a status before
+    any command lacks and one after a served command has."""
+    from fourbar_ros.config.antenna_config import default_config
+    from fourbar_ros.node.command_policy import decide
+    from fourbar_ros.node.diagnostic_values import Counters, summarize
+
+    cfg = default_config()
+    before = {k for k, _ in summarize(cfg, None, None, None, Counters(), 0, 0).values}
+    decision = decide(0.05, cfg.theta_min, cfg.theta_max, cfg.out_of_limits, cfg.linkage.reach())
+    after = {k for k, _ in summarize(cfg, decision, 0.05, cfg.linkage.state(0.05, cfg.load_torque), Counters(),
+                                     1, 0).values}
+    text = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
+    paragraph = text[text.index('Absent until the first command arrives'):]
+    paragraph = paragraph[:paragraph.index('\n\n')]
+    documented = set(re.findall(r'`([a-z_]+)`', paragraph)) - {'waiting for the first command'}
+    assert documented == after - before
