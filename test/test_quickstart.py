@@ -138,7 +138,7 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
 def _check(echo: str, last: str) -> None:
     import yaml
 
-    msg = yaml.safe_load(echo.split('\n---')[0])
+    msg = yaml.safe_load(echo.split('\n---', maxsplit=1)[0])
     assert msg['name'] == ['rocker_ab_joint', 'rocker_cd_joint', 'coupler_joint'], echo
     assert len(msg['position']) == 3, echo
     assert 'Set parameter successful' in last, last
