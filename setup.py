@@ -24,7 +24,7 @@ setup(
         'bags': ['rosbags', 'mcap', 'mcap-ros2-support'],
         'plot': ['matplotlib'],
         'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
-                 'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py'],
+                 'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py', 'pytest-codeblocks'],
     },
     zip_safe=True,
     maintainer='fourbar_ros developers',

@@ -148,7 +148,8 @@ def test_replay_without_a_node_fails_in_one_line(ros: RosSession) -> None:
     rc, lines, out = run_tool(['replay', committed_bags()[0], '--wait', '1', '--no-progress'], ros.env())
     assert rc == 1 and out == ''
     assert lines == [f'fourbar replay: error: no subscriber on /antenna_angle_cmd within 1 s '
-                     f'(is fourbar_node running with ROS_DOMAIN_ID={ros.domain_id}?)']
+                     f'(is fourbar_node running with ROS_DOMAIN_ID={ros.domain_id} in the namespace /? a node in '
+                     'another namespace NS: --topic /NS/antenna_angle_cmd)']
 
 
 def test_lockstep_reports_a_missing_answer(ros: RosSession, tmp_path: Path) -> None:

@@ -3,7 +3,8 @@
 Each command module defines HELP (one line), add_arguments(parser) and run(args) -> exit status, and imports
 anything heavy (rclpy, rosbags, matplotlib) inside run(), so `fourbar solve` stays quick. A command reports
 bad input or a failure by raising a FourBarError (a CommandError where the exit status is not 2); `main` alone
-turns it into the one line `fourbar <command>: error: <message>` on stderr and the exit status. A result that
+turns it into the one line `fourbar <command>: error: <message>` on stderr and the exit status. Usage errors
+(an unknown option, a bad choice, a missing argument) are the same one line, with a pointer to `--help`. A result that
 is not an error (check's failed limit, compare's difference) is a returned 1.
 """
 
@@ -16,7 +17,7 @@ import pkgutil
 import re
 import sys
 from collections.abc import Sequence
-from typing import Any
+from typing import Any, NoReturn
 
 from fourbar_ros.core.errors import FourBarError
 
@@ -45,6 +46,19 @@ class Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = NEGATIVE_NUMBER  # argparse's hook for this rule (an instance attribute)
 
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        """argparse's parse_args, but an unknown option is reported by the subcommand's parser (its name and
+        help), not the top-level one."""
+        parsed, unknown = self.parse_known_args(args, namespace)
+        if unknown:
+            getattr(parsed, '_parser', self).error(f'unrecognized arguments: {" ".join(unknown)}')
+        return parsed
+
+    def error(self, message: str) -> NoReturn:
+        """A usage error as every other error: one line, ``fourbar <command>: error: ...``, exit status 2."""
+        self.exit(2, f'{self.prog}: error: {message} (see {self.prog} --help)\n')
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The top-level parser with every discovered subcommand."""
@@ -56,7 +70,7 @@ def build_parser() -> argparse.ArgumentParser:
         module = importlib.import_module(f'{__name__}.{info.name}')
         p = sub.add_parser(info.name, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
-        p.set_defaults(_run=module.run, _prog=f'fourbar {info.name}')
+        p.set_defaults(_run=module.run, _prog=f'fourbar {info.name}', _parser=p)
     return parser
 
 

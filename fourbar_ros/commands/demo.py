@@ -1,6 +1,6 @@
 """`fourbar demo`: start fourbar_node, replay the bundled sweep into it, record its outputs, summarize, plot.
 
-Runs on a ROS_DOMAIN_ID nobody on this host uses (or --domain-id) with discovery limited to this
+Runs on --domain-id, else an exported ROS_DOMAIN_ID, else one nobody on this host uses, with discovery limited to this
 host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so it neither sees nor disturbs other ROS traffic.
 The node process is stopped on every path (done, error, Ctrl-C).
 """
@@ -8,6 +8,7 @@ The node process is stopped on every path (done, error, Ctrl-C).
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -57,8 +58,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--storage', choices=STORAGES, default=DEFAULT_STORAGE.value,
                         help=f'storage of the recorded outputs bag (default: {DEFAULT_STORAGE.value})')
     parser.add_argument('--domain-id', type=int, metavar='N',
-                        help='ROS_DOMAIN_ID to use, 0..232 (default: the first free one of '
-                        f'{_id_ranges(FREE_DOMAIN_IDS)}, searched from a place set by the process id; free: no '
+                        help='ROS_DOMAIN_ID to use, 0..232 (default: the exported ROS_DOMAIN_ID, else the first free '
+                        f'one of {_id_ranges(FREE_DOMAIN_IDS)}, searched from a place set by the process id; free: no '
                         'other fourbar run holds its lock file and no DDS participant on this host holds its '
                         'discovery ports)')
     parser.add_argument('--timeout', type=float, default=30.0, metavar='S',
@@ -68,6 +69,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def _diag_values(msg: object) -> dict[str, str]:
     status = getattr(msg, 'status', [])
     return {kv.key: kv.value for kv in status[0].values} if status else {}
+
+
+def _environment_domain() -> tuple[int | None, str]:
+    """An exported ROS_DOMAIN_ID (so other terminals see the demo's topics) and where the domain comes from."""
+    text = os.environ.get('ROS_DOMAIN_ID', '').strip()
+    if not text:
+        return None, 'a free one: ROS_DOMAIN_ID is not set'
+    if not (text.isdigit() and 0 <= int(text) <= 232):
+        raise CommandError(f'ROS_DOMAIN_ID={text!r} must be an integer in 0..232 (unset it to let the demo pick '
+                           'a free one)')
+    return int(text), 'from ROS_DOMAIN_ID'
 
 
 def run(args: argparse.Namespace) -> int:
@@ -92,15 +104,16 @@ def run(args: argparse.Namespace) -> int:
     stream = read_commands(args.bag)  # one-line BagError -> status 2
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise CommandError(f'--domain-id must be in 0..232, got {args.domain_id}')
+    chosen, source = (args.domain_id, '--domain-id') if args.domain_id is not None else _environment_domain()
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     outputs = out / 'outputs'
     if outputs.exists():  # the previous demo's recording: ours to replace
         shutil.rmtree(outputs)
 
-    domain = (contextlib.nullcontext(args.domain_id) if args.domain_id is not None else free_domain_id())
+    domain = contextlib.nullcontext(chosen) if chosen is not None else free_domain_id()
     with domain as domain_id:
-        print(f'{prog}: fourbar_node with {args.params} on ROS_DOMAIN_ID {domain_id} (this host only); '
+        print(f'{prog}: fourbar_node with {args.params} on ROS_DOMAIN_ID {domain_id} ({source}; this host only); '
               f'replaying {len(stream)} commands from {args.bag}', flush=True)
         replay_seconds, diagnostics = _run_ros(args, stream, domain_id, outputs,
                                                predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits))

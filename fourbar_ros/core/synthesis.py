@@ -15,8 +15,8 @@ Signs: a negative K1 gives l2 = l1/K1 < 0. A link of length -a at angle t is the
 at t + pi, so such a design *is* a linkage, but its crank points opposite to the requested angles (the input datum
 is shifted by pi). By default that is refused as unbuildable; with ``allow_flip=True`` the link is reported with
 its positive length and ``crank_flipped`` (``rocker_flipped`` for K2 < 0) set, and the verification runs the
-physical linkage at t2 + pi (t4 + pi). K1 = 0 or K2 = 0 (an infinitely long link) and l3^2 <= 0 (no real coupler)
-are always unbuildable.
+physical linkage at t2 + pi (t4 + pi). K1 or K2 zero within the solve's rounding (an infinitely long link; see
+:func:`rounding_bound`) and l3^2 <= 0 (no real coupler) are always unbuildable.
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Any, Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from fourbar_ros.core.dyad import Branch
 from fourbar_ros.core.errors import FourBarError, SingularPositionError, UnreachableError
@@ -43,8 +44,9 @@ MAX_CONDITION = 1e8
 #: told apart.
 TOGGLE_TOL = 1e-6
 
-#: Safety factor on the first-order rounding bound cond * eps * |K| below which K1 or K2 counts as zero.
-_ROUNDING_FACTOR = 16.0
+#: Safety factor on the first-order bound of the solve's rounding error (:func:`rounding_bound`), for the terms
+#: of second order and a sin or cos a few ulps off (numpy's are within 1-2 ulps).
+_ROUNDING_FACTOR = 4.0
 
 #: PairCheck.branch where both branches meet (a toggle or a change point): no one Branch passes the pair.
 TOGGLE: Literal[0] = 0
@@ -217,6 +219,37 @@ def relative_system(pairs: Iterable[Sequence[float]]) -> tuple[FloatArray, Float
         return m / scale, rhs, scale
 
 
+def rounding_bound(pairs: FloatArray, m: FloatArray, y: npt.NDArray[np.floating[Any]], residuals: FloatArray,
+                   scale: FloatArray) -> tuple[float, float]:
+    """Bound on the rounding error of the solved K1 and K2 (dimensionless), from the solve's own data.
+
+    Every entry of :func:`relative_system`'s unscaled matrix and right side is ``-2 sin(s/2) sin(d/2)`` with s, d
+    sums and differences of the input angles. Each angle carries up to half an ulp (u |t|) from its own
+    rounding, each sum or difference another u of its magnitude, and sin has slope <= 1; the product rounds to a
+    few u of its value (<= 2). So an entry of row i is off by at most ``e_i = u (4 S_i + 10)`` with
+    ``S_i = |t2_i| + |t4_i| + |a| + |b|`` ((a, b) the first pair; the right side's t2 - t4 rounds once more,
+    hence 4). In the scaled system (column j divided by scale_j; the ones column is exact) that is
+    ``||dm|| <= ||e|| sqrt(1/scale_0^2 + 1/scale_1^2)`` (Frobenius) and ``||drhs|| <= ||e||``, plus the
+    backward error of the solve itself, 3 n u ||m||. First-order perturbation of (least-squares) solutions:
+
+        ||dy|| <= (||dm|| ||y|| + ||drhs||) / s_min + ||dm|| ||r|| / s_min^2
+
+    (s_min the smallest singular value of m, r the residuals; the last term is least squares' own, 0 for three
+    pairs), and ``dK_j = ||dy|| / scale_j``. The bound does not shrink with y, so when the exact constants are 0
+    (t4 - t2 the same at every pair) no sign or size rounding produces can pass it.
+    """
+    u = 0.5 * np.finfo(float).eps
+    t2, t4 = pairs[:, 0], pairs[:, 1]
+    magnitude = np.abs(t2) + np.abs(t4) + abs(float(t2[0])) + abs(float(t4[0]))
+    entry = float(np.linalg.norm(u * (4.0 * magnitude + 10.0)))
+    singular = np.linalg.svd(m, compute_uv=False)
+    n = m.shape[0]
+    dm = entry * math.hypot(1.0 / float(scale[0]), 1.0 / float(scale[1])) + 3.0 * n * u * float(singular[0])
+    s_min = float(singular[-1])
+    dy = (dm * float(np.linalg.norm(y)) + entry) / s_min + dm * float(np.linalg.norm(residuals)) / s_min ** 2
+    return (_ROUNDING_FACTOR * dy / float(scale[0]), _ROUNDING_FACTOR * dy / float(scale[1]))
+
+
 def solve_constants(
     pairs: Iterable[Sequence[float]], max_condition: float = MAX_CONDITION,
 ) -> tuple[tuple[float, float, float], float, FloatArray]:
@@ -225,8 +258,8 @@ def solve_constants(
     Returns (constants, condition number, per-pair residuals). The condition number is the 2-norm one of the
     textbook matrix of :func:`freudenstein_system`; the solve itself uses :func:`relative_system`. Raises
     DegenerateDesignError when the matrix is rank-deficient (singular) or its condition number exceeds
-    ``max_condition``, and UnbuildableDesignError when K1 or K2 is zero within the solve's rounding (an
-    infinitely long link).
+    ``max_condition``, and UnbuildableDesignError when K1 or K2 is zero within the solve's rounding
+    (:func:`rounding_bound`: an infinitely long link).
     """
     arr = _as_pairs(pairs)
     a, _ = freudenstein_system(arr)
@@ -248,12 +281,12 @@ def solve_constants(
     y = np.linalg.solve(m, rhs) if m.shape[0] == 3 else np.linalg.lstsq(m, rhs, rcond=None)[0]
     residuals = m @ y - rhs
     k1, k2, c = (float(v) for v in y / scale)
-    # The solve perturbs y by about cond(m) * eps * |y|: a K1 or K2 below that has no meaningful sign or size.
-    floor = _ROUNDING_FACTOR * np.finfo(float).eps * float(np.linalg.cond(m)) * float(np.linalg.norm(y)) / scale[:2]
-    for name, link, kv, fl in (('K1', 'crank', k1, floor[0]), ('K2', 'rocker', k2, floor[1])):
-        if abs(kv) <= fl:
+    # A K1 or K2 within the solve's own error has no meaningful sign or size: zero, whatever sign rounding gave it.
+    bound = rounding_bound(arr, m, y, residuals, scale)
+    for name, link, kv, err in (('K1', 'crank', k1, bound[0]), ('K2', 'rocker', k2, bound[1])):
+        if abs(kv) <= err:
             raise UnbuildableDesignError(
-                f'unbuildable: {name} = {kv:.3g} is zero within rounding (+-{fl:.2g}): an infinitely long {link}')
+                f'unbuildable: {name} = {kv:.3g} is zero within rounding (+-{err:.2g}): an infinitely long {link}')
     a0, b0 = float(arr[0, 0]), float(arr[0, 1])
     k3 = c - k1 * math.cos(b0) + k2 * math.cos(a0) + math.cos(a0 - b0)
     return (k1, k2, k3), cond, residuals

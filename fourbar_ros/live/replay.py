@@ -136,8 +136,9 @@ class Replayer:
             if self.publisher.get_subscription_count() >= 1 and self.subscription is not None:
                 what = f'no publisher on {self.subscription.topic_name}'
             domain = os.environ.get('ROS_DOMAIN_ID', '0')
-            raise ReplayError(f'{what} within {timeout_s:g} s (is fourbar_node running with '
-                              f'ROS_DOMAIN_ID={domain}?)')
+            raise ReplayError(f'{what} within {timeout_s:g} s (is fourbar_node running with ROS_DOMAIN_ID={domain} '
+                              f'in the namespace {self.publisher.topic_name.rsplit("/", 1)[0] or "/"}? a node in '
+                              'another namespace NS: --topic /NS/antenna_angle_cmd)')
 
     def prepare_lockstep(self, executor: Executor, timeout_s: float,
                          answers: Predictor | None = None) -> Predictor:

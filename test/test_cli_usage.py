@@ -1,0 +1,63 @@
+"""Usage errors of every `fourbar` subcommand (a mistyped option, a bad choice, a missing argument) are one line on
+stderr in the form of every other error, `fourbar <command>: error: ...`, with a pointer to `--help`; status 2."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+
+from fourbar_ros.commands import build_parser
+from fourbar_ros.commands import main as cli_main
+
+
+def _subcommands() -> list[str]:
+    action = next(a for a in build_parser()._actions if a.dest == 'command')
+    assert action.choices is not None
+    return sorted(action.choices)
+
+
+def _usage_error(argv: list[str], capsys: pytest.CaptureFixture[str]) -> str:
+    with pytest.raises(SystemExit) as info:
+        cli_main(argv)
+    assert info.value.code == 2
+    captured = capsys.readouterr()
+    assert captured.out == ''
+    return captured.err
+
+
+@pytest.mark.parametrize('command', _subcommands())
+def test_every_subcommand_reports_usage_in_one_line(command: str,
+                                                             capsys: pytest.CaptureFixture[str]) -> None:
+    err = _usage_error([command, '--no-such-option-xyz'], capsys)  # or its missing arguments, whichever first
+    assert err.startswith(f'fourbar {command}: error: ') and err.count('\n') == 1, err
+    assert err.endswith(f' (see fourbar {command} --help)\n'), err
+
+
+@pytest.mark.parametrize(('argv', 'message'), [
+    (['design', '--pairs', '0.1,0.2', '0.3,0.5', '0.9,1.1', '--parms', 'x'], 'unrecognized arguments: --parms x'),
+    (['replay', 'bag', '--rte', '2'], 'unrecognized arguments: --rte 2'),
+    (['solve', '--theta', '0.1', '--driven', 'beta'],
+     "argument --driven: invalid choice: 'beta' (choose from 'gamma', 'delta')"),
+    (['check', '--driven', 'beta'], "argument --driven: invalid choice: 'beta' (choose from 'gamma', 'delta')"),
+    (['solve'], 'the following arguments are required: --theta'),
+    (['solve', '--theta', 'abc'], "argument --theta: invalid float value: 'abc'"),
+])
+def test_reported_usage_errors(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
+    err = _usage_error(argv, capsys)
+    assert err == f'fourbar {argv[0]}: error: {message} (see fourbar {argv[0]} --help)\n'
+
+
+def test_no_or_unknown_command_is_one_line_of_the_top_level(capsys: pytest.CaptureFixture[str]) -> None:
+    assert _usage_error([], capsys) == ('fourbar: error: the following arguments are required: COMMAND '
+                                        '(see fourbar --help)\n')
+    err = _usage_error(['sovle'], capsys)
+    assert err.startswith("fourbar: error: argument COMMAND: invalid choice: 'sovle'") and err.count('\n') == 1
+
+
+def test_the_console_script_prints_the_same_line() -> None:
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'solve', '--theta', '0.1', '--rte', '2'],
+                         capture_output=True, text=True, timeout=60, check=False)
+    assert (out.returncode, out.stdout) == (2, '')
+    assert out.stderr == 'fourbar solve: error: unrecognized arguments: --rte 2 (see fourbar solve --help)\n'
