@@ -41,7 +41,7 @@ def test_every_subcommand_reports_usage_in_one_line(command: str,
     (['solve', '--theta', '0.1', '--driven', 'beta'],
      "argument --driven: invalid choice: 'beta' (choose from 'gamma', 'delta')"),
     (['check', '--driven', 'beta'], "argument --driven: invalid choice: 'beta' (choose from 'gamma', 'delta')"),
-    (['solve'], 'the following arguments are required: --theta'),
+    (['solve'], 'one of the arguments --theta --gamma --delta is required'),
     (['solve', '--theta', 'abc'], "argument --theta: invalid float value: 'abc'"),
 ])
 def test_reported_usage_errors(argv: list[str], message: str, capsys: pytest.CaptureFixture[str]) -> None:
