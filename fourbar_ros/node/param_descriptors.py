@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
-from rcl_interfaces.msg import FloatingPointRange, ParameterDescriptor, ParameterType
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
 
 from fourbar_ros.config.params import PARAMETERS, ParamSpec, ParamValue
 
@@ -19,11 +20,20 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     if spec.type is float and spec.minimum is not None and spec.maximum is not None:
         d.floating_point_range = [FloatingPointRange(from_value=float(spec.minimum),
                                                      to_value=float(spec.maximum), step=0.0)]
+    if spec.type is int and spec.minimum is not None and spec.maximum is not None:
+        d.integer_range = [IntegerRange(from_value=int(spec.minimum), to_value=int(spec.maximum), step=1)]
     if spec.choices:
         d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
     return d
 
 
-def declarations(values: dict[str, ParamValue]) -> list[tuple[str, Any, Any]]:
-    """(name, value, descriptor) for ``Node.declare_parameters('', ...)``, values from a validated config."""
-    return [(spec.name, values[spec.name], descriptor(spec)) for spec in PARAMETERS]
+def declarations(values: dict[str, ParamValue], specs: Sequence[ParamSpec] = PARAMETERS,
+                 read_only: bool = False) -> list[tuple[str, Any, Any]]:
+    """(name, value, descriptor) for ``Node.declare_parameters('', ...)``, values from a validated config;
+    ``read_only``: every one of them (else as its spec says)."""
+    out = []
+    for spec in specs:
+        d = descriptor(spec)
+        d.read_only = d.read_only or read_only
+        out.append((spec.name, values[spec.name], d))
+    return out
