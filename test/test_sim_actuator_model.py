@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from fourbar_ros.node.sim_actuator_model import (
-    MAX_STEP_S,
+    STEP_S,
     DriveLimits,
     Encoder,
     LagActuator,
@@ -18,6 +18,7 @@ from fourbar_ros.node.sim_actuator_model import (
     Trajectory,
     TrajectoryError,
     Waypoint,
+    braking_speed,
     segment,
     waypoints,
 )
@@ -163,39 +164,55 @@ LIMITS = DriveLimits(lower=-1.0, upper=1.0, max_velocity=0.5, max_acceleration=2
 def run(act: LagActuator, reference: float, seconds: float, dt: float = 0.01) -> list[tuple[float, float]]:
     out = []
     for _ in range(round(seconds / dt)):
-        act.step(dt, reference)
+        act.advance(dt, reference)
         out.append((act.position, act.velocity))
     return out
 
 
 def test_lag_without_binding_limits_is_the_exact_first_order_response() -> None:
     lim = DriveLimits(-1.0, 1.0, max_velocity=1e9, max_acceleration=1e12, tau=0.1)
-    act = LagActuator(lim, 0.0)
+    act = LagActuator(lim, 0.0, step=0.01)
     for k, (x, _v) in enumerate(run(act, 0.01, 1.0), start=1):
         want = 0.01 * (1.0 - math.exp(-0.01 * k / 0.1))
         # k steps each rounding a few times: a few ulps of the step size per step.
         assert abs(x - want) <= 8 * k * EPS * 0.01, (k, x, want)
 
 
+@pytest.mark.parametrize('error', [0.0, 1e-9, 0.3 * 2.0 * STEP_S**2, 2.0 * STEP_S**2, 1.7 * 2.0 * STEP_S**2,
+                                   3.0 * 2.0 * STEP_S**2, 1e-3, 0.3])
+def test_braking_speed_stops_exactly_within_the_error(error: float) -> None:
+    """From the braking speed, slowing by a h per step covers the error and no more (the largest such speed)."""
+    a, h = 2.0, STEP_S
+    v = braking_speed(error, a, h)
+    covered, u = 0.0, v
+    while u > 0.0:
+        covered += u * h
+        u -= a * h
+    # The sum of about sqrt(2 E) terms, each rounded: a few ulps of the error per term.
+    tol = 4 * EPS * (error + a * h * h) * (2 + math.sqrt(2 * error / (a * h * h)))
+    assert abs(covered - error) <= tol, (v, covered, error)
+    assert braking_speed(-error, a, h) == v
+
+
 def test_limits_hold_and_a_step_is_reached_without_overshoot() -> None:
     act = LagActuator(LIMITS, -0.5)
-    trace = run(act, 0.5, 4.0)
+    trace = run(act, 0.5, 4.0, dt=STEP_S)
     v_prev = 0.0
     for x, v in trace:
         assert abs(v) <= LIMITS.max_velocity
-        assert abs(v - v_prev) <= LIMITS.max_acceleration * 0.01 * (1 + 4 * EPS)
-        assert x <= 0.5 + LIMITS.max_acceleration * 0.01**2 / 8  # the bound in LagActuator's docstring
+        assert abs(v - v_prev) <= LIMITS.max_acceleration * STEP_S * (1 + 4 * EPS)
+        assert x <= 0.5 + 2 * EPS * 0.5  # no overshoot, up to the rounding of the last step
         v_prev = v
     assert max(abs(v) for _x, v in trace) == LIMITS.max_velocity  # the speed limit was reached
-    assert trace[-1][0] == pytest.approx(0.5, abs=1e-9)
+    assert trace[-1][0] == pytest.approx(0.5, abs=1e-12)
 
 
 def test_ramp_is_followed_with_the_lag() -> None:
     """A slow ramp (no limit binding) is followed with the first-order steady lag speed * tau."""
     act = LagActuator(LIMITS, 0.0)
-    speed, dt = 0.1, 0.001
+    speed, dt = 0.1, STEP_S
     for k in range(1, 2001):
-        act.step(dt, speed * k * dt)
+        act.advance(dt, speed * k * dt)
     ref = speed * 2.0
     # Zero-order hold of the reference over a step adds dt/2 of delay to the continuous lag.
     assert ref - act.position == pytest.approx(speed * (LIMITS.tau - 0.5 * dt), rel=1e-3)
@@ -209,12 +226,19 @@ def test_reference_and_start_are_clamped_to_the_range() -> None:
     assert act.position == -1.0
 
 
-def test_long_steps_are_split() -> None:
+def test_irregular_periods_integrate_the_same_whole_steps() -> None:
+    """A late tick (one long period) and regular ticks give the same state once the same time has passed: the
+    drive steps in fixed STEP_S whatever the caller's period; a part step waits for the next call."""
     a, b = LagActuator(LIMITS, 0.0), LagActuator(LIMITS, 0.0)
-    a.step(0.1, 0.3)
-    for _ in range(round(0.1 / MAX_STEP_S)):
-        b.step(MAX_STEP_S, 0.3)
-    assert (a.position, a.velocity) == pytest.approx((b.position, b.velocity), abs=1e-15)
+    a.advance(0.1, 0.3)
+    for _ in range(40):
+        b.advance(0.0025, 0.3)
+    assert (a.position, a.velocity) == (b.position, b.velocity)
+    c = LagActuator(LIMITS, 0.0)
+    c.advance(0.5 * STEP_S, 0.3)
+    assert c.position == 0.0
+    c.advance(0.5 * STEP_S, 0.3)
+    assert c.position > 0.0
 
 
 @pytest.mark.parametrize('kwargs', [dict(lower=1.0, upper=0.0), dict(max_velocity=0.0), dict(tau=-1.0),

@@ -79,9 +79,11 @@ class JointLimit(NamedTuple):
     velocity: float
 
 
-def rest_theta(cfg: AntennaConfig) -> float:
-    """The antenna angle (rad) a drive starts at unless told otherwise: level (0), clamped into the tilt range."""
-    return min(max(0.0, cfg.theta_min), cfg.theta_max)
+def driven_angle(cfg: AntennaConfig, theta: float = 0.0) -> float:
+    """The driven rocker's angle (rad) at antenna angle ``theta`` (rad) clamped into the tilt range; by default
+    where a drive rests unless told otherwise: the antenna level (0), or the nearest end of the range."""
+    gamma, delta = cfg.linkage.rocker_angles(min(max(theta, cfg.theta_min), cfg.theta_max), cfg.branch)
+    return float(gamma if cfg.driven is Driven.GAMMA else delta)
 
 
 def joint_limits(cfg: AntennaConfig, motor_speed: float = DEFAULT_MOTOR_SPEED) -> dict[str, JointLimit]:
@@ -91,7 +93,8 @@ def joint_limits(cfg: AntennaConfig, motor_speed: float = DEFAULT_MOTOR_SPEED) -
         raise ValueError(f'motor speed must be positive and finite, got {motor_speed!r} rad/s')
     lo, hi = cfg.theta_min, cfg.theta_max
     theta = np.append(lo + (hi - lo) * np.arange(_LIMIT_SAMPLES) / _LIMIT_SAMPLES, hi)
-    gamma, delta = cfg.linkage.rocker_angles(theta, cfg.branch)
+    angles = cfg.linkage.rocker_angles(theta, cfg.branch)
+    gamma, delta = np.asarray(angles.gamma, dtype=np.float64), np.asarray(angles.delta, dtype=np.float64)
     rates = cfg.linkage.rates_at(theta, gamma, delta)
     gamma_joint, delta_joint, coupler_joint = cfg.joint_names
     # Position and its rate per unit theta of each joint; the coupler joint is gamma + theta.
@@ -154,8 +157,6 @@ def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
                        hardware_plugin: str = DEFAULT_HARDWARE_PLUGIN) -> list[str]:
     """The ``<ros2_control>`` lines of the driven joint (limits ``limit``), its hardware named ``hardware_id``."""
     joint = cfg.driven_joint
-    gamma, delta = cfg.linkage.rocker_angles(rest_theta(cfg), cfg.branch)
-    rest = float(gamma if cfg.driven is Driven.GAMMA else delta)
     return [
         f'  <ros2_control name={quoteattr(cfg.hardware_id)} type="system">',
         '    <!-- The drive\'s hardware interface goes here (mock_components/GenericSystem: commands echoed). -->',
@@ -166,7 +167,7 @@ def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
         f'        <param name="max">{_num(limit.upper)}</param>',
         '      </command_interface>',
         '      <state_interface name="position">',
-        f'        <param name="initial_value">{_num(rest)}</param>',
+        f'        <param name="initial_value">{_num(driven_angle(cfg))}</param>',
         '      </state_interface>',
         '      <state_interface name="velocity"/>',
         '      <state_interface name="effort"/>',

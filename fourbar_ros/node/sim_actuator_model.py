@@ -9,8 +9,8 @@ It stands in for ros2_control's hardware plus its controllers on machines withou
   that point's position.
 - ``LagActuator`` is the drive: a first-order lag (time constant ``tau``, s) towards the reference, its speed
   limited to ``max_velocity`` (rad/s) and its speed change to ``max_acceleration`` (rad/s^2); it also never
-  asks for more speed than it can brake from before the reference, so a step is reached with an overshoot of
-  at most a h^2 / 8 (h: the integration step, a: the acceleration limit; 2.5e-5 rad at 2 rad/s^2 and 10 ms).
+  asks for more speed than it can brake from before the reference, so a reference that stands still or moves
+  away is reached without overshoot. It integrates in fixed steps of STEP_S, whatever the caller's period.
 - ``Encoder`` is what the hardware reports: the position rounded to the encoder's counts (at the motor, through
   the reducer) after optional Gaussian noise, plus a fixed offset.
 
@@ -27,10 +27,12 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
+from fourbar_ros.core.loads import LoadSpec, pose
+
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
-#: Longest integration step (s): longer timer periods (a late tick) are split into steps this long.
-MAX_STEP_S = 0.01
+#: Integration step (s) of the drive: fixed, so a late timer tick changes nothing but when the state is read.
+STEP_S = 0.001
 
 
 class TrajectoryError(ValueError):
@@ -195,40 +197,55 @@ class DriveLimits:
             raise ValueError('max_velocity, max_acceleration and tau must be positive')
 
 
+def braking_speed(error: float, acceleration: float, step: float) -> float:
+    """The fastest speed (rad/s) from which steps of ``step`` s, each slower by ``acceleration * step``, stop
+    within ``error`` rad (its magnitude).
+
+    In units of a h (speed) and a h^2 (distance): from speed u the steps cover u + (u - 1) + ... + (u - m) with
+    m = floor(u), which rises from m (m + 1) / 2 to (m + 1) (m + 2) / 2 as u goes from m to m + 1. Taking m the
+    largest integer with m (m + 1) / 2 <= E (E = |error| / (a h^2)) and solving (m + 1) u - m (m + 1) / 2 = E
+    gives u. The speed after one step, u - 1, is then exactly the braking speed of the error left (E - u):
+    braking stays feasible under the acceleration limit all the way, so the drive never overshoots.
+    """
+    unit = acceleration * step
+    e = abs(error) / (unit * step)
+    m = math.floor(0.5 * (math.sqrt(1.0 + 8.0 * e) - 1.0))
+    return unit * (e + 0.5 * m * (m + 1)) / (m + 1)
+
+
 class LagActuator:
     """The drive's true state (position rad, velocity rad/s), following a position reference."""
 
-    def __init__(self, limits: DriveLimits, position: float) -> None:
+    def __init__(self, limits: DriveLimits, position: float, step: float = STEP_S) -> None:
         self.limits = limits
+        self.step_s = step
         self.position = min(max(position, limits.lower), limits.upper)
         self.velocity = 0.0
+        self._decay = math.exp(-step / limits.tau)
+        self._pending = 0.0  # time (s) not yet integrated: less than one step
 
     def clamp(self, reference: float) -> float:
         """The reference within the drive's position range."""
         return min(max(reference, self.limits.lower), self.limits.upper)
 
-    def step(self, dt: float, reference: float) -> None:
-        """Advance ``dt`` s towards ``reference`` (held over the step; clamped to the range).
+    def advance(self, dt: float, reference: float) -> None:
+        """Advance by ``dt`` s (in whole steps; the rest waits for the next call) towards ``reference`` (held over
+        the interval; clamped to the range).
 
-        The lag's own move is exact for a held reference, r + (x - r) exp(-dt/tau); its mean speed is then
-        bounded by the braking speed, the speed limit and the acceleration limit, in that order. The braking
-        speed n a h is the fastest from which steps of n a h, (n - 1) a h, ... cover at most the error e:
-        a h^2 n (n + 1) / 2 = |e| (the discrete form of sqrt(2 a |e|), which would overshoot by ~a h^2 n / 2).
-        Steps longer than MAX_STEP_S are split.
+        Each step: the lag's own move, exact for a held reference, r + (x - r) exp(-h/tau); its mean speed then
+        bounded by the braking speed, the speed limit and the acceleration limit, in that order.
         """
-        lim = self.limits
+        lim, h = self.limits, self.step_s
+        self._pending += max(dt, 0.0)
+        steps = math.floor(self._pending / h)
+        self._pending -= steps * h
         r = self.clamp(reference)
-        steps = max(1, math.ceil(dt / MAX_STEP_S))
-        h = dt / steps
-        if not h > 0.0:
-            return
-        decay = math.exp(-h / lim.tau)
         dv = lim.max_acceleration * h
         for _ in range(steps):
             error = r - self.position
-            want = error * (1.0 - decay) / h
-            brake = dv * (math.sqrt(0.25 + 2.0 * abs(error) / (dv * h)) - 0.5)
-            want = math.copysign(min(abs(want), brake, lim.max_velocity), want)
+            want = error * (1.0 - self._decay) / h
+            limit = min(braking_speed(error, lim.max_acceleration, h), lim.max_velocity)
+            want = math.copysign(min(abs(want), limit), want)
             v = min(max(want, self.velocity - dv), self.velocity + dv)
             self.position = min(max(self.position + v * h, lim.lower), lim.upper)
             self.velocity = v
@@ -268,3 +285,11 @@ class Encoder:
         """What the hardware reports for the true position (rad), velocity (rad/s) and effort (N m)."""
         return (self.quantize(position + self._noise(self.position_noise)) + self.offset,
                 velocity + self._noise(self.velocity_noise), effort + self._noise(self.effort_noise))
+
+
+def effort_at(cfg: LoadSpec, q: float) -> float:
+    """Torque (N m, in the sense of increasing q) the driven rocker needs at its angle ``q`` (rad) under the
+    configured load: the antenna angle from the rocker (``from_rocker`` on the configured branch), then the statics.
+    Raises the core's UnreachableError for an angle the rocker cannot take."""
+    theta = float(cfg.linkage.from_rocker(q, cfg.driven, cfg.branch).theta)
+    return pose(cfg, theta).input_torque
