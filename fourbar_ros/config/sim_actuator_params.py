@@ -16,8 +16,8 @@ from fourbar_ros.config.robot_model import DEFAULT_MOTOR_SPEED
 
 NODE_NAME = 'sim_actuator'
 _RATIO = float(PARAMETERS_BY_NAME['reducer_ratio'].default)
-#: Motor acceleration (rad/s^2, motor side) of the default drive: 10 rev/s^2.
-DEFAULT_MOTOR_ACCELERATION = 20.0 * math.pi
+#: Motor acceleration (rad/s^2, motor side) of the default drive: 100 rev/s^2 (top speed in 0.1 s).
+DEFAULT_MOTOR_ACCELERATION = 200.0 * math.pi
 
 SIM_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('joint', str, str(PARAMETERS_BY_NAME['gamma_joint'].default), '',
@@ -35,7 +35,7 @@ SIM_PARAMETERS: tuple[ParamSpec, ...] = (
               'Speed limit of the joint (default: 600 rpm at the motor through the default 500:1 reducer).',
               1e-9, 1.0e6),
     ParamSpec('max_acceleration', float, DEFAULT_MOTOR_ACCELERATION / _RATIO, 'rad/s^2',
-              'Acceleration limit of the joint (default: 10 rev/s^2 at the motor through 500:1).', 1e-9, 1.0e9),
+              'Acceleration limit of the joint (default: 100 rev/s^2 at the motor through 500:1).', 1e-9, 1.0e9),
     ParamSpec('initial_theta', float, 0.0, 'rad',
               'Antenna angle the drive starts at (clamped into [theta_min, theta_max]).', -math.pi, math.pi),
     ParamSpec('encoder_counts_per_rev', int, 0, 'counts',

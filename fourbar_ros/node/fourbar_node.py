@@ -117,7 +117,7 @@ class FourBarNode(Node):
             for path in params_files:
                 explicit.update(unknown_in_node_sections(path, self.get_name(), self.get_namespace()))
         except ConfigError:
-            _destroy(self)
+            destroy(self)
             raise
         self._report_unknown_overrides(explicit)
         self.declare_parameters('', list(declarations(self._config.as_values())))
@@ -232,7 +232,7 @@ class FourBarNode(Node):
 
     def _count_undeclared(self, exc: ParameterNotDeclaredException) -> None:
         self.counters.parameter_changes_rejected += 1
-        self._warn(f'parameter change rejected: {_one_line(exc)}')
+        self._warn(f'parameter change rejected: {one_line(exc)}')
 
     # Every run-time change (the set_parameters and set_parameters_atomically services, ros2 param, in-process
     # calls) passes through these two; rclpy refuses unknown names, wrong types, out-of-range values and
@@ -398,12 +398,14 @@ class FourBarNode(Node):
         self._clock_warned = waiting
 
 
-def _destroy(node: Node) -> None:
-    destroy: Callable[[], object] = node.destroy_node
-    destroy()
+def destroy(node: Node) -> None:
+    """``node.destroy_node()`` (rclpy's is unannotated)."""
+    destroy_node: Callable[[], object] = node.destroy_node
+    destroy_node()
 
 
-def _one_line(exc: BaseException) -> str:
+def one_line(exc: BaseException) -> str:
+    """The exception's text on one line (its class name if empty)."""
     text = ' '.join(str(exc).split())
     return text or exc.__class__.__name__
 
@@ -536,7 +538,7 @@ def main(args: list[str] | None = None) -> int:
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
-        print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
+        print(f'fourbar_node: error: {one_line(exc)}', file=sys.stderr)
         return 2
     node: FourBarNode | None = None
     executor: Executor | None = None
@@ -549,14 +551,14 @@ def main(args: list[str] | None = None) -> int:
         info(f'callbacks run on the {kind} executor')
         spin_until_stopped(executor, stop)
     except (ConfigError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
-        print(f'fourbar_node: error: {_one_line(exc)}', file=sys.stderr)
+        print(f'fourbar_node: error: {one_line(exc)}', file=sys.stderr)
         return 2
     finally:
         # Nothing runs callbacks any more (one thread): destroy the node, then shut the context down.
         if executor is not None:
             executor.shutdown(timeout_sec=0.0)
         if node is not None:
-            _destroy(node)
+            destroy(node)
         rclpy.utilities.try_shutdown()
     return 0
 

@@ -38,8 +38,8 @@ from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.node.executor import create_executor, executor_kind
 from fourbar_ros.node.fourbar_node import (
     StopRequest,
-    _destroy,
-    _one_line,
+    destroy,
+    one_line,
     params_file_problem,
     spin_until_stopped,
 )
@@ -84,7 +84,7 @@ class SimActuator(Node):
             self.config = config_from_values(declared_values(startup))
             self.settings = sim_settings(startup, self.config)
         except ConfigError:
-            _destroy(self)
+            destroy(self)
             raise
         self.declare_parameters('', list(declarations(self.config.as_values(), read_only=True)))
         self.declare_parameters('', list(declarations(self.settings.as_values(), SIM_PARAMETERS, read_only=True)))
@@ -176,7 +176,7 @@ def main(args: list[str] | None = None) -> int:
     try:
         rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
-        print(f'{prog}: error: {_one_line(exc)}', file=sys.stderr)
+        print(f'{prog}: error: {one_line(exc)}', file=sys.stderr)
         return 2
     node: SimActuator | None = None
     executor: Executor | None = None
@@ -186,13 +186,13 @@ def main(args: list[str] | None = None) -> int:
         executor.add_node(node)
         spin_until_stopped(executor, stop)
     except ConfigError as exc:
-        print(f'{prog}: error: {_one_line(exc)}', file=sys.stderr)
+        print(f'{prog}: error: {one_line(exc)}', file=sys.stderr)
         return 2
     finally:
         if executor is not None:
             executor.shutdown(timeout_sec=0.0)
         if node is not None:
-            _destroy(node)
+            destroy(node)
         rclpy.utilities.try_shutdown()
     return 0
 
