@@ -22,10 +22,11 @@ from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+from fourbar_ros.config.interface import NODE_NAME
+from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
+
 #: This file lives in share/fourbar_ros/launch (installed) or launch/ (source tree); config/ and rviz/ are beside.
 SHARE = Path(__file__).resolve().parent.parent
-NODE_NAME = 'fourbar_node'
-SIM_NODE_NAME = 'sim_actuator'
 
 
 def _installed_executable(package: str, executable: str) -> bool:

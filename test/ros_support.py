@@ -311,7 +311,7 @@ def node_command() -> list[str]:
     script = Path(sys.executable).parent / 'fourbar_node'
     if script.exists():
         return [str(script)]
-    return [sys.executable, '-m', 'fourbar_ros.node.fourbar_node']
+    return [sys.executable, '-m', 'fourbar_ros.node.run']
 
 
 @dataclass

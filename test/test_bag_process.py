@@ -20,7 +20,7 @@ import pytest
 from bag_support import BAG_DIR, CONFIG, Tool, committed_bags, run_tool
 from ros_support import wait_for
 
-from fourbar_ros.bags.process import VelocityState, process_bag, velocities
+from fourbar_ros.bags.process import process_bag
 from fourbar_ros.bags.storage import (
     FLOAT64,
     AtomicBagWriter,
@@ -33,8 +33,8 @@ from fourbar_ros.bags.storage import (
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.loads import pose_solver
-from fourbar_ros.node.command_policy import Policy, decide
-from fourbar_ros.node.joint_velocity import Sample, velocity_step
+from fourbar_ros.rules.policy import Policy, decide
+from fourbar_ros.rules.velocity import Sample, VelocityState, velocities, velocity_step
 
 T0 = 1_700_000_000 * 1_000_000_000
 ULPS = 8  # positions: ulps of |q| + pi; torque: ulps of |tau| (1 + pi (|cot s| + |cot r|)) (see below)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.node.command_policy import Outcome, Policy, decide, in_reach
+from fourbar_ros.rules.policy import Outcome, Policy, decide, in_reach
 
 ROOT = Path(__file__).resolve().parent.parent
 CFG = default_config()

@@ -1,4 +1,4 @@
-"""The package's layers import one way: core < config < node < bags < commands; no cycles; a pure core.
+"""The package's layers import one way: core < config < rules < node < bags < commands; no cycles; a pure core.
 
 Read from the source with ``ast`` (nothing of the package is imported), so a violation is reported even in
 modules whose imports would fail here. Lazy imports inside functions count too.
@@ -18,7 +18,7 @@ import fourbar_ros
 
 PACKAGE_DIR = Path(fourbar_ros.__file__).parent
 #: Lowest first; a module may import only its own layer and the layers before it.
-LAYERS = ('core', 'config', 'node', 'bags', 'commands')
+LAYERS = ('core', 'config', 'rules', 'node', 'bags', 'commands')
 #: Third-party modules the core must never import (ROS, YAML, bags, plotting).
 IMPURE = ('rclpy', 'rosbags', 'mcap', 'mcap_ros2', 'yaml', 'ruamel', 'matplotlib', 'std_msgs', 'sensor_msgs',
           'diagnostic_msgs', 'visualization_msgs', 'geometry_msgs', 'rcl_interfaces', 'builtin_interfaces',

@@ -97,7 +97,7 @@ def make_rig(ros: RosSession) -> Iterator[Any]:
 
     def make(outputs: Sequence[str] = ('joint_states', 'input_torque'), **overrides: Any) -> Rig:
         ns = f'/node_test_{next(_ns_counter)}'
-        periods = {'diagnostics_period': 0.05, 'marker_period': 0.02}
+        periods = {'diagnostics_period': 0.05, 'marker_period': 0.02, 'joint_state_rate': 0.0}
         params = [Parameter(k, value=v) for k, v in {**periods, **overrides}.items()]
         node = FourBarNode(context=ros.context, namespace=ns, parameter_overrides=params,
                            cli_args=['--ros-args', '--params-file', str(YAML)])
@@ -368,3 +368,41 @@ def test_invalid_startup_parameters_raise(ros: RosSession) -> None:
     with pytest.raises(ConfigError, match=r'^load_torque: expected a double'):
         FourBarNode(context=ros.context, namespace='/bad_start', parameter_overrides=[
             Parameter('load_torque', value=3)])
+
+
+def test_last_pose_is_republished_to_late_subscribers(ros: RosSession, make_rig: Any) -> None:
+    """joint_state_rate: a subscriber that arrives after the command still gets the pose, freshly stamped, with
+    zero velocities; the counters and the velocity rule do not see the repeats."""
+    rig = make_rig(outputs=('input_torque',), joint_state_rate=50.0)  # no joint_states subscriber yet
+    theta = 0.02
+    rig.send([theta])
+    rig.outputs['input_torque'].wait_match(lambda m: bool(m.data == core(rig.cfg, theta).input_torque))
+    per_command = ('commands_', 'joint_states_', 'input_torque_')  # the timers' own skip counters tick on
+
+    def command_counters() -> dict[str, int]:
+        return {k: v for k, v in rig.node.counters.as_dict().items() if k.startswith(per_command)}
+
+    counters = command_counters()
+    computed, reused = rig.node.cache.computed, rig.node.cache.reused
+    late = ros.collect(JointState, f'{rig.ns}/joint_states')
+    try:
+        first, second = late.wait_count(2)[:2]
+        s = core(rig.cfg, theta)
+        for msg in (first, second):
+            assert list(msg.name) == list(rig.cfg.joint_names)
+            assert list(msg.position) == [s.gamma, s.delta, s.gamma + theta]  # the same floats (see check_joint_states)
+            assert list(msg.effort) == [s.input_torque, 0.0, 0.0]
+            assert list(msg.velocity) == [0.0, 0.0, 0.0]  # the antenna is not moving
+        stamps = [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in (first, second)]
+        assert 0 < stamps[0] < stamps[1]
+        assert command_counters() == counters  # not counted as published per command
+        assert (rig.node.cache.computed, rig.node.cache.reused) == (computed, reused)
+        # No per-command JointState went out before (nobody listened), so the next one has no velocity anchor:
+        # an empty velocity. Had a repeat been taken as a sample, it would have one.
+        start = len(late)
+        rig.send([theta + 0.01])
+        answer = late.wait_match(lambda m: list(m.velocity) != [0.0, 0.0, 0.0], start=start)
+        assert list(answer.velocity) == []
+        assert answer.position[0] == core(rig.cfg, theta + 0.01).gamma
+    finally:
+        ros.uncollect(late)

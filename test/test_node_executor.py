@@ -3,7 +3,8 @@
 - MessageInfoCallback: rclpy picks the (msg, info) form for it, and it unpacks both call forms (two
   arguments from the SingleThreadedExecutor, one tuple from rclpy 7.1.6's EventsExecutor).
 - executor_kind: option, then $FOURBAR_EXECUTOR, then the default; one line for an unknown name.
-- DeferredInterrupt: a signal during spin_once is raised after it returns, never inside a callback.
+- the stop (node.run.STOP) raising KeyboardInterrupt: a signal during spin_once is raised after it returns, never
+  inside a callback; a stop that only notes the signal raises nothing.
 - Spinner on a real EventsExecutor (in a child process, so a hang fails by a deadline instead of hanging the
   run): a subscription with message info is served, and request_stop() from a callback ends a slice whose
   queue never empties (a zero-period timer). The slice's own deadline alone would not: the events queue only
@@ -30,11 +31,11 @@ from fourbar_ros.node.executor import (
     DEFAULT_EXECUTOR,
     EXECUTOR_ENV,
     EXECUTORS,
-    DeferredInterrupt,
     ExecutorChoiceError,
     MessageInfoCallback,
     executor_kind,
 )
+from fourbar_ros.node.run import spin_once, stop_on_signals
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -89,19 +90,29 @@ class SignallingExecutor:
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
-def test_deferred_interrupt_is_raised_after_the_spin_not_inside_it(sig: int) -> None:
-    interrupt = DeferredInterrupt()
-    previous = signal.signal(sig, interrupt)
-    try:
+def test_a_raising_stop_is_raised_after_the_spin_not_inside_it(sig: int) -> None:
+    previous = signal.getsignal(sig)
+    with stop_on_signals() as stop:
         executor: Any = SignallingExecutor(sig)
         with pytest.raises(KeyboardInterrupt):
-            interrupt.spin_once(executor, 0.1)
+            spin_once(executor, 0.1)
         assert executor.finished  # the "callback" ran to its end
-        assert not interrupt.pending
+        assert stop.requested
         with pytest.raises(KeyboardInterrupt):  # outside a spin: at once, like Python's SIGINT handler
             signal.raise_signal(sig)
-    finally:
-        signal.signal(sig, previous)
+    assert signal.getsignal(sig) is previous  # the block's end restores the handler
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_a_noting_stop_only_sets_the_flag_and_wakes(sig: int) -> None:
+    woken: list[bool] = []
+    with stop_on_signals(raises=None) as stop:
+        stop.on_request(lambda: woken.append(True))
+        executor: Any = SignallingExecutor(sig)
+        spin_once(executor, 0.1)
+        signal.raise_signal(sig)
+        assert executor.finished and stop.requested and woken == [True, True]
+    assert not stop.requested  # the next user starts afresh
 
 
 SPINNER_SCRIPT = textwrap.dedent('''
@@ -205,7 +216,7 @@ def test_node_runs_the_chosen_executor(args: list[str], variable: str | None, ex
 
 
 def test_non_ros_args_drop_every_ros_section() -> None:
-    from fourbar_ros.node.fourbar_node import non_ros_args
+    from fourbar_ros.node.run import non_ros_args
 
     argv = ['fourbar_node', '--executor', 'single', '--ros-args', '-p', 'a:=1', '--', '--x', '--ros-args', '-r', 'b:=c']
     assert non_ros_args(argv) == ['fourbar_node', '--executor', 'single', '--x']

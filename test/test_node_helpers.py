@@ -11,11 +11,11 @@ from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values,
 from fourbar_ros.core.antenna import Driven, LinkageState
 from fourbar_ros.core.loads import com_height_rate, gravity_torque, load_torque, motor_torque, pose_solver, solve
 from fourbar_ros.core.transforms import antenna_joint_positions
-from fourbar_ros.node.command_policy import Outcome, Policy, decide
 from fourbar_ros.node.diagnostic_values import Counters, Level, summarize
-from fourbar_ros.node.joint_velocity import Sample, velocity_step
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.state_cache import StateCache
+from fourbar_ros.rules.policy import Outcome, Policy, decide
+from fourbar_ros.rules.velocity import Sample, velocity_step
 
 CFG = default_config()
 LO, HI = CFG.theta_min, CFG.theta_max

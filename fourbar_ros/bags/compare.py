@@ -11,7 +11,7 @@ value's *scale*, the magnitude its rounding errors are relative to when two corr
   rounding error is an absolute few ulps of pi, not of |q| (a q near 0 is not known to ulps of itself);
 - velocity v = (q - q_anchor) / dt (rad/s): scale = |v| + (|q| + |q_anchor| + 2 pi) / dt: the difference of two
   positions, each known to ulps of |q| + pi, divided by the interval (dt and the anchor, the first message of
-  the run of equal stamps before it, as joint_velocity's rule picks it, taken from A);
+  the run of equal stamps before it, as the velocity rule (fourbar_ros.rules.velocity) picks it, taken from A);
 - effort and input torque tau = tau_load * lever * sin(s) / sin(r) (N m), s = gamma + delta and r the driven
   rocker's angle to the coupler (delta - theta driving gamma, gamma + theta driving delta; theta recovered from
   the positions with the configuration's geometry): scale = |tau| (1 + pi (|cot s| + |cot r|)): an angle error
@@ -43,14 +43,16 @@ import numpy.typing as npt
 from fourbar_ros.bags.joint_state_cdr import decode_float64s, decode_joint_states
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.interface import COMPARED_FIELDS, INPUT_TORQUE, JOINT_STATES, sibling_topic
 from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.errors import one_line
+from fourbar_ros.rules.outputs import driven_index
+from fourbar_ros.rules.velocity import VelocityState, anchors
 
 FloatArray = npt.NDArray[np.float64]
 DEFAULT_ULPS = 16.0
-#: What ``ignore`` may name.
 #: Messages per block and topic.
 BLOCK = 65536
-FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque')
 
 
 @dataclass
@@ -81,10 +83,6 @@ def _rows(seqs: list[Any], width: int) -> FloatArray:
     return out
 
 
-def _first_line(exc: BaseException) -> str:
-    return (str(exc).strip() or type(exc).__name__).splitlines()[0].rstrip('.')
-
-
 def topic_types_of(path: str | os.PathLike[str]) -> dict[str, str]:
     """Topic -> type of the JointState and Float64 topics of a bag. Raises BagError (one line)."""
     with open_bag(path) as reader:
@@ -100,7 +98,7 @@ def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[by
             return store.deserialize_cdr(raw, msgtype)
         except Exception as exc:
             raise BagError(f'{path}: message {start + j} on {topic} is not a valid {msgtype} '
-                           f'({_first_line(exc)})') from exc
+                           f'({one_line(exc)})') from exc
 
     td = TopicData(msgtype, np.array(logs, dtype=np.int64))
     if msgtype == FLOAT64:
@@ -150,7 +148,7 @@ def topic_blocks(path: str | os.PathLike[str], topic: str, msgtype: str,
             raise
         except Exception as exc:
             raise BagError(f'{p}: unreadable bag after {done + len(raws)} messages on {topic} '
-                           f'({_first_line(exc)})') from exc
+                           f'({one_line(exc)})') from exc
         if raws:
             yield _decode(p, topic, msgtype, logs, raws, done)
 
@@ -162,40 +160,17 @@ def position_scale(q: FloatArray) -> FloatArray:
     return np.abs(q) + math.pi
 
 
-@dataclass
-class AnchorState:
-    """The velocity rule's anchor (stamp ns, positions rad) after the previous block; None before any."""
-
-    stamp_ns: int | None = None
-    positions: FloatArray = field(default_factory=lambda: np.zeros(0))
-
-
 def velocity_scale(stamps_ns: npt.NDArray[np.int64], positions: FloatArray, velocities: FloatArray,
-                   state: AnchorState | None = None) -> FloatArray:
-    """|v| + (|q| + |q_anchor| + 2 pi) / dt per element; |v| where no interval is known. ``state`` carries the
-    anchor from block to block (updated)."""
-    state = state if state is not None else AnchorState()
-    n, k = positions.shape
-    if n == 0:
+                   state: VelocityState | None = None) -> FloatArray:
+    """|v| + (|q| + |q_anchor| + 2 pi) / dt per element (the anchor as the velocity rule picks it); |v| where no
+    interval is known. ``state`` carries the anchor from block to block (updated)."""
+    if positions.shape[0] == 0:
         return np.abs(velocities)
-    carried = state.stamp_ns is not None and state.positions.shape == (k,)
-    if carried:
-        t = np.concatenate((np.array([state.stamp_ns], dtype=np.int64), stamps_ns))
-        q = np.concatenate((state.positions.reshape(1, k), positions))
-    else:
-        t, q = stamps_ns, positions
-    new_run = np.ones(t.size, dtype=np.bool_)
-    new_run[1:] = t[1:] != t[:-1]
-    run_start = np.maximum.accumulate(np.where(new_run, np.arange(t.size), 0))
-    anchor = np.zeros(t.size, dtype=np.intp)
-    anchor[1:] = run_start[:-1]
-    dt = (t - t[anchor]).astype(np.float64) * 1e-9
+    a = anchors(stamps_ns, positions, state if state is not None else VelocityState())
     with np.errstate(divide='ignore', invalid='ignore'):
-        spread = (np.abs(q) + np.abs(q[anchor]) + 2.0 * math.pi) / dt[:, None]
-    spread[~(dt > 0.0)] = 0.0
-    state.stamp_ns = int(t[run_start[-1]])
-    state.positions = q[run_start[-1]].copy()
-    out: FloatArray = np.abs(velocities) + (spread[1:] if carried else spread)
+        spread = (np.abs(a.positions) + np.abs(a.anchor_positions) + 2.0 * math.pi) / a.dt[:, None]
+    spread[~(a.dt > 0.0)] = 0.0
+    out: FloatArray = np.abs(velocities) + spread
     return out
 
 
@@ -266,9 +241,9 @@ class Comparer:
 
     def __init__(self, cfg: AntennaConfig, ulps: float = DEFAULT_ULPS, atol: float | None = None,
                  ignore: Sequence[str] = (), limit: int = 10) -> None:
-        unknown = sorted(set(ignore) - set(FIELDS))
+        unknown = sorted(set(ignore) - set(COMPARED_FIELDS))
         if unknown:
-            raise BagError(f'cannot ignore {", ".join(unknown)} (choose from {", ".join(FIELDS)})')
+            raise BagError(f'cannot ignore {", ".join(unknown)} (choose from {", ".join(COMPARED_FIELDS)})')
         if not (math.isfinite(ulps) and ulps >= 0) or (atol is not None and not (math.isfinite(atol) and atol >= 0)):
             raise BagError('tolerances must be finite and >= 0')
         self.cfg, self.ulps, self.atol, self.ignore = cfg, ulps, atol, frozenset(ignore)
@@ -316,7 +291,7 @@ class Comparer:
         if len(bad) > self.result.limit:
             self.result.mismatches += len(bad) - self.result.limit
 
-    def joint_states(self, topic: str, a: TopicData, b: TopicData, offset: int, anchor: AnchorState) -> None:
+    def joint_states(self, topic: str, a: TopicData, b: TopicData, offset: int, anchor: VelocityState) -> None:
         """One block of JointStates (message ``offset`` on)."""
         assert a.positions is not None and b.positions is not None and a.stamp_ns is not None
         assert a.efforts is not None and b.efforts is not None and a.velocities is not None
@@ -346,7 +321,7 @@ class Comparer:
         assert a.efforts is not None and a.positions is not None
         scale = np.abs(a.efforts)
         if a.positions.shape[1] == 2:
-            d = 0 if self.cfg.driven is Driven.GAMMA else 1
+            d = driven_index(self.cfg)
             scale[:, d] = scale[:, d] * torque_condition(self.cfg, a.positions)
         return scale
 
@@ -382,12 +357,13 @@ def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str],
         if ta != tb:
             result.add(Difference(topic, 0, 'type', ta, tb))
             continue
-        sibling = f'{topic.rsplit("/", 1)[0]}/joint_states'
-        pair_joints = ta == FLOAT64 and topic.endswith('/input_torque') and types_a.get(sibling) == JOINT_STATE
+        sibling = sibling_topic(topic, JOINT_STATES.name)
+        pair_joints = (ta == FLOAT64 and sibling_topic(topic, INPUT_TORQUE.name) == topic
+                       and types_a.get(sibling) == JOINT_STATE)
         joints_iter = topic_blocks(path_a, sibling, JOINT_STATE, block) if pair_joints else None
         blocks_b = topic_blocks(path_b, topic, tb, block)
         blocks_a = topic_blocks(path_a, topic, ta, block)
-        anchor = AnchorState()
+        anchor = VelocityState()
         count_a = count_b = 0
         for a in blocks_a:
             b = next(blocks_b, None)

@@ -19,7 +19,8 @@ import numpy.typing as npt
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import motor_torque, solve
-from fourbar_ros.node.command_policy import Outcome, Policy, decide
+from fourbar_ros.rules.outputs import driven_index
+from fourbar_ros.rules.policy import Outcome, Policy, serve
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -41,20 +42,12 @@ class DemoData:
     clamped: int
 
 
-def served_angles(commands: Sequence[float], cfg: AntennaConfig) -> tuple[list[float], int, int]:
-    """The angles the node serves for ``commands`` (its policy), and the rejected and clamped counts."""
-    policy, reach = Policy(cfg.out_of_limits), cfg.linkage.reach()
-    served: list[float] = []
-    rejected = clamped = 0
-    for command in commands:
-        decision = decide(command, cfg.theta_min, cfg.theta_max, policy, reach)
-        if decision.theta is None:
-            rejected += 1
-            continue
-        if decision.outcome is Outcome.CLAMPED:
-            clamped += 1
-        served.append(decision.theta)
-    return served, rejected, clamped
+def served_angles(commands: Sequence[float], cfg: AntennaConfig) -> tuple[FloatArray, int, int]:
+    """The angles the node serves for ``commands`` (rad, its policy), and the rejected and clamped counts."""
+    served = serve(np.asarray(commands, dtype=np.float64), cfg.theta_min, cfg.theta_max, Policy(cfg.out_of_limits),
+                   cfg.linkage.reach())
+    rejected = sum(n for outcome, n in served.outcomes.items() if outcome.rejected)
+    return served.theta, rejected, served.outcomes[Outcome.CLAMPED]
 
 
 def pair(commands: Sequence[float], cfg: AntennaConfig, joint_states: Sequence[Any],
@@ -64,9 +57,9 @@ def pair(commands: Sequence[float], cfg: AntennaConfig, joint_states: Sequence[A
     if len(joint_states) != len(served) or len(torques) != len(served):
         raise DemoError(f'{len(served)} commands answered but {len(joint_states)} joint_states and '
                         f'{len(torques)} input_torque messages recorded')
-    driven = 0 if cfg.driven.value == 'gamma' else 1
+    driven = driven_index(cfg)
     return DemoData(
-        theta=np.array(served, dtype=np.float64),
+        theta=served,
         gamma=np.array([m.position[0] for m in joint_states], dtype=np.float64),
         delta=np.array([m.position[1] for m in joint_states], dtype=np.float64),
         input_torque=np.array([m.data for m in torques], dtype=np.float64),

@@ -13,7 +13,7 @@ from rclpy.node import Node
 
 from fourbar_ros.bags.graph import ReplayError, spin_until
 from fourbar_ros.core.antenna import Reach
-from fourbar_ros.node.command_policy import Policy, decide
+from fourbar_ros.rules.policy import Policy, decide
 
 Predictor = Callable[[float], bool]
 

@@ -45,7 +45,7 @@ from fourbar_ros.bags.graph import (
 from fourbar_ros.bags.node_params import LIMIT_PARAMETERS, Predictor, fetch_parameters, handshake, predictor_from_values
 from fourbar_ros.bags.progress import Progress
 from fourbar_ros.bags.storage import CommandStream
-from fourbar_ros.node.executor import spin_once
+from fourbar_ros.node.run import spin_once
 
 #: History depth of the replay publisher (timed mode may run ahead of a slow node by this much).
 PUBLISH_DEPTH = 1000

@@ -14,6 +14,13 @@ from pathlib import Path
 
 from fourbar_ros.bags.domain import FREE_DOMAIN_IDS
 from fourbar_ros.commands import CommandError
+from fourbar_ros.config.interface import (
+    DEFAULT_STORAGE,
+    DIAGNOSTICS,
+    PER_COMMAND_OUTPUTS,
+    RECORDED_OUTPUTS,
+    STORAGES,
+)
 
 HELP = ('the main job: start fourbar_node with a parameter file, replay the bundled sweep, record the '
         'outputs, print a summary and write a PNG plot')
@@ -21,7 +28,9 @@ HELP = ('the main job: start fourbar_node with a parameter file, replay the bund
 #: Defaults, paths inside the package's share/ (found by config.share.share_path when the demo runs).
 DEFAULT_PARAMS = 'config/antenna.yaml'
 DEFAULT_BAG = 'bags/demo_sweep'
-OUTPUT_TOPICS = ('joint_states', 'input_torque', '/diagnostics')
+#: The recorded outputs and their names in the root namespace, where the demo's node runs.
+OUTPUT_TOPICS = tuple(t.name for t in RECORDED_OUTPUTS)
+JOINTS, TORQUE = (f'/{t.name}' for t in PER_COMMAND_OUTPUTS)
 
 
 def _id_ranges(ids: tuple[int, ...]) -> str:
@@ -45,8 +54,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         f'share/fourbar_ros/{DEFAULT_BAG})')
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
                         help='output directory: outputs bag, demo.png, node.log (default: out/demo)')
-    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
-                        help='storage of the recorded outputs bag (default: mcap)')
+    parser.add_argument('--storage', choices=STORAGES, default=DEFAULT_STORAGE.value,
+                        help=f'storage of the recorded outputs bag (default: {DEFAULT_STORAGE.value})')
     parser.add_argument('--domain-id', type=int, metavar='N',
                         help='ROS_DOMAIN_ID to use, 0..232 (default: the first free one of '
                         f'{_id_ranges(FREE_DOMAIN_IDS)}, searched from a place set by the process id; free: no '
@@ -96,9 +105,8 @@ def run(args: argparse.Namespace) -> int:
         replay_seconds, diagnostics = _run_ros(args, stream, domain_id, outputs,
                                                predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits))
 
-    topics = read_messages(outputs, ['/joint_states', '/input_torque'])  # read back with rosbags
-    data = pair(stream.values, cfg, [m for _, m in topics['/joint_states']],
-                [m for _, m in topics['/input_torque']])
+    topics = read_messages(outputs, [JOINTS, TORQUE])  # read back with rosbags
+    data = pair(stream.values, cfg, [m for _, m in topics[JOINTS]], [m for _, m in topics[TORQUE]])
     angle_err, torque_err = core_deviation(data, cfg)
     png = plot(data, cfg, out / 'demo.png',
                f'fourbar demo: {args.bag.name} replayed through fourbar_node ({args.params})\n'
@@ -132,16 +140,19 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from fourbar_ros.bags.progress import Progress
     from fourbar_ros.bags.record import Recorder, discover
     from fourbar_ros.bags.replay import Replayer
-    from fourbar_ros.bags.ros_context import close_context, init_context, interrupt_on_sigterm
+    from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import BagError, CommandStream
+    from fourbar_ros.node.run import stop_on_signals
 
     assert isinstance(stream, CommandStream)
     prog = 'fourbar demo'
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read by the middleware at init
     env = dict(os.environ)
-    proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env)
+    # One JointState per answered command: the recording is paired with the commands (no idle republishing).
+    proc = NodeProcess(args.params, domain_id, log_path=args.out / 'node.log', env=env,
+                       ros_args=['-p', 'joint_state_rate:=0.0'])
     stack = contextlib.ExitStack()
-    stack.enter_context(interrupt_on_sigterm())
+    stack.enter_context(stop_on_signals())
     stack.callback(_stop_node, proc)  # on every path, last
     proc.start()
     context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt
@@ -151,9 +162,9 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     recorder: Recorder | None = None
     diagnostics: list[dict[str, str]] = []
     try:
-        replayer = Replayer(node, stream, answer_topic='/joint_states')
-        node.create_subscription(DiagnosticArray, '/diagnostics',
-                                 lambda m: diagnostics.append(_diag_values(m)), 10)
+        replayer = Replayer(node, stream, answer_topic=JOINTS)
+        node.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
+                                 lambda m: diagnostics.append(_diag_values(m)), DIAGNOSTICS.depth)
         plans = discover(node, executor, OUTPUT_TOPICS, args.timeout, stop=lambda: not proc.alive())
         if not proc.alive():
             raise ReplayError(f'fourbar_node exited with status {proc.proc.poll() if proc.proc else "?"}: '
@@ -168,8 +179,8 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         progress.end()
         rec = recorder
         want = stats.expected_answers
-        if not spin_until(executor, lambda: rec.counts['/joint_states'] >= want
-                          and rec.counts['/input_torque'] >= want, args.timeout):
+        if not spin_until(executor, lambda: rec.counts[JOINTS] >= want
+                          and rec.counts[TORQUE] >= want, args.timeout):
             raise ReplayError(f'recorded {rec.counts} of {want} answers')
         # The first status that counts every command (published every diagnostics_period s).
         total = len(stream)

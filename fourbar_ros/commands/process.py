@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import signal
 import sys
 from pathlib import Path
-from types import FrameType
+
+from fourbar_ros.config.interface import STORAGES
 
 HELP = ('write the joint_states and input_torque fourbar_node would publish for a command bag, '
         'computed without the middleware (stamps = the commands\' log times)')
@@ -21,24 +21,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--topic', metavar='NAME',
                         help='command topic (std_msgs/Float64) in IN (default: /antenna_angle_cmd, else the one '
                         '*/antenna_angle_cmd); the outputs go next to it')
-    parser.add_argument('--storage', choices=('mcap', 'sqlite3'),
+    parser.add_argument('--storage', choices=STORAGES,
                         help='storage plugin of OUT (default: that of IN)')
-
-
-def _interrupt(signum: int, frame: FrameType | None) -> None:
-    raise KeyboardInterrupt
 
 
 def run(args: argparse.Namespace) -> int:
     """Process; exit 0 with a complete bag, 2 with one line on bad input (nothing written)."""
     from fourbar_ros.bags.process import process_bag
     from fourbar_ros.config.antenna_config import default_config, load_config
+    from fourbar_ros.node.run import stop_on_signals
 
     cfg = load_config(args.params) if args.params is not None else default_config()  # ConfigError: exit 2
-    previous = signal.signal(signal.SIGTERM, _interrupt)  # SIGTERM, like Ctrl-C: the partial bag is removed
-    try:
+    with stop_on_signals():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt: the partial bag is removed
         stats = process_bag(args.bag, args.out, cfg, topic=args.topic, storage=args.storage)
-    finally:
-        signal.signal(signal.SIGTERM, previous)
     print(f'fourbar process: wrote {args.out}: {stats.summary()}', file=sys.stderr)
     return 0

@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import math
-import signal
 import sys
 from pathlib import Path
-from types import FrameType
 
 from fourbar_ros.commands import CommandError
+from fourbar_ros.config.interface import DEFAULT_STORAGE, RECORDED_OUTPUTS, STORAGES
 
 HELP = 'record topics (default: the node outputs) to a rosbag2 bag, mcap by default; Ctrl-C stops it cleanly'
 
-DEFAULT_TOPICS = ('joint_states', 'input_torque', '/diagnostics')
+DEFAULT_TOPICS = tuple(t.name for t in RECORDED_OUTPUTS)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -22,8 +22,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--topics', nargs='+', metavar='TOPIC', default=list(DEFAULT_TOPICS),
                         help='topics to record; relative names resolve in the root namespace '
                         f'(default: {" ".join(DEFAULT_TOPICS)})')
-    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap',
-                        help='storage plugin (default: mcap)')
+    parser.add_argument('--storage', choices=STORAGES, default=DEFAULT_STORAGE.value,
+                        help=f'storage plugin (default: {DEFAULT_STORAGE.value})')
     parser.add_argument('--wait', type=float, default=10.0, metavar='S',
                         help='seconds to wait for a publisher on every topic (default: 10)')
     parser.add_argument('--duration', type=float, metavar='S', help='stop after S seconds of recording')
@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import AtomicBagWriter, BagError
     from fourbar_ros.node.executor import create_executor
+    from fourbar_ros.node.run import stop_on_signals
 
     prog = 'fourbar record'
     if args.wait <= 0 or (args.duration is not None and not args.duration > 0):
@@ -68,12 +69,8 @@ def run(args: argparse.Namespace) -> int:
     stop_after = _parse_stop_after(args.stop_after)
     AtomicBagWriter(args.out, args.storage)  # checks OUT before touching ROS; writes nothing
 
-    stopping: list[int] = []
-
-    def on_signal(signum: int, _frame: FrameType | None) -> None:
-        stopping.append(signum)
-
-    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    stack = contextlib.ExitStack()
+    stop = stack.enter_context(stop_on_signals(raises=None))  # a stop ends the recording, which is then closed
     context = init_context(handle_signals=False)
     node = Node('fourbar_record', context=context)
     executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
@@ -81,10 +78,10 @@ def run(args: argparse.Namespace) -> int:
     recorder: Recorder | None = None
     try:
         try:
-            plans = discover(node, executor, args.topics, args.wait, stop=lambda: bool(stopping))
+            plans = discover(node, executor, args.topics, args.wait, stop=lambda: stop.requested)
         except BagError as exc:  # a topic without a publisher within --wait: status 1
             raise CommandError(str(exc), status=1) from None
-        if stopping:
+        if stop.requested:
             print(f'{prog}: interrupted before recording started; no bag written', file=sys.stderr)
             return 130
         wanted = {node.resolve_topic_name(t): n for t, n in stop_after.items()}
@@ -93,7 +90,7 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f'--stop-after names a topic not recorded: {unknown[0]}')
         recorder = Recorder(node, args.out, plans, args.storage, flush_interval=args.flush_interval)
         rec = recorder
-        spin_until(executor, lambda: rec.matched() or bool(stopping), args.wait)
+        spin_until(executor, lambda: rec.matched() or stop.requested, args.wait)
         for fqn in rec.handshake(executor, args.wait):
             print(f'{prog}: warning: {fqn} has no parameter services; its first messages may be missed',
                   file=sys.stderr)
@@ -102,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
               f'to {rec.bag.work_dir})', file=sys.stderr, flush=True)
 
         def done() -> bool:
-            return bool(stopping) or (bool(wanted) and all(rec.counts[t] >= n for t, n in wanted.items()))
+            return stop.requested or (bool(wanted) and all(rec.counts[t] >= n for t, n in wanted.items()))
         seconds = record_until(executor, rec, done, args.duration)
         recorder = None
         path = rec.close()
@@ -115,5 +112,4 @@ def run(args: argparse.Namespace) -> int:
             recorder.abort()
         executor.shutdown()
         close_context(context, node)
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
+        stack.close()

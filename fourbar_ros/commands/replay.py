@@ -60,9 +60,10 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.node_params import Predictor, predictor
     from fourbar_ros.bags.progress import Progress
     from fourbar_ros.bags.replay import Replayer, sibling_topic
-    from fourbar_ros.bags.ros_context import close_context, init_context, interrupt_on_sigterm
+    from fourbar_ros.bags.ros_context import close_context, init_context
     from fourbar_ros.bags.storage import read_commands
     from fourbar_ros.node.executor import create_executor
+    from fourbar_ros.node.run import stop_on_signals
 
     prog = 'fourbar replay'
     for name in ('rate', 'wait', 'deadline'):
@@ -84,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         cfg = load_config(args.params)
         answers_from_file = predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits)
 
-    with interrupt_on_sigterm():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt: cleanup runs
+    with stop_on_signals():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt (not inside a callback): cleanup runs
         context = init_context(handle_signals=False)
         node = Node('fourbar_replay', context=context, start_parameter_services=False)
         executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events

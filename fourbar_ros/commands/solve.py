@@ -11,7 +11,7 @@ from fourbar_ros.commands.check import warn_unknown_parameters
 from fourbar_ros.config.antenna_config import AntennaConfig, default_config, load_config
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.errors import DeadPointError, FourBarError, SingularPositionError, UnreachableError
-from fourbar_ros.node.command_policy import angle_text, out_of_reach_text
+from fourbar_ros.rules.policy import angle_text, out_of_reach_text
 
 HELP = 'solve the linkage at one antenna angle: rocker angles, rates, mechanical advantage, input torque'
 

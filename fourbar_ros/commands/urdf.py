@@ -10,6 +10,7 @@ from pathlib import Path
 
 from fourbar_ros.commands import CommandError
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.config.robot_model import (
     DEFAULT_HARDWARE_PLUGIN,
     DEFAULT_MOTOR_SPEED,
@@ -26,8 +27,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `fourbar urdf`."""
     parser.add_argument('--params', metavar='YAML', help='ROS parameter file the node reads (e.g. '
                         'config/antenna.yaml); default: the built-in Turnantenna configuration')
-    parser.add_argument('--node-name', default='fourbar_node', help='node whose section of the file applies '
-                        '(default: fourbar_node)')
+    parser.add_argument('--node-name', default=NODE_NAME, help='node whose section of the file applies '
+                        f'(default: {NODE_NAME})')
     parser.add_argument('--namespace', default='/', help='namespace of that node (default: /)')
     parser.add_argument('--robot-name', default='fourbar', help='<robot name=...> (default: fourbar)')
     parser.add_argument('--motor-speed', type=float, default=DEFAULT_MOTOR_SPEED, metavar='RAD_PER_S',

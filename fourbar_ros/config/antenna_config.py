@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.config.params import (
     PARAMETERS,
     PARAMETERS_BY_NAME,
@@ -25,7 +26,6 @@ from fourbar_ros.config.params import (
     is_foreign,
 )
 from fourbar_ros.config.rcl_yaml import (
-    NODE_NAME,
     ConfigError,
     node_sections,
     rcl_scalar,
@@ -38,7 +38,7 @@ from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import has_gravity_load
 
 __all__ = [
-    'NODE_NAME', 'AntennaConfig', 'ConfigError', 'check_value', 'config_from_values', 'declared_values',
+    'AntennaConfig', 'ConfigError', 'check_value', 'config_from_values', 'declared_values',
     'default_config', 'load_config', 'rcl_scalar', 'unknown_in_node_sections', 'values_from_yaml',
 ]
 
@@ -83,6 +83,7 @@ class AntennaConfig:
     velocity_timeout: float
     marker_period: float
     diagnostics_period: float
+    joint_state_rate: float
     linkage: AntennaLinkage = field(compare=False, repr=False)
 
     @property

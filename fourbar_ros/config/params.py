@@ -163,6 +163,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'pose (or the subscriber count) changed since the last ones.', 0.001, 3600.0, read_only=True),
     ParamSpec('diagnostics_period', float, 1.0, 's',
               'Period of the /diagnostics status.', 0.01, 3600.0, read_only=True),
+    ParamSpec('joint_state_rate', float, 10.0, 'Hz',
+              'Rate at which the last served pose is republished on joint_states with a fresh stamp and zero '
+              'velocities (as joint_state_publisher does), so late subscribers get it; 0 turns it off.',
+              0.0, 1000.0, read_only=True),
 )
 
 PARAMETERS_BY_NAME: dict[str, ParamSpec] = {p.name: p for p in PARAMETERS}

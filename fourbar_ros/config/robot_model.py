@@ -46,6 +46,7 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
+from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.numeric import FloatArray
 
@@ -221,7 +222,7 @@ def robot_description(cfg: AntennaConfig, robot_name: str = 'fourbar', motor_spe
     return '\n'.join(lines) + '\n'
 
 
-def robot_description_for(params: str | Path, node_name: str = 'fourbar_node', namespace: str = '/',
+def robot_description_for(params: str | Path, node_name: str = NODE_NAME, namespace: str = '/',
                           robot_name: str = 'fourbar', motor_speed: float = DEFAULT_MOTOR_SPEED,
                           hardware_plugin: str = DEFAULT_HARDWARE_PLUGIN) -> tuple[AntennaConfig, str]:
     """Validated configuration and URDF for the node ``namespace``/``node_name`` started with ``params``.

@@ -1,4 +1,4 @@
-"""Exception types of fourbar_ros. All are ValueError subclasses with one-line messages."""
+"""Exception types of fourbar_ros (ValueError subclasses with one-line messages) and how a message is quoted."""
 
 from __future__ import annotations
 
@@ -21,3 +21,10 @@ class SingularPositionError(FourBarError):
 
 class DeadPointError(SingularPositionError):
     """A dead point: the driven rocker cannot move the antenna there, so the required torque is unbounded."""
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception's message as one line for ours: its first line without a closing period (the class name
+    when empty). Foreign errors (rcl, rosbags, sqlite3) may span lines; the first says what went wrong."""
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0].rstrip('.')

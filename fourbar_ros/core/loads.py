@@ -16,9 +16,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from functools import partial
-from typing import NamedTuple, Protocol
+from typing import NamedTuple, Protocol, overload
+
+import numpy as np
 
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven, LinkageState
+from fourbar_ros.core.numeric import ArrayLike, FloatArray
 
 
 class LoadSpec(Protocol):
@@ -62,22 +65,50 @@ def has_gravity_load(cfg: LoadSpec) -> bool:
     return cfg.antenna_mass > 0.0 and cfg.gravity > 0.0
 
 
-def com_height_rate(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float:
-    """d y_com / d theta (m/rad): how fast the antenna's centre of mass rises as theta grows."""
+@overload
+def com_height_rate(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float: ...
+@overload
+def com_height_rate(cfg: LoadSpec, theta: FloatArray, gamma: FloatArray, dgamma_dtheta: FloatArray) -> FloatArray: ...
+@overload
+def com_height_rate(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike: ...
+
+
+def com_height_rate(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike:
+    """d y_com / d theta (m/rad): how fast the antenna's centre of mass rises as theta grows. Floats take the
+    math module's functions, arrays numpy's (element-wise the same operations)."""
+    cos, sin = (np.cos, np.sin) if isinstance(theta, np.ndarray) else (math.cos, math.sin)
     along = 0.5 * cfg.linkage.coupler + cfg.com_offset_along
-    return (cfg.linkage.rocker_ab * math.cos(gamma) * dgamma_dtheta
-            - along * math.cos(theta) - cfg.com_offset_normal * math.sin(theta))
+    rate: ArrayLike = (cfg.linkage.rocker_ab * cos(gamma) * dgamma_dtheta
+                       - along * cos(theta) - cfg.com_offset_normal * sin(theta))
+    return rate
 
 
-def gravity_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float:
-    """Torque (N m, about theta, +theta sense) that holds the antenna's weight at this pose."""
+@overload
+def gravity_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float: ...
+@overload
+def gravity_torque(cfg: LoadSpec, theta: FloatArray, gamma: FloatArray, dgamma_dtheta: FloatArray) -> ArrayLike: ...
+@overload
+def gravity_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike: ...
+
+
+def gravity_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike:
+    """Torque (N m, about theta, +theta sense) that holds the antenna's weight at this pose (0.0 without one)."""
     if not has_gravity_load(cfg):
         return 0.0
     return cfg.antenna_mass * cfg.gravity * com_height_rate(cfg, theta, gamma, dgamma_dtheta)
 
 
-def load_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float:
-    """Total load torque about theta (N m): the constant ``load_torque`` plus the gravity term."""
+@overload
+def load_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float) -> float: ...
+@overload
+def load_torque(cfg: LoadSpec, theta: FloatArray, gamma: FloatArray, dgamma_dtheta: FloatArray) -> ArrayLike: ...
+@overload
+def load_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike: ...
+
+
+def load_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike:
+    """Total load torque about theta (N m): the constant ``load_torque`` plus the gravity term; floats or
+    arrays (element-wise)."""
     return cfg.load_torque + gravity_torque(cfg, theta, gamma, dgamma_dtheta)
 
 

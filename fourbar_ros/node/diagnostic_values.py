@@ -17,7 +17,7 @@ from typing import NamedTuple
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import LinkageState
 from fourbar_ros.core.loads import motor_torque
-from fourbar_ros.node.command_policy import Decision, Outcome
+from fourbar_ros.rules.policy import Decision, Outcome
 
 #: More commands lost than this since the previous status raise the level to WARN (any loss does).
 LOST_WARN_THRESHOLD = 0

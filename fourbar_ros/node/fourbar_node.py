@@ -7,44 +7,38 @@ Interface (relative names, so namespaces and remapping apply):
                                                      `fourbar urdf`'s model); velocity rad/s by finite
                                                      difference of successive published positions (empty
                                                      when not meaningful); effort N m: driven rocker's torque,
-                                                     0.0 for the other joints
+                                                     0.0 for the other joints. Every 1/joint_state_rate s the
+                                                     last served pose again, freshly stamped, velocity 0.0
   pub  input_torque       std_msgs/Float64           torque the driven rocker needs, N m (+ in the sense of q)
   pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
   pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
                                                      every marker_period s, only when subscribed and changed
-QoS: keep-last 1000 for the command (best effort, see COMMAND_QOS) and the per-command outputs (reliable),
+QoS (fourbar_ros.config.interface): keep-last 1000 for the command (best effort) and the per-command outputs (reliable),
 reliable keep-last 10 for markers and diagnostics; commands the queues drop are counted (commands_lost).
 Each can be overridden with ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
 Markers are not per command (drawing them costs more than the rest of a command): a timer publishes them
 at most every marker_period s.
-The node only adapts messages and parameters; the math is in fourbar_ros.antenna/loads and the
-decisions in the pure modules command_policy, state_cache, joint_velocity, diagnostic_values.
+The node only adapts messages and parameters; the math is in fourbar_ros.core, what a command publishes in
+fourbar_ros.rules (policy, outputs, velocity), and the node's own bookkeeping in state_cache and diagnostic_values.
+Names, topics and QoS: fourbar_ros.config.interface; start, spin and stop: fourbar_ros.node.run.
 """
 
 from __future__ import annotations
 
-import argparse
-import itertools
-import signal
-import sys
 import time
 from collections.abc import Callable, Collection, Sequence
-from typing import Any, NoReturn
+from typing import Any
 
-import rclpy
-import rclpy.utilities
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ROSClock
 from rclpy.clock_type import ClockType
 from rclpy.exceptions import ParameterNotDeclaredException
-from rclpy.executors import Executor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from visualization_msgs.msg import MarkerArray
@@ -56,40 +50,38 @@ from fourbar_ros.config.antenna_config import (
     declared_values,
     unknown_in_node_sections,
 )
+from fourbar_ros.config.interface import (
+    COMMAND,
+    DIAGNOSTICS,
+    INPUT_TORQUE,
+    JOINT_STATES,
+    MARKERS,
+    NODE_NAME,
+    Topic,
+)
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
-from fourbar_ros.config.robot_model import coupler_joint_position
-from fourbar_ros.core.antenna import Driven, LinkageState
-from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.antenna import LinkageState
+from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
-from fourbar_ros.node.command_policy import Decision, Outcome, Policy, decide
 from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
-    DEFAULT_EXECUTOR,
-    EXECUTOR_ENV,
-    EXECUTORS,
     MessageInfoCallback,
-    Spinner,
-    create_executor,
-    executor_kind,
 )
-from fourbar_ros.node.joint_velocity import Sample, velocity_step
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.state_cache import StateCache
+from fourbar_ros.rules.outputs import JointStateRule
+from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
 
-NODE_NAME = 'fourbar_node'
-#: Keep-last depth of the command subscription and the per-command outputs.
-STREAM_DEPTH = 1000
-#: The command subscription: best effort, keep-last STREAM_DEPTH. It matches reliable and best-effort
-#: publishers alike, and one payload the middleware cannot take (an empty one) cannot stall the commands that
-#: follow it from that publisher, as it does on a reliable subscription (Fast DDS keeps waiting for it). Lost
-#: commands are counted either way (``commands_lost``); on one host best effort loses no more than reliable
-#: keep-last, whose queues drop the oldest when full.
 _qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
-COMMAND_QOS = _qos_profile(depth=STREAM_DEPTH, reliability=ReliabilityPolicy.BEST_EFFORT)
-#: Keep-last depth of markers and diagnostics (latest state only matters).
-STATUS_DEPTH = 10
+
+
+def qos(topic: Topic) -> QoSProfile:
+    """The rclpy profile of one of the node's topics (keep-last depth, reliability; see config.interface)."""
+    return _qos_profile(depth=topic.depth, reliability=ReliabilityPolicy[topic.reliability.name])
+
+
 WARN_THROTTLE_S = 1.0
 #: Steady-clock delay (s) after which a node on sim time without /clock says so.
 NO_CLOCK_WARN_S = 3.0
@@ -108,6 +100,7 @@ class FourBarNode(Node):
         logger = get_logger()
         self._ros_clock = self.get_clock()
         self._warn: Callable[..., object] = logger.warning
+        self.info: Callable[..., object] = logger.info
         self._error: Callable[..., object] = logger.error
         self._debug: Callable[..., object] = logger.debug
         try:
@@ -117,7 +110,7 @@ class FourBarNode(Node):
             for path in params_files:
                 explicit.update(unknown_in_node_sections(path, self.get_name(), self.get_namespace()))
         except ConfigError:
-            destroy(self)
+            destroy_node(self)
             raise
         self._report_unknown_overrides(explicit)
         self.declare_parameters('', list(declarations(self._config.as_values())))
@@ -134,25 +127,29 @@ class FourBarNode(Node):
         self._last_command: float | None = None
         self._last_decision: Decision | None = None
         self._served: float | None = None
-        self._last_sample: Sample | None = None
+        #: (served theta rad, configuration generation, its pose): what the joint_state_rate timer republishes
+        self._held: tuple[float, int, Pose] | None = None
+        self._answered = False  # a per-command JointState went out since the last joint_state_rate tick
         self._generation = 0  # bumped by every configuration change
         self._marker_key: tuple[float, int, int] | None = None
         self._apply(self._config)
 
         qos_options = QoSOverridingOptions.with_default_policies()
-        self._joint_pub = self.create_publisher(JointState, 'joint_states', STREAM_DEPTH,
+        self._joint_pub = self.create_publisher(JointState, JOINT_STATES.name, qos(JOINT_STATES),
                                                 qos_overriding_options=qos_options)
-        self._torque_pub = self.create_publisher(Float64, 'input_torque', STREAM_DEPTH,
+        self._torque_pub = self.create_publisher(Float64, INPUT_TORQUE.name, qos(INPUT_TORQUE),
                                                  qos_overriding_options=qos_options)
-        self._marker_pub = self.create_publisher(MarkerArray, 'linkage_markers', STATUS_DEPTH,
+        self._marker_pub = self.create_publisher(MarkerArray, MARKERS.name, qos(MARKERS),
                                                  qos_overriding_options=qos_options)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', STATUS_DEPTH)
+        self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.name, qos(DIAGNOSTICS))
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
-        self._command_sub = self.create_subscription(Float64, 'antenna_angle_cmd',
-                                                     MessageInfoCallback(self._on_command),
-                                                     COMMAND_QOS, qos_overriding_options=qos_options)
+        self._command_sub = self.create_subscription(Float64, COMMAND.name, MessageInfoCallback(self._on_command),
+                                                     qos(COMMAND), qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
+        if self._config.joint_state_rate > 0.0:
+            self._joint_state_timer = self.create_timer(1.0 / self._config.joint_state_rate,
+                                                        self._on_joint_state_timer)
         # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
         # this one runs on the steady clock so that case is reported, once per episode.
         self._clock_warned = False
@@ -192,18 +189,17 @@ class FourBarNode(Node):
     def _apply(self, cfg: AntennaConfig) -> None:
         self._config = cfg
         self._theta_min, self._theta_max = cfg.theta_min, cfg.theta_max
-        self._velocity_timeout = cfg.velocity_timeout
         self._policy = Policy(cfg.out_of_limits)
         self._reach = cfg.linkage.reach()
-        self._driven_first = cfg.driven is Driven.GAMMA
+        self._joint_rule = JointStateRule(cfg)  # a velocity across a configuration change means nothing
+        self._pose = pose_solver(cfg)
         # One JointState and one Float64, refilled per command: publish() serializes synchronously, so reuse is
         # safe, and it spares building a message (~5 us, a sixth of the node's cost over a bare relay).
         self._joint_msg = JointState()
         self._joint_msg.name = list(cfg.joint_names)
         self._torque_msg = Float64()
         self._markers = LinkageMarkers(cfg.frame_id)
-        self.cache.reset(pose_solver(cfg))
-        self._last_sample = None  # a velocity across a configuration change means nothing
+        self.cache.reset(self._pose)
         self._generation += 1
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
@@ -314,16 +310,33 @@ class FourBarNode(Node):
 
     def _publish_joints(self, theta: float, state: Pose) -> None:
         now = self._ros_clock.now()
-        gamma, delta, torque = state
-        positions = (gamma, delta, coupler_joint_position(gamma, theta))
         msg = self._joint_msg
         msg.header.stamp = now.to_msg()
-        msg.position = list(positions)
-        msg.velocity, self._last_sample = velocity_step(self._last_sample, Sample(now.nanoseconds, positions),
-                                                        self._velocity_timeout)
-        msg.effort = [torque, 0.0, 0.0] if self._driven_first else [0.0, torque, 0.0]
+        msg.position, msg.velocity, msg.effort = self._joint_rule.sample(theta, state, now.nanoseconds)
         self._joint_pub.publish(msg)
         self.counters.joint_states_published += 1
+        self._held = (theta, self._generation, state)
+        self._answered = True
+
+    def _on_joint_state_timer(self) -> None:
+        """Republish the last served pose with a fresh stamp and zero velocities (not a sample of the velocity
+        rule, not counted), so a subscriber that arrives after the command gets the pose too. Only after a
+        whole period without a per-command JointState: a command stream is never interleaved with repeats."""
+        served = self._served
+        answered, self._answered = self._answered, False
+        if served is None or answered or self._joint_pub.get_subscription_count() == 0:
+            return
+        held = self._held
+        if held is None or held[:2] != (served, self._generation):  # not published yet (nobody listened then)
+            try:
+                held = (served, self._generation, self._pose(served))  # outside the cache: its counters stay
+            except FourBarError:  # the served angle is invalid under a newer configuration
+                return
+            self._held = held
+        msg = self._joint_msg
+        msg.header.stamp = self._ros_clock.now().to_msg()
+        msg.position, msg.velocity, msg.effort = self._joint_rule.held(served, held[2])
+        self._joint_pub.publish(msg)
 
     # ------------------------------------------------------------------ markers
 
@@ -398,170 +411,7 @@ class FourBarNode(Node):
         self._clock_warned = waiting
 
 
-def destroy(node: Node) -> None:
+def destroy_node(node: Node) -> None:
     """``node.destroy_node()`` (rclpy's is unannotated)."""
-    destroy_node: Callable[[], object] = node.destroy_node
-    destroy_node()
-
-
-def one_line(exc: BaseException) -> str:
-    """The exception's text on one line (its class name if empty)."""
-    text = ' '.join(str(exc).split())
-    return text or exc.__class__.__name__
-
-
-def params_files(argv: list[str]) -> list[str]:
-    """The ``--params-file`` paths among ``argv``, in order."""
-    return [path for flag, path in itertools.pairwise(argv) if flag == '--params-file']
-
-
-def command_line_names(argv: list[str]) -> list[str]:
-    """The parameter names set with ``-p name:=value`` (or ``--param``) among ``argv``."""
-    return [arg.split(':=', 1)[0].rsplit(':', 1)[-1] for flag, arg in itertools.pairwise(argv)
-            if flag in ('-p', '--param') and ':=' in arg]
-
-
-def params_file_problem(argv: list[str]) -> str | None:
-    """One line if a ``--params-file`` argument cannot be read, is larger than 1 MiB, is not YAML or holds an
-    alias (rcl refuses those too), else None.
-
-    Checked before rclpy.init, because rcl would log its own multi-line error first.
-    """
-    from fourbar_ros.config.rcl_yaml import params_file_problem as file_problem
-
-    for flag, path in itertools.pairwise(argv):
-        if flag == '--params-file' and (problem := file_problem(path)) is not None:
-            return problem
-    return None
-
-
-#: Longest time (s) the spin loop waits for work before it looks at the stop flag again.
-STOP_POLL_S = 0.1
-
-
-class StopRequest:
-    """Set by SIGINT/SIGTERM; the spin loop ends when it sees it.
-
-    rclpy's own handlers shut the context down from the signal while a callback may still be running, so
-    get_subscription_count, publish or the next wait set raise RCLError ("context is invalid") and SIGINT's
-    KeyboardInterrupt can land inside take_message. This handler only sets a flag (Python runs it in the main
-    thread between bytecodes); the loop then returns and main() destroys the node and shuts down, in order.
-    """
-
-    def __init__(self) -> None:
-        self.signal: int | None = None
-        self._wakers: list[Callable[[], None]] = []
-
-    def __call__(self, signum: int, frame: object) -> None:
-        self.signal = signum
-        for wake in self._wakers:
-            wake()
-
-    def on_request(self, wake: Callable[[], None]) -> None:
-        """Call ``wake()`` from the handler when a stop arrives (e.g. to end a running spin slice)."""
-        self._wakers.append(wake)
-
-    def install(self) -> None:
-        """Handle SIGINT and SIGTERM in this process (main thread only)."""
-        signal.signal(signal.SIGINT, self)
-        signal.signal(signal.SIGTERM, self)
-
-    @property
-    def requested(self) -> bool:
-        """True once a stop signal arrived."""
-        return self.signal is not None
-
-
-def spin_until_stopped(executor: Executor, stop: StopRequest, poll_s: float = STOP_POLL_S) -> None:
-    """Run callbacks until ``stop`` is requested or the context ends.
-
-    Spins in slices of at most ``poll_s`` s (an EventsExecutor must never wait without a deadline, see
-    fourbar_ros.node.executor); a stop also ends the running slice, after the callback in progress.
-    """
-    spinner = Spinner(executor, poll_s)
-    stop.on_request(spinner.request_stop)
-    context_ok: Callable[[], bool] = executor.context.ok
-    while not stop.requested and context_ok():
-        spinner.spin_slice()
-
-
-class UsageError(ValueError):
-    """A bad command-line option of fourbar_node (not a ROS argument)."""
-
-
-class _OptionParser(argparse.ArgumentParser):
-    def error(self, message: str) -> NoReturn:
-        raise UsageError(message)
-
-
-def node_options(argv: Sequence[str]) -> argparse.Namespace:
-    """The options of ``fourbar_node`` outside its ``--ros-args`` sections (``argv[0]`` is the program)."""
-    parser = _OptionParser(prog='fourbar_node', description='The antenna tilt four-bar node.',
-                           epilog='ROS arguments follow --ros-args, e.g. --ros-args --params-file config/antenna.yaml')
-    parser.add_argument('--executor', choices=EXECUTORS, default=None,
-                        help=f'rclpy executor that runs the callbacks (default: ${EXECUTOR_ENV}, else '
-                             f'{DEFAULT_EXECUTOR}); see docs/node.md')
-    return parser.parse_args(non_ros_args(argv)[1:])
-
-
-def non_ros_args(argv: Sequence[str]) -> list[str]:
-    """``argv`` without its ROS arguments: each ``--ros-args`` up to the next ``--`` (or the end), as rcl reads
-    them. Pure, so a bad ROS argument (say an unreadable --params-file) is left to its own one-line check."""
-    out: list[str] = []
-    in_ros = False
-    for arg in argv:
-        if in_ros:
-            in_ros = arg != '--'
-        elif arg == '--ros-args':
-            in_ros = True
-        else:
-            out.append(arg)
-    return out
-
-
-def main(args: list[str] | None = None) -> int:
-    """Console script ``fourbar_node``: exit 0 on Ctrl-C/SIGTERM, 2 with one line on bad parameters."""
-    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
-
-    stop = StopRequest()
-    stop.install()  # before rclpy.init: a stop during startup also ends cleanly, after the node is built
-    argv = sys.argv if args is None else args
-    try:
-        kind = executor_kind(node_options(argv).executor)
-    except ValueError as exc:  # UsageError, ExecutorChoiceError
-        print(f'fourbar_node: error: {exc}', file=sys.stderr)
-        return 2
-    problem = params_file_problem(argv)
-    if problem is not None:
-        print(f'fourbar_node: error: {problem}', file=sys.stderr)
-        return 2
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
-        print(f'fourbar_node: error: {one_line(exc)}', file=sys.stderr)
-        return 2
-    node: FourBarNode | None = None
-    executor: Executor | None = None
-    try:
-        node = FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv))
-        executor = create_executor(kind)
-        executor.add_node(node)
-        get_logger: Callable[[], RcutilsLogger] = node.get_logger
-        info: Callable[[str], object] = get_logger().info
-        info(f'callbacks run on the {kind} executor')
-        spin_until_stopped(executor, stop)
-    except (ConfigError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
-        print(f'fourbar_node: error: {one_line(exc)}', file=sys.stderr)
-        return 2
-    finally:
-        # Nothing runs callbacks any more (one thread): destroy the node, then shut the context down.
-        if executor is not None:
-            executor.shutdown(timeout_sec=0.0)
-        if node is not None:
-            destroy(node)
-        rclpy.utilities.try_shutdown()
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())
+    destroy: Callable[[], object] = node.destroy_node
+    destroy()

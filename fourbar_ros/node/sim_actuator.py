@@ -32,18 +32,14 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, declared_values
+from fourbar_ros.config.interface import JOINT_STATES
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
-from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.node.executor import create_executor, executor_kind
-from fourbar_ros.node.fourbar_node import (
-    StopRequest,
-    destroy,
-    one_line,
-    params_file_problem,
-    spin_until_stopped,
-)
+from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
+from fourbar_ros.node.run import STOP, params_file_problem, spin_until_stopped
 from fourbar_ros.node.sim_actuator_model import (
     DriveLimits,
     Encoder,
@@ -84,7 +80,7 @@ class SimActuator(Node):
             self.config = config_from_values(declared_values(startup))
             self.settings = sim_settings(startup, self.config)
         except ConfigError:
-            destroy(self)
+            destroy_node(self)
             raise
         self.declare_parameters('', list(declarations(self.config.as_values(), read_only=True)))
         self.declare_parameters('', list(declarations(self.settings.as_values(), SIM_PARAMETERS, read_only=True)))
@@ -101,7 +97,7 @@ class SimActuator(Node):
         self._last_tick_ns: int | None = None
         self._msg = JointState()
         self._msg.name = [s.joint]
-        self._pub = self.create_publisher(JointState, 'joint_states', DEPTH)
+        self._pub = self.create_publisher(JointState, JOINT_STATES.name, DEPTH)
         self.create_subscription(JointTrajectory, f'{s.trajectory_controller}/joint_trajectory',
                                  self._on_trajectory, DEPTH)
         self.create_subscription(Float64MultiArray, f'{s.forward_controller}/commands', self._on_forward, DEPTH)
@@ -166,8 +162,7 @@ class SimActuator(Node):
 def main(args: list[str] | None = None) -> int:
     """Console script ``fourbar_sim_actuator``: exit 0 on Ctrl-C/SIGTERM, 2 with one line on bad parameters."""
     prog = 'fourbar_sim_actuator'
-    stop = StopRequest()
-    stop.install()
+    STOP.install()  # from here a stop only ends the spin loop (see run.py)
     argv = sys.argv if args is None else args
     problem = params_file_problem(argv)
     if problem is not None:
@@ -184,7 +179,7 @@ def main(args: list[str] | None = None) -> int:
         node = SimActuator()
         executor = create_executor(executor_kind())
         executor.add_node(node)
-        spin_until_stopped(executor, stop)
+        spin_until_stopped(executor)
     except ConfigError as exc:
         print(f'{prog}: error: {one_line(exc)}', file=sys.stderr)
         return 2
@@ -192,7 +187,7 @@ def main(args: list[str] | None = None) -> int:
         if executor is not None:
             executor.shutdown(timeout_sec=0.0)
         if node is not None:
-            destroy(node)
+            destroy_node(node)
         rclpy.utilities.try_shutdown()
     return 0
 

@@ -1,4 +1,4 @@
-"""What the node does with one antenna angle command (rad): accept, clamp or reject it. No ROS here.
+"""What the node does with antenna angle commands (rad): accept, clamp or reject them. No ROS here.
 
 NaN and inf are always rejected. A finite command outside [theta_min, theta_max] is rejected or
 clamped to the nearer limit, by policy; out-of-reach commands are a sub-case of out-of-limits
@@ -8,15 +8,23 @@ Commands exactly at a limit are accepted unchanged.
 An antenna angle command is a number, not a direction: theta + 2 pi is not theta, and a command is in reach only if
 the linkage reaches that very number (|theta| <= pi and ``Reach.contains``). So 2 pi + 0.05 and 1e308 are out of
 reach; the node, ``fourbar solve`` and ``fourbar replay`` use this rule (``in_reach``).
+
+``decide`` takes one command (the node's per-command path, with the message); ``serve`` takes an array (a bag's
+block) and sends every command outside the limits through ``decide`` itself, so both give the same outcomes.
 """
 
 from __future__ import annotations
 
 import enum
 import math
+from collections import Counter
+from dataclasses import dataclass
 from typing import NamedTuple
 
+import numpy as np
+
 from fourbar_ros.core.antenna import Reach
+from fourbar_ros.core.numeric import FloatArray
 
 
 class Policy(enum.Enum):
@@ -88,3 +96,31 @@ def decide(command: float, theta_min: float, theta_max: float, policy: Policy, r
         side = 'theta_min' if below else 'theta_max'
         return Decision(limit, Outcome.CLAMPED, f'{reason}; clamped to {side} {angle_text(limit)}')
     return Decision(None, outcome, f'{reason}; rejected')
+
+
+@dataclass
+class Served:
+    """The commands of a block that are answered: ``index`` into the block, the angle served (rad), and how many
+    commands had each outcome."""
+
+    index: np.ndarray[tuple[int], np.dtype[np.intp]]
+    theta: FloatArray
+    outcomes: Counter[Outcome]
+
+
+def serve(commands: FloatArray, theta_min: float, theta_max: float, policy: Policy, reach: Reach) -> Served:
+    """``decide`` for each command of an array (rad): the common in-limits case on the array, every other command
+    through ``decide`` itself."""
+    inside = (theta_min <= commands) & (commands <= theta_max)  # NaN and inf fail here
+    theta = commands.copy()
+    keep = inside.copy()
+    outside = np.flatnonzero(~inside)
+    outcomes: Counter[Outcome] = Counter({Outcome.ACCEPTED: commands.size - outside.size})
+    for i in outside.tolist():
+        d = decide(float(commands[i]), theta_min, theta_max, policy, reach)
+        outcomes[d.outcome] += 1
+        if d.theta is not None:
+            theta[i] = d.theta
+            keep[i] = True
+    index = np.flatnonzero(keep)
+    return Served(index, theta[index], outcomes)

@@ -1,0 +1,83 @@
+"""fourbar_node's interface as plain data: its name, topics, message types, QoS, the compared fields and the
+bag storages. No ROS here: the node, the launch file, the bag tools, the commands and the tests read it.
+
+Topic names are relative (namespaces and remapping apply) except ``/diagnostics``, which is absolute as
+diagnostic aggregators expect. Message types are written ``package/msg/Type`` (rosbag2's and rosbags' form).
+"""
+
+from __future__ import annotations
+
+import enum
+from dataclasses import dataclass
+
+#: The node's default name (launch file, parameter-file sections, ``fourbar urdf --node-name``).
+NODE_NAME = 'fourbar_node'
+
+FLOAT64 = 'std_msgs/msg/Float64'
+JOINT_STATE = 'sensor_msgs/msg/JointState'
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
+
+#: Keep-last depth of the command subscription and the per-command outputs: how far a burst may run ahead.
+STREAM_DEPTH = 1000
+#: Keep-last depth of markers and diagnostics (only the latest state matters).
+STATUS_DEPTH = 10
+
+
+class Reliability(enum.Enum):
+    """QoS reliability, named as rclpy's ``ReliabilityPolicy`` members are."""
+
+    RELIABLE = 'reliable'
+    BEST_EFFORT = 'best_effort'
+
+
+@dataclass(frozen=True)
+class Topic:
+    """One endpoint of the node: name, message type, keep-last depth, reliability."""
+
+    name: str
+    msgtype: str
+    depth: int
+    reliability: Reliability = Reliability.RELIABLE
+
+
+#: Antenna angle commands in (rad). Best effort: it matches reliable and best-effort publishers alike, and one
+#: payload the middleware cannot take (an empty one) cannot stall the commands that follow it from that publisher,
+#: as it does on a reliable subscription (Fast DDS keeps waiting for it). Lost commands are counted either way
+#: (``commands_lost``); on one host best effort loses no more than reliable keep-last, whose queues drop the oldest.
+COMMAND = Topic('antenna_angle_cmd', FLOAT64, STREAM_DEPTH, Reliability.BEST_EFFORT)
+#: Joint positions (rad), velocities (rad/s) and efforts (N m), per command and republished at joint_state_rate.
+JOINT_STATES = Topic('joint_states', JOINT_STATE, STREAM_DEPTH)
+#: The driven rocker's torque (N m), per command.
+INPUT_TORQUE = Topic('input_torque', FLOAT64, STREAM_DEPTH)
+#: The linkage drawing, every marker_period s when subscribed and changed.
+MARKERS = Topic('linkage_markers', MARKER_ARRAY, STATUS_DEPTH)
+#: The node's status, every diagnostics_period s.
+DIAGNOSTICS = Topic('/diagnostics', DIAGNOSTIC_ARRAY, STATUS_DEPTH)
+
+#: What the node publishes for each served command, in publishing order.
+PER_COMMAND_OUTPUTS = (JOINT_STATES, INPUT_TORQUE)
+#: The outputs a recording of the node holds by default (``fourbar record``, ``fourbar demo``).
+RECORDED_OUTPUTS = (JOINT_STATES, INPUT_TORQUE, DIAGNOSTICS)
+
+#: The fields ``fourbar compare`` compares (and may be told to ignore).
+COMPARED_FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque')
+
+
+class Storage(enum.Enum):
+    """rosbag2 storage plugins the bag tools read and write."""
+
+    MCAP = 'mcap'
+    SQLITE3 = 'sqlite3'
+
+
+#: Every storage by its plugin name (command-line choices), the default first.
+STORAGES = tuple(s.value for s in Storage)
+DEFAULT_STORAGE = Storage.MCAP
+
+
+def sibling_topic(command_topic: str, name: str) -> str:
+    """The topic ``name`` in the namespace of ``command_topic`` (``/ns/antenna_angle_cmd`` -> ``/ns/NAME``,
+    ``antenna_angle_cmd`` -> ``NAME``): where the node's relative names put its outputs."""
+    head = command_topic.rsplit('/', 1)[0] if '/' in command_topic else ''
+    return f'{head}/{name}' if head or command_topic.startswith('/') else name
