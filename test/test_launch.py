@@ -115,7 +115,10 @@ def test_sim_actuator_argument_starts_the_simulated_drive(install: Install) -> N
         wait_node(install.env, '/tilt_sim/sim_actuator')
         echo = echo_once(install.env, '/tilt_sim/joint_states', 'sensor_msgs/msg/JointState')
         assert echo.wait_exit() == 0, echo.stderr  # the drive publishes by itself, at its rate
-        doc = yaml.safe_load(echo.stdout.split('\n---')[0])
+        # ros2 topic echo may first note messages lost before it matched ("A message was lost ..."): skip to the
+        # message itself.
+        text = echo.stdout[echo.stdout.index('header:'):]
+        doc = yaml.safe_load(text.split('\n---')[0])
         cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
         assert doc['name'] == [cfg.driven_joint] and len(doc['effort']) == 1
         status = launch.interrupt(group=True)

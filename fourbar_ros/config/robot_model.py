@@ -93,14 +93,20 @@ def joint_limits(cfg: AntennaConfig, motor_speed: float = DEFAULT_MOTOR_SPEED) -
     if not (math.isfinite(motor_speed) and motor_speed > 0.0):
         raise ValueError(f'motor speed must be positive and finite, got {motor_speed!r} rad/s')
     lo, hi = cfg.theta_min, cfg.theta_max
-    theta = np.append(lo + (hi - lo) * np.arange(_LIMIT_SAMPLES) / _LIMIT_SAMPLES, hi)
-    angles = cfg.linkage.rocker_angles(theta, cfg.branch)
-    gamma, delta = np.asarray(angles.gamma, dtype=np.float64), np.asarray(angles.delta, dtype=np.float64)
-    rates = cfg.linkage.rates_at(theta, gamma, delta)
+    # Scalar solves, the very calls the node makes per command: its published positions lie within these limits.
+    thetas = [lo + (hi - lo) * i / _LIMIT_SAMPLES for i in range(_LIMIT_SAMPLES)] + [hi]
+    columns: list[list[float]] = [[], [], [], [], [], []]
+    for theta in thetas:
+        gamma, delta = cfg.linkage.rocker_angles(theta, cfg.branch)
+        rates = cfg.linkage.rates_at(theta, gamma, delta)
+        for column, value in zip(columns, (gamma, delta, coupler_joint_position(float(gamma), theta),
+                                           rates.dgamma_dtheta, rates.ddelta_dtheta, rates.dgamma_dtheta + 1.0),
+                                 strict=True):
+            column.append(float(value))
+    g, d, c, dg, dd, dc = (np.array(column) for column in columns)
     gamma_joint, delta_joint, coupler_joint = cfg.joint_names
     # Position and its rate per unit theta of each joint; the coupler joint is gamma + theta.
-    sweep = {gamma_joint: (gamma, rates.dgamma_dtheta), delta_joint: (delta, rates.ddelta_dtheta),
-             coupler_joint: (coupler_joint_position(gamma, theta), np.add(rates.dgamma_dtheta, 1.0))}
+    sweep = {gamma_joint: (g, dg), delta_joint: (d, dd), coupler_joint: (c, dc)}
     driven = cfg.driven_joint
     driven_rate = sweep[driven][1]
     speed = motor_speed / cfg.reducer_ratio
