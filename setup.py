@@ -36,6 +36,7 @@ setup(
         'console_scripts': [
             'fourbar = fourbar_ros.commands:main',
             'fourbar_node = fourbar_ros.node:main',
+            'fourbar_sim_actuator = fourbar_ros.node:sim_actuator_main',
         ],
     },
 )

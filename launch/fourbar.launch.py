@@ -1,8 +1,8 @@
 """fourbar_node with its parameter file, and optionally robot_state_publisher (the URDF generated from the same
-file) and RViz.
+file), RViz and the simulated actuator (for users without the drive's hardware and ros2_control).
 
     ros2 launch fourbar_ros fourbar.launch.py [params_file:=FILE] [namespace:=NS] [use_sim_time:=true]
-        [robot_state_publisher:=true|false] [rviz:=true|false]
+        [robot_state_publisher:=true|false] [rviz:=true|false] [sim_actuator:=true|false]
 
 robot_state_publisher and RViz start only where they are installed; otherwise one log line says so and the
 node runs alone. Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
@@ -23,6 +23,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from fourbar_ros.config.interface import NODE_NAME
+from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
 
 #: This file lives in share/fourbar_ros/launch (installed) or launch/ (source tree); config/ and rviz/ are beside.
 SHARE = Path(__file__).resolve().parent.parent
@@ -73,13 +74,18 @@ def _setup(context: LaunchContext) -> list[object]:
     use_sim_time = _true(LaunchConfiguration('use_sim_time').perform(context))
     want_rsp = _true(LaunchConfiguration('robot_state_publisher').perform(context))
     want_rviz = _true(LaunchConfiguration('rviz').perform(context))
+    want_sim = _true(LaunchConfiguration('sim_actuator').perform(context))
     ros_namespace = '' if namespace == '/' else namespace
     actions: list[object] = [
         Node(package='fourbar_ros', executable='fourbar_node', name=NODE_NAME, namespace=ros_namespace,
              parameters=[params_file, {'use_sim_time': use_sim_time}], output='screen', emulate_tty=False),
     ]
-    if want_rsp or want_rviz:
+    if want_rsp or want_rviz or want_sim:
         cfg, urdf = robot_description_for(params_file, NODE_NAME, namespace)
+    if want_sim:  # the linkage fourbar_node reads; its own parameters from a sim_actuator section of the file
+        actions.append(Node(package='fourbar_ros', executable='fourbar_sim_actuator', name=SIM_NODE_NAME,
+                            namespace=ros_namespace, output='screen', emulate_tty=False,
+                            parameters=[params_file, cfg.as_values(), {'use_sim_time': use_sim_time}]))
     if want_rsp:
         if _installed_executable('robot_state_publisher', 'robot_state_publisher'):
             actions.append(Node(package='robot_state_publisher', executable='robot_state_publisher',
@@ -112,5 +118,8 @@ def generate_launch_description() -> LaunchDescription:
                               description='start robot_state_publisher with the URDF (where installed)'),
         DeclareLaunchArgument('rviz', default_value='false',
                               description='start RViz with rviz/fourbar.rviz (where installed)'),
+        DeclareLaunchArgument('sim_actuator', default_value='false',
+                              description='start the simulated actuator (fourbar_sim_actuator) in place of the '
+                                          'drive\'s ros2_control hardware and controllers'),
         OpaqueFunction(function=_setup),
     ])

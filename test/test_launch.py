@@ -14,6 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
+import yaml
 from colcon_support import BIN, colcon_install, launch_missing, ros2, ros2_cli_missing, sourced_env
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
@@ -100,6 +101,27 @@ def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: Install
             launch.wait_output(lambda t: 'rviz2 is not installed; not starting RViz' in t, 'the log line about rviz2')
         launch.descendants()
         status = launch.interrupt(group=True)  # Ctrl-C in a terminal: SIGINT to the whole foreground group
+        assert status == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+        assert not launch.descendants(), 'a process outlived ros2 launch'
+    finally:
+        launch.kill()
+
+
+def test_sim_actuator_argument_starts_the_simulated_drive(install: Install) -> None:
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_sim',
+                         'sim_actuator:=true', 'robot_state_publisher:=false'], install.env, cwd=install.cwd)
+    try:
+        wait_node(install.env, '/tilt_sim/sim_actuator')
+        echo = echo_once(install.env, '/tilt_sim/joint_states', 'sensor_msgs/msg/JointState')
+        assert echo.wait_exit() == 0, echo.stderr  # the drive publishes by itself, at its rate
+        # ros2 topic echo may first note messages lost before it matched ("A message was lost ..."): skip to the
+        # message itself.
+        text = echo.stdout[echo.stdout.index('header:'):]
+        doc = yaml.safe_load(text.split('\n---')[0])
+        cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
+        assert doc['name'] == [cfg.driven_joint] and len(doc['effort']) == 1
+        status = launch.interrupt(group=True)
         assert status == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
         assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
         assert not launch.descendants(), 'a process outlived ros2 launch'

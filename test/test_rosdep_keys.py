@@ -41,8 +41,8 @@ PIP_ONLY_LAZY = {'ruckig'}
 #: ROS packages (their import name is their key).
 ROS_PACKAGES = {
     'rclpy', 'rcl_interfaces', 'ament_index_python', 'builtin_interfaces', 'std_msgs', 'sensor_msgs',
-    'diagnostic_msgs', 'visualization_msgs', 'geometry_msgs', 'rosgraph_msgs', 'launch', 'launch_ros',
-    'launch_testing', 'launch_testing_ros', 'ros2cli',
+    'diagnostic_msgs', 'visualization_msgs', 'trajectory_msgs', 'geometry_msgs', 'rosgraph_msgs', 'launch',
+    'launch_ros', 'launch_testing', 'launch_testing_ros', 'ros2cli',
 }
 #: Local test helpers and the project's own packages.
 LOCAL = {'fourbar_ros', 'benchmarks', 'ros_support', 'bag_support', 'mp_reference', 'ulp_jitter', 'ulp_bounds',

@@ -103,6 +103,11 @@ class AntennaConfig:
         """JointState names, in the order the node publishes them: rocker AB (gamma), rocker CD (delta), coupler."""
         return self.gamma_joint, self.delta_joint, self.coupler_joint
 
+    @property
+    def driven_joint(self) -> str:
+        """JointState name of the driven rocker: ``gamma_joint`` or ``delta_joint``, as ``driven_rocker`` says."""
+        return self.gamma_joint if self.driven is Driven.GAMMA else self.delta_joint
+
     def as_values(self) -> dict[str, ParamValue]:
         """Parameter name -> value (the inverse of ``config_from_values``)."""
         return {spec.name: spec.to_value(getattr(self, spec.attribute)) for spec in PARAMETERS}
@@ -124,11 +129,21 @@ def _type_name(value: object) -> str:
     return type(value).__name__
 
 
+def _in_range(spec: ParamSpec, value: float, rel_tol: float) -> float:
+    """``value`` if within the spec's inclusive bounds (doubles: up to rclpy's relative tolerance), else ConfigError."""
+    name, lo, hi = spec.name, spec.minimum, spec.maximum
+    if lo is not None and value < lo and not math.isclose(value, lo, rel_tol=rel_tol):
+        raise ConfigError(f'{name}: {value!r} {spec.unit} is below the minimum {lo!r}'.replace('  ', ' '), (name,))
+    if hi is not None and value > hi and not math.isclose(value, hi, rel_tol=rel_tol):
+        raise ConfigError(f'{name}: {value!r} {spec.unit} is above the maximum {hi!r}'.replace('  ', ' '), (name,))
+    return value
+
+
 def check_value(spec: ParamSpec, value: object) -> ParamValue:
     """Check one value against its spec (type as rclpy enforces it, range, choices); return it.
 
     Raises ``ConfigError`` (``"<name>: <why>"``). Like rclpy, an integer is not a double:
-    write ``500.0``, not ``500``.
+    write ``500.0``, not ``500``; nor is a double an integer.
     """
     name = spec.name
     if spec.type is float:
@@ -137,19 +152,11 @@ def check_value(spec: ParamSpec, value: object) -> ParamValue:
             raise ConfigError(f'{name}: expected a double{hint}, got {_type_name(value)} {value!r}', (name,))
         if not math.isfinite(value):
             raise ConfigError(f'{name}: must be finite, got {value!r}', (name,))
-        lo, hi = spec.minimum, spec.maximum
-        if lo is not None and value < lo and not math.isclose(value, lo, rel_tol=RANGE_REL_TOL):
-            raise ConfigError(f'{name}: {value!r} {spec.unit} is below the minimum {lo!r}'.replace('  ', ' '), (name,))
-        if hi is not None and value > hi and not math.isclose(value, hi, rel_tol=RANGE_REL_TOL):
-            raise ConfigError(f'{name}: {value!r} {spec.unit} is above the maximum {hi!r}'.replace('  ', ' '), (name,))
-        return value
+        return _in_range(spec, value, RANGE_REL_TOL)
     if spec.type is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(f'{name}: expected an integer, got {_type_name(value)} {value!r}', (name,))
-        lo, hi = spec.minimum, spec.maximum
-        if (lo is not None and value < lo) or (hi is not None and value > hi):
-            raise ConfigError(f'{name}: {value!r} is outside [{lo!r}, {hi!r}]', (name,))
-        return value
+        return _in_range(spec, value, 0.0)
     if spec.type is str:
         if not isinstance(value, str):
             raise ConfigError(f'{name}: expected a string, got {_type_name(value)} {value!r}', (name,))

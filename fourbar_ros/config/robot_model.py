@@ -24,8 +24,15 @@ joint (JointState)     type        from -> to; position
 
 The loop is closed kinematically, not in the tree: ``coupler_c`` and ``rocker_cd_c`` coincide exactly when
 the published joint positions solve the linkage (the node publishes all three). Joints are revolute with
-limits spanning the configured tilt range [theta_min, theta_max]; the driven rocker's effort limit is
-``output_torque_limit`` (N m).
+position limits spanning the configured tilt range [theta_min, theta_max]. The driven rocker's velocity limit is
+the motor's speed over the reducer ratio, its effort limit the reducer's rated ``output_torque_limit`` (N m); a
+passive joint's velocity limit is the driven one times the largest |d joint / d driven| over the range, and its
+effort limit 0 (nothing drives it).
+
+A ``<ros2_control>`` block describes the driven joint for ros2_control: position command interface (within the
+position limits), position, velocity and effort state interfaces, a hardware plugin to replace with the drive's
+(``mock_components/GenericSystem`` by default, which echoes commands as states), and a
+``transmission_interface/SimpleTransmission`` with the reducer ratio as ``mechanical_reduction``.
 """
 
 from __future__ import annotations
@@ -33,8 +40,10 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from pathlib import Path
-from typing import TypeVar
-from xml.sax.saxutils import quoteattr
+from typing import NamedTuple, TypeVar
+from xml.sax.saxutils import escape, quoteattr
+
+import numpy as np
 
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 from fourbar_ros.config.interface import NODE_NAME
@@ -47,8 +56,10 @@ LINKS = ('rocker_ab', 'coupler', 'rocker_cd', 'coupler_c', 'rocker_cd_c', 'anten
 _LIMIT_SAMPLES = 256
 #: Bar thickness of the visuals as a fraction of the frame length.
 _BAR = 0.04
-#: The joints are not speed-limited by the model; URDF needs a value (rad/s).
-_VELOCITY_LIMIT = 10.0
+#: Motor speed (rad/s, motor side) when none is given: 600 rpm, a usual stepper top speed.
+DEFAULT_MOTOR_SPEED = 20.0 * math.pi
+#: The hardware plugin of the ``<ros2_control>`` block unless one is given: ros2_control's test system.
+DEFAULT_HARDWARE_PLUGIN = 'mock_components/GenericSystem'
 
 
 def _num(value: float) -> str:
@@ -60,17 +71,51 @@ def _xyz(x: float, y: float, z: float) -> str:
     return f'{_num(x)} {_num(y)} {_num(z)}'
 
 
-def joint_ranges(cfg: AntennaConfig) -> dict[str, tuple[float, float]]:
-    """(lower, upper) rad of gamma, gamma + theta and delta over the configured tilt range."""
-    thetas = [cfg.theta_min + (cfg.theta_max - cfg.theta_min) * i / _LIMIT_SAMPLES for i in range(_LIMIT_SAMPLES)]
-    thetas.append(cfg.theta_max)
-    values: dict[str, list[float]] = {'gamma': [], 'coupler': [], 'delta': []}
+class JointLimit(NamedTuple):
+    """A URDF ``<limit>``: position range (rad), effort (N m) and velocity (rad/s)."""
+
+    lower: float
+    upper: float
+    effort: float
+    velocity: float
+
+
+def driven_angle(cfg: AntennaConfig, theta: float = 0.0) -> float:
+    """The driven rocker's angle (rad) at antenna angle ``theta`` (rad) clamped into the tilt range; by default
+    where a drive rests unless told otherwise: the antenna level (0), or the nearest end of the range."""
+    gamma, delta = cfg.linkage.rocker_angles(min(max(theta, cfg.theta_min), cfg.theta_max), cfg.branch)
+    return float(gamma if cfg.driven is Driven.GAMMA else delta)
+
+
+def joint_limits(cfg: AntennaConfig, motor_speed: float = DEFAULT_MOTOR_SPEED) -> dict[str, JointLimit]:
+    """Limits of the three joints (by JointState name) over the configured tilt range, the motor turning at most
+    ``motor_speed`` rad/s (motor side) through ``reducer_ratio``. Raises ValueError for a speed that is not positive."""
+    if not (math.isfinite(motor_speed) and motor_speed > 0.0):
+        raise ValueError(f'motor speed must be positive and finite, got {motor_speed!r} rad/s')
+    lo, hi = cfg.theta_min, cfg.theta_max
+    # Scalar solves, the very calls the node makes per command: its published positions lie within these limits.
+    thetas = [lo + (hi - lo) * i / _LIMIT_SAMPLES for i in range(_LIMIT_SAMPLES)] + [hi]
+    columns: list[list[float]] = [[], [], [], [], [], []]
     for theta in thetas:
         gamma, delta = cfg.linkage.rocker_angles(theta, cfg.branch)
-        values['gamma'].append(float(gamma))
-        values['coupler'].append(float(gamma) + theta)
-        values['delta'].append(float(delta))
-    return {k: (min(v), max(v)) for k, v in values.items()}
+        rates = cfg.linkage.rates_at(theta, gamma, delta)
+        for column, value in zip(columns, (gamma, delta, coupler_joint_position(float(gamma), theta),
+                                           rates.dgamma_dtheta, rates.ddelta_dtheta, rates.dgamma_dtheta + 1.0),
+                                 strict=True):
+            column.append(float(value))
+    g, d, c, dg, dd, dc = (np.array(column) for column in columns)
+    gamma_joint, delta_joint, coupler_joint = cfg.joint_names
+    # Position and its rate per unit theta of each joint; the coupler joint is gamma + theta.
+    sweep = {gamma_joint: (g, dg), delta_joint: (d, dd), coupler_joint: (c, dc)}
+    driven = cfg.driven_joint
+    driven_rate = sweep[driven][1]
+    speed = motor_speed / cfg.reducer_ratio
+    out: dict[str, JointLimit] = {}
+    for name, (position, rate) in sweep.items():
+        velocity = speed if name == driven else speed * float(np.max(np.abs(np.divide(rate, driven_rate))))
+        effort = cfg.output_torque_limit if name == driven else 0.0
+        out[name] = JointLimit(float(np.min(position)), float(np.max(position)), effort, velocity)
+    return out
 
 
 #: A float or a float64 array: coupler_joint_position serves the node (one command) and fourbar process (blocks).
@@ -101,7 +146,7 @@ def _link(name: str, body: Iterable[str] = ()) -> list[str]:
 
 
 def _joint(name: str, kind: str, parent: str, child: str, xyz: str, rpy: str = '0.0 0.0 0.0',
-           axis: str | None = None, limit: tuple[float, float, float] | None = None) -> list[str]:
+           axis: str | None = None, limit: JointLimit | None = None) -> list[str]:
     lines = [f'  <joint name={quoteattr(name)} type="{kind}">',
              f'    <parent link={quoteattr(parent)}/>',
              f'    <child link={quoteattr(child)}/>',
@@ -109,26 +154,55 @@ def _joint(name: str, kind: str, parent: str, child: str, xyz: str, rpy: str = '
     if axis is not None:
         lines.append(f'    <axis xyz="{axis}"/>')
     if limit is not None:
-        lower, upper, effort = limit
-        lines.append(f'    <limit lower="{_num(lower)}" upper="{_num(upper)}" effort="{_num(effort)}" '
-                     f'velocity="{_num(_VELOCITY_LIMIT)}"/>')
+        lines.append(f'    <limit lower="{_num(limit.lower)}" upper="{_num(limit.upper)}" '
+                     f'effort="{_num(limit.effort)}" velocity="{_num(limit.velocity)}"/>')
     lines.append('  </joint>')
     return lines
 
 
-def robot_description(cfg: AntennaConfig, robot_name: str = 'fourbar') -> str:
-    """The URDF (XML text) of the linkage ``cfg`` describes; joint names as the node publishes them
-    (``cfg.joint_names``, distinct by the configuration's own validation)."""
+def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
+                       hardware_plugin: str = DEFAULT_HARDWARE_PLUGIN) -> list[str]:
+    """The ``<ros2_control>`` lines of the driven joint (limits ``limit``), its hardware named ``hardware_id``."""
+    joint = cfg.driven_joint
+    return [
+        f'  <ros2_control name={quoteattr(cfg.hardware_id)} type="system">',
+        '    <!-- The drive\'s hardware interface goes here (mock_components/GenericSystem: commands echoed). -->',
+        f'    <hardware><plugin>{escape(hardware_plugin)}</plugin></hardware>',
+        f'    <joint name={quoteattr(joint)}>',
+        '      <command_interface name="position">',
+        f'        <param name="min">{_num(limit.lower)}</param>',
+        f'        <param name="max">{_num(limit.upper)}</param>',
+        '      </command_interface>',
+        '      <state_interface name="position">',
+        f'        <param name="initial_value">{_num(driven_angle(cfg))}</param>',
+        '      </state_interface>',
+        '      <state_interface name="velocity"/>',
+        '      <state_interface name="effort"/>',
+        '    </joint>',
+        f'    <transmission name={quoteattr(joint + "_transmission")}>',
+        '      <plugin>transmission_interface/SimpleTransmission</plugin>',
+        f'      <actuator name={quoteattr(joint + "_motor")} role="actuator1"/>',
+        f'      <joint name={quoteattr(joint)} role="joint1">',
+        f'        <mechanical_reduction>{_num(cfg.reducer_ratio)}</mechanical_reduction>',
+        '        <offset>0.0</offset>',
+        '      </joint>',
+        '    </transmission>',
+        '  </ros2_control>',
+    ]
+
+
+def robot_description(cfg: AntennaConfig, robot_name: str = 'fourbar', motor_speed: float = DEFAULT_MOTOR_SPEED,
+                      hardware_plugin: str = DEFAULT_HARDWARE_PLUGIN) -> str:
+    """The URDF (XML text) of the linkage ``cfg`` describes, with its ``<ros2_control>`` block; joint names as the
+    node publishes them (``cfg.joint_names``, distinct by the configuration's own validation); ``motor_speed``
+    (rad/s, motor side) sets the velocity limits."""
     gamma_joint, delta_joint, coupler_joint = cfg.joint_names
     root = cfg.frame_id
     if root in LINKS:
         raise ValueError(f'frame_id {root!r} is also a link name of the model ({", ".join(LINKS)})')
     H, ab, h, cd = cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length, cfg.rocker_cd_length
     bar = _BAR * H
-    ranges = joint_ranges(cfg)
-    driven_effort = cfg.output_torque_limit
-    effort = {'gamma': driven_effort if cfg.driven is Driven.GAMMA else 0.0,
-              'delta': driven_effort if cfg.driven is Driven.DELTA else 0.0}
+    limits = joint_limits(cfg, motor_speed)
     lines = ['<?xml version="1.0"?>',
              '<!-- Generated by `fourbar urdf` from the node\'s parameters; edit the parameter file, not this. -->',
              f'<robot name={quoteattr(robot_name)}>']
@@ -139,28 +213,27 @@ def robot_description(cfg: AntennaConfig, robot_name: str = 'fourbar') -> str:
     lines += _link('coupler_c')
     lines += _link('rocker_cd_c')
     lines += _link('antenna')
-    lo, hi = ranges['gamma']
     lines += _joint(gamma_joint, 'revolute', root, 'rocker_ab', _xyz(0.0, 0.0, 0.0), axis='0.0 -1.0 0.0',
-                    limit=(lo, hi, effort['gamma']))
-    lo, hi = ranges['coupler']
+                    limit=limits[gamma_joint])
     lines += _joint(coupler_joint, 'revolute', 'rocker_ab', 'coupler', _xyz(ab, 0.0, 0.0), axis='0.0 1.0 0.0',
-                    limit=(lo, hi, 0.0))
-    lo, hi = ranges['delta']
+                    limit=limits[coupler_joint])
     lines += _joint(delta_joint, 'revolute', root, 'rocker_cd', _xyz(H, 0.0, 0.0), rpy=f'0.0 0.0 {_num(math.pi)}',
-                    axis='0.0 -1.0 0.0', limit=(lo, hi, effort['delta']))
+                    axis='0.0 -1.0 0.0', limit=limits[delta_joint])
     lines += _joint('c_from_coupler', 'fixed', 'coupler', 'coupler_c', _xyz(h, 0.0, 0.0))
     lines += _joint('c_from_rocker_cd', 'fixed', 'rocker_cd', 'rocker_cd_c', _xyz(cd, 0.0, 0.0))
     lines += _joint('antenna_mount', 'fixed', 'coupler', 'antenna',
                     _xyz(0.5 * h + cfg.com_offset_along, 0.0, cfg.com_offset_normal))
+    lines += ros2_control_block(cfg, limits[cfg.driven_joint], hardware_plugin)
     lines.append('</robot>')
     return '\n'.join(lines) + '\n'
 
 
 def robot_description_for(params: str | Path, node_name: str = NODE_NAME, namespace: str = '/',
-                          robot_name: str = 'fourbar') -> tuple[AntennaConfig, str]:
+                          robot_name: str = 'fourbar', motor_speed: float = DEFAULT_MOTOR_SPEED,
+                          hardware_plugin: str = DEFAULT_HARDWARE_PLUGIN) -> tuple[AntennaConfig, str]:
     """Validated configuration and URDF for the node ``namespace``/``node_name`` started with ``params``.
 
     Raises ``fourbar_ros.config.antenna_config.ConfigError`` (one line) for a bad file.
     """
     cfg = load_config(params, node_name, namespace)
-    return cfg, robot_description(cfg, robot_name)
+    return cfg, robot_description(cfg, robot_name, motor_speed, hardware_plugin)

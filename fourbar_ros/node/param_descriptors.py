@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
@@ -26,6 +27,13 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
     return d
 
 
-def declarations(values: dict[str, ParamValue]) -> list[tuple[str, Any, Any]]:
-    """(name, value, descriptor) for ``Node.declare_parameters('', ...)``, values from a validated config."""
-    return [(spec.name, values[spec.name], descriptor(spec)) for spec in PARAMETERS]
+def declarations(values: dict[str, ParamValue], specs: Sequence[ParamSpec] = PARAMETERS,
+                 read_only: bool = False) -> list[tuple[str, Any, Any]]:
+    """(name, value, descriptor) for ``Node.declare_parameters('', ...)``, values from a validated config;
+    ``read_only``: every one of them (else as its spec says)."""
+    out = []
+    for spec in specs:
+        d = descriptor(spec)
+        d.read_only = d.read_only or read_only
+        out.append((spec.name, values[spec.name], d))
+    return out

@@ -1,0 +1,295 @@
+"""The simulated actuator's behaviour, without ROS: trajectory sampling, limits, lag, encoder.
+
+It stands in for ros2_control's hardware plus its controllers on machines without them:
+
+- ``Trajectory`` follows a ``trajectory_msgs/JointTrajectory`` as ``joint_trajectory_controller`` (Jazzy,
+  spline interpolation) does: sampled in time from its start, from the last commanded state to the first point
+  and then point to point; each segment is a quintic when both of its ends give position, velocity and
+  acceleration, a cubic when both give position and velocity, linear otherwise; after the last point it holds
+  that point's position.
+- ``LagActuator`` is the drive: a first-order lag (time constant ``tau``, s) towards the reference, its speed
+  limited to ``max_velocity`` (rad/s) and its speed change to ``max_acceleration`` (rad/s^2); it also never
+  asks for more speed than it can brake from before the reference, so a reference that stands still or moves
+  away is reached without overshoot. It integrates in fixed steps of STEP_S, whatever the caller's period.
+- ``Encoder`` is what the hardware reports: the position rounded to the encoder's counts (at the motor, through
+  the reducer) after optional Gaussian noise, plus a fixed offset.
+
+Angles are the driven joint's (rad, joint side of the reducer), times in seconds.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import NamedTuple, Protocol
+
+import numpy as np
+
+from fourbar_ros.core.loads import LoadSpec, pose
+
+#: Most points one trajectory may hold (more is refused, so memory stays bounded).
+MAX_TRAJECTORY_POINTS = 100_000
+#: Integration step (s) of the drive: fixed, so a late timer tick changes nothing but when the state is read.
+STEP_S = 0.001
+
+
+class TrajectoryError(ValueError):
+    """A trajectory the actuator refuses (one line naming the point and why)."""
+
+
+class Setpoint(NamedTuple):
+    """Position (rad), velocity (rad/s) and acceleration (rad/s^2) of the reference at one time."""
+
+    position: float
+    velocity: float
+    acceleration: float
+
+
+class Waypoint(NamedTuple):
+    """One trajectory point of the driven joint: time from the trajectory's start (s), position (rad), and
+    velocity (rad/s) and acceleration (rad/s^2) where the message gives them (else None)."""
+
+    time: float
+    position: float
+    velocity: float | None
+    acceleration: float | None
+
+
+class DurationLike(Protocol):
+    """``builtin_interfaces/Duration``."""
+
+    @property
+    def sec(self) -> int: ...
+    @property
+    def nanosec(self) -> int: ...
+
+
+class PointLike(Protocol):
+    """``trajectory_msgs/JointTrajectoryPoint`` (what ``waypoints`` reads of it)."""
+
+    @property
+    def positions(self) -> Sequence[float]: ...
+    @property
+    def velocities(self) -> Sequence[float]: ...
+    @property
+    def accelerations(self) -> Sequence[float]: ...
+    @property
+    def time_from_start(self) -> DurationLike: ...
+
+
+def _column(values: Sequence[float], index: int, width: int, field: str, k: int, required: bool) -> float | None:
+    """The joint's entry of one point's array; None if the array is empty and may be."""
+    if len(values) == 0 and not required:
+        return None
+    if len(values) != width:
+        raise TrajectoryError(f'point {k}: {len(values)} {field} for {width} joint names')
+    value = float(values[index])
+    if not math.isfinite(value):
+        raise TrajectoryError(f'point {k}: {field}[{index}] is {value!r}')
+    return value
+
+
+def waypoints(joint_names: Sequence[str], joint: str, points: Sequence[PointLike],
+              max_points: int = MAX_TRAJECTORY_POINTS) -> list[Waypoint]:
+    """The driven joint's waypoints of a JointTrajectory, checked as joint_trajectory_controller checks them.
+
+    Other joints may be present (a partial goal for the others is theirs to judge). Raises ``TrajectoryError``
+    for: our joint missing or named twice, more than ``max_points`` points, an array whose length is not the
+    number of joint names (velocities and accelerations may be empty), a non-finite value, or times that do
+    not strictly increase (the first may be 0). An empty list of points is valid: the controller then holds.
+    """
+    count = sum(1 for name in joint_names if name == joint)
+    if count != 1:
+        raise TrajectoryError(f'joint {joint!r} is {"missing" if count == 0 else "named twice"} '
+                              f'(joint_names: {list(joint_names)})')
+    if len(points) > max_points:
+        raise TrajectoryError(f'{len(points)} points; at most {max_points} are taken')
+    index, width = list(joint_names).index(joint), len(joint_names)
+    out: list[Waypoint] = []
+    last = -math.inf
+    for k, p in enumerate(points):
+        t = p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
+        if not t > last or t < 0.0:
+            raise TrajectoryError(f'point {k}: time_from_start {t!r} s does not increase (previous {last!r} s)')
+        position = _column(p.positions, index, width, 'positions', k, required=True)
+        assert position is not None
+        out.append(Waypoint(t, position, _column(p.velocities, index, width, 'velocities', k, required=False),
+                            _column(p.accelerations, index, width, 'accelerations', k, required=False)))
+        last = t
+    return out
+
+
+def segment(start: Waypoint | Setpoint, end: Waypoint, duration: float, s: float) -> Setpoint:
+    """The reference ``s`` seconds into a segment of ``duration`` s from ``start`` to ``end`` (s is clipped to
+    [0, duration]): quintic if both ends give velocity and acceleration, cubic if both give velocity, else linear.
+    A zero-length segment is its end point."""
+    if duration <= 0.0:
+        return Setpoint(end.position, end.velocity or 0.0, end.acceleration or 0.0)
+    s = min(max(s, 0.0), duration)
+    p0, p1, T = start.position, end.position, duration
+    v0, v1, a0, a1 = start.velocity, end.velocity, start.acceleration, end.acceleration
+    if v0 is None or v1 is None:
+        return Setpoint(p0 + (p1 - p0) * s / T, (p1 - p0) / T, 0.0)
+    if a0 is None or a1 is None:
+        c2 = (3.0 * (p1 - p0) - (2.0 * v0 + v1) * T) / T**2
+        c3 = (2.0 * (p0 - p1) + (v0 + v1) * T) / T**3
+        return Setpoint(p0 + s * (v0 + s * (c2 + s * c3)), v0 + s * (2.0 * c2 + 3.0 * s * c3), 2.0 * c2 + 6.0 * c3 * s)
+    d = p1 - p0
+    c2 = 0.5 * a0
+    c3 = (20.0 * d - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T**2) / (2.0 * T**3)
+    c4 = (-30.0 * d + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T**2) / (2.0 * T**4)
+    c5 = (12.0 * d - 6.0 * (v1 + v0) * T - (a0 - a1) * T**2) / (2.0 * T**5)
+    return Setpoint(p0 + s * (v0 + s * (c2 + s * (c3 + s * (c4 + s * c5)))),
+                    v0 + s * (2.0 * c2 + s * (3.0 * c3 + s * (4.0 * c4 + s * 5.0 * c5))),
+                    2.0 * c2 + s * (6.0 * c3 + s * (12.0 * c4 + s * 20.0 * c5)))
+
+
+@dataclass(frozen=True)
+class Trajectory:
+    """A trajectory started at ``start`` (s, on the node's clock) from the reference ``initial`` (the last commanded
+    state when it arrived) through ``points`` (times from ``start``)."""
+
+    start: float
+    initial: Setpoint
+    points: tuple[Waypoint, ...]
+
+    def sample(self, now: float) -> Setpoint:
+        """The reference at time ``now`` (s): ``initial`` before the start, the last point's position after
+        the end (velocity and acceleration 0), the interpolating segment between."""
+        if not self.points:
+            return Setpoint(self.initial.position, 0.0, 0.0)
+        t = now - self.start
+        if t < 0.0:
+            return self.initial
+        last = self.points[-1]
+        if t >= last.time:
+            return Setpoint(last.position, 0.0, 0.0)
+        k = bisect.bisect_right(self.points, t, key=lambda p: p.time)  # first point after t
+        before: Waypoint | Setpoint = self.initial if k == 0 else self.points[k - 1]
+        t0 = 0.0 if k == 0 else self.points[k - 1].time
+        return segment(before, self.points[k], self.points[k].time - t0, t - t0)
+
+    @property
+    def end(self) -> float:
+        """Time (s, node clock) of the last point."""
+        return self.start + (self.points[-1].time if self.points else 0.0)
+
+
+@dataclass(frozen=True)
+class DriveLimits:
+    """The simulated drive: position range (rad), speed (rad/s), acceleration (rad/s^2), lag time constant (s)."""
+
+    lower: float
+    upper: float
+    max_velocity: float
+    max_acceleration: float
+    tau: float
+
+    def __post_init__(self) -> None:
+        for name in ('lower', 'upper', 'max_velocity', 'max_acceleration', 'tau'):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f'{name} must be finite')
+        if not self.lower < self.upper:
+            raise ValueError(f'lower {self.lower!r} must be below upper {self.upper!r}')
+        if not (self.max_velocity > 0.0 and self.max_acceleration > 0.0 and self.tau > 0.0):
+            raise ValueError('max_velocity, max_acceleration and tau must be positive')
+
+
+def braking_speed(error: float, acceleration: float, step: float) -> float:
+    """The fastest speed (rad/s) from which steps of ``step`` s, each slower by ``acceleration * step``, stop
+    within ``error`` rad (its magnitude).
+
+    In units of a h (speed) and a h^2 (distance): from speed u the steps cover u + (u - 1) + ... + (u - m) with
+    m = floor(u), which rises from m (m + 1) / 2 to (m + 1) (m + 2) / 2 as u goes from m to m + 1. Taking m the
+    largest integer with m (m + 1) / 2 <= E (E = |error| / (a h^2)) and solving (m + 1) u - m (m + 1) / 2 = E
+    gives u. The speed after one step, u - 1, is then exactly the braking speed of the error left (E - u):
+    braking stays feasible under the acceleration limit all the way, so the drive never overshoots.
+    """
+    unit = acceleration * step
+    e = abs(error) / (unit * step)
+    m = math.floor(0.5 * (math.sqrt(1.0 + 8.0 * e) - 1.0))
+    return unit * (e + 0.5 * m * (m + 1)) / (m + 1)
+
+
+class LagActuator:
+    """The drive's true state (position rad, velocity rad/s), following a position reference."""
+
+    def __init__(self, limits: DriveLimits, position: float, step: float = STEP_S) -> None:
+        self.limits = limits
+        self.step_s = step
+        self.position = min(max(position, limits.lower), limits.upper)
+        self.velocity = 0.0
+        self._decay = math.exp(-step / limits.tau)
+        self._pending = 0.0  # time (s) not yet integrated: less than one step
+
+    def clamp(self, reference: float) -> float:
+        """The reference within the drive's position range."""
+        return min(max(reference, self.limits.lower), self.limits.upper)
+
+    def advance(self, dt: float, reference: float) -> None:
+        """Advance by ``dt`` s (in whole steps; the rest waits for the next call) towards ``reference`` (held over
+        the interval; clamped to the range).
+
+        Each step: the lag's own move, exact for a held reference, r + (x - r) exp(-h/tau); its mean speed then
+        bounded by the braking speed, the speed limit and the acceleration limit, in that order.
+        """
+        lim, h = self.limits, self.step_s
+        self._pending += max(dt, 0.0)
+        steps = math.floor(self._pending / h)
+        self._pending -= steps * h
+        r = self.clamp(reference)
+        dv = lim.max_acceleration * h
+        for _ in range(steps):
+            error = r - self.position
+            want = error * (1.0 - self._decay) / h
+            limit = min(braking_speed(error, lim.max_acceleration, h), lim.max_velocity)
+            want = math.copysign(min(abs(want), limit), want)
+            v = min(max(want, self.velocity - dv), self.velocity + dv)
+            self.position = min(max(self.position + v * h, lim.lower), lim.upper)
+            self.velocity = v
+
+
+@dataclass
+class Encoder:
+    """Measured position = quantized(true + noise) + offset (rad); velocity and effort get their own noise.
+
+    ``counts_per_rev`` counts per motor turn (0: no quantization) through ``reducer_ratio`` (motor turns per joint
+    turn) give the joint's resolution 2 pi / (counts_per_rev ratio) rad. Noise standard deviations are in rad,
+    rad/s and N m (0: none); ``seed`` makes the noise repeatable.
+    """
+
+    counts_per_rev: int = 0
+    reducer_ratio: float = 1.0
+    offset: float = 0.0
+    position_noise: float = 0.0
+    velocity_noise: float = 0.0
+    effort_noise: float = 0.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        self._rng = np.random.default_rng(self.seed)
+        self.resolution = 2.0 * math.pi / (self.counts_per_rev * self.reducer_ratio) if self.counts_per_rev else 0.0
+
+    def _noise(self, sigma: float) -> float:
+        return float(self._rng.normal(0.0, sigma)) if sigma > 0.0 else 0.0
+
+    def quantize(self, position: float) -> float:
+        """``position`` (rad) rounded to the nearest whole count."""
+        if not self.resolution:
+            return position
+        return round(position / self.resolution) * self.resolution
+
+    def measure(self, position: float, velocity: float, effort: float) -> tuple[float, float, float]:
+        """What the hardware reports for the true position (rad), velocity (rad/s) and effort (N m)."""
+        return (self.quantize(position + self._noise(self.position_noise)) + self.offset,
+                velocity + self._noise(self.velocity_noise), effort + self._noise(self.effort_noise))
+
+
+def effort_at(cfg: LoadSpec, q: float) -> float:
+    """Torque (N m, in the sense of increasing q) the driven rocker needs at its angle ``q`` (rad) under the
+    configured load: the antenna angle from the rocker (``from_rocker`` on the configured branch), then the statics.
+    Raises the core's UnreachableError for an angle the rocker cannot take."""
+    theta = float(cfg.linkage.from_rocker(q, cfg.driven, cfg.branch).theta)
+    return pose(cfg, theta).input_torque

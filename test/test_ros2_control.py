@@ -1,0 +1,189 @@
+"""What a ros2_control user gets: the URDF's <ros2_control> block and limits, and config/controllers.yaml.
+
+ros2_control cannot be installed here, so nothing below loads them into a controller manager. What is checked:
+the XML is well formed; the block names the URDF's driven joint with a position command interface and position,
+velocity and effort state interfaces within the URDF's limits; its SimpleTransmission carries the reducer ratio;
+the joint limits follow from the reach and the motor; the YAML's controllers, their types, joints, interfaces and
+parameter types are those ros2_controllers (Jazzy) declares, and its names are the ones the simulated actuator
+and fourbar_node use. What cannot be checked: that the controller manager accepts them at run time.
+"""
+
+from __future__ import annotations
+
+import math
+import subprocess
+import sys
+import xml.etree.ElementTree as ET
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import yaml
+
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
+from fourbar_ros.config.robot_model import (
+    DEFAULT_HARDWARE_PLUGIN,
+    DEFAULT_MOTOR_SPEED,
+    driven_angle,
+    joint_limits,
+    robot_description,
+)
+from fourbar_ros.config.sim_actuator_params import SIM_PARAMETERS_BY_NAME, sim_settings
+
+REPO = Path(__file__).resolve().parent.parent
+CONTROLLERS = REPO / 'config' / 'controllers.yaml'
+EPS = sys.float_info.epsilon
+CONFIGS = {'gamma driven': default_config(), 'delta driven': config_from_values({'driven_rocker': 'delta'}),
+           'renamed': config_from_values({'gamma_joint': 'tilt_motor_joint', 'hardware_id': 'mast<1>'})}
+
+
+def block(urdf: str) -> ET.Element:
+    blocks = ET.fromstring(urdf).findall('ros2_control')
+    assert len(blocks) == 1
+    return blocks[0]
+
+
+def urdf_joints(urdf: str) -> dict[str, ET.Element]:
+    return {j.attrib['name']: j for j in ET.fromstring(urdf).findall('joint')}
+
+
+@pytest.mark.parametrize('cfg', CONFIGS.values(), ids=CONFIGS.keys())
+def test_ros2_control_block_is_the_driven_joint_with_the_reducer(cfg: AntennaConfig) -> None:
+    urdf = robot_description(cfg)
+    rc = block(urdf)
+    assert rc.attrib == {'name': cfg.hardware_id, 'type': 'system'}
+    assert [p.text for p in rc.findall('hardware/plugin')] == [DEFAULT_HARDWARE_PLUGIN]
+    (joint,) = rc.findall('joint')
+    name = joint.attrib['name']
+    # The same name in the URDF's kinematics, the configuration and the simulated actuator's default.
+    assert name == cfg.driven_joint == sim_settings({}, cfg).joint
+    assert urdf_joints(urdf)[name].attrib['type'] == 'revolute'
+    assert [c.attrib['name'] for c in joint.findall('command_interface')] == ['position']
+    assert [s.attrib['name'] for s in joint.findall('state_interface')] == ['position', 'velocity', 'effort']
+    limit = urdf_joints(urdf)[name].find('limit')
+    assert limit is not None
+    params = {p.attrib['name']: float(p.text or '') for p in joint.findall('command_interface/param')}
+    assert params == {'min': float(limit.attrib['lower']), 'max': float(limit.attrib['upper'])}
+    initial = float(joint.findall("state_interface/param[@name='initial_value']")[0].text or '')
+    assert initial == driven_angle(cfg) and params['min'] <= initial <= params['max']
+    (trans,) = rc.findall('transmission')
+    assert [p.text for p in trans.findall('plugin')] == ['transmission_interface/SimpleTransmission']
+    (tj,) = trans.findall('joint')
+    assert tj.attrib == {'name': name, 'role': 'joint1'}
+    assert float(tj.findtext('mechanical_reduction') or '') == cfg.reducer_ratio
+    assert float(tj.findtext('offset') or '') == 0.0
+    assert [a.attrib['role'] for a in trans.findall('actuator')] == ['actuator1']
+
+
+def test_hardware_plugin_is_replaced_and_escaped() -> None:
+    rc = block(robot_description(default_config(), hardware_plugin='my_drive/Stepper<&>'))
+    assert [p.text for p in rc.findall('hardware/plugin')] == ['my_drive/Stepper<&>']
+
+
+@pytest.mark.parametrize('cfg', CONFIGS.values(), ids=CONFIGS.keys())
+def test_joint_limits_follow_from_the_reach_and_the_motor(cfg: AntennaConfig) -> None:
+    speed = 2.5 * DEFAULT_MOTOR_SPEED
+    limits = joint_limits(cfg, speed)
+    urdf = urdf_joints(robot_description(cfg, motor_speed=speed))
+    for name, lim in limits.items():
+        el = urdf[name].find('limit')
+        assert el is not None
+        assert [float(el.attrib[k]) for k in ('lower', 'upper', 'effort', 'velocity')] == list(lim)
+    driven = limits[cfg.driven_joint]
+    assert driven.velocity == speed / cfg.reducer_ratio and driven.effort == cfg.output_torque_limit
+    # Independent of the generator: finite differences over a finer sweep of the tilt range. Every joint stays in
+    # its range, and no joint moves faster than its limit while the driven one moves at its own.
+    theta = np.linspace(cfg.theta_min, cfg.theta_max, 4001)
+    g, d = (np.asarray(a, dtype=np.float64) for a in cfg.linkage.rocker_angles(theta, cfg.branch))
+    paths = {cfg.gamma_joint: g, cfg.delta_joint: d, cfg.coupler_joint: g + theta}
+    q = paths[cfg.driven_joint]
+    for name, path in paths.items():
+        lim = limits[name]
+        # Sampled extremes: the generator's coarser samples include both ends, where these monotonic paths peak.
+        assert lim.lower == pytest.approx(path.min(), abs=64 * EPS)
+        assert lim.upper == pytest.approx(path.max(), abs=64 * EPS)
+        ratio = np.abs(np.diff(path) / np.diff(q))
+        # Chord slopes of a smooth path lie within its tangent slopes, and the tangent slope the generator samples
+        # peaks at an end of the range (within the chord's first-order error, h^2 scale).
+        assert driven.velocity * ratio.max() <= lim.velocity * (1 + 1e-5), name
+        assert driven.velocity * ratio.max() >= lim.velocity * (1 - 1e-3), name
+        if name != cfg.driven_joint:
+            assert lim.effort == 0.0
+
+
+def test_bad_motor_speed_is_one_line_and_exit_2() -> None:
+    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--motor-speed', '-1'],
+                         capture_output=True, text=True, timeout=60, check=False)
+    assert out.returncode == 2 and out.stdout == ''
+    assert len(out.stderr.strip().splitlines()) == 1 and 'motor speed' in out.stderr, out.stderr
+
+
+# ----------------------------------------------------------------------------- controllers.yaml
+
+#: Controller types this file may use and the parameters each declares in ros2_controllers (Jazzy), as far as
+#: this file sets them: a key outside these sets is a typo the controller would ignore or refuse.
+TYPES = {
+    'joint_state_broadcaster/JointStateBroadcaster':
+        {'joints', 'interfaces', 'use_local_topics', 'map_interface_to_joint_state', 'extra_joints',
+         'use_urdf_to_filter'},
+    'joint_trajectory_controller/JointTrajectoryController':
+        {'joints', 'command_joints', 'command_interfaces', 'state_interfaces', 'allow_partial_joints_goal',
+         'open_loop_control', 'allow_integration_in_goal_trajectories', 'action_monitor_rate',
+         'interpolation_method', 'allow_nonzero_velocity_at_trajectory_end', 'cmd_timeout', 'gains', 'constraints',
+         'set_last_command_interface_value_as_state_on_activation'},
+    'position_controllers/JointGroupPositionController': {'joints'},
+}
+INTERFACES = {'position', 'velocity', 'acceleration', 'effort'}
+
+
+def controllers() -> dict[str, Any]:
+    data: dict[str, Any] = yaml.safe_load(CONTROLLERS.read_text(encoding='utf-8'))
+    return data
+
+
+def params_of(data: dict[str, Any], controller: str) -> dict[str, Any]:
+    section: dict[str, Any] = data[controller]['ros__parameters']
+    return section
+
+
+def test_controller_manager_section() -> None:
+    data = controllers()
+    cm = params_of(data, 'controller_manager')
+    assert type(cm['update_rate']) is int and cm['update_rate'] > 0  # an integer parameter: 100.0 is refused
+    declared = {name: entry['type'] for name, entry in cm.items() if isinstance(entry, dict)}
+    assert set(declared.values()) <= set(TYPES)
+    # The names the simulated actuator (and so fourbar_node's actuator modes) address.
+    assert declared['joint_trajectory_controller'] == 'joint_trajectory_controller/JointTrajectoryController'
+    assert declared['forward_position_controller'] == 'position_controllers/JointGroupPositionController'
+    assert declared['joint_state_broadcaster'] == 'joint_state_broadcaster/JointStateBroadcaster'
+    assert SIM_PARAMETERS_BY_NAME['trajectory_controller'].default == 'joint_trajectory_controller'
+    assert SIM_PARAMETERS_BY_NAME['forward_controller'].default == 'forward_position_controller'
+    assert set(data) == {'controller_manager', *declared}  # every controller configured, nothing else
+    for name, kind in declared.items():
+        assert set(params_of(data, name)) <= TYPES[kind], name
+
+
+def test_controllers_drive_the_urdf_joint_through_its_interfaces() -> None:
+    data, cfg = controllers(), default_config()
+    rc = block(robot_description(cfg))
+    (joint,) = rc.findall('joint')
+    commands = {c.attrib['name'] for c in joint.findall('command_interface')}
+    states = {s.attrib['name'] for s in joint.findall('state_interface')}
+    for name in ('joint_state_broadcaster', 'joint_trajectory_controller', 'forward_position_controller'):
+        assert params_of(data, name)['joints'] == [cfg.driven_joint] == [joint.attrib['name']], name
+    jsb = params_of(data, 'joint_state_broadcaster')
+    assert set(jsb['interfaces']) <= states
+    jtc = params_of(data, 'joint_trajectory_controller')
+    assert set(jtc['command_interfaces']) <= commands & INTERFACES
+    assert set(jtc['state_interfaces']) <= states & INTERFACES
+    assert jtc['state_interfaces'][0] == 'position'  # the controller needs the position state first
+    assert type(jtc['allow_partial_joints_goal']) is bool and type(jtc['open_loop_control']) is bool
+    assert jtc['interpolation_method'] in ('splines', 'none')
+    constraints = jtc['constraints']
+    for key in ('stopped_velocity_tolerance', 'goal_time'):
+        assert type(constraints[key]) is float and constraints[key] >= 0.0, key
+    tolerances = constraints[cfg.driven_joint]
+    assert set(tolerances) <= {'trajectory', 'goal'}
+    assert all(type(v) is float and math.isfinite(v) and v >= 0.0 for v in tolerances.values())
+    assert set(constraints) == {'stopped_velocity_tolerance', 'goal_time', cfg.driven_joint}

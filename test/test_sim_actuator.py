@@ -1,0 +1,235 @@
+"""sim_actuator over the real middleware: JointTrajectory and Float64MultiArray in, measured joint_states out
+(following within the lag and the limits, effort from the statics, encoder counts and offset visible), bad
+messages counted and ignored, and the console script stopping with status 0 on SIGINT and SIGTERM.
+
+Timing is never asserted: each check is a property every message must have (monotonic, within limits, behind
+the reference) or a state the drive converges to, waited for with a deadline.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+import signal
+import sys
+from collections.abc import Iterator, Sequence
+from pathlib import Path
+from typing import Any
+
+import pytest
+from builtin_interfaces.msg import Duration, Time
+from rclpy.parameter import Parameter
+from ros_support import Collector, NodeProcess, RosSession, wait_for
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.robot_model import driven_angle, joint_limits
+from fourbar_ros.config.sim_actuator_params import SIM_PARAMETERS_BY_NAME
+from fourbar_ros.node.sim_actuator import SimActuator
+from fourbar_ros.node.sim_actuator_model import STEP_S, effort_at
+
+pytestmark = pytest.mark.ros
+
+REPO = Path(__file__).resolve().parent.parent
+YAML = REPO / 'config' / 'antenna.yaml'
+CFG = default_config()
+JOINT = CFG.driven_joint
+Q0 = driven_angle(CFG)  # where the drive starts (initial_theta 0)
+LIMIT = joint_limits(CFG)[JOINT]
+VMAX = float(SIM_PARAMETERS_BY_NAME['max_velocity'].default)
+EPS = sys.float_info.epsilon
+#: Converged: the lag's remaining error after many time constants (e^-40 of a 0.2 rad step, far below this).
+SETTLED = 1e-9
+LOG_LINE = re.compile(r'^\[(DEBUG|INFO|WARN|ERROR|FATAL)\] \[\d+\.\d+\] \[')
+_ns = itertools.count()
+
+
+@pytest.fixture(scope='module')
+def ros() -> Iterator[RosSession]:
+    with RosSession() as session:
+        yield session
+
+
+class Rig:
+    """An in-process SimActuator in its own namespace, with the client's publishers and a joint_states Collector."""
+
+    def __init__(self, ros: RosSession, **overrides: Any) -> None:
+        self.ros = ros
+        self.ns = f'/sim_test_{next(_ns)}'
+        self.node = SimActuator(context=ros.context, namespace=self.ns,
+                                parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
+                                cli_args=['--ros-args', '--params-file', str(YAML)])
+        ros.add_node(self.node)
+        self.states: Collector[JointState] = ros.collect(JointState, f'{self.ns}/joint_states')
+        self.traj_pub = ros.publisher(JointTrajectory, f'{self.ns}/joint_trajectory_controller/joint_trajectory', 10)
+        self.fwd_pub = ros.publisher(Float64MultiArray, f'{self.ns}/forward_position_controller/commands', 10)
+        ros.wait_publishers(self.states)
+        ros.wait_subscribers(self.traj_pub)
+        ros.wait_subscribers(self.fwd_pub)
+        self.states.wait_count(1)
+
+    def close(self) -> None:
+        self.ros.uncollect(self.states)
+        self.ros.node.destroy_publisher(self.traj_pub)
+        self.ros.node.destroy_publisher(self.fwd_pub)
+        self.ros.remove_node(self.node)
+
+    def forward(self, values: Sequence[float]) -> None:
+        self.fwd_pub.publish(Float64MultiArray(data=list(values)))
+
+    def settle_at(self, position: float, start: int = 0) -> JointState:
+        """The first message at or after index ``start`` whose position is within SETTLED of ``position``."""
+        return self.states.wait_match(lambda m: abs(m.position[0] - position) <= SETTLED, start=start)
+
+
+@pytest.fixture
+def rig(ros: RosSession) -> Iterator[Any]:
+    made: list[Rig] = []
+
+    def make(**overrides: Any) -> Rig:
+        made.append(Rig(ros, **overrides))
+        return made[-1]
+
+    yield make
+    for r in made:
+        r.close()
+
+
+def stamp_s(msg: JointState) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def point(position: float, t: float, velocity: float | None = None, acceleration: float | None = None,
+          width: int = 1, index: int = 0) -> JointTrajectoryPoint:
+    def row(value: float | None) -> list[float]:
+        return [] if value is None else [value if i == index else 0.0 for i in range(width)]
+
+    sec = math.floor(t)
+    return JointTrajectoryPoint(positions=row(position), velocities=row(velocity), accelerations=row(acceleration),
+                                time_from_start=Duration(sec=sec, nanosec=round((t - sec) * 1e9)))
+
+
+def test_a_trajectory_is_followed_behind_the_reference_and_effort_is_the_statics(rig: Any) -> None:
+    r = rig()
+    start = r.node.get_clock().now().nanoseconds + 300_000_000  # stamped 0.3 s ahead: it waits for its start
+    target = Q0 + 0.05
+    msg = JointTrajectory(joint_names=['some_other_joint', JOINT])
+    msg.header.stamp = Time(sec=start // 10**9, nanosec=start % 10**9)
+    msg.points = [point(Q0 + 0.02, 0.4, 0.05, 0.0, 2, 1), point(target, 1.0, 0.0, 0.0, 2, 1)]
+    first = len(r.states)
+    r.traj_pub.publish(msg)
+    wait_for(lambda: r.node.counters.trajectories_accepted == 1, what='the trajectory accepted')
+    end = r.settle_at(target, first)
+    msgs = r.states.messages[first:r.states.messages.index(end) + 1]
+    assert stamp_s(msgs[-1]) > start * 1e-9 + 1.0  # converged only after the trajectory's end (it lags)
+    prev = msgs[0]
+    for m in msgs:
+        assert list(m.name) == [JOINT]
+        x, v, e = m.position[0], m.velocity[0], m.effort[0]
+        if stamp_s(m) <= start * 1e-9:
+            assert x == Q0 and v == 0.0  # nothing moves before the trajectory's start
+        # The reference rises monotonically to the target: the lagged drive never passes it nor turns back, up to
+        # the rounding of the last steps' additions (an ulp or two of the angle).
+        ulps = 2 * EPS * target
+        assert prev.position[0] - ulps <= x <= target + ulps and -ulps / STEP_S <= v <= VMAX
+        # No noise, counts or offset here: the measured position is the true one, and the effort the very same
+        # statics call on it.
+        assert e == effort_at(CFG, x)
+        prev = m
+    assert r.node.counters.trajectories_rejected == 0
+
+
+def test_a_forward_command_is_followed_at_the_speed_limit(rig: Any) -> None:
+    r = rig()
+    target = min(Q0 + 0.2, LIMIT.upper)
+    first = len(r.states)
+    r.forward([target])
+    end = r.settle_at(target, first)
+    msgs = r.states.messages[first:r.states.messages.index(end) + 1]
+    speeds = [m.velocity[0] for m in msgs]
+    assert all(0.0 <= v <= VMAX for v in speeds)
+    assert max(speeds) == VMAX  # a 0.2 rad step saturates the drive's speed
+    assert all(a.position[0] <= b.position[0] for a, b in itertools.pairwise(msgs))
+    assert r.node.counters.commands_accepted == 1
+    # A new trajectory starts from where the forward command left the drive: no jump.
+    back = JointTrajectory(joint_names=[JOINT], points=[point(Q0, 2.0)])
+    first = len(r.states)
+    r.traj_pub.publish(back)
+    end = r.settle_at(Q0, first)
+    assert all(abs(m.velocity[0]) <= VMAX for m in r.states.messages[first:])
+
+
+def test_encoder_counts_and_offset_show_in_the_measurement(rig: Any) -> None:
+    counts, offset = 4096, 0.01
+    r = rig(encoder_counts_per_rev=counts, position_offset=offset)
+    resolution = 2.0 * math.pi / (counts * CFG.reducer_ratio)
+    target = Q0 + 0.013
+    first = len(r.states)
+    r.forward([target])
+    want = round(target / resolution) * resolution + offset
+    r.settle_at(want, first)
+    for m in r.states.messages[first:]:
+        n = (m.position[0] - offset) / resolution
+        # A whole number of counts, up to the rounding of n * resolution + offset (a few ulps of ~1 rad, i.e.
+        # ~1e-12 counts at 3e-6 rad per count).
+        assert abs(n - round(n)) <= 1e-9, m.position[0]
+
+
+@pytest.mark.parametrize('bad', [
+    JointTrajectory(joint_names=['not_ours'], points=[point(0.9, 1.0)]),
+    JointTrajectory(joint_names=[JOINT], points=[point(math.nan, 1.0)]),
+    JointTrajectory(joint_names=[JOINT], points=[point(0.9, 1.0), point(0.95, 0.5)]),
+    JointTrajectory(joint_names=[JOINT, 'b'], points=[point(0.9, 1.0)]),
+], ids=['wrong joint', 'nan', 'time not increasing', 'mismatched arrays'])
+def test_bad_trajectories_are_counted_and_change_nothing(rig: Any, bad: JointTrajectory) -> None:
+    r = rig()
+    before = r.node.reference(0.0)
+    r.traj_pub.publish(bad)
+    wait_for(lambda: r.node.counters.trajectories_rejected == 1, what='the trajectory rejected')
+    assert r.node.reference(1e9) == before and r.node.counters.trajectories_accepted == 0
+    seen = len(r.states)
+    r.states.wait_count(seen + 2)  # still publishing
+    assert all(math.isfinite(m.position[0]) for m in r.states.messages)
+
+
+@pytest.mark.parametrize('data', [[], [0.9, 0.9], [math.nan], [math.inf]], ids=['empty', 'two', 'nan', 'inf'])
+def test_bad_forward_commands_are_counted_and_change_nothing(rig: Any, data: list[float]) -> None:
+    r = rig()
+    before = r.node.reference(0.0)
+    r.forward(data)
+    wait_for(lambda: r.node.counters.commands_rejected == 1, what='the command rejected')
+    assert r.node.reference(0.0) == before and r.node.counters.commands_accepted == 0
+    seen = len(r.states)
+    r.states.wait_count(seen + 2)
+
+
+def test_bad_parameter_is_one_line_and_status_2(ros: RosSession) -> None:
+    proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-p', 'time_constant:=-1.0'], ros.env(),
+                       command=[*_command()])
+    with proc:
+        assert proc.wait_exit() == 2
+    assert proc.stderr.strip().count('\n') == 0 and 'time_constant' in proc.stderr, proc.stderr
+
+
+def _command() -> list[str]:
+    script = Path(sys.executable).parent / 'fourbar_sim_actuator'
+    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.node.sim_actuator']
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_console_script_serves_and_stops_with_status_0(ros: RosSession, sig: int) -> None:
+    ns = f'/sim_proc_{next(_ns)}'
+    states: Collector[JointState] = ros.collect(JointState, f'{ns}/joint_states')
+    try:
+        with NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'], ros.env(),
+                         command=_command()) as proc:
+            ros.wait_publishers(states)
+            states.wait_count(3)
+            assert proc.stop(sig) == 0, proc.stderr
+        assert all(LOG_LINE.match(line) for line in proc.stderr.splitlines() if line.strip()), proc.stderr
+        assert list(states.messages[0].name) == [JOINT]
+    finally:
+        ros.uncollect(states)

@@ -1,0 +1,278 @@
+"""The simulated actuator's pure part: trajectory checks and sampling (as joint_trajectory_controller samples),
+the lagged, limited drive, and the encoder."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pytest
+
+from fourbar_ros.node.sim_actuator_model import (
+    STEP_S,
+    DriveLimits,
+    Encoder,
+    LagActuator,
+    Setpoint,
+    Trajectory,
+    TrajectoryError,
+    Waypoint,
+    braking_speed,
+    segment,
+    waypoints,
+)
+
+EPS = float(np.finfo(np.float64).eps)
+
+
+@dataclass
+class Duration:
+    sec: int = 0
+    nanosec: int = 0
+
+
+@dataclass
+class Point:
+    positions: list[float]
+    velocities: list[float] = field(default_factory=list)
+    accelerations: list[float] = field(default_factory=list)
+    time_from_start: Duration = field(default_factory=Duration)
+
+
+def at(t: float) -> Duration:
+    sec = math.floor(t)
+    return Duration(sec, round((t - sec) * 1e9))
+
+
+# ----------------------------------------------------------------------------- segments
+
+def poly(coeffs: list[float], s: float) -> tuple[float, float, float]:
+    """Value, first and second derivative of sum c_k s^k."""
+    p = sum(c * s**k for k, c in enumerate(coeffs))
+    v = sum(k * c * s**(k - 1) for k, c in enumerate(coeffs) if k >= 1)
+    a = sum(k * (k - 1) * c * s**(k - 2) for k, c in enumerate(coeffs) if k >= 2)
+    return p, v, a
+
+
+@pytest.mark.parametrize('degree, with_vel, with_acc', [(1, False, False), (3, True, False), (5, True, True)])
+def test_segment_reproduces_its_polynomial(degree: int, with_vel: bool, with_acc: bool) -> None:
+    """Each interpolant is exact for polynomials of its own degree: given a polynomial's ends, it returns that
+    polynomial everywhere (value and both derivatives). So a wrong coefficient cannot pass."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        coeffs = list(rng.uniform(-2.0, 2.0, degree + 1))
+        T = float(rng.uniform(0.05, 3.0))
+        p0, v0, a0 = poly(coeffs, 0.0)
+        p1, v1, a1 = poly(coeffs, T)
+        start = Waypoint(0.0, p0, v0 if with_vel else None, a0 if with_acc else None)
+        end = Waypoint(T, p1, v1 if with_vel else None, a1 if with_acc else None)
+        # Size of the terms summed, times T^-2 for the acceleration: the rounding of both evaluations (Horner
+        # vs the monomial sum, and the coefficient solve) is a few dozen ulps of it.
+        scale = sum(abs(c) * max(T, 1.0)**k for k, c in enumerate(coeffs)) / min(T, 1.0)**2
+        for s in np.linspace(0.0, T, 11):
+            got = segment(start, end, T, float(s))
+            want = poly(coeffs, float(s))
+            for g, w in zip(got, want, strict=True):
+                assert abs(g - w) <= 256 * EPS * scale, (degree, T, s, got, want)
+
+
+def test_segment_mixed_ends_fall_back_like_the_controller() -> None:
+    """Velocity on one end only is linear; velocities on both but acceleration on one only is cubic."""
+    a = Waypoint(0.0, 0.0, 1.0, None)
+    b = Waypoint(1.0, 2.0, None, 0.0)
+    assert segment(a, b, 1.0, 0.25) == Setpoint(0.5, 2.0, 0.0)
+    c = Waypoint(1.0, 1.0, 1.0, 5.0)
+    cubic = segment(a, c, 1.0, 0.5)  # p = s: the cubic through (0, 1) and (1, 1) slopes
+    assert cubic == pytest.approx(Setpoint(0.5, 1.0, 0.0), abs=4 * EPS)
+
+
+def test_segment_clips_time_and_zero_duration_is_the_end() -> None:
+    a, b = Waypoint(0.0, 0.0, None, None), Waypoint(1.0, 1.0, None, None)
+    assert segment(a, b, 1.0, -1.0).position == 0.0
+    assert segment(a, b, 1.0, 2.0).position == 1.0
+    assert segment(a, Waypoint(0.0, 3.0, 1.0, None), 0.0, 0.0) == Setpoint(3.0, 1.0, 0.0)
+
+
+# ----------------------------------------------------------------------------- trajectory checks
+
+def test_waypoints_pick_the_joint_column_and_optional_arrays() -> None:
+    pts = [Point([9.0, 0.1], [], [], at(0.5)), Point([9.0, 0.2], [0.0, 0.3], [0.0, 0.4], at(1.0))]
+    got = waypoints(['other', 'j'], 'j', pts)
+    assert got == [Waypoint(0.5, 0.1, None, None), Waypoint(1.0, 0.2, 0.3, 0.4)]
+    assert waypoints(['j'], 'j', []) == []
+
+
+@pytest.mark.parametrize('names, points, why', [
+    (['a'], [Point([0.0], time_from_start=at(1.0))], 'missing'),
+    (['j', 'j'], [Point([0.0, 0.0], time_from_start=at(1.0))], 'named twice'),
+    (['j'], [Point([0.0, 1.0], time_from_start=at(1.0))], '2 positions for 1'),
+    (['j'], [Point([], time_from_start=at(1.0))], '0 positions'),
+    (['j'], [Point([0.0], [1.0, 2.0], time_from_start=at(1.0))], '2 velocities'),
+    (['j'], [Point([math.nan], time_from_start=at(1.0))], 'nan'),
+    (['j'], [Point([0.0], [math.inf], time_from_start=at(1.0))], 'inf'),
+    (['j'], [Point([0.0], [0.0], [-math.inf], time_from_start=at(1.0))], 'inf'),
+    (['j'], [Point([0.0], time_from_start=at(1.0)), Point([0.1], time_from_start=at(1.0))], 'does not increase'),
+    (['j'], [Point([0.0], time_from_start=at(2.0)), Point([0.1], time_from_start=at(1.0))], 'does not increase'),
+])
+def test_waypoints_refuse_bad_trajectories(names: list[str], points: list[Point], why: str) -> None:
+    with pytest.raises(TrajectoryError, match=why):
+        waypoints(names, 'j', points)
+
+
+def test_waypoints_bound_the_point_count() -> None:
+    pts = [Point([0.0], time_from_start=at(0.01 * (k + 1))) for k in range(11)]
+    assert len(waypoints(['j'], 'j', pts[:10], max_points=10)) == 10
+    with pytest.raises(TrajectoryError, match='11 points; at most 10'):
+        waypoints(['j'], 'j', pts, max_points=10)
+
+
+# ----------------------------------------------------------------------------- sampling
+
+def test_trajectory_sampling_in_time() -> None:
+    initial = Setpoint(1.0, 0.0, 0.0)
+    traj = Trajectory(10.0, initial, (Waypoint(1.0, 2.0, None, None), Waypoint(3.0, 0.0, None, None)))
+    assert traj.sample(9.0) == initial  # before its start: the state it started from
+    assert traj.sample(10.5) == Setpoint(1.5, 1.0, 0.0)  # from the initial state to the first point
+    assert traj.sample(11.0).position == 2.0
+    assert traj.sample(12.0) == Setpoint(1.0, -1.0, 0.0)
+    assert traj.sample(13.0) == Setpoint(0.0, 0.0, 0.0)  # after its end: hold the last position
+    assert traj.sample(99.0) == Setpoint(0.0, 0.0, 0.0)
+    assert traj.end == 13.0
+
+
+def test_trajectory_first_segment_is_quintic_from_a_moving_state() -> None:
+    """From a moving initial state to a point with velocity and acceleration: position, velocity and acceleration
+    are continuous at the start (no jump when a new trajectory replaces one in progress)."""
+    initial = Setpoint(0.3, 0.2, -0.1)
+    traj = Trajectory(0.0, initial, (Waypoint(2.0, 0.5, 0.0, 0.0),))
+    s = traj.sample(0.0)
+    assert s == pytest.approx(initial, abs=8 * EPS)
+    assert traj.sample(2.0) == Setpoint(0.5, 0.0, 0.0)
+
+
+def test_empty_trajectory_holds_the_initial_position() -> None:
+    traj = Trajectory(0.0, Setpoint(0.7, 0.3, 0.1), ())
+    assert traj.sample(5.0) == Setpoint(0.7, 0.0, 0.0)
+
+
+# ----------------------------------------------------------------------------- drive
+
+LIMITS = DriveLimits(lower=-1.0, upper=1.0, max_velocity=0.5, max_acceleration=2.0, tau=0.05)
+
+
+def run(act: LagActuator, reference: float, seconds: float, dt: float = 0.01) -> list[tuple[float, float]]:
+    out = []
+    for _ in range(round(seconds / dt)):
+        act.advance(dt, reference)
+        out.append((act.position, act.velocity))
+    return out
+
+
+def test_lag_without_binding_limits_is_the_exact_first_order_response() -> None:
+    lim = DriveLimits(-1.0, 1.0, max_velocity=1e9, max_acceleration=1e12, tau=0.1)
+    act = LagActuator(lim, 0.0, step=0.01)
+    for k, (x, _v) in enumerate(run(act, 0.01, 1.0), start=1):
+        want = 0.01 * (1.0 - math.exp(-0.01 * k / 0.1))
+        # k steps each rounding a few times: a few ulps of the step size per step.
+        assert abs(x - want) <= 8 * k * EPS * 0.01, (k, x, want)
+
+
+@pytest.mark.parametrize('error', [0.0, 1e-9, 0.3 * 2.0 * STEP_S**2, 2.0 * STEP_S**2, 1.7 * 2.0 * STEP_S**2,
+                                   3.0 * 2.0 * STEP_S**2, 1e-3, 0.3])
+def test_braking_speed_stops_exactly_within_the_error(error: float) -> None:
+    """From the braking speed, slowing by a h per step covers the error and no more (the largest such speed)."""
+    a, h = 2.0, STEP_S
+    v = braking_speed(error, a, h)
+    covered, u = 0.0, v
+    while u > 0.0:
+        covered += u * h
+        u -= a * h
+    # The sum of about sqrt(2 E) terms, each rounded: a few ulps of the error per term.
+    tol = 4 * EPS * (error + a * h * h) * (2 + math.sqrt(2 * error / (a * h * h)))
+    assert abs(covered - error) <= tol, (v, covered, error)
+    assert braking_speed(-error, a, h) == v
+
+
+def test_limits_hold_and_a_step_is_reached_without_overshoot() -> None:
+    act = LagActuator(LIMITS, -0.5)
+    trace = run(act, 0.5, 4.0, dt=STEP_S)
+    v_prev = 0.0
+    for x, v in trace:
+        assert abs(v) <= LIMITS.max_velocity
+        assert abs(v - v_prev) <= LIMITS.max_acceleration * STEP_S * (1 + 4 * EPS)
+        assert x <= 0.5 + 2 * EPS * 0.5  # no overshoot, up to the rounding of the last step
+        v_prev = v
+    assert max(abs(v) for _x, v in trace) == LIMITS.max_velocity  # the speed limit was reached
+    assert trace[-1][0] == pytest.approx(0.5, abs=1e-12)
+
+
+def test_ramp_is_followed_with_the_lag() -> None:
+    """A slow ramp (no limit binding) is followed with the first-order steady lag speed * tau."""
+    act = LagActuator(LIMITS, 0.0)
+    speed, dt = 0.1, STEP_S
+    for k in range(1, 2001):
+        act.advance(dt, speed * k * dt)
+    ref = speed * 2.0
+    # Zero-order hold of the reference over a step adds dt/2 of delay to the continuous lag.
+    assert ref - act.position == pytest.approx(speed * (LIMITS.tau - 0.5 * dt), rel=1e-3)
+    assert act.velocity == pytest.approx(speed, rel=1e-6)
+
+
+def test_reference_and_start_are_clamped_to_the_range() -> None:
+    act = LagActuator(LIMITS, 5.0)
+    assert act.position == 1.0
+    run(act, -7.0, 10.0)
+    assert act.position == -1.0
+
+
+def test_irregular_periods_integrate_the_same_whole_steps() -> None:
+    """A late tick (one long period) and regular ticks give the same state once the same time has passed: the
+    drive steps in fixed STEP_S whatever the caller's period; a part step waits for the next call."""
+    a, b = LagActuator(LIMITS, 0.0), LagActuator(LIMITS, 0.0)
+    a.advance(0.1, 0.3)
+    for _ in range(40):
+        b.advance(0.0025, 0.3)
+    assert (a.position, a.velocity) == (b.position, b.velocity)
+    c = LagActuator(LIMITS, 0.0)
+    c.advance(0.5 * STEP_S, 0.3)
+    assert c.position == 0.0
+    c.advance(0.5 * STEP_S, 0.3)
+    assert c.position > 0.0
+
+
+@pytest.mark.parametrize('kwargs', [dict(lower=1.0, upper=0.0), dict(max_velocity=0.0), dict(tau=-1.0),
+                                    dict(max_acceleration=math.nan)])
+def test_drive_limits_refuse_nonsense(kwargs: dict[str, float]) -> None:
+    values = dict(lower=-1.0, upper=1.0, max_velocity=1.0, max_acceleration=1.0, tau=0.1) | kwargs
+    with pytest.raises(ValueError):
+        DriveLimits(**values)
+
+
+# ----------------------------------------------------------------------------- encoder
+
+def test_encoder_quantizes_to_counts_and_adds_the_offset() -> None:
+    enc = Encoder(counts_per_rev=4096, reducer_ratio=500.0, offset=0.01)
+    res = 2.0 * math.pi / (4096 * 500.0)
+    assert enc.resolution == res
+    for x in np.linspace(-0.7, 0.9, 101):
+        pos, vel, eff = enc.measure(float(x), 0.25, 1.5)
+        counts = (pos - 0.01) / res
+        assert abs(counts - round(counts)) <= 1e-6  # a whole number of counts (up to the offset's rounding)
+        assert abs(pos - 0.01 - x) <= 0.5 * res * (1 + 1e-9)
+        assert (vel, eff) == (0.25, 1.5)
+
+
+def test_encoder_without_counts_or_noise_is_exact() -> None:
+    assert Encoder().measure(0.123, -0.4, 2.0) == (0.123, -0.4, 2.0)
+
+
+def test_encoder_noise_is_seeded_and_has_its_spread() -> None:
+    a = Encoder(position_noise=1e-3, velocity_noise=2e-3, effort_noise=0.1, seed=3)
+    b = Encoder(position_noise=1e-3, velocity_noise=2e-3, effort_noise=0.1, seed=3)
+    samples = np.array([a.measure(0.0, 0.0, 0.0) for _ in range(4000)])
+    assert np.array_equal(samples, np.array([b.measure(0.0, 0.0, 0.0) for _ in range(4000)]))
+    # 4000 samples: the sample deviation is within 5% of sigma with probability far above 1 - 1e-6.
+    assert samples.std(axis=0) == pytest.approx([1e-3, 2e-3, 0.1], rel=0.05)
+    assert not np.array_equal(samples, np.array([Encoder(1, 1.0, 0.0, 1e-3, 2e-3, 0.1, seed=4).measure(0.0, 0.0, 0.0)
+                                                 for _ in range(4000)]))
