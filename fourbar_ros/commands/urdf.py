@@ -13,7 +13,6 @@ from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.config.robot_model import (
     DEFAULT_HARDWARE_PLUGIN,
-    DEFAULT_MOTOR_SPEED,
     robot_description,
     robot_description_for,
 )
@@ -31,9 +30,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         f'(default: {NODE_NAME})')
     parser.add_argument('--namespace', default='/', help='namespace of that node (default: /)')
     parser.add_argument('--robot-name', default='fourbar', help='<robot name=...> (default: fourbar)')
-    parser.add_argument('--motor-speed', type=float, default=DEFAULT_MOTOR_SPEED, metavar='RAD_PER_S',
-                        help='top motor speed, rad/s at the motor: the driven joint\'s velocity limit is this over '
-                             f'reducer_ratio (default: {DEFAULT_MOTOR_SPEED:.6g}, 600 rpm)')
     parser.add_argument('--hardware-plugin', default=DEFAULT_HARDWARE_PLUGIN, metavar='PLUGIN',
                         help='hardware interface of the <ros2_control> block (default: '
                              f'{DEFAULT_HARDWARE_PLUGIN}, which echoes commands as states)')
@@ -58,10 +54,10 @@ def run(args: argparse.Namespace) -> int:
     """Print (or write) the URDF; a bad parameter file or output path raises (status 2 from `main`)."""
     try:
         if args.params is None:
-            text = robot_description(default_config(), args.robot_name, args.motor_speed, args.hardware_plugin)
+            text = robot_description(default_config(), args.robot_name, args.hardware_plugin)
         else:
             text = robot_description_for(args.params, args.node_name, args.namespace, args.robot_name,
-                                         args.motor_speed, args.hardware_plugin)[1]
+                                         args.hardware_plugin)[1]
     except FourBarError:
         raise
     except (ValueError, OSError) as exc:

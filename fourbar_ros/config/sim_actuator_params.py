@@ -12,12 +12,12 @@ from dataclasses import dataclass
 
 from fourbar_ros.config.antenna_config import AntennaConfig, ConfigError, check_value
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, ParamSpec, ParamValue
-from fourbar_ros.config.robot_model import DEFAULT_MOTOR_SPEED
 
 NODE_NAME = 'sim_actuator'
 _RATIO = float(PARAMETERS_BY_NAME['reducer_ratio'].default)
-#: Motor acceleration (rad/s^2, motor side) of the default drive: 100 rev/s^2 (top speed in 0.1 s).
-DEFAULT_MOTOR_ACCELERATION = 200.0 * math.pi
+#: The default drive is the motor the linkage's parameters describe (its speed and acceleration limits, motor side).
+_MOTOR_SPEED = float(PARAMETERS_BY_NAME['motor_speed_limit'].default)
+_MOTOR_ACCELERATION = float(PARAMETERS_BY_NAME['motor_acceleration_limit'].default)
 
 SIM_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('joint', str, str(PARAMETERS_BY_NAME['gamma_joint'].default), '',
@@ -31,11 +31,12 @@ SIM_PARAMETERS: tuple[ParamSpec, ...] = (
               'Rate of the measured joint_states (and of the simulation step).', 0.1, 10000.0),
     ParamSpec('time_constant', float, 0.05, 's',
               'First-order lag of the drive behind its position reference.', 1e-4, 100.0),
-    ParamSpec('max_velocity', float, DEFAULT_MOTOR_SPEED / _RATIO, 'rad/s',
-              'Speed limit of the joint (default: 600 rpm at the motor through the default 500:1 reducer).',
+    ParamSpec('max_velocity', float, _MOTOR_SPEED / _RATIO, 'rad/s',
+              'Speed limit of the joint (default: motor_speed_limit\'s default through the default reducer_ratio).',
               1e-9, 1.0e6),
-    ParamSpec('max_acceleration', float, DEFAULT_MOTOR_ACCELERATION / _RATIO, 'rad/s^2',
-              'Acceleration limit of the joint (default: 100 rev/s^2 at the motor through 500:1).', 1e-9, 1.0e9),
+    ParamSpec('max_acceleration', float, _MOTOR_ACCELERATION / _RATIO, 'rad/s^2',
+              'Acceleration limit of the joint (default: motor_acceleration_limit\'s default through reducer_ratio).',
+              1e-9, 1.0e9),
     ParamSpec('initial_theta', float, 0.0, 'rad',
               'Antenna angle the drive starts at (clamped into [theta_min, theta_max]).', -math.pi, math.pi),
     ParamSpec('encoder_counts_per_rev', int, 0, 'counts',
