@@ -80,6 +80,11 @@ class AntennaConfig:
     limit_policy: str
     control_rate: float
     max_trajectory_points: int
+    mode: str
+    trajectory_controller: str
+    forward_controller: str
+    measurement_timeout: float
+    tracking_window: float
     gamma_joint: str
     delta_joint: str
     coupler_joint: str

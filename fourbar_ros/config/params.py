@@ -156,6 +156,22 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('max_trajectory_points', int, 10000, '',
               'Most points a trajectory may have, received or sent (inserted points included): bounds memory.',
               2, 1000000),
+    ParamSpec('mode', str, 'open_loop', '',
+              'open_loop: commands in, the commanded pose out on joint_states (no hardware). trajectory: commands '
+              'and antenna trajectories become driven-joint trajectories for joint_trajectory_controller; '
+              'forward: a setpoint stream for forward_command_controller. In both actuator modes the measured '
+              'driven joint (joint_states) is completed into the whole linkage.',
+              choices=('open_loop', 'trajectory', 'forward'), read_only=True),
+    ParamSpec('trajectory_controller', str, 'joint_trajectory_controller', '',
+              'Controller name (trajectory mode): driven-joint trajectories go to <this>/joint_trajectory.',
+              read_only=True),
+    ParamSpec('forward_controller', str, 'forward_position_controller', '',
+              'Controller name (forward mode): driven-joint setpoints go to <this>/commands.', read_only=True),
+    ParamSpec('measurement_timeout', float, 0.5, 's',
+              'Actuator modes: no measured driven joint for this long makes the diagnostics WARN.', 0.001, 3600.0),
+    ParamSpec('tracking_window', float, 5.0, 's',
+              'Actuator modes: the window over which diagnostics report the worst commanded-minus-measured '
+              'antenna angle.', 0.001, 3600.0),
     ParamSpec('gamma_joint', str, 'rocker_ab_joint', '',
               'JointState name of the rocker AB joint (gamma).'),
     ParamSpec('delta_joint', str, 'rocker_cd_joint', '',

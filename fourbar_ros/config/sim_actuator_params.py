@@ -23,9 +23,9 @@ SIM_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('joint', str, str(PARAMETERS_BY_NAME['gamma_joint'].default), '',
               'Name of the simulated (driven) joint in its commands and joint_states; default: the driven rocker\'s '
               'joint (gamma_joint or delta_joint, as driven_rocker says), the URDF\'s ros2_control joint.'),
-    ParamSpec('trajectory_controller', str, 'joint_trajectory_controller', '',
+    ParamSpec('trajectory_controller', str, str(PARAMETERS_BY_NAME['trajectory_controller'].default), '',
               'Controller name: trajectory_msgs/JointTrajectory are taken on <this>/joint_trajectory.'),
-    ParamSpec('forward_controller', str, 'forward_position_controller', '',
+    ParamSpec('forward_controller', str, str(PARAMETERS_BY_NAME['forward_controller'].default), '',
               'Controller name: std_msgs/Float64MultiArray positions are taken on <this>/commands.'),
     ParamSpec('publish_rate', float, 100.0, 'Hz',
               'Rate of the measured joint_states (and of the simulation step).', 0.1, 10000.0),
