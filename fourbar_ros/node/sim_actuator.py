@@ -16,7 +16,6 @@ The behaviour is in ``fourbar_ros.node.sim_actuator_model``; this module only ad
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -153,8 +152,3 @@ class SimActuator(Node):
         self._pub.publish(msg)
         self.counters.joint_states_published += 1
 
-
-if __name__ == '__main__':
-    from fourbar_ros.node.run import sim_actuator_main
-
-    sys.exit(sim_actuator_main())
