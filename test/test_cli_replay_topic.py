@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 from bag_support import CONFIG, expected_outputs, run_tool
-from ros_support import NodeProcess, RosSession
+from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 from sensor_msgs.msg import JointState
 
 from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, float64_cdr, read_commands, recorded_qos
@@ -51,13 +51,14 @@ def test_namespaced_recording_replays_with_bag_topic(ros: RosSession, tmp_path: 
 
     answers = ros.collect(JointState, '/robot/joint_states')
     try:
-        with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-r', '__ns:=/robot'], ros.env()) as node:
+        with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-r', '__ns:=/robot',
+                          *ONE_JOINT_STATE_PER_COMMAND], ros.env()) as node:
             ros.wait_publishers(answers)  # matched with the node's publisher before the first answer
             rc, lines, _ = run_tool(['replay', bag, '--bag-topic', '/robot/antenna_angle_cmd',
                                      '--as-fast-as-node-keeps-up', '--no-progress'], ros.env())
             assert rc == 0, lines
-            # Published on the recorded name, answered on the node's joint_states next to it.
-            assert f'{n} answers on /robot/joint_states' in lines[-1], lines
+            # Published on the recorded name, answered on the node's input_torque next to it (one per command).
+            assert f'{n} answers on /robot/input_torque' in lines[-1], lines
             got = answers.wait_count(n)
             assert node.running()
     finally:
