@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -160,11 +160,6 @@ def test_bad_input_is_one_line(processed: Path, tmp_path: Path) -> None:
 
 
 # --------------------------------------------------------------------------- against the live node
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_compare_test') as session:
-        yield session
 
 
 @pytest.mark.ros

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
-from colcon_support import colcon_install, ros2, ros2_cli_missing, sourced_env
+from colcon_support import CliEnv, ros2
 from ros_support import DomainLease, lease_domain_id
 
 from fourbar_ros.bags.domain import domain_in_use
@@ -118,20 +118,12 @@ def test_demo_with_no_arguments_from_another_directory(tmp_path: Path) -> None:
     assert os.listdir(tmp_path) == ['out']
 
 
-def test_ros2_run_demo_uses_the_installed_share(tmp_path_factory: pytest.TempPathFactory) -> None:
+def test_ros2_run_demo_uses_the_installed_share(ros2_cli: CliEnv,
+                                                tmp_path_factory: pytest.TempPathFactory) -> None:
     """`ros2 run fourbar_ros fourbar demo` over a colcon install, from an empty directory, with no arguments."""
-    if (why := ros2_cli_missing()) is not None:
-        pytest.skip(why)
-    prefix = colcon_install(tmp_path_factory) / 'fourbar_ros'
-    share = prefix / 'share' / 'fourbar_ros'
-    lease = lease_domain_id()  # sourced_env wants one; the demo leases its own free id from the same lock files
-    try:
-        env = sourced_env(_env(), prefix, lease.domain_id)
-        env.pop('ROS_DOMAIN_ID')
-        env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))
-        cwd = tmp_path_factory.mktemp('anywhere')
-        rc, out, err = _run_from([ros2(), 'run', 'fourbar_ros', 'fourbar', 'demo'], env, cwd)
-    finally:
-        lease.release()
+    share = ros2_cli.prefix / 'share' / 'fourbar_ros'
+    env = {k: v for k, v in ros2_cli.env.items() if k != 'ROS_DOMAIN_ID'}  # the demo leases its own free id
+    cwd = tmp_path_factory.mktemp('anywhere')
+    rc, out, err = _run_from([ros2(), 'run', 'fourbar_ros', 'fourbar', 'demo'], env, cwd)
     _check_demo_output(rc, out, err, cwd, share / 'config' / 'antenna.yaml', share / 'bags' / 'demo_sweep')
     assert os.listdir(cwd) == ['out']

@@ -16,7 +16,6 @@ import sqlite3
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -195,12 +194,6 @@ def _on_disk(out: Path, storage: str) -> list[float]:
     except sqlite3.Error:  # locked while the recorder commits: try again
         return []
     return [float(store.deserialize_cdr(bytes(d), FLOAT64).data) for (d,) in rows]
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_reindex_test') as session:
-        yield session
 
 
 @pytest.mark.ros
