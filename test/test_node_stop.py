@@ -1,10 +1,10 @@
 """Every stop ends fourbar_node with status 0 and no traceback: SIGINT and SIGTERM, idle and under a 1 kHz stream.
 
-Each case starts the console script once (``make test``) and ``REPEATS`` times (``make test-stress``), proves it serves (an answer on joint_states), and
-signals it: idle (no command in flight) or while a 1 kHz command stream runs and its answers are subscribed
-(so the signal lands during take/solve/publish calls). Before the fix (rclpy's own signal handlers, which shut
-the context down under a running callback) SIGTERM failed 4-5 of 20 idle and 19 of 20 under load, SIGINT
-1 of 20 under load: these repeats catch such rates with certainty for all practical purposes.
+Each case starts the console script once (``make test``) and ``REPEATS`` times (``make test-stress``), proves it
+serves (an answer on joint_states), and signals it: idle (no command in flight) or while a 1 kHz command stream
+runs and its answers are subscribed (so the signal lands during take/solve/publish calls). Before the fix (rclpy's
+own signal handlers, which shut the context down under a running callback) SIGTERM failed 4-5 of 20 idle and 19 of
+20 under load, SIGINT 1 of 20 under load: these repeats catch such rates with certainty for all practical purposes.
 """
 
 from __future__ import annotations
@@ -16,9 +16,9 @@ from typing import Any
 
 import pytest
 from ros_support import NodeProcess, RosSession, Ticker, sync_probe, wait_for
-from stress import once_and_stress
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
