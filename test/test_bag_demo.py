@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
 from colcon_support import CliEnv, ros2
-from ros_support import DomainLease, lease_domain_id
+from ros_support import DomainLease, lease_domain_id, wait_for
 
 from fourbar_ros.bags.domain import domain_in_use
 from fourbar_ros.bags.storage import read_commands, read_messages
@@ -59,17 +59,28 @@ def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
     assert len(recorded['/joint_states']) == len(recorded['/input_torque']) == n
 
 
-@pytest.mark.parametrize('when', ['starting', 'replaying'])
+def _children(pid: int) -> list[int]:
+    """The child processes of ``pid`` (Linux's /proc)."""
+    return [int(c) for c in Path(f'/proc/{pid}/task/{pid}/children').read_text().split()]
+
+
+@pytest.mark.parametrize('when', ['starting', 'node_started', 'replaying'])
 def test_demo_interrupted_cleans_up(when: str, lease: DomainLease, tmp_path: Path) -> None:
     out = tmp_path / 'demo'
+    nodes: list[int] = []
     with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
         if when == 'starting':
             demo.wait_line('fourbar demo: fourbar_node with', 60.0, stdout=True)  # before the node starts
+        elif when == 'node_started':  # the node process exists; the demo is still setting up its own rclpy
+            wait_for(lambda: bool(nodes.extend(_children(demo.proc.pid)) or nodes) or demo.proc.poll() is not None,
+                     60.0, 'the node process')
         else:
             demo.wait_line('is up; replaying lock-step', 60.0)
         demo.signal(signal.SIGINT)
         assert demo.wait(60.0) == 130, demo.lines
-    assert not domain_in_use(lease.domain_id)  # the node process is gone
+    # The node process is gone (a node still starting holds no discovery port yet: check its pid too).
+    assert not domain_in_use(lease.domain_id)
+    assert not [pid for pid in nodes if Path(f'/proc/{pid}').exists()], nodes
     if (out / 'outputs').exists():  # interrupted after the recording was complete (while plotting)
         assert len(read_messages(out / 'outputs')['/joint_states']) == len(read_commands(DEMO_BAG))
 
