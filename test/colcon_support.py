@@ -110,12 +110,11 @@ def ros2() -> str:
 
 @dataclass(frozen=True)
 class CliEnv:
-    """The sourced install for the ros2 command line: ``env`` (on ``domain_id``, discovery limited to this host,
-    ROS_HOME in a temporary directory), the package's install ``prefix`` and an empty working directory."""
+    """The sourced install for the ros2 command line: ``env`` (on a leased domain id, discovery limited to this
+    host, ROS_HOME in a temporary directory), the package's install ``prefix`` and an empty working directory."""
 
     env: dict[str, str]
     prefix: Path
-    domain_id: int
     cwd: Path
 
 
@@ -137,7 +136,7 @@ def cli_env(install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator
                                  check=False, stdin=subprocess.DEVNULL)
         if started.returncode != 0:
             pytest.fail(f'ros2 daemon start failed: {started.stdout}{started.stderr}')
-        yield CliEnv(env, prefix, lease.domain_id, tmp_path_factory.mktemp('anywhere'))
+        yield CliEnv(env, prefix, tmp_path_factory.mktemp('anywhere'))
     finally:
         subprocess.run([*daemon, 'stop'], env=env, capture_output=True, timeout=60, check=False,
                        stdin=subprocess.DEVNULL)

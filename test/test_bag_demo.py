@@ -72,8 +72,8 @@ def test_demo_interrupted_cleans_up(when: str, lease: DomainLease, tmp_path: Pat
         if when == 'starting':
             demo.wait_line('fourbar demo: fourbar_node with', 60.0, stdout=True)  # before the node starts
         elif when == 'node_started':  # the node process exists; the demo is still setting up its own rclpy
-            wait_for(lambda: bool(nodes.extend(_children(demo.proc.pid)) or nodes) or demo.proc.poll() is not None,
-                     60.0, 'the node process')
+            wait_for(lambda: bool(_children(demo.proc.pid)) or demo.proc.poll() is not None, 60.0, 'the node process')
+            nodes = _children(demo.proc.pid)
         else:
             demo.wait_line('is up; replaying lock-step', 60.0)
         demo.signal(signal.SIGINT)
