@@ -3,6 +3,7 @@ recording, summary, PNG; it finishes by itself and leaves no node behind, also w
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -59,9 +60,14 @@ def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
     assert len(recorded['/joint_states']) == len(recorded['/input_torque']) == n
 
 
-def _children(pid: int) -> list[int]:
-    """The child processes of ``pid`` (Linux's /proc)."""
-    return [int(c) for c in Path(f'/proc/{pid}/task/{pid}/children').read_text().split()]
+def _nodes(pid: int) -> list[int]:
+    """The child processes of ``pid`` that run fourbar_node (exec'd, not merely forked; Linux's /proc)."""
+    found = []
+    for child in Path(f'/proc/{pid}/task/{pid}/children').read_text().split():
+        with contextlib.suppress(OSError):
+            if b'fourbar_ros.node' in Path(f'/proc/{child}/cmdline').read_bytes():
+                found.append(int(child))
+    return found
 
 
 @pytest.mark.parametrize('when', ['starting', 'node_started', 'replaying'])
@@ -72,8 +78,8 @@ def test_demo_interrupted_cleans_up(when: str, lease: DomainLease, tmp_path: Pat
         if when == 'starting':
             demo.wait_line('fourbar demo: fourbar_node with', 60.0, stdout=True)  # before the node starts
         elif when == 'node_started':  # the node process exists; the demo is still setting up its own rclpy
-            wait_for(lambda: bool(_children(demo.proc.pid)) or demo.proc.poll() is not None, 60.0, 'the node process')
-            nodes = _children(demo.proc.pid)
+            wait_for(lambda: bool(_nodes(demo.proc.pid)) or demo.proc.poll() is not None, 60.0, 'the node process')
+            nodes = _nodes(demo.proc.pid)
         else:
             demo.wait_line('is up; replaying lock-step', 60.0)
         demo.signal(signal.SIGINT)
