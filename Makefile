@@ -3,7 +3,7 @@ PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup demo test test-jitter lint bench-deps bench bench-quick clean
+.PHONY: setup demo test test-jitter test-stress lint bench-deps bench bench-quick clean
 
 setup:
 	@PYTHON=$(PYTHON) VENV=$(VENV) ./scripts/bootstrap.sh
@@ -15,8 +15,13 @@ lint: setup
 	$(BIN)/ruff check fourbar_ros test benchmarks scripts
 	$(BIN)/mypy
 
+# Every test once; the statistical repeats (marker `stress`) are left out here and run by test-stress.
 test: lint
 	$(BIN)/python -m pytest
+
+# The statistical repeats: each stop case 20 times, the soaks and long bursts.
+test-stress: setup
+	$(BIN)/python -m pytest -m stress
 
 # The pure (non-ROS) tests as if on another CPU: numpy's transcendentals moved by one ulp (test/ulp_jitter.py).
 test-jitter: setup

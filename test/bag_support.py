@@ -1,5 +1,5 @@
 """Helpers for the bag tests: the committed bags, the expected node outputs from the core, the `fourbar`
-CLI as a child process whose stderr lines a test can wait for, and independent bag readers.
+CLI as a child process whose stderr lines a test can wait for (or in this process), and independent bag readers.
 """
 
 from __future__ import annotations
@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from cli_support import fourbar
 from ros_support import REPO, TIMEOUT
 
 from fourbar_ros.config.antenna_config import AntennaConfig
@@ -161,6 +162,13 @@ def run_tool(args: Sequence[str | os.PathLike[str]], env: dict[str, str],
     with Tool(args, env) as tool:
         rc = tool.wait(timeout)
         return rc, tool.lines, tool.stdout
+
+
+def run_main(args: Sequence[str | os.PathLike[str]]) -> tuple[int, list[str], str]:
+    """``run_tool`` in this process (``commands.main``), for a command that needs no ROS graph and no signal:
+    (status, stderr lines, stdout)."""
+    done = fourbar(*args)
+    return done.returncode, done.stderr.splitlines(), done.stdout
 
 
 # --------------------------------------------------------------------------- independent readers

@@ -1,9 +1,9 @@
 """A colcon-built install of this package, built once per pytest process, and the environment that sourcing
 its setup script gives a child process (plus a leased ROS domain limited to this host).
 
-Used by test_packaging.py, test_ros_cli.py and test_launch.py: ``colcon_install(tmp_path_factory)`` builds on
-the first call and returns the same install base afterwards (a pytest fixture cannot be shared by several
-modules without conftest.py, so the sharing lives here).
+conftest.py's session fixtures ``colcon_install`` and ``ros2_cli`` are built on ``colcon_install()`` and
+``cli_env()``; every test that needs the install (packaging, ``ros2 run``/``topic``/``param``, ``ros2 launch``,
+launch_testing, ``ros2 run ... demo``) shares that one build and, for the ros2 command line, one daemon.
 """
 
 from __future__ import annotations
@@ -14,6 +14,9 @@ import shutil
 import subprocess
 import sys
 import threading
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -103,3 +106,38 @@ def ros2() -> str:
     """The ros2 executable: this venv's, else the one on PATH."""
     exe = BIN / 'ros2'
     return str(exe) if exe.exists() else str(shutil.which('ros2'))
+
+
+@dataclass(frozen=True)
+class CliEnv:
+    """The sourced install for the ros2 command line: ``env`` (on a leased domain id, discovery limited to this
+    host, ROS_HOME in a temporary directory), the package's install ``prefix`` and an empty working directory."""
+
+    env: dict[str, str]
+    prefix: Path
+    cwd: Path
+
+
+@contextmanager
+def cli_env(install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[CliEnv]:
+    """``CliEnv`` over ``install`` on a leased domain id, with the ros2 daemon started once for it; the daemon is
+    stopped and the id given back on leaving. Skips where the ros2 command line is missing."""
+    if (why := ros2_cli_missing()) is not None:
+        pytest.skip(why)
+    from ros_support import lease_domain_id
+
+    prefix = install / 'fourbar_ros'
+    lease = lease_domain_id()
+    env = sourced_env(dict(os.environ), prefix, lease.domain_id)
+    env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))  # logs of this run, not ~/.ros
+    daemon = [ros2(), 'daemon']
+    try:
+        started = subprocess.run([*daemon, 'start'], env=env, capture_output=True, text=True, timeout=60,
+                                 check=False, stdin=subprocess.DEVNULL)
+        if started.returncode != 0:
+            pytest.fail(f'ros2 daemon start failed: {started.stdout}{started.stderr}')
+        yield CliEnv(env, prefix, tmp_path_factory.mktemp('anywhere'))
+    finally:
+        subprocess.run([*daemon, 'stop'], env=env, capture_output=True, timeout=60, check=False,
+                       stdin=subprocess.DEVNULL)
+        lease.release()

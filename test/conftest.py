@@ -1,4 +1,5 @@
-"""Shared pytest setup: test helpers importable as plain modules; hypothesis made deterministic; ulp jitter.
+"""Shared pytest setup: test helpers importable as plain modules; hypothesis made deterministic; ulp jitter;
+the ``stress`` marker; the session-wide ROS fixtures.
 
 Property tests draw the same examples on every run (derandomize), so CI cannot pass or fail by luck. Set
 HYPOTHESIS_PROFILE=explore to search with fresh random examples locally.
@@ -8,14 +9,26 @@ move their results by one ulp on a fixed share of the elements (see ulp_jitter.p
 ``--ulp-jitter-share`` or FOURBAR_ULP_JITTER_SHARE, default 0.25; ``--ulp-jitter-seed`` or
 FOURBAR_ULP_JITTER_SEED picks another set of elements). Only this process is affected, not the
 processes a test starts.
+
+``stress`` marks the statistical repeats (a stop case 20 times, soaks, long bursts): a run leaves them out unless
+its ``-m`` expression names the marker (``make test-stress`` is ``-m stress``); every case also runs once without it.
+
+Session fixtures (built once, shared by every module that asks):
+- ``ros``: one rclpy context, client node and executor on one leased domain id (ros_support.RosSession). Whatever
+  a module created on the client node (subscriptions, publishers, clients, timers, extra nodes) is destroyed
+  when the module ends, so the next module starts from the same graph.
+- ``colcon_install``: the install base of one colcon build of the package (colcon_support).
+- ``ros2_cli``: an environment that sources that install, on its own leased domain id limited to this host,
+  with the ros2 daemon started once for it (and stopped at the end).
 """
 
 from __future__ import annotations
 
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 from hypothesis import settings
@@ -23,6 +36,10 @@ from hypothesis import settings
 sys.path.insert(0, str(Path(__file__).parent))
 
 import ulp_jitter  # found through the path above
+
+if TYPE_CHECKING:
+    from colcon_support import CliEnv
+    from ros_support import RosSession
 
 settings.register_profile('deterministic', derandomize=True, deadline=None, print_blob=True)
 settings.register_profile('explore', derandomize=False, deadline=None, print_blob=True)
@@ -60,3 +77,49 @@ def pytest_report_header(config: pytest.Config) -> str | None:
         return (f'ulp jitter: on (share {config.getoption("--ulp-jitter-share")}, seed '
                 f'{config.getoption("--ulp-jitter-seed")}): numpy transcendentals moved by one ulp')
     return None
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Leave out the ``stress`` items unless the ``-m`` expression names the marker."""
+    if 'stress' in (config.option.markexpr or ''):
+        return
+    kept, stress = [], []
+    for item in items:
+        (stress if item.get_closest_marker('stress') else kept).append(item)
+    if stress:
+        config.hook.pytest_deselected(items=stress)
+        items[:] = kept
+
+
+@pytest.fixture(scope='session')
+def ros_session() -> Iterator[RosSession]:
+    """The one rclpy session of this run (use ``ros``, which also cleans up after each module)."""
+    from ros_support import RosSession
+
+    with RosSession() as session:
+        yield session
+
+
+@pytest.fixture(scope='module')
+def ros(ros_session: RosSession) -> Iterator[RosSession]:
+    """The session's rclpy context on its leased domain id; what the module adds to it is removed at its end."""
+    before = ros_session.entities()
+    yield ros_session
+    ros_session.destroy_entities_since(before)
+
+
+@pytest.fixture(scope='session')
+def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Install base (``.../install``) of the one colcon build of this run; skips without colcon."""
+    from colcon_support import colcon_install as build_once
+
+    return build_once(tmp_path_factory)
+
+
+@pytest.fixture(scope='session')
+def ros2_cli(colcon_install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[CliEnv]:
+    """The sourced install's environment for the ros2 command line, with its daemon; skips without ros2."""
+    from colcon_support import cli_env
+
+    with cli_env(colcon_install, tmp_path_factory) as env:
+        yield env

@@ -168,12 +168,12 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
 
 
 def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[str]:
-    """Poll ``ros2 node list --no-daemon`` until ``node`` is listed; return the list."""
+    """Poll ``ros2 node list`` (the daemon's graph) until ``node`` is listed; return the list."""
     from colcon_support import ros2
 
     deadline = time.monotonic() + timeout
     while True:
-        nodes = run([ros2(), 'node', 'list', '--no-daemon', '--spin-time', '3'], env).stdout.split()
+        nodes = run([ros2(), 'node', 'list'], env).stdout.split()
         if node in nodes:
             return nodes
         if time.monotonic() > deadline:

@@ -8,9 +8,8 @@
 - ``sync_probe``: prove every output path is connected end to end before a test starts counting messages.
 - ``ONE_JOINT_STATE_PER_COMMAND``: node arguments that turn the joint_states republish off.
 
-Each test module opens its own session (``with RosSession() as ros``) in a module fixture; nothing here is
-a pytest fixture, so there is nothing to register in conftest.py. The node as a child process:
-``with NodeProcess(args, ros.env()) as node:`` (always ended and reaped on leaving the block).
+The pytest fixtures built on these (one session per run, cleaned after each module) are in conftest.py. The node
+as a child process: ``with NodeProcess(args, ros.env()) as node:`` (always ended and reaped on leaving the block).
 """
 
 from __future__ import annotations
@@ -159,6 +158,23 @@ class RosSession:
         self.context.try_shutdown()
         if self._owned_lease and self.lease is not None:
             self.lease.release()
+
+    def entities(self) -> set[Any]:
+        """What the client node and the executor hold now (for ``destroy_entities_since``)."""
+        node = self.node
+        return {*node.subscriptions, *node.publishers, *node.clients, *node.services, *node.timers,
+                *self.executor.get_nodes()}
+
+    def destroy_entities_since(self, before: set[Any]) -> None:
+        """Destroy what was added after ``entities()`` returned ``before``: endpoints, timers and extra nodes."""
+        node = self.node
+        for kinds, destroy in ((node.subscriptions, node.destroy_subscription),
+                               (node.publishers, node.destroy_publisher), (node.clients, node.destroy_client),
+                               (node.services, node.destroy_service), (node.timers, node.destroy_timer)):
+            for entity in [e for e in kinds if e not in before]:
+                destroy(entity)
+        for extra in [n for n in self.executor.get_nodes() if n not in before]:
+            self.remove_node(extra)
 
     def env(self, **extra: str) -> dict[str, str]:
         """Environment for a child process on this session's domain id."""

@@ -4,14 +4,13 @@ is one line (exit 2); and a bag recorded from the live node equals `fourbar proc
 from __future__ import annotations
 
 import math
-import os
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-from bag_support import BAG_DIR, CONFIG, Tool, run_tool, served
+from bag_support import BAG_DIR, CONFIG, Tool, run_main, run_tool, served
 from ros_support import NodeProcess, RosSession
 
 from fourbar_ros.bags.compare import compare_bags
@@ -72,7 +71,7 @@ def test_a_bag_equals_itself_and_its_other_storage(processed: Path, cfg: Antenna
     process_bag(BAG_DIR / 'jitter_mcap', tmp_path / 'sqlite', cfg, storage='sqlite3')
     result = compare_bags(processed, tmp_path / 'sqlite', cfg)
     assert result.equal and result.compared == {'/joint_states': 300, '/input_torque': 300}
-    rc, _, out = run_tool(['compare', processed, processed, '--params', CONFIG], dict(os.environ))
+    rc, _, out = run_main(['compare', processed, processed, '--params', CONFIG])
     assert rc == 0 and 'equal' in out, out
 
 
@@ -102,7 +101,7 @@ def test_a_change_is_caught(case: str, processed: Path, cfg: AntennaConfig, tmp_
     rewrite(processed, tmp_path / 'b', CASES[case])
     result = compare_bags(processed, tmp_path / 'b', cfg)
     assert not result.equal and result.differences, case
-    rc, _, out = run_tool(['compare', processed, tmp_path / 'b', '--params', CONFIG], dict(os.environ))
+    rc, _, out = run_main(['compare', processed, tmp_path / 'b', '--params', CONFIG])
     assert rc == 1 and 'differences' in out.splitlines()[-1], out
 
 
@@ -151,20 +150,14 @@ def test_command_defaults_are_the_modules() -> None:
 
 
 def test_bad_input_is_one_line(processed: Path, tmp_path: Path) -> None:
-    env = dict(os.environ)
     for args in (['compare', processed, tmp_path / 'missing'],
                  ['compare', processed, processed, '--ignore', 'colour'],
                  ['compare', processed, processed, '--atol', 'nan']):
-        rc, lines, out = run_tool(args, env)
+        rc, lines, out = run_main(args)
         assert rc == 2 and len(lines) == 1 and lines[0].startswith('fourbar compare: error: '), (args, lines, out)
 
 
 # --------------------------------------------------------------------------- against the live node
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_compare_test') as session:
-        yield session
 
 
 @pytest.mark.ros
@@ -197,10 +190,10 @@ def test_live_node_recording_equals_processed_bag(bag_name: str, policy: str, ro
         assert rc == 0, lines
         assert recorder.wait() == 0, recorder.lines
         assert node.running()
-    rc, lines, _ = run_tool(['process', bag, tmp_path / 'offline', '--params', params], env)
+    rc, lines, _ = run_main(['process', bag, tmp_path / 'offline', '--params', params])
     assert rc == 0, lines
-    rc, _, out = run_tool(['compare', live, tmp_path / 'offline', '--params', params, '--ignore',
-                           'stamps,velocities'], env)
+    rc, _, out = run_main(['compare', live, tmp_path / 'offline', '--params', params, '--ignore',
+                           'stamps,velocities'])
     assert rc == 0, out
     assert f'/joint_states {n}' in out and f'/input_torque {n}' in out, out
     # The comparison has teeth on these very bags: a clamped or dropped command would change the count or

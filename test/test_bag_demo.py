@@ -3,6 +3,7 @@ recording, summary, PNG; it finishes by itself and leaves no node behind, also w
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
@@ -13,8 +14,8 @@ from pathlib import Path
 
 import pytest
 from bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
-from colcon_support import colcon_install, ros2, ros2_cli_missing, sourced_env
-from ros_support import DomainLease, lease_domain_id
+from colcon_support import CliEnv, ros2
+from ros_support import DomainLease, lease_domain_id, wait_for
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.live.node_process import domain_in_use
@@ -59,17 +60,33 @@ def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
     assert len(recorded['/joint_states']) == len(recorded['/input_torque']) == n
 
 
-@pytest.mark.parametrize('when', ['starting', 'replaying'])
+def _nodes(pid: int) -> list[int]:
+    """The child processes of ``pid`` that run fourbar_node (exec'd, not merely forked; Linux's /proc)."""
+    found = []
+    for child in Path(f'/proc/{pid}/task/{pid}/children').read_text().split():
+        with contextlib.suppress(OSError):
+            if b'fourbar_ros.node' in Path(f'/proc/{child}/cmdline').read_bytes():
+                found.append(int(child))
+    return found
+
+
+@pytest.mark.parametrize('when', ['starting', 'node_started', 'replaying'])
 def test_demo_interrupted_cleans_up(when: str, lease: DomainLease, tmp_path: Path) -> None:
     out = tmp_path / 'demo'
+    nodes: list[int] = []
     with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
         if when == 'starting':
             demo.wait_line('fourbar demo: fourbar_node with', 60.0, stdout=True)  # before the node starts
+        elif when == 'node_started':  # the node process exists; the demo is still setting up its own rclpy
+            wait_for(lambda: bool(_nodes(demo.proc.pid)) or demo.proc.poll() is not None, 60.0, 'the node process')
+            nodes = _nodes(demo.proc.pid)
         else:
             demo.wait_line('is up; replaying lock-step', 60.0)
         demo.signal(signal.SIGINT)
         assert demo.wait(60.0) == 130, demo.lines
-    assert not domain_in_use(lease.domain_id)  # the node process is gone
+    # The node process is gone (a node still starting holds no discovery port yet: check its pid too).
+    assert not domain_in_use(lease.domain_id)
+    assert not [pid for pid in nodes if Path(f'/proc/{pid}').exists()], nodes
     if (out / 'outputs').exists():  # interrupted after the recording was complete (while plotting)
         assert len(read_messages(out / 'outputs')['/joint_states']) == len(read_commands(DEMO_BAG))
 
@@ -118,20 +135,12 @@ def test_demo_with_no_arguments_from_another_directory(tmp_path: Path) -> None:
     assert os.listdir(tmp_path) == ['out']
 
 
-def test_ros2_run_demo_uses_the_installed_share(tmp_path_factory: pytest.TempPathFactory) -> None:
+def test_ros2_run_demo_uses_the_installed_share(ros2_cli: CliEnv,
+                                                tmp_path_factory: pytest.TempPathFactory) -> None:
     """`ros2 run fourbar_ros fourbar demo` over a colcon install, from an empty directory, with no arguments."""
-    if (why := ros2_cli_missing()) is not None:
-        pytest.skip(why)
-    prefix = colcon_install(tmp_path_factory) / 'fourbar_ros'
-    share = prefix / 'share' / 'fourbar_ros'
-    lease = lease_domain_id()  # sourced_env wants one; the demo leases its own free id from the same lock files
-    try:
-        env = sourced_env(_env(), prefix, lease.domain_id)
-        env.pop('ROS_DOMAIN_ID')
-        env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))
-        cwd = tmp_path_factory.mktemp('anywhere')
-        rc, out, err = _run_from([ros2(), 'run', 'fourbar_ros', 'fourbar', 'demo'], env, cwd)
-    finally:
-        lease.release()
+    share = ros2_cli.prefix / 'share' / 'fourbar_ros'
+    env = {k: v for k, v in ros2_cli.env.items() if k != 'ROS_DOMAIN_ID'}  # the demo leases its own free id
+    cwd = tmp_path_factory.mktemp('anywhere')
+    rc, out, err = _run_from([ros2(), 'run', 'fourbar_ros', 'fourbar', 'demo'], env, cwd)
     _check_demo_output(rc, out, err, cwd, share / 'config' / 'antenna.yaml', share / 'bags' / 'demo_sweep')
     assert os.listdir(cwd) == ['out']

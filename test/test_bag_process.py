@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bag_support import BAG_DIR, CONFIG, Tool, committed_bags, run_tool
+from bag_support import BAG_DIR, CONFIG, Tool, committed_bags, run_main
 from ros_support import wait_for
 
 from fourbar_ros.bags.process import process_bag
@@ -191,8 +191,7 @@ def test_no_rclpy_is_imported(tmp_path: Path) -> None:
 
 
 def test_command_line_and_bad_input(tmp_path: Path) -> None:
-    env = dict(os.environ)
-    rc, lines, _ = run_tool(['process', BAG_DIR / 'bad_values_sqlite3', tmp_path / 'out', '--params', CONFIG], env)
+    rc, lines, _ = run_main(['process', BAG_DIR / 'bad_values_sqlite3', tmp_path / 'out', '--params', CONFIG])
     assert rc == 0 and any('wrote' in line for line in lines), lines
     assert sorted(p.suffix for p in (tmp_path / 'out').iterdir()) == ['.db3', '.yaml']  # the input's storage
     # Existing output, missing input, a bag without the topic, a bad parameter file: one line, status 2.
@@ -206,12 +205,12 @@ def test_command_line_and_bad_input(tmp_path: Path) -> None:
         ['process', BAG_DIR / 'sweep_mcap', tmp_path / 'o4', '--topic', '/nothing'],
     ]
     for args in cases:
-        rc, lines, out = run_tool(args, env)
+        rc, lines, out = run_main(args)
         assert rc == 2 and len(lines) == 1 and lines[0].startswith('fourbar process: error: '), (args, lines)
         assert 'Traceback' not in out
     assert sorted(p.name for p in tmp_path.iterdir()) == ['other_topic', 'out', 'params.yaml']
     # A command topic recorded under another name: --topic; the outputs go next to it.
-    rc, lines, _ = run_tool(['process', tmp_path / 'other_topic', tmp_path / 'o5', '--topic', '/tilt_cmd'], env)
+    rc, lines, _ = run_main(['process', tmp_path / 'other_topic', tmp_path / 'o5', '--topic', '/tilt_cmd'])
     assert rc == 0, lines
     assert set(read_messages(tmp_path / 'o5')) == {'/joint_states', '/input_torque'}
 

@@ -5,7 +5,6 @@ bag at OUT; no publisher is a one-line error with nothing written."""
 from __future__ import annotations
 
 import signal
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -20,12 +19,6 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 # Diagnostics every 50 ms, so messages flow without commands.
 NODE_ARGS = ['--ros-args', '--params-file', str(CONFIG), '-p', 'diagnostics_period:=0.05']
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_record_test') as session:
-        yield session
 
 
 def _listing(root: Path) -> list[str]:

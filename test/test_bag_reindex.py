@@ -9,19 +9,17 @@ was on disk (waited for with a deadline, one flush interval after it was publish
 
 from __future__ import annotations
 
-import os
 import re
 import signal
 import sqlite3
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 import yaml
-from bag_support import Tool, read_with_mcap, read_with_sqlite, run_tool, storage_file
+from bag_support import Tool, read_with_mcap, read_with_sqlite, run_main, storage_file
 from ros_support import REPO, TIMEOUT, RosSession, wait_for
 from std_msgs.msg import Float64
 
@@ -82,7 +80,7 @@ def test_killed_writer_keeps_the_flushed_messages(storage: str, tmp_path: Path) 
     _killed_writer(out, storage, 500, 3000)
     assert not out.exists()
     [work] = partial_dirs(out)
-    rc, lines, stdout = run_tool(['reindex', out], dict(os.environ))
+    rc, lines, stdout = run_main(['reindex', out])
     assert rc == 0 and stdout == '', lines
     assert lines[0].startswith(f'fourbar reindex: wrote {out}: 500 messages (/antenna_angle_cmd: 500, /diagnostics: 0)')
     assert not work.exists() and partial_dirs(out) == []
@@ -112,7 +110,7 @@ def test_reindex_rebuilds_a_bag_directory_in_place(storage: str, tmp_path: Path)
 
 def test_reindex_errors_are_one_line_and_change_nothing(tmp_path: Path) -> None:
     out = tmp_path / 'rec'
-    rc, lines, _ = run_tool(['reindex', out], dict(os.environ))
+    rc, lines, _ = run_main(['reindex', out])
     assert rc == 2 and lines == [f'fourbar reindex: error: {out}: no such bag and no interrupted recording '
                                  '(.rec.*.partial) next to it']
     _killed_writer(out, 'mcap', 5, 0)
@@ -197,12 +195,6 @@ def _on_disk(out: Path, storage: str) -> list[float]:
     return [float(store.deserialize_cdr(bytes(d), FLOAT64).data) for (d,) in rows]
 
 
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_reindex_test') as session:
-        yield session
-
-
 @pytest.mark.ros
 @pytest.mark.slow
 @pytest.mark.parametrize('storage', STORAGES)
@@ -235,7 +227,7 @@ def test_sigkill_while_streaming_keeps_all_but_the_last_interval(storage: str, r
             ros.node.destroy_timer(timer)
     sent = len(published)
     assert not out.exists()
-    rc, lines, _ = run_tool(['reindex', out], ros.env())
+    rc, lines, _ = run_main(['reindex', out])
     assert rc == 0, lines
     values = [m.data for _, m in read_messages(out)['/fourbar_reindex_stream']]
     other = read_with_mcap(out) if storage == 'mcap' else read_with_sqlite(out)

@@ -7,7 +7,6 @@ package or sqlite3 + rclpy). The node's joint_states republish is off (``ONE_JOI
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -33,12 +32,6 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 BAGS = committed_bags()
 OUTPUTS = ('/joint_states', '/input_torque')
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_bag_test') as session:
-        yield session
 
 
 @pytest.fixture(scope='module')

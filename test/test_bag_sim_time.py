@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import itertools
 import math
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -33,12 +32,6 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 HZ = 100  # command rate of the ramp
 N = 301  # commands: 3 s
 T0 = 1_700_000_000_000_000_000  # ns: the ramp's first stamp (the clock a sim-time node will read)
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_sim_time_test') as session:
-        yield session
 
 
 @pytest.fixture(scope='module')

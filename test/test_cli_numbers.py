@@ -3,20 +3,14 @@
 from __future__ import annotations
 
 import argparse
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from cli_support import fourbar
 
 from fourbar_ros.commands import NEGATIVE_NUMBER, build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def fourbar(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', *args], capture_output=True, text=True,
-                          cwd=ROOT, timeout=120, check=False)
 
 
 def subparsers() -> dict[str, argparse.ArgumentParser]:

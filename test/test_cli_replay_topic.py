@@ -3,7 +3,6 @@ fourbar_node started in /robot, through the real middleware on a leased domain i
 
 from __future__ import annotations
 
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -17,12 +16,6 @@ from fourbar_ros.config.antenna_config import load_config
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 T0 = 1_700_000_000_000_000_000  # ns since the epoch
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession('fourbar_replay_topic_test') as session:
-        yield session
 
 
 def _two_antenna_bag(path: Path, robot: list[float], spare: list[float]) -> Path:

@@ -5,11 +5,10 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from cli_support import fourbar
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.rules.policy import Outcome, Policy, decide, in_reach
@@ -18,11 +17,6 @@ ROOT = Path(__file__).resolve().parent.parent
 CFG = default_config()
 LO, HI = CFG.theta_min, CFG.theta_max
 REACH = CFG.linkage.reach()
-
-
-def fourbar(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', *args], capture_output=True, text=True,
-                          cwd=ROOT, timeout=120, check=False)
 
 
 def strict_json(text: str) -> dict[str, object]:

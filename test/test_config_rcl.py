@@ -7,7 +7,6 @@ accept exactly the files ``fourbar_node`` accepts, with the same one-line reason
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -19,12 +18,6 @@ from fourbar_ros.config.antenna_config import ConfigError, load_config, values_f
 from fourbar_ros.node.fourbar_node import FourBarNode
 
 pytestmark = pytest.mark.ros
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession() as session:
-        yield session
 
 
 def rcl_values(ros: RosSession, path: Path, namespace: str) -> dict[str, Any]:

@@ -2,11 +2,10 @@
 
 from __future__ import annotations
 
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from cli_support import fourbar
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, load_config, unknown_in_node_sections
 
@@ -55,8 +54,7 @@ def test_unknown_names_in_sections_naming_this_node(shared: Path) -> None:
 
 def test_check_and_solve_warn_naming_them(shared: Path) -> None:
     for args in (['check'], ['solve', '--theta', '0.05']):
-        out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', *args, '--params', str(shared)],
-                             capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
+        out = fourbar(*args, '--params', shared)
         assert out.returncode == 0, out.stderr
         lines = out.stderr.strip().splitlines()
         assert lines == [f'fourbar {args[0]}: warning: {shared}: not fourbar_node parameters, ignored: theta_mx']

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from cli_support import fourbar
 
 ROOT = Path(__file__).resolve().parent.parent
 CONFIG = ROOT / 'config' / 'antenna.yaml'
@@ -18,11 +19,6 @@ KNOWN = [
     (0.0, 49.458398126495, 49.458398126495, 1.307692307692, -1.307692307692),
     (7.0, 57.328038082382, 39.390113547656, 0.916954003692, -1.542784836266),
 ]
-
-
-def fourbar(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', *args], capture_output=True, text=True,
-                          cwd=ROOT, timeout=120, check=False)
 
 
 @pytest.mark.parametrize(('theta', 'gamma', 'delta', 'dg', 'dd'), KNOWN)

@@ -7,21 +7,17 @@ Runs where the ros2 command line and launch_ros are importable; skipped elsewher
 
 from __future__ import annotations
 
-import os
 import sys
-from collections.abc import Iterator
-from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 import yaml
-from colcon_support import BIN, colcon_install, launch_missing, ros2, ros2_cli_missing, sourced_env
+from colcon_support import BIN, CliEnv, launch_missing, ros2, ros2_cli_missing
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
 from ros_cli_support import Background, echo_once, publish_until_echoed, run, wait_node  # psutil: with ros2cli
-from ros_support import lease_domain_id
 
 from fourbar_ros.config.antenna_config import load_config
 
@@ -31,31 +27,17 @@ REPO = Path(__file__).resolve().parent.parent
 EPS = sys.float_info.epsilon
 
 
-@dataclass
-class Install:
-    env: dict[str, str]
-    prefix: Path
-    cwd: Path
-
-
-@pytest.fixture(scope='module')
-def install(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Install]:
-    prefix = colcon_install(tmp_path_factory) / 'fourbar_ros'
-    lease = lease_domain_id()
-    env = sourced_env(dict(os.environ), prefix, lease.domain_id)
-    env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))
-    try:
-        yield Install(env, prefix, tmp_path_factory.mktemp('anywhere'))
-    finally:
-        run([ros2(), 'daemon', 'stop'], env, timeout=30)
-        lease.release()
-
-
 def installed(env: dict[str, str], package: str) -> bool:
     return run([ros2(), 'pkg', 'prefix', package], env).returncode == 0
 
 
-def test_ros2_launch_in_a_namespace_serves_and_stops_on_sigint(install: Install) -> None:
+@pytest.fixture
+def install(ros2_cli: CliEnv) -> CliEnv:
+    """The run's sourced install for the command line (conftest's ``ros2_cli``)."""
+    return ros2_cli
+
+
+def test_ros2_launch_in_a_namespace_serves_and_stops_on_sigint(install: CliEnv) -> None:
     launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_launch'],
                         install.env, cwd=install.cwd)
     try:
@@ -86,7 +68,7 @@ def test_ros2_launch_in_a_namespace_serves_and_stops_on_sigint(install: Install)
         launch.kill()
 
 
-def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: Install, tmp_path: Path) -> None:
+def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: CliEnv, tmp_path: Path) -> None:
     params = tmp_path / 'mine.yaml'
     params.write_text((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8')
                       .replace('load_torque: 3.5', 'load_torque: 1.25'), encoding='utf-8')
@@ -94,7 +76,7 @@ def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: Install
                          f'params_file:={params}', 'use_sim_time:=true', 'rviz:=true'], install.env, cwd=install.cwd)
     try:
         wait_node(install.env, '/tilt_args/fourbar_node')
-        get = [ros2(), 'param', 'get', '--no-daemon', '--timeout', '30', '/tilt_args/fourbar_node']
+        get = [ros2(), 'param', 'get', '--timeout', '30', '/tilt_args/fourbar_node']
         assert run([*get, 'use_sim_time'], install.env).stdout.strip() == 'Boolean value is: True'
         assert run([*get, 'load_torque'], install.env).stdout.strip() == 'Double value is: 1.25'
         if not installed(install.env, 'rviz2'):
@@ -108,7 +90,7 @@ def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: Install
         launch.kill()
 
 
-def test_sim_actuator_argument_starts_the_simulated_drive(install: Install) -> None:
+def test_sim_actuator_argument_starts_the_simulated_drive(install: CliEnv) -> None:
     launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_sim',
                          'sim_actuator:=true', 'robot_state_publisher:=false'], install.env, cwd=install.cwd)
     try:
@@ -129,7 +111,7 @@ def test_sim_actuator_argument_starts_the_simulated_drive(install: Install) -> N
         launch.kill()
 
 
-def test_launch_testing_test_passes(install: Install) -> None:
+def test_launch_testing_test_passes(install: CliEnv) -> None:
     launch_test = BIN / 'launch_test'
     exe = str(launch_test) if launch_test.exists() else 'launch_test'
     out = run([exe, str(REPO / 'test' / 'launch_fourbar_ready.py')], install.env, timeout=180, cwd=install.cwd)

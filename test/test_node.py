@@ -41,12 +41,6 @@ TOL = 1e-12
 _ns_counter = itertools.count()
 
 
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession() as session:
-        yield session
-
-
 def core(cfg: AntennaConfig, theta: float) -> LinkageState:
     """The expected state, straight from the core (no node code)."""
     return cfg.linkage.state(theta, cfg.load_torque, cfg.driven, cfg.branch)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 import signal
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -39,12 +38,6 @@ LO, HI = CFG.theta_min, CFG.theta_max
 #: ``linkage.torque_at``) on the same float theta, so their results are compared for equality. TOL bounds only
 #: the power-balance identity (two formulas; see test_node.py).
 TOL = 1e-12
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession() as session:
-        yield session
 
 
 def state(theta: float) -> Any:

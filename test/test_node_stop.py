@@ -1,17 +1,16 @@
 """Every stop ends fourbar_node with status 0 and no traceback: SIGINT and SIGTERM, idle and under a 1 kHz stream.
 
-Each case starts the console script ``REPEATS`` times, proves it serves (answers on input_torque), and
-signals it: idle (no command in flight) or while a 1 kHz command stream runs and its answers are subscribed
-(so the signal lands during take/solve/publish calls). Before the fix (rclpy's own signal handlers, which shut
-the context down under a running callback) SIGTERM failed 4-5 of 20 idle and 19 of 20 under load, SIGINT
-1 of 20 under load: these repeats catch such rates with certainty for all practical purposes.
+Each case starts the console script once (``make test``) and ``REPEATS`` times (``make test-stress``), proves it
+serves (an answer on input_torque), and signals it: idle (no command in flight) or while a 1 kHz command stream
+runs and its answers are subscribed (so the signal lands during take/solve/publish calls). Before the fix (rclpy's
+own signal handlers, which shut the context down under a running callback) SIGTERM failed 4-5 of 20 idle and 19 of
+20 under load, SIGINT 1 of 20 under load: these repeats catch such rates with certainty for all practical purposes.
 """
 
 from __future__ import annotations
 
 import re
 import signal
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -19,6 +18,7 @@ import pytest
 from ros_support import NodeProcess, RosSession, Ticker, sync_probe, wait_for
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
@@ -35,12 +35,6 @@ STREAM_HZ = 1000.0
 SERVED_BEFORE_SIGNAL = 50
 #: A normal rcutils log line (anything else on stderr, e.g. a traceback, is a failure).
 LOG_LINE = re.compile(r'^\[(DEBUG|INFO|WARN|ERROR|FATAL)\] \[\d+\.\d+\] \[')
-
-
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession() as session:
-        yield session
 
 
 def torque(theta: float) -> float:
@@ -63,15 +57,15 @@ class Stream(Ticker):
         self.sent += 1
 
 
-def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str) -> list[str]:
-    """Start and signal the node REPEATS times; return one line per failure (status, stderr tail)."""
+def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, repeats: int) -> list[str]:
+    """Start and signal the node ``repeats`` times; return one line per failure (status, stderr tail)."""
     pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
     js = ros.collect(JointState, f'{ns}/joint_states')
     tq = ros.collect(Float64, f'{ns}/input_torque')
     failures: list[str] = []
     probes = [LO + (HI - LO) * (i + 0.5) / 600 for i in range(600)]
     try:
-        for i in range(REPEATS):
+        for i in range(repeats):
             proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'],
                                ros.env(**{EXECUTOR_ENV: executor}))
             proc.start()
@@ -104,10 +98,12 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str) -
     return failures
 
 
+@pytest.mark.parametrize('repeats', once_and_stress(REPEATS))
 @pytest.mark.parametrize('loaded', [False, True], ids=['idle', 'stream_1kHz'])
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 @pytest.mark.parametrize('executor', EXECUTORS)
-def test_every_stop_exits_0_without_traceback(ros: RosSession, sig: int, loaded: bool, executor: str) -> None:
-    ns = f'/stop_{int(sig)}_{int(loaded)}_{executor}'
-    failures = run_stops(ros, sig, loaded, ns, executor)
-    assert not failures, f'{len(failures)} of {REPEATS} stops failed:\n' + '\n'.join(failures)
+def test_every_stop_exits_0_without_traceback(ros: RosSession, sig: int, loaded: bool, executor: str,
+                                              repeats: int) -> None:
+    ns = f'/stop_{int(sig)}_{int(loaded)}_{executor}_{repeats}'
+    failures = run_stops(ros, sig, loaded, ns, executor, repeats)
+    assert not failures, f'{len(failures)} of {repeats} stops failed:\n' + '\n'.join(failures)

@@ -7,11 +7,9 @@ import os
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from colcon_support import colcon_install as build_once
 from colcon_support import sourced_env as colcon_env
 from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
@@ -39,12 +37,6 @@ def test_setup_declares_the_console_script_and_ros_install_dir() -> None:
     assert "'fourbar_node = fourbar_ros.node:main'" in setup_py
     cfg = (REPO / 'setup.cfg').read_text(encoding='utf-8')
     assert 'install_scripts=$base/lib/fourbar_ros' in cfg and 'script_dir=$base/lib/fourbar_ros' in cfg
-
-
-@pytest.fixture(scope='module')
-def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Path]:
-    """Install base of the colcon build shared by the packaging, ros2 CLI and launch tests."""
-    yield build_once(tmp_path_factory)
 
 
 def sourced_env(ros: RosSession, prefix: Path) -> dict[str, str]:
@@ -78,7 +70,7 @@ def test_colcon_install_has_share_files_and_no_benchmarks(colcon_install: Path) 
 
 @pytest.mark.ros
 @pytest.mark.slow
-def test_colcon_installed_node_serves_commands(colcon_install: Path) -> None:
+def test_colcon_installed_node_serves_commands(colcon_install: Path, ros: RosSession) -> None:
     prefix = colcon_install / 'fourbar_ros'
     executable = prefix / 'lib' / 'fourbar_ros' / 'fourbar_node'
     assert executable.is_file() and os.access(executable, os.X_OK)
@@ -87,28 +79,26 @@ def test_colcon_installed_node_serves_commands(colcon_install: Path) -> None:
     assert (colcon_install.parent / 'install' / 'fourbar_ros' / 'share' / 'ament_index' / 'resource_index' / 'packages'
             / 'fourbar_ros').is_file()
     cfg = load_config(installed_yaml)
-    with RosSession() as ros:
-        env = sourced_env(ros, prefix)
-        where = subprocess.run([sys.executable, '-c', 'import fourbar_ros; print(fourbar_ros.__file__)'],
-                               env=env, cwd=colcon_install, capture_output=True, text=True,
-                               check=True).stdout.strip()
-        assert where.startswith(str(prefix)), where   # the installed copy, not the source tree
-        with NodeProcess(['--ros-args', '--params-file', str(REPO / 'config' / 'antenna.yaml'),
-                          *ONE_JOINT_STATE_PER_COMMAND], env,
-                         command=[str(executable)], cwd=colcon_install) as proc:
-            pub = ros.publisher(Float64, 'antenna_angle_cmd')
-            js = ros.collect(JointState, 'joint_states')
-            ros.wait_subscribers(pub)
-            ros.wait_publishers(js)
-            probes = [cfg.theta_min + (cfg.theta_max - cfg.theta_min) * (i + 0.5) / 600 for i in range(600)]
-            sync_probe(lambda t: pub.publish(Float64(data=t)), [js], probes,
-                       lambda col, msg, p: bool(msg.position[0] == cfg.linkage.state(p).gamma))
-            pub.publish(Float64(data=0.05))
-            msg = js.wait_count(1)[0]
-            s = cfg.linkage.state(0.05, cfg.load_torque)
-            assert list(msg.position) == pytest.approx([s.gamma, s.delta, s.gamma + 0.05], abs=1e-12)
-            assert list(msg.effort) == pytest.approx([s.input_torque, 0.0, 0.0], abs=1e-12)
-            ros.uncollect(js)
-            ros.node.destroy_publisher(pub)
-            assert proc.stop(signal.SIGINT) == 0, proc.stderr
-            assert 'Traceback' not in proc.stderr
+    env = sourced_env(ros, prefix)
+    where = subprocess.run([sys.executable, '-c', 'import fourbar_ros; print(fourbar_ros.__file__)'],
+                           env=env, cwd=colcon_install, capture_output=True, text=True,
+                           check=True).stdout.strip()
+    assert where.startswith(str(prefix)), where   # the installed copy, not the source tree
+    with NodeProcess(['--ros-args', '--params-file', str(REPO / 'config' / 'antenna.yaml'),
+                      *ONE_JOINT_STATE_PER_COMMAND], env, command=[str(executable)], cwd=colcon_install) as proc:
+        pub = ros.publisher(Float64, 'antenna_angle_cmd')
+        js = ros.collect(JointState, 'joint_states')
+        ros.wait_subscribers(pub)
+        ros.wait_publishers(js)
+        probes = [cfg.theta_min + (cfg.theta_max - cfg.theta_min) * (i + 0.5) / 600 for i in range(600)]
+        sync_probe(lambda t: pub.publish(Float64(data=t)), [js], probes,
+                   lambda col, msg, p: bool(msg.position[0] == cfg.linkage.state(p).gamma))
+        pub.publish(Float64(data=0.05))
+        msg = js.wait_count(1)[0]
+        s = cfg.linkage.state(0.05, cfg.load_torque)
+        assert list(msg.position) == pytest.approx([s.gamma, s.delta, s.gamma + 0.05], abs=1e-12)
+        assert list(msg.effort) == pytest.approx([s.input_torque, 0.0, 0.0], abs=1e-12)
+        ros.uncollect(js)
+        ros.node.destroy_publisher(pub)
+        assert proc.stop(signal.SIGINT) == 0, proc.stderr
+        assert 'Traceback' not in proc.stderr

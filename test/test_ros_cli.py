@@ -2,8 +2,8 @@
 ``ros2 run fourbar_ros fourbar_node --ros-args --params-file ... -r __ns:=...``, ``ros2 topic pub --once`` /
 ``ros2 topic echo --once``, ``ros2 param set`` (accepted and refused) and Ctrl-C.
 
-Every process shares one leased ROS_DOMAIN_ID, discovery limited to this host; no ros2 daemon is used
-(--no-daemon where a verb has it) and any daemon on the domain is stopped at the end.
+Every process shares the run's leased ROS_DOMAIN_ID for the command line (conftest's ``ros2_cli``), discovery
+limited to this host, and the ros2 daemon started once for it.
 Runs where the ros2 command line is importable (a sourced Jazzy install, or scripts/install_ros_cli.sh);
 skipped elsewhere with the reason.
 """
@@ -11,7 +11,6 @@ skipped elsewhere with the reason.
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 from collections.abc import Iterator
@@ -20,13 +19,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from colcon_support import colcon_install, ros2, ros2_cli_missing, sourced_env
+from colcon_support import CliEnv, ros2, ros2_cli_missing
 
 if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
 from ros_cli_support import TIMEOUT, Background, echo_once, publish_until_echoed, run  # psutil: with ros2cli
-from ros_support import lease_domain_id
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.robot_model import robot_description
@@ -50,21 +48,14 @@ class Antenna:
 
 
 @pytest.fixture(scope='module')
-def antenna(tmp_path_factory: pytest.TempPathFactory) -> Iterator[Antenna]:
-    install = colcon_install(tmp_path_factory)
-    prefix = install / 'fourbar_ros'
-    params = prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml'
-    lease = lease_domain_id()
-    env = sourced_env(dict(os.environ), prefix, lease.domain_id)
-    env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))  # logs of this run, not ~/.ros
+def antenna(ros2_cli: CliEnv) -> Iterator[Antenna]:
+    params = ros2_cli.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml'
     proc = Background([ros2(), 'run', 'fourbar_ros', 'fourbar_node', '--ros-args', '--params-file', str(params),
-                       '-r', f'__ns:={NAMESPACE}'], env, cwd=tmp_path_factory.mktemp('anywhere'))
+                       '-r', f'__ns:={NAMESPACE}'], ros2_cli.env, cwd=ros2_cli.cwd)
     try:
-        yield Antenna(env, prefix, proc, params)
+        yield Antenna(ros2_cli.env, ros2_cli.prefix, proc, params)
     finally:
         proc.kill()
-        run([ros2(), 'daemon', 'stop'], env, timeout=30)
-        lease.release()
 
 
 def test_ros2_run_in_a_namespace_answers_topic_pub_on_topic_echo(antenna: Antenna) -> None:
@@ -86,7 +77,7 @@ def test_ros2_run_in_a_namespace_answers_topic_pub_on_topic_echo(antenna: Antenn
     # Relative names: every topic of the node is inside the namespace (listed once discovery has seen them).
     deadline = time.monotonic() + TIMEOUT
     while True:
-        topics = run([ros2(), 'topic', 'list', '--no-daemon', '--spin-time', '3'], antenna.env).stdout.split()
+        topics = run([ros2(), 'topic', 'list'], antenna.env).stdout.split()
         if f'{NAMESPACE}/joint_states' in topics and f'{NAMESPACE}/antenna_angle_cmd' in topics:
             break
         assert time.monotonic() < deadline, f'namespaced topics not listed after {TIMEOUT} s: {topics}'
@@ -110,13 +101,13 @@ def test_published_joint_states_close_the_urdf_loop(antenna: Antenna) -> None:
 
 
 def _param_get(antenna: Antenna, name: str) -> str:
-    out = run([ros2(), 'param', 'get', '--no-daemon', '--timeout', '30', NODE, name], antenna.env)
+    out = run([ros2(), 'param', 'get', '--timeout', '30', NODE, name], antenna.env)
     assert out.returncode == 0, out.stdout + out.stderr
     return out.stdout.strip()
 
 
 def _param_set(antenna: Antenna, name: str, value: str) -> tuple[str, str]:
-    out = run([ros2(), 'param', 'set', '--no-daemon', '--timeout', '30', NODE, name, value], antenna.env)
+    out = run([ros2(), 'param', 'set', '--timeout', '30', NODE, name, value], antenna.env)
     assert out.returncode == 0, out.stdout + out.stderr  # ros2 param set exits 0 and says why on stderr
     return out.stdout.strip(), out.stderr.strip()
 

@@ -47,12 +47,6 @@ LOG_LINE = re.compile(r'^\[(DEBUG|INFO|WARN|ERROR|FATAL)\] \[\d+\.\d+\] \[')
 _ns = itertools.count()
 
 
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession() as session:
-        yield session
-
-
 class Rig:
     """An in-process SimActuator in its own namespace, with the client's publishers and a joint_states Collector."""
 

@@ -10,12 +10,11 @@ from __future__ import annotations
 
 import json
 import math
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from cli_support import fourbar
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from reference_table import FLOAT_ROWS
@@ -533,12 +532,9 @@ def test_cli_negative_first_angle_via_pair_option(capsys: pytest.CaptureFixture[
     assert json.loads(out)['crank'] == pytest.approx(1.0 / 0.4, rel=1e-12)  # ground 1: crank l2 / l1
 
 
-def test_console_script_exit_status() -> None:
-    """The installed entry point, as a user runs it (a separate process)."""
-    ok = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'design', '--deg', '--pairs', '30,92.35',
-                         '75,99.4', '125,120.3'], capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
+def test_main_exit_status() -> None:
+    ok = fourbar('design', '--deg', '--pairs', '30,92.35', '75,99.4', '125,120.3')
     assert ok.returncode == 0, ok.stderr
     assert 'branch: +1 (open) at every position' in ok.stdout
-    bad = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'design', '--pairs', '0.1,0.2', '0.1,0.2',
-                          '0.5,0.9'], capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
+    bad = fourbar('design', '--pairs', '0.1,0.2', '0.1,0.2', '0.5,0.9')
     assert bad.returncode == 2 and bad.stderr.startswith('fourbar design: error: degenerate positions')

@@ -9,8 +9,6 @@ close.
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import xml.etree.ElementTree as ET
 from dataclasses import replace
 from pathlib import Path
@@ -18,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
+from cli_support import fourbar
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
 from fourbar_ros.config.robot_model import robot_description
@@ -199,8 +198,7 @@ def test_lengths_come_from_the_parameter_file(tmp_path: Path) -> None:
     text = text.replace('frame_id: fourbar_base', 'frame_id: mast')
     params = tmp_path / 'robot.yaml'
     params.write_text(text, encoding='utf-8')
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(params)],
-                         capture_output=True, text=True, timeout=60, check=False)
+    out = fourbar('urdf', '--params', str(params))
     assert out.returncode == 0, out.stderr
     assert out.stdout == robot_description(load_config(params))
     robot = ET.fromstring(out.stdout)
@@ -212,8 +210,7 @@ def test_lengths_come_from_the_parameter_file(tmp_path: Path) -> None:
 
 
 def test_default_output_is_the_shipped_configuration() -> None:
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(YAML)],
-                         capture_output=True, text=True, timeout=60, check=False)
+    out = fourbar('urdf', '--params', str(YAML))
     assert out.returncode == 0, out.stderr
     assert out.stdout == robot_description(load_config(YAML))
 
@@ -222,8 +219,7 @@ def test_bad_parameter_file_is_one_line_and_exit_2(tmp_path: Path) -> None:
     params = tmp_path / 'bad.yaml'
     params.write_text('/**:\n  ros__parameters:\n    frame_length: -1.0\n', encoding='utf-8')
     out_file = tmp_path / 'model.urdf'
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(params),
-                          '-o', str(out_file)], capture_output=True, text=True, timeout=60, check=False)
+    out = fourbar('urdf', '--params', str(params), '-o', str(out_file))
     assert out.returncode == 2
     assert out.stdout == ''
     assert len(out.stderr.strip().splitlines()) == 1 and 'frame_length' in out.stderr, out.stderr
@@ -232,8 +228,7 @@ def test_bad_parameter_file_is_one_line_and_exit_2(tmp_path: Path) -> None:
 
 def test_output_file_is_written_whole(tmp_path: Path) -> None:
     out_file = tmp_path / 'model.urdf'
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '-o', str(out_file)],
-                         capture_output=True, text=True, timeout=60, check=False)
+    out = fourbar('urdf', '-o', str(out_file))
     assert out.returncode == 0, out.stderr
     assert out_file.read_text(encoding='utf-8') == robot_description(default_config())
     assert sorted(p.name for p in tmp_path.iterdir()) == ['model.urdf']
@@ -243,8 +238,7 @@ def test_coupler_joint_name_comes_from_the_parameter_file(tmp_path: Path) -> Non
     params = tmp_path / 'named.yaml'
     params.write_text(YAML.read_text(encoding='utf-8').replace('coupler_joint: coupler_joint ',
                                                                 'coupler_joint: bc_joint '), encoding='utf-8')
-    out = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'urdf', '--params', str(params)],
-                         capture_output=True, text=True, timeout=60, check=False)
+    out = fourbar('urdf', '--params', str(params))
     assert out.returncode == 0, out.stderr
     movable = {j.attrib['name'] for j in ET.fromstring(out.stdout).findall('joint') if j.attrib['type'] != 'fixed'}
     assert movable == {'rocker_ab_joint', 'bc_joint', 'rocker_cd_joint'}

@@ -145,6 +145,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     import os
 
     from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.context import Context
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
 
@@ -166,14 +167,17 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     stack = contextlib.ExitStack()
     stack.enter_context(stop_on_signals())
     stack.callback(_stop_node, proc)  # on every path, last
-    proc.start()
-    context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt
-    node = Node('fourbar_demo', context=context, start_parameter_services=False)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
+    context: Context | None = None
+    node: Node | None = None
+    executor: SingleThreadedExecutor | None = None
     recorder: Recorder | None = None
     diagnostics: list[dict[str, str]] = []
-    try:
+    try:  # from the node's start on: a Ctrl-C at any point still stops it (finally)
+        proc.start()
+        context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt
+        node = Node('fourbar_demo', context=context, start_parameter_services=False)
+        executor = SingleThreadedExecutor(context=context)
+        executor.add_node(node)
         replayer = Replayer(node, stream, answer_topic=TORQUE)
         node.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
                                  lambda m: diagnostics.append(_diag_values(m)), DIAGNOSTICS.depth)
@@ -213,8 +217,10 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         try:
             if recorder is not None:
                 recorder.abort()
-            executor.shutdown()
-            close_context(context, node)
+            if executor is not None:
+                executor.shutdown()
+            if context is not None:
+                close_context(context, *([] if node is None else [node]))
         finally:
             stack.close()
 
