@@ -6,7 +6,8 @@ in the sense of increasing q), through the core's exact inverse (``core.completi
 ``from_rocker`` that matches the configured one, ``inverse_branch``):
 
 - ``joint_states``: names [the other rocker's joint, the coupler joint], positions [other rocker, gamma + theta]
-  rad (each the turn nearest the open-loop pose at mid-range, so they lie within the URDF's limits), velocities rad/s by the chain rule (empty without q_dot, or at the driven rocker's dead point where they are
+  rad (each the turn nearest the open-loop pose at mid-range, so they lie within the URDF's limits), velocities
+  rad/s by the chain rule (empty without q_dot, or at the driven rocker's dead point where they are
   unbounded), efforts empty (the passive joints carry no actuator effort). The driven joint is the measurement's.
 - ``antenna_angle``: theta (rad); ``antenna_rate``: theta_dot (rad/s) where q_dot is given and bounded.
 - ``load_torque``: effort * dq/dtheta (N m about theta, + in the sense of increasing theta; power balance, no
@@ -36,7 +37,7 @@ from fourbar_ros.core.errors import DeadPointError, SingularPositionError
 from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
 
-__all__ = ['CompletedBlock', 'Completed', 'CompletionRule', 'complete_block', 'completed_names']
+__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'complete_block', 'completed_names']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -138,7 +139,7 @@ def complete_block(cfg: AntennaConfig, q: FloatArray, q_dot: FloatArray, effort:
     if c.theta_rate is None:
         velocities, theta_rate = np.full((q.size, 2), np.nan), nan
     else:
-        velocities = np.column_stack([c.other_rate, c.coupler_joint_rate]).astype(np.float64)
+        velocities = np.column_stack([c.other_rate, c.coupler_joint_rate]).astype(np.float64)  # type: ignore[list-item]
         velocities[~np.isfinite(velocities).all(axis=1)] = np.nan
         theta_rate = np.asarray(c.theta_rate, dtype=np.float64)
     load = nan if c.load_torque is None else np.asarray(c.load_torque, dtype=np.float64)
