@@ -15,11 +15,13 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from rclpy.parameter import Parameter
 from ros_support import Collector, RosSession, wait_for
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from ulp_bounds import CHAIN_ULPS, assert_close_ulps, completion_scales
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.node.diagnostic_values import Level
@@ -192,3 +194,60 @@ def test_no_measurement_warns_and_tracking_is_reported(rig: Any) -> None:
     assert float(values['tracking_error_rad']) == 0.02 - theta_near
     assert float(values['tracking_error_worst_rad']) == max(abs(0.02 - theta_far), abs(0.02 - theta_near))
     assert float(values['measured_theta_rad']) == theta_near
+
+
+def test_the_live_completion_equals_process_of_the_same_measured_bag(rig: Any, tmp_path: Path) -> None:
+    from rclpy.serialization import serialize_message
+
+    from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag
+    from fourbar_ros.commands import main
+
+    r = rig()
+    measured = []
+    for i in range(30):
+        q = RULE.reach.theta_max * (-0.95 + 1.9 * i / 29) if i < 29 else RULE.reach.theta_max * (1 - 1e-12)
+        msg = JointState(name=[DRIVEN], position=[q], velocity=[0.2 - 0.01 * i], effort=[0.001 * i])
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 50 + i, 999
+        measured.append(msg)
+        r.measured.publish(msg)
+    counters = r.completion.counters
+    wait_for(lambda: counters.measurements_completed == 30 and len(r.completed()) == 30, what='30 completed')
+    bag = tmp_path / 'measured'
+    with AtomicBagWriter(bag) as writer:
+        conn = writer.add_topic('/joint_states', 'sensor_msgs/msg/JointState')
+        for msg in measured:
+            writer.write(conn, msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec, serialize_message(msg))
+    assert main(['process', str(bag), str(tmp_path / 'out'), '--params', str(YAML)]) == 0
+    with open_bag(tmp_path / 'out') as reader:
+        store = jazzy_typestore()
+        out: dict[str, list[Any]] = {}
+        for c, log, data in reader.messages():
+            out.setdefault(c.topic, []).append((log, store.deserialize_cdr(bytes(data), c.msgtype)))
+    live = r.completed()
+    offline = [m for _, m in out['/joint_states']]
+    assert len(offline) == len(live) == 30
+    assert [(m.header.stamp.sec, m.header.stamp.nanosec) for m in offline] == \
+        [(m.header.stamp.sec, m.header.stamp.nanosec) for m in live]
+    assert [log for log, _ in out['/joint_states']] == [m.header.stamp.sec * 10**9 + 999 for m in live]
+    q = np.array([m.position[0] for m in measured])
+    theta = np.array([RULE.one(float(x)).theta for x in q])
+    a_pos, b_pos = np.array([list(m.position) for m in live]), np.array([m.position for m in offline])
+    theta_s, other_s, x_s, rate_s, other_rate_s, load_s = completion_scales(CFG.linkage, CFG.driven, q, theta,
+                                                                            a_pos[:, 0])
+    n = 2 * CHAIN_ULPS  # per-message (libm) against block (numpy) path, each within CHAIN_ULPS of the scale
+    assert_close_ulps(b_pos[:, 0], a_pos[:, 0], n, other_s, 'other rocker')
+    assert_close_ulps(b_pos[:, 1], a_pos[:, 1], n, x_s, 'coupler joint')
+    q_dot = np.array([m.velocity[0] for m in measured])
+    for i, (a, b) in enumerate(zip(live, offline, strict=True)):
+        assert len(a.velocity) == len(b.velocity)
+        if len(a.velocity):
+            assert_close_ulps(b.velocity[0], a.velocity[0], n, abs(q_dot[i]) * other_rate_s[i], f'velocity {i}')
+    angles = [m.data for _, m in out['/antenna_angle']]
+    assert_close_ulps(np.array(angles), theta, n, theta_s, 'antenna angle')
+    live_rate, live_load = [m.data for m in r.rate.messages], [m.data for m in r.load.messages]
+    assert len(live_rate) == len(out['/antenna_rate']) == 30 and len(live_load) == len(out['/load_torque']) == 30
+    assert_close_ulps(np.array([m.data for _, m in out['/antenna_rate']]), np.array(live_rate), n,
+                      np.abs(q_dot) * rate_s, 'antenna rate')
+    effort = np.array([m.effort[0] for m in measured])
+    assert_close_ulps(np.array([m.data for _, m in out['/load_torque']]), np.array(live_load), n,
+                      np.abs(effort) * load_s, 'load torque')
