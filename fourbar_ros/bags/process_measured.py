@@ -101,7 +101,7 @@ def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str
             try:
                 for _, log, data in reader.messages(connections=conns):
                     stats.measurements += 1
-                    msg: Any = store.deserialize_cdr(bytes(data), JOINT_STATE)
+                    msg = _joint_state(store, bytes(data))
                     values = _measurement(rule, msg, stats)
                     if values is not None:
                         pending.log.append(log)
@@ -120,6 +120,18 @@ def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str
                 raise BagError(f'{src_path}: topic {chosen} has no messages')
     stats.seconds = time.perf_counter() - start
     return stats
+
+
+def _joint_state(store: Any, raw: bytes) -> Any:
+    """A JointState from CDR bytes, trailing bytes allowed: rmw_serialize (rclpy's serialize_message, and so
+    recordings made through it) may leave up to 8 bytes after a JointState with an empty sequence, which rosbags'
+    deserialize_cdr refuses."""
+    if len(raw) < 4 or raw[:2] not in (b'\x00\x00', b'\x00\x01'):
+        raise BagError('not a CDR message')
+    msgdef = store.get_msgdef(JOINT_STATE)
+    func = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
+    msg, _ = func(raw[4:], 0, msgdef.cls, store)
+    return msg
 
 
 def _measurement(rule: CompletionRule, msg: Any, stats: MeasuredStats) -> tuple[float, float, float] | None:
