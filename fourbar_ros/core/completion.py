@@ -29,7 +29,7 @@ from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.errors import DeadPointError
 from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid
 
-__all__ = ['Completion', 'complete', 'coupler_joint_position']
+__all__ = ['Completion', 'complete', 'coupler_joint_position', 'inverse_branch']
 
 
 @overload
@@ -93,6 +93,20 @@ def complete(link: AntennaLinkage, q: ArrayLike, driven: Driven, branch: Branch,
                 load = np.multiply(effort, mechanical_advantage)
                 load[~np.isfinite(load)] = np.nan
     return Completion(theta, other, coupler, theta_rate, other_rate, coupler_rate, load)
+
+
+def inverse_branch(link: AntennaLinkage, theta: float, driven: Driven, branch: Branch) -> Branch:
+    """The branch of ``from_rocker`` (measured ``driven`` rocker) that gives back the pose ``rocker_angles`` gives
+    on ``branch`` at the antenna angle ``theta`` (rad, reachable and not a dead point of the driven rocker).
+
+    The two count branches differently (the side of a different diagonal), so which one matches depends on the
+    geometry; it holds over any interval of theta free of the driven rocker's dead points (where the measured
+    rocker's branch changes) and of the antenna's reach limit (where the forward one does).
+    """
+    gamma, delta = link.rocker_angles(theta, branch)
+    q = float(gamma if driven is Driven.GAMMA else delta)
+    return min(Branch, key=lambda b: abs(math.remainder(float(link.from_rocker(q, driven, b).theta) - theta,
+                                                        2.0 * math.pi)))
 
 
 
