@@ -62,8 +62,10 @@ class MeasuredCompletion:
     """Subscription, publishers, counters and diagnostic values of the completion."""
 
     def __init__(self, node: Node, cfg: AntennaConfig, joint_pub: Any, qos: Callable[[Topic], QoSProfile],
-                 warn: Callable[..., object]) -> None:
-        """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic; ``warn``: a logger."""
+                 warn: Callable[..., object], on_measured: Callable[[float], None] | None = None) -> None:
+        """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic; ``warn``: a logger;
+        ``on_measured``: called with each measured driven-joint angle (rad) that is finite and within reach."""
+        self._on_measured = on_measured
         self.rule = CompletionRule(cfg)
         self.counters = MeasurementCounters()
         self._warn = warn
@@ -129,6 +131,8 @@ class MeasuredCompletion:
             self._range_error = rule.out_of_range(q)
             self._error(self._range_error, throttle_duration_sec=WARN_THROTTLE_S)
             return
+        if self._on_measured is not None:
+            self._on_measured(q)
         joints = self._joint_pub.get_subscription_count() > self._own
         rate = self._rate_pub.get_subscription_count() > 0
         load = self._load_pub.get_subscription_count() > 0

@@ -63,6 +63,7 @@ from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
 from fourbar_ros.core.antenna import LinkageState
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
+from fourbar_ros.node.actuation import Actuation
 from fourbar_ros.node.completion import MeasuredCompletion
 from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
@@ -143,16 +144,22 @@ class FourBarNode(Node):
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS.name, qos(MARKERS),
                                                  qos_overriding_options=qos_options)
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.name, qos(DIAGNOSTICS))
-        # Actuator modes: joint_states carries the measured state (completed here), never the commanded pose.
-        self._publishes_pose = self._config.mode == 'open_loop'
-        self.completion = (None if self._publishes_pose
-                           else MeasuredCompletion(self, self._config, self._joint_pub, qos, self._warn))
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
         self._command_sub = self.create_subscription(Float64, COMMAND.name, MessageInfoCallback(self._on_command),
                                                      qos(COMMAND), qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
-        if self._config.joint_state_rate > 0.0:
+        # Actuator modes: served commands become motion (node/actuation.py); joint_states carries the measured
+        # state, completed here (node/completion.py), never the commanded pose. One subscription to the measured
+        # joint: the completion passes each good measurement on to the motion's start state.
+        self._publishes_pose = self._config.mode == 'open_loop'
+        self.actuation: Actuation | None = None
+        self.completion: MeasuredCompletion | None = None
+        if not self._publishes_pose:
+            self.actuation = Actuation(self, lambda: self._config, self._warn, subscribe_measured=False)
+            self.completion = MeasuredCompletion(self, self._config, self._joint_pub, qos, self._warn,
+                                                 on_measured=self.actuation.note_measured)
+        if self._config.joint_state_rate > 0.0 and self._publishes_pose:
             self._joint_state_timer = self.create_timer(1.0 / self._config.joint_state_rate,
                                                         self._on_joint_state_timer)
         # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
@@ -287,7 +294,11 @@ class FourBarNode(Node):
             theta, clamped = decision.theta, decision
         self._served = theta
         state: Pose | None = None
-        if self._publishes_pose and self._joint_pub.get_subscription_count() > 0:
+        if self.actuation is not None:
+            self.actuation.command(theta)
+            if self.completion is not None:
+                self.completion.set_commanded(theta)
+        elif self._joint_pub.get_subscription_count() > 0:
             state = self._solve(theta)
             if state is not None:
                 self._publish_joints(theta, state)
@@ -392,6 +403,8 @@ class FourBarNode(Node):
             values += measured_values
             if measured_level > level:
                 level, message = measured_level, measured_message
+        if self.actuation is not None:
+            values += self.actuation.diagnostic_values()
         # Named as diagnostic_updater names a task's status: '<node name>: <task>' (no namespace, no leading slash).
         return DiagnosticStatus(
             level=bytes([int(level)]), name=f'{self.get_name()}: {DIAGNOSTIC_TASK}',
