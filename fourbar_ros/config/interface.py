@@ -17,6 +17,8 @@ FLOAT64 = 'std_msgs/msg/Float64'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
+JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
+FLOAT64_MULTI_ARRAY = 'std_msgs/msg/Float64MultiArray'
 
 #: Keep-last depth of the command subscription and the per-command outputs: how far a burst may run ahead.
 STREAM_DEPTH = 1000
@@ -54,6 +56,27 @@ INPUT_TORQUE = Topic('input_torque', FLOAT64, STREAM_DEPTH)
 MARKERS = Topic('linkage_markers', MARKER_ARRAY, STATUS_DEPTH)
 #: The node's status, every diagnostics_period s.
 DIAGNOSTICS = Topic('/diagnostics', DIAGNOSTIC_ARRAY, STATUS_DEPTH)
+
+#: Antenna trajectories in (actuator modes): a JointTrajectory of the one joint ANTENNA_JOINT, positions theta rad,
+#: optional velocities rad/s and accelerations rad/s^2. Reliable: a trajectory is one message, not a stream.
+ANTENNA_TRAJECTORY = Topic('antenna_trajectory', JOINT_TRAJECTORY, STATUS_DEPTH)
+#: The joint name an antenna trajectory carries: the antenna angle theta.
+ANTENNA_JOINT = 'antenna_joint'
+#: Keep-last depth of the controllers' command topics (as the sim actuator subscribes).
+CONTROLLER_DEPTH = 10
+
+
+def trajectory_topic(controller: str) -> Topic:
+    """Driven-joint trajectories out (trajectory mode): ``<controller>/joint_trajectory``, as
+    joint_trajectory_controller reads them."""
+    return Topic(f'{controller}/joint_trajectory', JOINT_TRAJECTORY, CONTROLLER_DEPTH)
+
+
+def forward_topic(controller: str) -> Topic:
+    """Driven-joint setpoints out (forward mode): ``<controller>/commands`` (one position, rad), as
+    forward_command_controller reads them."""
+    return Topic(f'{controller}/commands', FLOAT64_MULTI_ARRAY, CONTROLLER_DEPTH)
+
 
 #: What the node publishes for each served command, in publishing order.
 PER_COMMAND_OUTPUTS = (JOINT_STATES, INPUT_TORQUE)

@@ -11,3 +11,23 @@ class TrajectoryError(FourBarError):
 
 class LimitError(FourBarError):
     """A point over a motor or reducer limit that the policy cannot (or may not) fix; names the worst point."""
+
+
+class EmptyTrajectoryError(TrajectoryError):
+    """A trajectory without points."""
+
+
+class TooManyPointsError(TrajectoryError):
+    """More points than ``max_trajectory_points`` (refused before anything is built: memory stays bounded)."""
+
+
+class NotFiniteError(TrajectoryError):
+    """A NaN or inf among a trajectory's values."""
+
+
+class TimeNotIncreasingError(TrajectoryError):
+    """Point times that are negative or do not strictly increase."""
+
+
+class WrongJointError(TrajectoryError):
+    """A trajectory for joints other than the one expected (a message's joint_names)."""

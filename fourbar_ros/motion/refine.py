@@ -37,7 +37,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
-from fourbar_ros.motion.errors import TrajectoryError
+from fourbar_ros.motion.errors import TooManyPointsError, TrajectoryError
 from fourbar_ros.motion.splines import derivative_bound, evaluate, hermite_coefficients
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, to_driven
 
@@ -169,7 +169,7 @@ def refine(cfg: AntennaConfig, traj: DrivenTrajectory) -> Refined:
                  f'{float(traj.times[worst + 1])!r} s) the antenna may deviate by {float(bounds[worst]):.3g} rad '
                  f'> trajectory_tolerance {tol!r} rad')
         if len(traj) + failing.size > cfg.max_trajectory_points:
-            raise TrajectoryError(f'{where}; refining needs more than max_trajectory_points = '
+            raise TooManyPointsError(f'{where}; refining needs more than max_trajectory_points = '
                                   f'{cfg.max_trajectory_points}')
         mid = _midpoints(traj.antenna, failing)
         if not ((mid.times > traj.times[failing]) & (mid.times < traj.times[failing + 1])).all():

@@ -25,7 +25,13 @@ from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.loads import has_gravity_load
 from fourbar_ros.core.loads import load_torque as total_load_torque
 from fourbar_ros.core.numeric import FloatArray
-from fourbar_ros.motion.errors import TrajectoryError
+from fourbar_ros.motion.errors import (
+    EmptyTrajectoryError,
+    NotFiniteError,
+    TimeNotIncreasingError,
+    TooManyPointsError,
+    TrajectoryError,
+)
 
 __all__ = ['AntennaTrajectory', 'DrivenTrajectory', 'SplineKind', 'antenna_trajectory', 'check_tilt_range',
            'check_times', 'static_efforts', 'to_driven']
@@ -108,18 +114,18 @@ def _as_array(name: str, values: object, n: int | None) -> FloatArray:
     bad = ~np.isfinite(a)
     if bad.any():
         i = int(np.argmax(bad))
-        raise TrajectoryError(f'{name}[{i}] = {float(a[i])!r} is not finite')
+        raise NotFiniteError(f'{name}[{i}] = {float(a[i])!r} is not finite')
     return a
 
 
 def check_times(times: FloatArray) -> None:
     """Raise TrajectoryError unless times (s) are finite, >= 0 and strictly increasing."""
     if times.size and times[0] < 0.0:
-        raise TrajectoryError(f'times[0] = {float(times[0])!r} s is negative (times count from the start)')
+        raise TimeNotIncreasingError(f'times[0] = {float(times[0])!r} s is negative (times count from the start)')
     steps = np.diff(times)
     if steps.size and not (steps > 0.0).all():
         i = int(np.argmax(~(steps > 0.0))) + 1
-        raise TrajectoryError(f'time not increasing at point {i}: t = {float(times[i])!r} s after '
+        raise TimeNotIncreasingError(f'time not increasing at point {i}: t = {float(times[i])!r} s after '
                               f'{float(times[i - 1])!r} s')
 
 
@@ -134,9 +140,9 @@ def antenna_trajectory(cfg: AntennaConfig, times: object, theta: object, theta_d
     t = _as_array('times', times, None)
     n = t.size
     if n == 0:
-        raise TrajectoryError('empty trajectory: no points')
+        raise EmptyTrajectoryError('empty trajectory: no points')
     if n > cfg.max_trajectory_points:
-        raise TrajectoryError(f'{n} points exceed max_trajectory_points = {cfg.max_trajectory_points}')
+        raise TooManyPointsError(f'{n} points exceed max_trajectory_points = {cfg.max_trajectory_points}')
     th = _as_array('theta', theta, n)
     td = None if theta_dot is None else _as_array('theta_dot', theta_dot, n)
     tdd = None if theta_ddot is None else _as_array('theta_ddot', theta_ddot, n)

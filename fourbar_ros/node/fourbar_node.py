@@ -63,6 +63,7 @@ from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
 from fourbar_ros.core.antenna import LinkageState
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
+from fourbar_ros.node.actuation import Actuation
 from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
     MessageInfoCallback,
@@ -147,7 +148,10 @@ class FourBarNode(Node):
                                                      qos(COMMAND), qos_overriding_options=qos_options)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
-        if self._config.joint_state_rate > 0.0:
+        # Actuator modes: served commands become motion (node/actuation.py); the measured state is the truth.
+        self.actuation = (None if self._config.mode == 'open_loop'
+                          else Actuation(self, lambda: self._config, self._warn))
+        if self._config.joint_state_rate > 0.0 and self.actuation is None:
             self._joint_state_timer = self.create_timer(1.0 / self._config.joint_state_rate,
                                                         self._on_joint_state_timer)
         # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
@@ -282,7 +286,9 @@ class FourBarNode(Node):
             theta, clamped = decision.theta, decision
         self._served = theta
         state: Pose | None = None
-        if self._joint_pub.get_subscription_count() > 0:
+        if self.actuation is not None:
+            self.actuation.command(theta)
+        elif self._joint_pub.get_subscription_count() > 0:
             state = self._solve(theta)
             if state is not None:
                 self._publish_joints(theta, state)
@@ -381,6 +387,8 @@ class FourBarNode(Node):
                             lost_since_last=self.counters.commands_lost - self._lost_reported)
         since, received = self._rate_window
         values = summary.values + command_rate(self.counters.commands_received - received, time.monotonic() - since)
+        if self.actuation is not None:
+            values += self.actuation.diagnostic_values()
         # Named as diagnostic_updater names a task's status: '<node name>: <task>' (no namespace, no leading slash).
         return DiagnosticStatus(
             level=bytes([int(summary.level)]), name=f'{self.get_name()}: {DIAGNOSTIC_TASK}',
