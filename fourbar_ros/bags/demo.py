@@ -20,7 +20,7 @@ import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import ANTENNA_ANGLE, COMMAND, DIAGNOSTICS, INPUT_TORQUE, JOINT_STATES
+from fourbar_ros.config.interface import COMMAND, DIAGNOSTICS, INPUT_TORQUE, JOINT_STATES, trajectory_topic
 from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.completion import complete, inverse_branch
 from fourbar_ros.core.errors import FourBarError
@@ -58,8 +58,8 @@ class DemoTopics:
 
 def demo_topics(trajectory_controller: str) -> DemoTopics:
     """The recorded topics in the root namespace, where the demo runs its nodes."""
-    return DemoTopics(f'/{COMMAND.name}', f'/{JOINT_STATES.name}', f'/{ANTENNA_ANGLE.name}', f'/{INPUT_TORQUE.name}',
-                      f'/{trajectory_controller}/joint_trajectory', DIAGNOSTICS.name)
+    return DemoTopics(f'/{COMMAND.name}', f'/{JOINT_STATES.name}', '/antenna_angle', f'/{INPUT_TORQUE.name}',
+                      f'/{trajectory_topic(trajectory_controller).name}', DIAGNOSTICS.name)
 
 
 @dataclass(frozen=True)
@@ -106,6 +106,7 @@ class Recording:
     completed: Completed
     planned: Series  #: the driven joint's planned position (rad), each trajectory up to the next one's start
     planned_velocity: FloatArray  #: rad/s, at the planned samples
+    planned_effort: FloatArray  #: N m at the driven rocker (the feed-forward), at the planned samples
     input_torque: Series  #: N m at the driven rocker
     trajectories: int
     diagnostics: int
@@ -146,13 +147,14 @@ def _column(values: Sequence[float], index: int) -> float:
     return float(values[index]) if len(values) > index else math.nan
 
 
-def _planned(trajectories: Sequence[tuple[int, Any]], joint: str, t0: int) -> tuple[Series, FloatArray]:
+def _planned(trajectories: Sequence[tuple[int, Any]], joint: str, t0: int) -> tuple[Series, FloatArray, FloatArray]:
     """The planned motion of ``joint``: each trajectory from its start (header stamp, else its arrival) up to the
     next one's start, as the controller follows the latest (times in s from ``t0`` ns)."""
     starts = [(_stamp_ns(m.header) or t) for t, m in trajectories]
     t_out: list[float] = []
     q_out: list[float] = []
     v_out: list[float] = []
+    e_out: list[float] = []
     for k, (_, msg) in enumerate(trajectories):
         if joint not in msg.joint_names:
             continue
@@ -165,7 +167,8 @@ def _planned(trajectories: Sequence[tuple[int, Any]], joint: str, t0: int) -> tu
             t_out.append((at - t0) * 1e-9)
             q_out.append(float(p.positions[j]))
             v_out.append(_column(p.velocities, j))
-    return Series(np.array(t_out), np.array(q_out)), np.array(v_out)
+            e_out.append(_column(p.effort, j))
+    return Series(np.array(t_out), np.array(q_out)), np.array(v_out), np.array(e_out)
 
 
 def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Recording:
@@ -196,7 +199,7 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
     def field(rows: Sequence[tuple[int, Any]], name: str, attr: str) -> FloatArray:
         return np.array([_column(getattr(m, attr), list(m.name).index(name)) for _, m in rows], dtype=np.float64)
 
-    planned, planned_velocity = _planned(messages.get(topics.trajectory, []), driven, t0)
+    planned, planned_velocity, planned_effort = _planned(messages.get(topics.trajectory, []), driven, t0)
     torques = messages.get(topics.input_torque, [])
     angles = messages.get(topics.antenna_angle, [])
     return Recording(
@@ -211,7 +214,7 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
                             field(completed_rows, coupler_name, 'position'),
                             field(completed_rows, other_name, 'velocity'),
                             field(completed_rows, coupler_name, 'velocity')),
-        planned=planned, planned_velocity=planned_velocity,
+        planned=planned, planned_velocity=planned_velocity, planned_effort=planned_effort,
         input_torque=Series(seconds(torques), np.array([m.data for _, m in torques], dtype=np.float64)),
         trajectories=len(messages.get(topics.trajectory, [])),
         diagnostics=len(messages.get(topics.diagnostics, [])))
@@ -248,7 +251,7 @@ class Summary:
     peak_speed_measured: float  #: rad/s
     peak_speed_planned: float  #: rad/s (NaN without planned velocities)
     torque_limit: float  #: N m at the motor
-    peak_motor_torque: float  #: N m, from input_torque (or the measured effort where none was recorded)
+    peak_motor_torque: float  #: N m, over input_torque, the planned feed-forward and the measured effort
     completion_position: float  #: rad, largest |node - core| over the completed positions
     completion_velocity: float  #: rad/s, the same for the velocities
     completed_paired: int  #: completed messages matched to a measurement by stamp
@@ -302,7 +305,7 @@ def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
     if error.size == 0:
         raise DemoError('no measured antenna angle after the first command')
     worst = int(np.argmax(np.abs(error)))
-    torque = rec.input_torque.value if rec.input_torque.value.size else rec.measured.effort
+    torque = np.concatenate([rec.input_torque.value, rec.planned_effort, rec.measured.effort])
     position, velocity, paired, unpaired = completion_deviation(rec, cfg)
     return Summary(
         final_error=float(error[-1]), worst_error=float(error[worst]), worst_error_t=float(t[worst]),
@@ -384,8 +387,11 @@ def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str)
 
     ax_torque.plot(rec.measured.position.t, motor_torque(cfg, rec.measured.effort), color='0.6', lw=0.8,
                    label='measured effort')
-    ax_torque.plot(rec.input_torque.t, motor_torque(cfg, rec.input_torque.value), color='tab:green', lw=1,
-                   label='input_torque')
+    ax_torque.plot(rec.planned.t, motor_torque(cfg, rec.planned_effort), color='tab:blue', ls='--', lw=1,
+                   label='planned feed-forward')
+    if rec.input_torque.t.size:
+        ax_torque.plot(rec.input_torque.t, motor_torque(cfg, rec.input_torque.value), color='tab:green', lw=1,
+                       label='input_torque')
     ax_torque.axhline(cfg.motor_torque_limit, color='tab:red', ls=':', lw=1.2,
                       label=f'motor limit {cfg.motor_torque_limit:g} N m')
     ax_torque.set_ylim(0.0, 1.2 * max(cfg.motor_torque_limit, s.peak_motor_torque))

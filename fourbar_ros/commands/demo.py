@@ -1,8 +1,10 @@
-"""`fourbar demo`: start fourbar_node, replay the bundled sweep into it, record its outputs, summarize, plot.
+"""`fourbar demo`: the closed loop. Start fourbar_node in trajectory mode and the simulated actuator, replay the
+bundled sweep paced so the drive can follow, record commands, planned trajectories, measured and completed state,
+summarize and plot.
 
 Runs on --domain-id, else an exported ROS_DOMAIN_ID, else one nobody on this host uses, with discovery limited to this
 host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so it neither sees nor disturbs other ROS traffic.
-The node process is stopped on every path (done, error, Ctrl-C).
+Both node processes are stopped on every path (done, error, Ctrl-C).
 """
 
 from __future__ import annotations
@@ -14,24 +16,15 @@ import time
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
-from fourbar_ros.config.interface import (
-    DEFAULT_STORAGE,
-    DIAGNOSTICS,
-    PER_COMMAND_OUTPUTS,
-    RECORDED_OUTPUTS,
-    STORAGES,
-)
+from fourbar_ros.config.interface import DEFAULT_STORAGE, DIAGNOSTICS, STORAGES, STREAM_DEPTH
 from fourbar_ros.live.node_process import FREE_DOMAIN_IDS
 
-HELP = ('the main job: start fourbar_node with a parameter file, replay the bundled sweep, record the '
-        'outputs, print a summary and write a PNG plot')
+HELP = ('the main job: start fourbar_node (trajectory mode) with a parameter file and the simulated actuator, '
+        'replay the bundled sweep, record, print a summary and write a PNG plot')
 
 #: Defaults, paths inside the package's share/ (found by config.share.share_path when the demo runs).
 DEFAULT_PARAMS = 'config/antenna.yaml'
 DEFAULT_BAG = 'bags/demo_sweep'
-#: The recorded outputs and their names in the root namespace, where the demo's node runs.
-OUTPUT_TOPICS = tuple(t.name for t in RECORDED_OUTPUTS)
-JOINTS, TORQUE = (f'/{t.name}' for t in PER_COMMAND_OUTPUTS)
 
 
 def _id_ranges(ids: tuple[int, ...]) -> str:
@@ -205,7 +198,10 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         replayer = Replayer(ros, stream, topic=topics.command)
         ros.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
                                 lambda m: diagnostics.append(_diag_values(m)), DIAGNOSTICS.depth)
-        ros.create_subscription(Float64, topics.antenna_angle, lambda m: antenna.append(m.data), STREAM_DEPTH)
+
+        def on_antenna(msg: Float64) -> None:
+            antenna.append(msg.data)
+        ros.create_subscription(Float64, topics.antenna_angle, on_antenna, STREAM_DEPTH)
         plans = discover(ros, executor, topics.all(), args.timeout, stop=lambda: failed() is not None)
         if (dead := failed()) is not None:
             raise ReplayError(f'{dead.command[-1]} exited with status '
