@@ -22,13 +22,14 @@ import pytest
 import yaml
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
+from fourbar_ros.config.params import PARAMETERS_BY_NAME
 from fourbar_ros.config.robot_model import (
     DEFAULT_HARDWARE_PLUGIN,
     driven_angle,
     joint_limits,
     robot_description,
 )
-from fourbar_ros.config.sim_actuator_params import SIM_PARAMETERS_BY_NAME, sim_settings
+from fourbar_ros.config.sim_actuator_params import sim_settings
 
 REPO = Path(__file__).resolve().parent.parent
 CONTROLLERS = REPO / 'config' / 'controllers.yaml'
@@ -150,8 +151,8 @@ def test_controller_manager_section() -> None:
     assert declared['joint_trajectory_controller'] == 'joint_trajectory_controller/JointTrajectoryController'
     assert declared['forward_position_controller'] == 'position_controllers/JointGroupPositionController'
     assert declared['joint_state_broadcaster'] == 'joint_state_broadcaster/JointStateBroadcaster'
-    assert SIM_PARAMETERS_BY_NAME['trajectory_controller'].default == 'joint_trajectory_controller'
-    assert SIM_PARAMETERS_BY_NAME['forward_controller'].default == 'forward_position_controller'
+    assert PARAMETERS_BY_NAME['trajectory_controller'].default == 'joint_trajectory_controller'
+    assert PARAMETERS_BY_NAME['forward_controller'].default == 'forward_position_controller'
     assert set(data) == {'controller_manager', *declared}  # every controller configured, nothing else
     for name, kind in declared.items():
         assert set(params_of(data, name)) <= TYPES[kind], name

@@ -216,7 +216,8 @@ def test_bad_parameter_is_one_line_and_status_2(ros: RosSession) -> None:
 
 def _command() -> list[str]:
     script = Path(sys.executable).parent / 'fourbar_sim_actuator'
-    return [str(script)] if script.exists() else [sys.executable, '-m', 'fourbar_ros.node.sim_actuator']
+    start = 'import sys; from fourbar_ros.node import sim_actuator_main; sys.exit(sim_actuator_main())'
+    return [str(script)] if script.exists() else [sys.executable, '-c', start]
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])

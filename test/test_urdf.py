@@ -20,8 +20,9 @@ import numpy.typing as npt
 import pytest
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
-from fourbar_ros.config.robot_model import coupler_joint_position, robot_description
+from fourbar_ros.config.robot_model import robot_description
 from fourbar_ros.core.antenna import Branch, Driven
+from fourbar_ros.core.completion import coupler_joint_position
 from fourbar_ros.core.transforms import antenna_joint_positions
 
 REPO = Path(__file__).resolve().parent.parent

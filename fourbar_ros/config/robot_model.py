@@ -40,7 +40,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from pathlib import Path
-from typing import NamedTuple, TypeVar
+from typing import NamedTuple
 from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
@@ -48,7 +48,7 @@ import numpy as np
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.core.antenna import Driven
-from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.core.completion import coupler_joint_position
 
 #: Link names below the root (``frame_id``); the root link itself is named by ``frame_id``.
 LINKS = ('rocker_ab', 'coupler', 'rocker_cd', 'coupler_c', 'rocker_cd_c', 'antenna')
@@ -112,15 +112,6 @@ def joint_limits(cfg: AntennaConfig) -> dict[str, JointLimit]:
         effort = cfg.output_torque_limit if name == driven else 0.0
         out[name] = JointLimit(float(np.min(position)), float(np.max(position)), effort, velocity)
     return out
-
-
-#: A float or a float64 array: coupler_joint_position serves the node (one command) and fourbar process (blocks).
-Angles = TypeVar('Angles', float, FloatArray)
-
-
-def coupler_joint_position(gamma: Angles, theta: Angles) -> Angles:
-    """Position (rad) of ``coupler_joint``: the coupler's angle from rocker AB, gamma + theta."""
-    return gamma + theta
 
 
 def _box(length: float, thickness: float, material: str, rgba: str) -> list[str]:

@@ -23,10 +23,6 @@ SIM_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('joint', str, str(PARAMETERS_BY_NAME['gamma_joint'].default), '',
               'Name of the simulated (driven) joint in its commands and joint_states; default: the driven rocker\'s '
               'joint (gamma_joint or delta_joint, as driven_rocker says), the URDF\'s ros2_control joint.'),
-    ParamSpec('trajectory_controller', str, str(PARAMETERS_BY_NAME['trajectory_controller'].default), '',
-              'Controller name: trajectory_msgs/JointTrajectory are taken on <this>/joint_trajectory.'),
-    ParamSpec('forward_controller', str, str(PARAMETERS_BY_NAME['forward_controller'].default), '',
-              'Controller name: std_msgs/Float64MultiArray positions are taken on <this>/commands.'),
     ParamSpec('publish_rate', float, 100.0, 'Hz',
               'Rate of the measured joint_states (and of the simulation step).', 0.1, 10000.0),
     ParamSpec('time_constant', float, 0.05, 's',
@@ -62,8 +58,6 @@ class SimSettings:
     """The validated sim_actuator parameters (fields as in SIM_PARAMETERS)."""
 
     joint: str
-    trajectory_controller: str
-    forward_controller: str
     publish_rate: float
     time_constant: float
     max_velocity: float

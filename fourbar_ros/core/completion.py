@@ -21,7 +21,7 @@ arrays give NaN load torque there.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import NamedTuple, overload
 
 import numpy as np
 
@@ -29,7 +29,21 @@ from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.errors import DeadPointError
 from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid
 
-__all__ = ['Completion', 'complete', 'inverse_branch']
+__all__ = ['Completion', 'complete', 'coupler_joint_position', 'inverse_branch']
+
+
+@overload
+def coupler_joint_position(gamma: float, theta: float) -> float: ...
+@overload
+def coupler_joint_position(gamma: FloatArray, theta: FloatArray) -> FloatArray: ...
+@overload
+def coupler_joint_position(gamma: ArrayLike, theta: ArrayLike) -> ArrayLike: ...
+
+
+def coupler_joint_position(gamma: ArrayLike, theta: ArrayLike) -> ArrayLike:
+    """Position (rad) of the robot model's ``coupler_joint``: the coupler's angle from rocker AB, gamma + theta.
+    One command (floats, the node) or a block (arrays, fourbar process)."""
+    return gamma + theta
 
 
 class Completion(NamedTuple):
@@ -58,7 +72,7 @@ def complete(link: AntennaLinkage, q: ArrayLike, driven: Driven, branch: Branch,
     theta, other = link.from_rocker(q, driven, branch, on_invalid)
     gamma_driven = driven is Driven.GAMMA
     gamma, delta = (q, other) if gamma_driven else (other, q)
-    coupler = gamma + theta
+    coupler = coupler_joint_position(gamma, theta)
     if q_rate is None and effort is None:
         return Completion(theta, other, coupler, None, None, None, None)
     scalar = isinstance(theta, float) and isinstance(other, float)

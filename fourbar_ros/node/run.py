@@ -27,12 +27,13 @@ import itertools
 import signal
 import sys
 from collections.abc import Callable, Iterator, Sequence
-from typing import TYPE_CHECKING, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from fourbar_ros.core.errors import one_line
 
 if TYPE_CHECKING:
     from rclpy.executors import Executor
+    from rclpy.node import Node
 
 #: The signals every fourbar process treats as "stop".
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -145,7 +146,7 @@ def command_line_names(argv: list[str]) -> list[str]:
             if flag in ('-p', '--param') and ':=' in arg]
 
 
-def params_file_problem(argv: list[str]) -> str | None:
+def params_file_problem(argv: Sequence[str]) -> str | None:
     """One line if a ``--params-file`` argument cannot be read, is larger than 1 MiB, is not YAML or holds an
     alias (rcl refuses those too), else None.
 
@@ -199,45 +200,41 @@ def _quiet_exit() -> SystemExit:
     return SystemExit(0)
 
 
-def main(args: list[str] | None = None) -> int:
-    """Console script ``fourbar_node``: exit 0 on Ctrl-C/SIGTERM (also while starting), 2 with one line on bad
-    options or parameters."""
-    STOP.install(raises=_quiet_exit)  # until the node is about to be built: rclpy imports take a while
+def serve_node(prog: str, build: Callable[[], Node], argv: Sequence[str], kind: str,
+               refused: tuple[type[BaseException], ...] = ()) -> int:
+    """Start rclpy, build the node, spin ``kind``'s executor until a stop, then tear down in order.
+
+    0 on a stop; 2 with one line ``PROG: error: ...`` for a bad ``--params-file`` or when ``build`` raises one
+    of ``refused`` (bad parameters). The caller installed ``STOP`` before importing rclpy (the quiet start).
+    """
     import rclpy
     import rclpy.utilities
-    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
     from rclpy.signals import SignalHandlerOptions
 
-    from fourbar_ros.config.antenna_config import ConfigError
-    from fourbar_ros.node.executor import create_executor, executor_kind
-    from fourbar_ros.node.fourbar_node import FourBarNode, destroy_node
+    from fourbar_ros.node.executor import create_executor
+    from fourbar_ros.node.fourbar_node import destroy_node
 
     STOP.raises = None  # from here a stop only ends the spin loop; a stop while starting ends it before it runs
-    argv = sys.argv if args is None else args
-    try:
-        kind = executor_kind(node_options(argv).executor)
-    except ValueError as exc:  # UsageError, ExecutorChoiceError
-        print(f'fourbar_node: error: {exc}', file=sys.stderr)
-        return 2
     problem = params_file_problem(argv)
     if problem is not None:
-        print(f'fourbar_node: error: {problem}', file=sys.stderr)
+        print(f'{prog}: error: {problem}', file=sys.stderr)
         return 2
     try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+        rclpy.init(args=list(argv), signal_handler_options=SignalHandlerOptions.NO)
     except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
-        print(f'fourbar_node: error: {one_line(exc)}', file=sys.stderr)
+        print(f'{prog}: error: {one_line(exc)}', file=sys.stderr)
         return 2
-    node: FourBarNode | None = None
+    node: Node | None = None
     executor: Executor | None = None
     try:
-        node = FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv))
+        node = build()
         executor = create_executor(kind)
         executor.add_node(node)
-        node.info(f'callbacks run on the {kind} executor')
+        log: Callable[[], Any] = node.get_logger  # rclpy's logger accessor is unannotated
+        log().info(f'callbacks run on the {kind} executor')
         spin_until_stopped(executor)
-    except (ConfigError, InvalidParameterTypeException, InvalidParameterValueException) as exc:
-        print(f'fourbar_node: error: {one_line(exc)}', file=sys.stderr)
+    except refused as exc:
+        print(f'{prog}: error: {one_line(exc)}', file=sys.stderr)
         return 2
     finally:
         # Nothing runs callbacks any more (one thread): destroy the node, then shut the context down.
@@ -247,6 +244,40 @@ def main(args: list[str] | None = None) -> int:
             destroy_node(node)
         rclpy.utilities.try_shutdown()
     return 0
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``fourbar_node``: exit 0 on Ctrl-C/SIGTERM (also while starting), 2 with one line on bad
+    options or parameters."""
+    STOP.install(raises=_quiet_exit)  # until the node is about to be built: rclpy imports take a while
+    from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
+
+    from fourbar_ros.config.antenna_config import ConfigError
+    from fourbar_ros.node.executor import executor_kind
+    from fourbar_ros.node.fourbar_node import FourBarNode
+
+    argv = sys.argv if args is None else args
+    try:
+        kind = executor_kind(node_options(argv).executor)
+    except ValueError as exc:  # UsageError, ExecutorChoiceError
+        STOP.raises = None
+        print(f'fourbar_node: error: {exc}', file=sys.stderr)
+        return 2
+    return serve_node('fourbar_node',
+                      lambda: FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv)),
+                      argv, kind, (ConfigError, InvalidParameterTypeException, InvalidParameterValueException))
+
+
+def sim_actuator_main(args: list[str] | None = None) -> int:
+    """Console script ``fourbar_sim_actuator``: exit 0 on Ctrl-C/SIGTERM (also while starting), 2 with one line on
+    bad parameters."""
+    STOP.install(raises=_quiet_exit)
+    from fourbar_ros.config.antenna_config import ConfigError
+    from fourbar_ros.node.executor import executor_kind
+    from fourbar_ros.node.sim_actuator import SimActuator
+
+    argv = sys.argv if args is None else args
+    return serve_node('fourbar_sim_actuator', SimActuator, argv, executor_kind(), (ConfigError,))
 
 
 if __name__ == '__main__':

@@ -16,17 +16,12 @@ The behaviour is in ``fourbar_ros.node.sim_actuator_model``; this module only ad
 from __future__ import annotations
 
 import math
-import sys
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-import rclpy
-import rclpy.utilities
-from rclpy.executors import Executor
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
-from rclpy.signals import SignalHandlerOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
@@ -35,11 +30,9 @@ from fourbar_ros.config.antenna_config import ConfigError, config_from_values, d
 from fourbar_ros.config.interface import JOINT_STATES
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
-from fourbar_ros.core.errors import FourBarError, one_line
-from fourbar_ros.node.executor import create_executor, executor_kind
+from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
-from fourbar_ros.node.run import STOP, params_file_problem, spin_until_stopped
 from fourbar_ros.node.sim_actuator_model import (
     DriveLimits,
     Encoder,
@@ -98,9 +91,10 @@ class SimActuator(Node):
         self._msg = JointState()
         self._msg.name = [s.joint]
         self._pub = self.create_publisher(JointState, JOINT_STATES.name, DEPTH)
-        self.create_subscription(JointTrajectory, f'{s.trajectory_controller}/joint_trajectory',
+        self.create_subscription(JointTrajectory, f'{self.config.trajectory_controller}/joint_trajectory',
                                  self._on_trajectory, DEPTH)
-        self.create_subscription(Float64MultiArray, f'{s.forward_controller}/commands', self._on_forward, DEPTH)
+        self.create_subscription(Float64MultiArray, f'{self.config.forward_controller}/commands', self._on_forward,
+                                 DEPTH)
         self.create_timer(1.0 / s.publish_rate, self._on_tick)
 
     def _now(self) -> float:
@@ -158,39 +152,3 @@ class SimActuator(Node):
         self._pub.publish(msg)
         self.counters.joint_states_published += 1
 
-
-def main(args: list[str] | None = None) -> int:
-    """Console script ``fourbar_sim_actuator``: exit 0 on Ctrl-C/SIGTERM, 2 with one line on bad parameters."""
-    prog = 'fourbar_sim_actuator'
-    STOP.install()  # from here a stop only ends the spin loop (see run.py)
-    argv = sys.argv if args is None else args
-    problem = params_file_problem(argv)
-    if problem is not None:
-        print(f'{prog}: error: {problem}', file=sys.stderr)
-        return 2
-    try:
-        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    except Exception as exc:  # e.g. an unreadable --params-file: rcl raises RCLError
-        print(f'{prog}: error: {one_line(exc)}', file=sys.stderr)
-        return 2
-    node: SimActuator | None = None
-    executor: Executor | None = None
-    try:
-        node = SimActuator()
-        executor = create_executor(executor_kind())
-        executor.add_node(node)
-        spin_until_stopped(executor)
-    except ConfigError as exc:
-        print(f'{prog}: error: {one_line(exc)}', file=sys.stderr)
-        return 2
-    finally:
-        if executor is not None:
-            executor.shutdown(timeout_sec=0.0)
-        if node is not None:
-            destroy_node(node)
-        rclpy.utilities.try_shutdown()
-    return 0
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -3,7 +3,7 @@
 - The pose: rocker angles gamma, delta (rad) and the driven rocker's torque (N m) under the configured load
   (constant plus the antenna's weight, ``core.loads``).
 - ``joint_states``: positions [gamma, delta, gamma + theta] in the order of the joint names (the coupler joint
-  is the coupler's angle to the frame, ``robot_model.coupler_joint_position``); velocities by the velocity rule
+  is the coupler's angle to the frame, ``core.completion.coupler_joint_position``); velocities by the velocity rule
   (``rules.velocity``); efforts with the torque at the driven rocker and 0.0 at the other joints.
 - ``input_torque``: the driven rocker's torque (N m).
 
@@ -21,8 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.robot_model import coupler_joint_position
 from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.completion import coupler_joint_position
 from fourbar_ros.core.loads import Pose, has_gravity_load, load_torque
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.rules.velocity import BoolArray, IntArray, Sample, VelocityState, velocities, velocity_step
