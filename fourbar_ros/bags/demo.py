@@ -391,7 +391,7 @@ def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str)
                    label='planned feed-forward')
     if rec.input_torque.t.size:
         ax_torque.plot(rec.input_torque.t, motor_torque(cfg, rec.input_torque.value), color='tab:green', lw=1,
-                       label='input_torque')
+                       label='input_torque (node, at the command)')
     ax_torque.axhline(cfg.motor_torque_limit, color='tab:red', ls=':', lw=1.2,
                       label=f'motor limit {cfg.motor_torque_limit:g} N m')
     ax_torque.set_ylim(0.0, 1.2 * max(cfg.motor_torque_limit, s.peak_motor_torque))

@@ -207,7 +207,10 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
             raise ReplayError(f'{dead.command[-1]} exited with status '
                               f'{dead.proc.poll() if dead.proc else "?"}: {dead.last_log_line()}')
         recorder = Recorder(ros, outputs, plans, args.storage)
-        recorder.handshake(executor, args.timeout)
+        recorder.handshake(executor, args.timeout, own=(topics.command,))
+        rec = recorder
+        if not spin_until(executor, rec.matched, args.timeout):
+            raise ReplayError(f'the recording did not match every topic\'s publishers within {args.timeout:g} s')
         replayer.prepare_timed(executor, args.timeout)
         print(f'{prog}: fourbar_node (pid {node.proc.pid if node.proc else "?"}) and the simulated actuator '
               f'(pid {sim.proc.pid if sim.proc else "?"}) are up; replaying paced', file=sys.stderr, flush=True)
