@@ -52,6 +52,17 @@ COMMAND = Topic('antenna_angle_cmd', FLOAT64, STREAM_DEPTH, Reliability.BEST_EFF
 JOINT_STATES = Topic('joint_states', JOINT_STATE, STREAM_DEPTH)
 #: The driven rocker's torque (N m), per command.
 INPUT_TORQUE = Topic('input_torque', FLOAT64, STREAM_DEPTH)
+#: Actuator modes: the measured driven joint in (joint_state_broadcaster's topic; the same name as the output).
+MEASURED_JOINT_STATES = Topic('joint_states', JOINT_STATE, STREAM_DEPTH)
+#: Actuator modes: the antenna angle theta completed from the measured driven joint (rad).
+ANTENNA_ANGLE = Topic('antenna_angle', FLOAT64, STREAM_DEPTH)
+#: Actuator modes: its rate d theta/dt by the chain rule (rad/s), when the measurement has a velocity.
+ANTENNA_RATE = Topic('antenna_rate', FLOAT64, STREAM_DEPTH)
+#: Actuator modes: the load torque on the antenna the measured effort holds (N m about theta, + in the sense of
+#: increasing theta), when the measurement has an effort.
+LOAD_TORQUE = Topic('load_torque', FLOAT64, STREAM_DEPTH)
+#: What the node publishes for each measurement (actuator modes), in publishing order.
+PER_MEASUREMENT_OUTPUTS = (JOINT_STATES, ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE)
 #: The linkage drawing, every marker_period s when subscribed and changed.
 MARKERS = Topic('linkage_markers', MARKER_ARRAY, STATUS_DEPTH)
 #: The node's status, every diagnostics_period s.

@@ -64,6 +64,7 @@ from fourbar_ros.core.antenna import LinkageState
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
 from fourbar_ros.node.actuation import Actuation
+from fourbar_ros.node.completion import MeasuredCompletion
 from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
     MessageInfoCallback,
@@ -143,6 +144,10 @@ class FourBarNode(Node):
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS.name, qos(MARKERS),
                                                  qos_overriding_options=qos_options)
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.name, qos(DIAGNOSTICS))
+        # Actuator modes: joint_states carries the measured state (completed here), never the commanded pose.
+        self._publishes_pose = self._config.mode == 'open_loop'
+        self.completion = (None if self._publishes_pose
+                           else MeasuredCompletion(self, self._config, self._joint_pub, qos, self._warn))
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
         self._command_sub = self.create_subscription(Float64, COMMAND.name, MessageInfoCallback(self._on_command),
                                                      qos(COMMAND), qos_overriding_options=qos_options)
@@ -288,7 +293,9 @@ class FourBarNode(Node):
         state: Pose | None = None
         if self.actuation is not None:
             self.actuation.command(theta)
-        elif self._joint_pub.get_subscription_count() > 0:
+        if self.completion is not None:
+            self.completion.set_commanded(theta)
+        if self._publishes_pose and self._joint_pub.get_subscription_count() > 0:
             state = self._solve(theta)
             if state is not None:
                 self._publish_joints(theta, state)
@@ -330,7 +337,7 @@ class FourBarNode(Node):
         whole period without a per-command JointState: a command stream is never interleaved with repeats."""
         served = self._served
         answered, self._answered = self._answered, False
-        if served is None or answered or self._joint_pub.get_subscription_count() == 0:
+        if served is None or answered or not self._publishes_pose or self._joint_pub.get_subscription_count() == 0:
             return
         held = self._held
         if held is None or held[:2] != (served, self._generation):  # not published yet (nobody listened then)
@@ -389,10 +396,16 @@ class FourBarNode(Node):
         values = summary.values + command_rate(self.counters.commands_received - received, time.monotonic() - since)
         if self.actuation is not None:
             values += self.actuation.diagnostic_values()
+        level, message = summary.level, summary.message
+        if self.completion is not None:
+            measured_level, measured_message, measured_values = self.completion.diagnostics()
+            values += measured_values
+            if measured_level > level:
+                level, message = measured_level, measured_message
         # Named as diagnostic_updater names a task's status: '<node name>: <task>' (no namespace, no leading slash).
         return DiagnosticStatus(
-            level=bytes([int(summary.level)]), name=f'{self.get_name()}: {DIAGNOSTIC_TASK}',
-            message=summary.message, hardware_id=self._config.hardware_id,
+            level=bytes([int(level)]), name=f'{self.get_name()}: {DIAGNOSTIC_TASK}',
+            message=message, hardware_id=self._config.hardware_id,
             values=[KeyValue(key=k, value=v) for k, v in values])
 
     def _on_diagnostics_timer(self) -> None:

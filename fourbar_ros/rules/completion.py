@@ -6,7 +6,8 @@ in the sense of increasing q), through the core's exact inverse (``core.completi
 ``from_rocker`` that matches the configured one, ``inverse_branch``):
 
 - ``joint_states``: names [the other rocker's joint, the coupler joint], positions [other rocker, gamma + theta]
-  rad, velocities rad/s by the chain rule (empty without q_dot, or at the driven rocker's dead point where they are
+  rad (each the turn nearest the open-loop pose at mid-range, so they lie within the URDF's limits), velocities
+  rad/s by the chain rule (empty without q_dot, or at the driven rocker's dead point where they are
   unbounded), efforts empty (the passive joints carry no actuator effort). The driven joint is the measurement's.
 - ``antenna_angle``: theta (rad); ``antenna_rate``: theta_dot (rad/s) where q_dot is given and bounded.
 - ``load_torque``: effort * dq/dtheta (N m about theta, + in the sense of increasing theta; power balance, no
@@ -33,9 +34,12 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.completion import complete, inverse_branch
 from fourbar_ros.core.errors import DeadPointError, SingularPositionError
+from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
 
-__all__ = ['CompletedBlock', 'Completed', 'CompletionRule', 'complete_block', 'completed_names']
+__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'complete_block', 'completed_names']
+
+_TWO_PI = 2.0 * math.pi
 
 
 def completed_names(cfg: AntennaConfig) -> tuple[str, str]:
@@ -64,6 +68,11 @@ class CompletionRule:
         self.reach = cfg.linkage.rocker_reach(cfg.driven)
         self.driven_joint = cfg.driven_joint
         self.names = list(completed_names(cfg))
+        mid = pose(cfg, 0.5 * (cfg.theta_min + cfg.theta_max))
+        gamma_driven = cfg.driven is Driven.GAMMA
+        #: The forward solve's [other rocker, coupler joint] at mid-range: from_rocker wraps angles to [-pi, pi],
+        #: the published ones are taken the turn nearest these (as the open-loop pose and the URDF limits have them).
+        self.reference = ((mid.delta if gamma_driven else mid.gamma), mid.gamma + 0.5 * (cfg.theta_min + cfg.theta_max))
 
     def in_reach(self, q: float) -> bool:
         """Can the driven rocker take q (rad, finite)?"""
@@ -93,7 +102,10 @@ class CompletionRule:
                     raise
                 effort = None
         theta = float(c.theta)
-        positions = [float(c.other), float(c.coupler_joint)]
+        ref_other, ref_coupler = self.reference
+        other, coupler = float(c.other), float(c.coupler_joint)
+        positions = [other - _TWO_PI * round((other - ref_other) / _TWO_PI),
+                     coupler - _TWO_PI * round((coupler - ref_coupler) / _TWO_PI)]
         if c.theta_rate is None:
             return Completed(theta, positions, [], None, None if c.load_torque is None else float(c.load_torque))
         return Completed(theta, positions, [float(c.other_rate), float(c.coupler_joint_rate)],  # type: ignore[arg-type]
@@ -127,10 +139,11 @@ def complete_block(cfg: AntennaConfig, q: FloatArray, q_dot: FloatArray, effort:
     if c.theta_rate is None:
         velocities, theta_rate = np.full((q.size, 2), np.nan), nan
     else:
-        velocities = np.column_stack([c.other_rate, c.coupler_joint_rate]).astype(np.float64)
+        velocities = np.column_stack([c.other_rate, c.coupler_joint_rate]).astype(np.float64)  # type: ignore[list-item]
         velocities[~np.isfinite(velocities).all(axis=1)] = np.nan
         theta_rate = np.asarray(c.theta_rate, dtype=np.float64)
     load = nan if c.load_torque is None else np.asarray(c.load_torque, dtype=np.float64)
-    return CompletedBlock(np.isfinite(theta), theta,
-                          np.column_stack([c.other, c.coupler_joint]).astype(np.float64), velocities, theta_rate,
-                          load)
+    positions = np.column_stack([c.other, c.coupler_joint]).astype(np.float64)
+    reference = np.array(rule.reference)
+    positions -= _TWO_PI * np.round((positions - reference) / _TWO_PI)  # the turn nearest the reference (one)
+    return CompletedBlock(np.isfinite(theta), theta, positions, velocities, theta_rate, load)

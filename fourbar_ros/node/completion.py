@@ -1,0 +1,188 @@
+"""The actuator modes' completion: the measured driven joint in, the whole linkage out (fourbar_node composes it).
+
+Interface (relative names; only in the modes ``trajectory`` and ``forward``):
+  sub  joint_states   sensor_msgs/JointState  the measured driven joint (``driven_joint``), as joint_state_broadcaster
+                                              publishes it; position rad, velocity rad/s and effort N m optional
+  pub  joint_states   sensor_msgs/JointState  the passive joints [other rocker, coupler joint]: position rad,
+                                              velocity rad/s by the chain rule (when measured), effort empty;
+                                              stamped with the measurement's stamp
+  pub  antenna_angle  std_msgs/Float64        theta, rad
+  pub  antenna_rate   std_msgs/Float64        d theta/dt, rad/s (when the velocity is measured)
+  pub  load_torque    std_msgs/Float64        N m about theta, + in the sense of increasing theta (when the effort is)
+Each output is computed and published only while it has a subscriber (the node's own joint_states subscription is
+not counted). What is published: ``fourbar_ros.rules.completion``.
+
+No echo: the node's completed JointState has no driven joint, so it is skipped at the first check (counted as
+``measurements_own_skipped`` when its names are the completed ones). rclpy 7.1.6's message info carries no
+publisher gid to compare, so the names are the guard.
+Bad measurements publish nothing, are counted and logged in one throttled line: NaN or inf (refused), no driven
+joint or mismatched array lengths (ignored), an angle the driven rocker cannot take (out of range: diagnostics
+ERROR naming the value and the range until a good measurement arrives). No measurement for ``measurement_timeout``
+s: WARN. ``set_commanded(theta)`` (rad) gives the commanded antenna angle; diagnostics then report commanded minus
+measured theta, now and the worst over ``tracking_window`` s.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.interface import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
+from fourbar_ros.core.errors import FourBarError, one_line
+from fourbar_ros.node.diagnostic_values import Level
+from fourbar_ros.rules.completion import CompletionRule
+
+WARN_THROTTLE_S = 1.0
+
+
+@dataclass
+class MeasurementCounters:
+    """Counts of the completion, reported in diagnostics."""
+
+    measurements_completed: int = 0
+    measurements_refused_not_finite: int = 0
+    measurements_ignored_no_driven_joint: int = 0
+    measurements_ignored_mismatched_lengths: int = 0
+    measurements_out_of_range: int = 0
+    measurements_not_completed: int = 0  # the core could not complete it (a change point)
+    measurements_own_skipped: int = 0  # completed JointStates (the node's own) on the same topic
+
+
+class MeasuredCompletion:
+    """Subscription, publishers, counters and diagnostic values of the completion."""
+
+    def __init__(self, node: Node, cfg: AntennaConfig, joint_pub: Any, qos: Callable[[Topic], QoSProfile],
+                 warn: Callable[..., object]) -> None:
+        """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic; ``warn``: a logger."""
+        self.rule = CompletionRule(cfg)
+        self.counters = MeasurementCounters()
+        self._warn = warn
+        get_logger: Callable[[], Any] = node.get_logger  # unannotated in rclpy
+        self._error: Callable[..., object] = get_logger().error
+        self._timeout = cfg.measurement_timeout
+        self._window = cfg.tracking_window
+        self._joint_pub = joint_pub
+        self._angle_pub = node.create_publisher(Float64, ANTENNA_ANGLE.name, qos(ANTENNA_ANGLE))
+        self._rate_pub = node.create_publisher(Float64, ANTENNA_RATE.name, qos(ANTENNA_RATE))
+        self._load_pub = node.create_publisher(Float64, LOAD_TORQUE.name, qos(LOAD_TORQUE))
+        self._sub = node.create_subscription(JointState, MEASURED_JOINT_STATES.name, self.on_measurement,
+                                             qos(MEASURED_JOINT_STATES))
+        self._own = 1 if self._sub.topic_name == joint_pub.topic_name else 0  # our own subscription matches it
+        self._driven, self._names = self.rule.driven_joint, self.rule.names
+        self._msg = JointState()
+        self._msg.name = list(self._names)
+        self._float = Float64()
+        self._started = time.monotonic()
+        self._last_time: float | None = None  # steady time (s) of the last measurement taken
+        self._range_error: str | None = None  # the last out-of-range measurement, until a good one
+        self.theta: float | None = None  # the last measured antenna angle, rad
+        self._commanded: float | None = None
+        self._tracking: deque[tuple[float, float]] = deque()  # (steady time s, |commanded - measured| rad)
+
+    def set_commanded(self, theta: float) -> None:
+        """The commanded antenna angle (rad), for the tracking error."""
+        self._commanded = theta
+
+    def on_measurement(self, msg: JointState) -> None:
+        """Complete one measured JointState and publish what has a subscriber."""
+        names = msg.name
+        counters = self.counters
+        try:
+            i = names.index(self._driven)
+        except ValueError:
+            if names == self._names:
+                counters.measurements_own_skipped += 1
+            else:
+                counters.measurements_ignored_no_driven_joint += 1
+                self._warn(f'joint_states without {self._driven} (names {names}): ignored',
+                           throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        position, velocity, effort = msg.position, msg.velocity, msg.effort
+        n = len(names)
+        if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
+            counters.measurements_ignored_mismatched_lengths += 1
+            self._warn(f'joint_states with {n} names but {len(position)} positions, {len(velocity)} velocities, '
+                       f'{len(effort)} efforts: ignored', throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        self._last_time = now = time.monotonic()
+        q = position[i]
+        q_dot = velocity[i] if velocity else None
+        tau = effort[i] if effort else None
+        if not (math.isfinite(q) and (q_dot is None or math.isfinite(q_dot)) and (tau is None or math.isfinite(tau))):
+            counters.measurements_refused_not_finite += 1
+            self._warn(f'measured {self._driven}: position {q!r}, velocity {q_dot!r}, effort {tau!r}: not finite, '
+                       'refused', throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        rule = self.rule
+        if not rule.in_reach(q):
+            counters.measurements_out_of_range += 1
+            self._range_error = rule.out_of_range(q)
+            self._error(self._range_error, throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        joints = self._joint_pub.get_subscription_count() > self._own
+        rate = self._rate_pub.get_subscription_count() > 0
+        load = self._load_pub.get_subscription_count() > 0
+        try:
+            done = rule.one(q, q_dot if joints or rate else None, tau if load else None)
+        except FourBarError as exc:
+            counters.measurements_not_completed += 1
+            self._error(f'cannot complete {self._driven} = {q!r} rad: {one_line(exc)}',
+                        throttle_duration_sec=WARN_THROTTLE_S)
+            return
+        self._range_error = None
+        if joints:
+            out = self._msg
+            out.header.stamp = msg.header.stamp
+            out.position = done.positions
+            out.velocity = done.velocities
+            self._joint_pub.publish(out)
+        number = self._float
+        if self._angle_pub.get_subscription_count() > 0:
+            number.data = done.theta
+            self._angle_pub.publish(number)
+        if rate and done.theta_rate is not None:
+            number.data = done.theta_rate
+            self._rate_pub.publish(number)
+        if load and done.load_torque is not None:
+            number.data = done.load_torque
+            self._load_pub.publish(number)
+        counters.measurements_completed += 1
+        self.theta = done.theta
+        if self._commanded is not None:
+            tracking = self._tracking
+            tracking.append((now, abs(self._commanded - done.theta)))
+            while tracking[0][0] < now - self._window:
+                tracking.popleft()
+
+    def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
+        """(level, message, key/value pairs) of the completion: ERROR while the last measurement was out of
+        range, WARN after measurement_timeout s without one, OK otherwise."""
+        now = time.monotonic()
+        since = now - (self._last_time if self._last_time is not None else self._started)
+        values = [(k, str(v)) for k, v in asdict(self.counters).items()]
+        values.append(('measurement_age_s', repr(since) if self._last_time is not None else 'none'))
+        if self.theta is not None:
+            values.append(('measured_theta_rad', repr(self.theta)))
+        if self._commanded is not None and self.theta is not None:
+            while self._tracking and self._tracking[0][0] < now - self._window:
+                self._tracking.popleft()
+            worst = max((e for _, e in self._tracking), default=abs(self._commanded - self.theta))
+            values += [('commanded_theta_rad', repr(self._commanded)),
+                       ('tracking_error_rad', repr(self._commanded - self.theta)),
+                       ('tracking_error_worst_rad', repr(worst))]
+        if self._range_error is not None:
+            return Level.ERROR, self._range_error, values
+        if since > self._timeout:
+            return (Level.WARN, f'no measurement of {self._driven} on joint_states for {since:.3g} s '
+                    f'(measurement_timeout {self._timeout:g} s)', values)
+        return Level.OK, 'ok', values

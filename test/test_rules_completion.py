@@ -1,0 +1,181 @@
+"""The completion rule: the measured driven joint completed to the whole linkage, per message and per block.
+
+Checked: the completion of the configured forward pose gives back its theta and the other rocker (the branch
+mapping, every driven rocker and branch, several geometries); the per-message path is the core's exact solution
+(the same calls); the per-message and block paths agree within the ulp bound over the rocker's whole range, down to
+1e-15 of its ends; the load torque of the effort the statics need gives back the load; what is left out where it is
+unbounded; the range check. No ROS.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps, sine_ratio_scale
+
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values
+from fourbar_ros.core.antenna import Branch, Driven
+from fourbar_ros.core.completion import complete
+from fourbar_ros.core.loads import pose
+from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.rules.completion import CompletionRule, complete_block, completed_names
+
+#: Geometries (frame, rocker AB, coupler, rocker CD in m; tilt range in rad) with either branch mapping.
+GEOMETRIES = [
+    {},
+    {'frame_length': 0.5, 'rocker_ab_length': 0.3, 'coupler_length': 0.35, 'rocker_cd_length': 0.25,
+     'theta_min': -0.2, 'theta_max': 0.2},
+    {'frame_length': 0.18, 'rocker_ab_length': 0.31, 'coupler_length': 0.82, 'rocker_cd_length': 0.62,
+     'theta_min': -0.2, 'theta_max': 0.2},  # a coupler longer than the frame: from_rocker counts the other branch
+]
+
+
+def configs() -> list[AntennaConfig]:
+    out = []
+    for geometry in GEOMETRIES:
+        for driven in ('gamma', 'delta'):
+            for branch in ('upper', 'lower'):
+                try:
+                    out.append(config_from_values({**geometry, 'driven_rocker': driven, 'branch': branch}))
+                except ValueError:
+                    continue
+    return out
+
+
+CONFIGS = configs()
+
+
+def test_the_configs_cover_both_branch_mappings() -> None:
+    mapped = {CompletionRule(cfg).branch == cfg.branch for cfg in CONFIGS}
+    assert mapped == {True, False}, 'a geometry whose from_rocker branch differs from the configured one is needed'
+
+
+@pytest.mark.parametrize('cfg', CONFIGS, ids=lambda c: f'{c.frame_length}-{c.driven.value}-{c.branch.name}')
+def test_completing_the_forward_pose_gives_back_its_theta(cfg: AntennaConfig) -> None:
+    rule = CompletionRule(cfg)
+    for theta in np.linspace(cfg.theta_min, cfg.theta_max, 25).tolist():
+        p = pose(cfg, theta)
+        q, other = (p.gamma, p.delta) if cfg.driven is Driven.GAMMA else (p.delta, p.gamma)
+        done = rule.one(q, None, p.input_torque)
+        rates = cfg.linkage.rates_at(theta, p.gamma, p.delta)
+        dq = float(rates[0] if cfg.driven is Driven.GAMMA else rates[1])
+        # theta from q: n ulps of pi + |theta| + |q dtheta/dq| (core.completion's test), the forward solve's q
+        # n ulps of 1 + |q| + |theta dq/dtheta|, carried by dtheta/dq.
+        scale = math.pi + abs(theta) + abs(q / dq) + (1 + abs(q) + abs(theta * dq)) / abs(dq)
+        assert_close_ulps(done.theta, theta, 2 * CHAIN_ULPS, scale, f'theta at {theta}')
+        assert abs(done.positions[0] - other) < 1e-9  # the same assembly (the other branch is ~0.8 rad away)
+        assert done.load_torque is not None
+        assert done.load_torque == pytest.approx(cfg.load_torque, rel=1e-9)  # power balance: the load comes back
+
+
+def rocker_angles(cfg: AntennaConfig) -> FloatArray:
+    """Angles (rad) across the driven rocker's range, down to 1e-15 of it from either end, both signs."""
+    r = cfg.linkage.rocker_reach(cfg.driven)
+    fractions = np.concatenate([np.linspace(0.0, 1.0, 41), 1 - 10.0 ** -np.arange(1, 16), 10.0 ** -np.arange(1, 16)])
+    mags = np.clip(r.theta_gap + fractions * (r.theta_max - r.theta_gap), r.theta_gap, r.theta_max)
+    return np.concatenate([mags, -mags])
+
+
+@pytest.mark.parametrize('cfg', CONFIGS, ids=lambda c: f'{c.frame_length}-{c.driven.value}-{c.branch.name}')
+def test_per_message_and_block_paths_agree(cfg: AntennaConfig) -> None:
+    rule = CompletionRule(cfg)
+    q = rocker_angles(cfg)
+    q_dot, effort = 0.37, -0.021  # rad/s, N m
+    block = complete_block(cfg, q, np.full(q.size, q_dot), np.full(q.size, effort), rule)
+    exact = complete(cfg.linkage, q, cfg.driven, rule.branch, q_rate=q_dot, effort=effort, on_invalid='nan')
+    ok = block.valid
+    assert ok.sum() > 0.9 * q.size
+    assert np.array_equal(block.theta[ok], exact.theta[ok])  # the block is the core's array path, as is
+    theta, other = block.theta[ok], block.positions[ok, 0]
+    qs = q[ok]
+    gamma_driven = cfg.driven is Driven.GAMMA
+    g, d = (qs, other) if gamma_driven else (other, qs)
+    link = cfg.linkage
+    h, ab, cd = link.coupler, link.rocker_ab, float(link.rocker_cd or 0.0)
+    x, u, v = g + d, d - theta, g + theta
+    lever, across = (u, v) if gamma_driven else (v, u)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        dtheta = np.abs(np.sin(x) / np.sin(lever))  # ~ |dtheta/dq| up to the length ratio (scales only)
+        dother = np.abs(np.sin(across) / np.sin(lever))
+        # Each path rounds theta and the other rocker to n ulps of these (core.completion's test): the inverse's own
+        # rounding plus q's, carried by the derivatives.
+        theta_scale = math.pi + np.abs(theta) + np.abs(qs) * dtheta * max(ab, cd) / h
+        other_scale = math.pi + np.abs(other) + np.abs(qs) * dother * max(ab, cd) / min(ab, cd)
+        x_scale = theta_scale + other_scale + np.abs(qs)
+        rate_scale = sine_ratio_scale(max(ab, cd) / h, x, x_scale, lever, 2 * x_scale)
+        other_rate_scale = sine_ratio_scale(max(ab, cd) / min(ab, cd), across, 2 * x_scale, lever, 2 * x_scale)
+        load_scale = sine_ratio_scale(h / min(ab, cd), lever, 2 * x_scale, x, x_scale)
+    for scale in (rate_scale, other_rate_scale, load_scale):  # 0/0 exactly at a dead point: unbounded condition
+        scale[np.isnan(scale)] = np.inf
+    n = 2 * CHAIN_ULPS  # two paths, each within CHAIN_ULPS of the scale
+    top = rule.reach.theta_max
+    for i, (qi, ti) in enumerate(zip(qs.tolist(), theta.tolist(), strict=True)):
+        one = rule.one(qi, q_dot, effort)
+        assert_close_ulps(one.theta, ti, n, theta_scale[i], f'theta at q={qi!r}')
+        assert_close_ulps(one.positions[0], other[i], n, other_scale[i], f'other at q={qi!r}')
+        assert_close_ulps(one.positions[1], block.positions[ok][i, 1], n, x_scale[i], f'coupler at q={qi!r}')
+        if bool(one.velocities) == bool(np.isnan(block.theta_rate[ok][i])):
+            # the dead-point test (the lever's sine within the core's tolerance) decided differently by the
+            # paths' ulps: only where the lever's sine is that tolerance, at the very end of the rocker's range
+            assert abs(abs(qi) - top) <= 4 * EPS * top, qi
+        elif one.velocities:
+            assert_close_ulps(one.theta_rate, block.theta_rate[ok][i], n, q_dot * rate_scale[i], f'rate at {qi!r}')
+            assert_close_ulps(one.velocities[0], block.velocities[ok][i, 0], n, q_dot * other_rate_scale[i],
+                              f'other rate at q={qi!r}')
+            assert_close_ulps(one.velocities[1], block.velocities[ok][i, 1], n,
+                              q_dot * (1 + rate_scale[i] + other_rate_scale[i]), f'coupler rate at q={qi!r}')
+        else:  # the dead point: unbounded in both paths
+            assert np.isnan(block.velocities[ok][i]).all(), qi
+        if one.load_torque is not None:
+            assert_close_ulps(one.load_torque, block.load_torque[ok][i], n, abs(effort) * load_scale[i],
+                              f'load at q={qi!r}')
+        else:
+            assert np.isnan(block.load_torque[ok][i]), qi
+    assert not block.valid[~ok].any()
+
+
+def test_nothing_unbounded_is_published_at_the_ends_of_the_ranges() -> None:
+    for cfg in CONFIGS:
+        rule = CompletionRule(cfg)
+        top = rule.reach.theta_max
+        reach = cfg.linkage.reach()
+        limit_gamma, limit_delta = cfg.linkage.rocker_angles(reach.theta_max, cfg.branch)
+        limit_q = float(limit_gamma if cfg.driven is Driven.GAMMA else limit_delta)
+        # The driven rocker's reach limit (a dead point: the rates are unbounded, left out within the core's
+        # tolerance) and the antenna's (rockers parallel: the load torque is unbounded, left out likewise).
+        for q in (top, -top, math.nextafter(top, 0.0), limit_q):
+            done = rule.one(q, 0.1, 0.01)
+            values = [done.theta, *done.positions, *done.velocities, done.theta_rate or 0.0, done.load_torque or 0.0]
+            assert all(math.isfinite(v) for v in values), (cfg, q, done)
+            assert len(done.velocities) in (0, 2) and (done.theta_rate is None) == (not done.velocities)
+
+
+def test_what_is_not_given_is_not_computed_and_names() -> None:
+    cfg = CONFIGS[0]
+    rule = CompletionRule(cfg)
+    done = rule.one(0.5)
+    assert done.velocities == [] and done.theta_rate is None and done.load_torque is None
+    assert rule.names == list(completed_names(cfg)) == [cfg.delta_joint, cfg.coupler_joint]
+    block = complete_block(cfg, np.array([0.5, 0.6]), np.full(2, np.nan), np.array([np.nan, 0.01]))
+    assert np.isnan(block.velocities).all() and np.isnan(block.theta_rate).all()
+    assert np.isnan(block.load_torque[0]) and np.isfinite(block.load_torque[1])
+
+
+def test_range_check_names_the_value_and_the_range() -> None:
+    rule = CompletionRule(CONFIGS[0])
+    top = rule.reach.theta_max
+    assert rule.in_reach(top) and rule.in_reach(-top) and not rule.in_reach(math.nextafter(top, 4.0))
+    assert not rule.in_reach(math.nan) and not rule.in_reach(math.inf)
+    line = rule.out_of_range(2.5)
+    assert '2.5 rad' in line and rule.reach.describe() in line and '\n' not in line
+    block = complete_block(CONFIGS[0], np.array([2.5, math.nan, math.inf, top]), np.zeros(4), np.zeros(4))
+    assert block.valid.tolist() == [False, False, False, True]
+    assert np.isnan(block.positions[:3]).all()
+
+
+def test_branch_of_the_measured_rocker_is_explicit() -> None:
+    for cfg in CONFIGS:
+        assert CompletionRule(cfg).branch in (Branch.UPPER, Branch.LOWER)
+    assert EPS > 0
