@@ -20,7 +20,14 @@ import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import COMMAND, DIAGNOSTICS, INPUT_TORQUE, JOINT_STATES, trajectory_topic
+from fourbar_ros.config.interface import (
+    ANTENNA_ANGLE,
+    COMMAND,
+    DIAGNOSTICS,
+    INPUT_TORQUE,
+    JOINT_STATES,
+    trajectory_topic,
+)
 from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.completion import complete, inverse_branch
 from fourbar_ros.core.errors import FourBarError
@@ -58,7 +65,7 @@ class DemoTopics:
 
 def demo_topics(trajectory_controller: str) -> DemoTopics:
     """The recorded topics in the root namespace, where the demo runs its nodes."""
-    return DemoTopics(f'/{COMMAND.name}', f'/{JOINT_STATES.name}', '/antenna_angle', f'/{INPUT_TORQUE.name}',
+    return DemoTopics(f'/{COMMAND.name}', f'/{JOINT_STATES.name}', f'/{ANTENNA_ANGLE.name}', f'/{INPUT_TORQUE.name}',
                       f'/{trajectory_topic(trajectory_controller).name}', DIAGNOSTICS.name)
 
 
@@ -73,7 +80,8 @@ class Series:
 @dataclass(frozen=True)
 class Measured:
     """The simulated actuator's joint_states: driven joint position (rad), velocity (rad/s), effort (N m at the
-    driven rocker) and the header stamps (ns) the completion carries over."""
+    driven rocker) and the header stamps (ns) the completion carries over. Timed by these stamps (when measured,
+    on the same clock as the recording's receive times), not by when they arrived."""
 
     position: Series
     velocity: FloatArray
@@ -195,6 +203,7 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
             completed_rows.append(row)
     if not measured_rows:
         raise DemoError(f'no measured {driven!r} recorded on {topics.joint_states}')
+    measured_stamps = np.array([_stamp_ns(m.header) for _, m in measured_rows], dtype=np.int64)
 
     def field(rows: Sequence[tuple[int, Any]], name: str, attr: str) -> FloatArray:
         return np.array([_column(getattr(m, attr), list(m.name).index(name)) for _, m in rows], dtype=np.float64)
@@ -205,9 +214,9 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
     return Recording(
         command=Series(seconds(commands)[answered.index], answered.theta),
         commands_recorded=len(commands), rejected=rejected, clamped=answered.outcomes[Outcome.CLAMPED],
-        measured=Measured(Series(seconds(measured_rows), field(measured_rows, driven, 'position')),
+        measured=Measured(Series((measured_stamps - t0) * 1e-9, field(measured_rows, driven, 'position')),
                           field(measured_rows, driven, 'velocity'), field(measured_rows, driven, 'effort'),
-                          np.array([_stamp_ns(m.header) for _, m in measured_rows], dtype=np.int64)),
+                          measured_stamps),
         antenna=Series(seconds(angles), np.array([m.data for _, m in angles], dtype=np.float64)),
         completed=Completed(np.array([_stamp_ns(m.header) for _, m in completed_rows], dtype=np.int64),
                             field(completed_rows, other_name, 'position'),
@@ -326,7 +335,8 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
     return [
         f'command  {_deg(float(rec.command.value.min()))} .. {_deg(float(rec.command.value.max()))} '
         f'({rec.command.value.size} served of {rec.commands_recorded} sent; {rec.rejected} rejected, '
-        f'{rec.clamped} clamped; node diagnostics: {diagnostics.get("commands_received", "?")} received)',
+        f'{rec.clamped} clamped; node diagnostics: {diagnostics.get("commands_received", "?")} received, '
+        f'{diagnostics.get("commands_planned", "?")} planned, {diagnostics.get("commands_not_planned", "?")} not)',
         f'tracking final {_deg(s.final_error)} (commanded - measured antenna angle), worst {_deg(s.worst_error)} '
         f'at {s.worst_error_t:.2f} s',
         f'speed    peak {math.degrees(speed_peak):.3f} deg/s at the driven rocker (measured '

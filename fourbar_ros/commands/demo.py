@@ -192,8 +192,10 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     diagnostics: list[dict[str, str]] = []
     antenna: list[float] = []
 
-    def failed() -> NodeProcess | None:
-        return next((p for p in (node, sim) if not p.running()), None)
+    names = {'fourbar_node': node, 'the simulated actuator': sim}
+
+    def failed() -> str | None:
+        return next((name for name, p in names.items() if not p.running()), None)
     try:
         replayer = Replayer(ros, stream, topic=topics.command)
         ros.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
@@ -202,15 +204,23 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         def on_antenna(msg: Float64) -> None:
             antenna.append(msg.data)
         ros.create_subscription(Float64, topics.antenna_angle, on_antenna, STREAM_DEPTH)
+        # joint_states has two publishers, the simulated actuator (measured) and the node (completed): both first.
+        spin_until(executor, lambda: failed() is not None or ros.count_publishers(topics.joint_states) >= 2,
+                   args.timeout)
         plans = discover(ros, executor, topics.all(), args.timeout, stop=lambda: failed() is not None)
         if (dead := failed()) is not None:
-            raise ReplayError(f'{dead.command[-1]} exited with status '
-                              f'{dead.proc.poll() if dead.proc else "?"}: {dead.last_log_line()}')
+            proc = names[dead]
+            raise ReplayError(f'{dead} exited with status {proc.proc.poll() if proc.proc else "?"}: '
+                              f'{proc.last_log_line()}')
         recorder = Recorder(ros, outputs, plans, args.storage)
         recorder.handshake(executor, args.timeout, own=(topics.command,))
         rec = recorder
-        if not spin_until(executor, rec.matched, args.timeout):
-            raise ReplayError(f'the recording did not match every topic\'s publishers within {args.timeout:g} s')
+        # Every publisher matched, and the node completes measurements (so it plans from the measured position).
+        if not spin_until(executor, lambda: rec.matched() and bool(antenna), args.timeout):
+            raise ReplayError(f'no measured antenna angle from fourbar_node within {args.timeout:g} s'
+                              if rec.matched() else
+                              f'the recording did not match every publisher of {", ".join(topics.all())} within '
+                              f'{args.timeout:g} s')
         replayer.prepare_timed(executor, args.timeout)
         print(f'{prog}: fourbar_node (pid {node.proc.pid if node.proc else "?"}) and the simulated actuator '
               f'(pid {sim.proc.pid if sim.proc else "?"}) are up; replaying paced', file=sys.stderr, flush=True)

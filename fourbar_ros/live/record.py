@@ -176,8 +176,10 @@ class Recorder:
         return max(0.0, self._next_flush - time.monotonic())
 
     def matched(self) -> bool:
-        """True once every subscription has matched at least one publisher."""
-        return all(s.get_publisher_count() >= 1 for s in self._subs)
+        """True once every subscription has matched as many publishers as its topic had when discovered (at least
+        one): several nodes may publish one topic (joint_states)."""
+        return all(s.get_publisher_count() >= max(1, len(p.offered)) for s, p in zip(self._subs, self.plans,
+                                                                                     strict=False))
 
     def handshake(self, executor: Executor, timeout_s: float, own: Collection[str] = ()) -> list[str]:
         """Wait until every publishing node has discovered this recorder's subscriptions.
