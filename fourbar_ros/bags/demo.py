@@ -214,7 +214,8 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
     return Recording(
         command=Series(seconds(commands)[answered.index], answered.theta),
         commands_recorded=len(commands), rejected=rejected, clamped=answered.outcomes[Outcome.CLAMPED],
-        measured=Measured(Series((measured_stamps - t0) * 1e-9, field(measured_rows, driven, 'position')),
+        measured=Measured(Series(((measured_stamps - t0) * 1e-9).astype(np.float64),
+                                 field(measured_rows, driven, 'position')),
                           field(measured_rows, driven, 'velocity'), field(measured_rows, driven, 'effort'),
                           measured_stamps),
         antenna=Series(seconds(angles), np.array([m.data for _, m in angles], dtype=np.float64)),
