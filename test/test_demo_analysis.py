@@ -127,17 +127,22 @@ def test_completion_check_sees_a_wrong_coupler(cfg: AntennaConfig) -> None:
 
 
 def test_unpaired_completions_are_counted(cfg: AntennaConfig) -> None:
-    messages = _recording(cfg)
     topics = demo_topics(cfg.trajectory_controller)
-    messages[topics.joint_states] = messages[topics.joint_states][20:]  # measurements 0..9 not recorded
-    s = summarize(recording(messages, topics, cfg), cfg)
+
+    def without_measurements(first: int, last: int) -> dict[str, list[tuple[int, Any]]]:
+        messages = _recording(cfg)
+        messages[topics.joint_states] = [
+            r for r in messages[topics.joint_states]
+            if r[1].name != [cfg.driven_joint] or not T0 + first * 10 * MS <= r[1].header.stamp.sec * 10**9
+            + r[1].header.stamp.nanosec <= T0 + last * 10 * MS]
+        return messages
+    s = summarize(recording(without_measurements(50, 59), topics, cfg), cfg)
+    assert (s.completed_paired, s.completed_unpaired) == (191, 10)
+    # Completions of measurements before the first recorded one: the recording started after them, left out.
+    s = summarize(recording(without_measurements(0, 9), topics, cfg), cfg)
     assert (s.completed_paired, s.completed_unpaired) == (191, 0)
-    messages[topics.joint_states] = [r for r in _recording(cfg)[topics.joint_states] if r[1].name != [cfg.driven_joint]
-                                     or r[0] > T0 + 100 * MS]
     with pytest.raises(DemoError, match='no measured'):
-        recording({topics.command: messages[topics.command]}, topics, cfg)
-    s = summarize(recording(messages, topics, cfg), cfg)
-    assert s.completed_unpaired == 10
+        recording(without_measurements(0, 200), topics, cfg)
 
 
 def test_no_command_is_an_error(cfg: AntennaConfig) -> None:

@@ -286,12 +286,18 @@ def _peak(values: FloatArray) -> float:
 
 def completion_deviation(rec: Recording, cfg: AntennaConfig) -> tuple[float, float, int, int]:
     """Largest |node - core| of the completed positions (rad) and velocities (rad/s), each completed message
-    against ``core.completion.complete`` of the measurement with its stamp; and the paired and unpaired counts."""
+    against ``core.completion.complete`` of the measurement with its stamp; and the paired and unpaired counts
+    (completions stamped before the first recorded measurement are left out: the recording started after them)."""
     by_stamp = {int(s): i for i, s in enumerate(rec.measured.stamp_ns)}
     branch = rocker_branch(cfg)
     position, velocity, paired = 0.0, 0.0, 0
     c = rec.completed
+    first = int(rec.measured.stamp_ns[0])  # completions of measurements sent before the recording matched: not ours
+    considered = 0
     for k, stamp in enumerate(c.stamp_ns):
+        if stamp < first:
+            continue
+        considered += 1
         i = by_stamp.get(int(stamp))
         if i is None:
             continue
@@ -302,7 +308,7 @@ def completion_deviation(rec: Recording, cfg: AntennaConfig) -> tuple[float, flo
         if core.other_rate is not None and core.coupler_joint_rate is not None:
             velocity = max(velocity, abs(c.other_rate[k] - float(core.other_rate)),
                            abs(c.coupler_rate[k] - float(core.coupler_joint_rate)))
-    return position, velocity, paired, c.stamp_ns.size - paired
+    return position, velocity, paired, considered - paired
 
 
 def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
