@@ -344,8 +344,8 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
         f'({rec.command.value.size} served of {rec.commands_recorded} sent; {rec.rejected} rejected, '
         f'{rec.clamped} clamped; node diagnostics: {diagnostics.get("commands_received", "?")} received, '
         f'{diagnostics.get("commands_planned", "?")} planned, {diagnostics.get("commands_not_planned", "?")} not)',
-        f'tracking final {_deg(s.final_error)} (commanded - measured antenna angle), worst {_deg(s.worst_error)} '
-        f'at {s.worst_error_t:.2f} s',
+        f'tracking final {s.final_error:+.3g} rad (commanded - measured antenna angle; trajectory_tolerance '
+        f'{cfg.trajectory_tolerance:g}), worst {_deg(s.worst_error)} at {s.worst_error_t:.2f} s',
         f'speed    peak {math.degrees(speed_peak):.3f} deg/s at the driven rocker (measured '
         f'{math.degrees(s.peak_speed_measured):.3f}, planned {math.degrees(s.peak_speed_planned):.3f}) of the '
         f'{math.degrees(s.speed_limit):.3f} deg/s limit ({cfg.motor_speed_limit:g} rad/s / {cfg.reducer_ratio:g}): '
@@ -388,7 +388,7 @@ def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str)
     ax_error.axhline(0.0, color='0.5', lw=0.6)
     ax_error.set_ylabel('tracking error (deg)')
     ax_error.legend(loc='upper right', fontsize=8,
-                    title=f'final {math.degrees(s.final_error):+.2g} deg, worst {math.degrees(s.worst_error):+.2g}',
+                    title=f'final {s.final_error:+.2g} rad, worst {math.degrees(s.worst_error):+.2f} deg',
                     title_fontsize=8)
 
     limit = math.degrees(s.speed_limit)
