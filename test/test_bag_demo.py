@@ -54,6 +54,8 @@ def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
     # (float64 crosses CDR and the bag unchanged): exactly 0, over every completed measurement (none unpaired).
     deviations = [float(x) for x in re.findall(r'= ([0-9.e+-]+) ', lines['check'])]
     assert deviations == [0.0, 0.0] and '(0 unpaired)' in lines['check'], lines['check']
+    found = re.findall(r'antenna_angle: ([0-9]+) of ([0-9]+) equal', lines['check'])
+    assert found and found[0][0] == found[0][1], lines['check']  # every antenna_angle is a measurement's completion
     png = out / 'demo.png'
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 20_000
 

@@ -99,6 +99,17 @@ def test_series_split_and_planned_motion(cfg: AntennaConfig) -> None:
     assert rec.planned.value.tolist() == [0.70, 0.71, 0.72, 0.73]
     assert rec.planned_velocity.tolist() == [0.0, 0.02, -0.03, 0.0]
     assert rec.trajectories == 2 and rec.diagnostics == 1 and rec.rejected == 0
+    # antenna_angle (no stamp) is timed by the measurement whose completion it equals, not by its arrival (+2 ms).
+    assert rec.antenna_matched == 201 and rec.antenna.t.tolist() == rec.measured.position.t.tolist()
+
+
+def test_antenna_angle_no_measurement_gives_keeps_its_arrival(cfg: AntennaConfig) -> None:
+    messages = _recording(cfg)
+    topics = demo_topics(cfg.trajectory_controller)
+    messages[topics.antenna_angle][50] = (T0 + 502 * MS, Msg(data=1e-3 + messages[topics.antenna_angle][50][1].data))
+    rec = recording(messages, topics, cfg)
+    assert rec.antenna_matched == 200 and rec.antenna.t.size == 201
+    assert rec.antenna.t[50] == pytest.approx(0.502, abs=1e-9)
 
 
 def test_summary_figures(cfg: AntennaConfig) -> None:
@@ -107,7 +118,7 @@ def test_summary_figures(cfg: AntennaConfig) -> None:
     s = summarize(rec, cfg)
     assert s.final_error == pytest.approx(lag, rel=1e-9)
     # Worst: just after the second command (1.0 s), the measurement still half-way (s = 0.5): 0.05 rad behind.
-    assert s.worst_error == pytest.approx(0.05, abs=1e-12) and s.worst_error_t == pytest.approx(1.002, abs=1e-9)
+    assert s.worst_error == pytest.approx(0.05, abs=1e-12) and s.worst_error_t == pytest.approx(1.0, abs=1e-9)
     assert s.speed_limit == cfg.motor_speed_limit / cfg.reducer_ratio
     assert s.peak_speed_measured == 0.01 and s.peak_speed_planned == 0.03
     assert s.speed_margin == pytest.approx(1.0 - 0.03 / s.speed_limit, rel=1e-12)

@@ -10,6 +10,7 @@ reducer_ratio * reducer_efficiency).
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -110,7 +111,8 @@ class Recording:
     rejected: int
     clamped: int
     measured: Measured
-    antenna: Series  #: the node's measured antenna angle (rad)
+    antenna: Series  #: the node's measured antenna angle (rad), timed by the measurement it completes (see below)
+    antenna_matched: int  #: antenna_angle messages equal to the core's completion of a recorded measurement
     completed: Completed
     planned: Series  #: the driven joint's planned position (rad), each trajectory up to the next one's start
     planned_velocity: FloatArray  #: rad/s, at the planned samples
@@ -203,22 +205,25 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
             completed_rows.append(row)
     if not measured_rows:
         raise DemoError(f'no measured {driven!r} recorded on {topics.joint_states}')
-    measured_stamps = np.array([_stamp_ns(m.header) for _, m in measured_rows], dtype=np.int64)
 
     def field(rows: Sequence[tuple[int, Any]], name: str, attr: str) -> FloatArray:
         return np.array([_column(getattr(m, attr), list(m.name).index(name)) for _, m in rows], dtype=np.float64)
 
+    measured_stamps = np.array([_stamp_ns(m.header) for _, m in measured_rows], dtype=np.int64)
+    measured_t = ((measured_stamps - t0) * 1e-9).astype(np.float64)
+    measured_q = field(measured_rows, driven, 'position')
+
     planned, planned_velocity, planned_effort = _planned(messages.get(topics.trajectory, []), driven, t0)
     torques = messages.get(topics.input_torque, [])
     angles = messages.get(topics.antenna_angle, [])
+    antenna, matched = _antenna_series(cfg, angles, seconds(angles), measured_q, measured_t)
     return Recording(
         command=Series(seconds(commands)[answered.index], answered.theta),
         commands_recorded=len(commands), rejected=rejected, clamped=answered.outcomes[Outcome.CLAMPED],
-        measured=Measured(Series(((measured_stamps - t0) * 1e-9).astype(np.float64),
-                                 field(measured_rows, driven, 'position')),
+        measured=Measured(Series(measured_t, measured_q),
                           field(measured_rows, driven, 'velocity'), field(measured_rows, driven, 'effort'),
                           measured_stamps),
-        antenna=Series(seconds(angles), np.array([m.data for _, m in angles], dtype=np.float64)),
+        antenna=antenna, antenna_matched=matched,
         completed=Completed(np.array([_stamp_ns(m.header) for _, m in completed_rows], dtype=np.int64),
                             field(completed_rows, other_name, 'position'),
                             field(completed_rows, coupler_name, 'position'),
@@ -228,6 +233,30 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
         input_torque=Series(seconds(torques), np.array([m.data for _, m in torques], dtype=np.float64)),
         trajectories=len(messages.get(topics.trajectory, [])),
         diagnostics=len(messages.get(topics.diagnostics, [])))
+
+
+def _antenna_series(cfg: AntennaConfig, angles: Sequence[tuple[int, Any]], received: FloatArray, q: FloatArray,
+                    measured_t: FloatArray) -> tuple[Series, int]:
+    """The antenna_angle messages (Float64: no stamp) timed by the measurement each completes: in order, the next
+    recorded measurement whose completion by the core (``complete``, the node's scalar path) gives exactly its
+    value; a message no measurement gives keeps its receive time. Returns the series, sorted by time, and the
+    number found."""
+    branch = rocker_branch(cfg)
+    where: dict[float, list[int]] = {}
+    for i, x in enumerate(q.tolist()):
+        where.setdefault(float(complete(cfg.linkage, float(x), cfg.driven, branch).theta), []).append(i)
+    values = np.array([m.data for _, m in angles], dtype=np.float64)
+    times = received.copy()
+    matched, after = 0, 0
+    for k, v in enumerate(values.tolist()):
+        candidates = where.get(float(v), [])
+        n = bisect.bisect_left(candidates, after)
+        if n < len(candidates):
+            times[k] = measured_t[candidates[n]]
+            after = candidates[n] + 1
+            matched += 1
+    order = np.argsort(times, kind='stable')
+    return Series(times[order], values[order]), matched
 
 
 def commanded_at(command: Series, t: FloatArray) -> FloatArray:
@@ -358,7 +387,8 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
         f'{rec.measured.position.t.size} measured joint_states, {rec.completed.stamp_ns.size} completed, '
         f'{rec.antenna.t.size} antenna_angle, {rec.input_torque.t.size} input_torque, {rec.diagnostics} diagnostics',
         f'check    completion vs core: max |d position| = {s.completion_position:.3g} rad, max |d velocity| = '
-        f'{s.completion_velocity:.3g} rad/s over {s.completed_paired} measurements ({s.completed_unpaired} unpaired)',
+        f'{s.completion_velocity:.3g} rad/s over {s.completed_paired} measurements ({s.completed_unpaired} unpaired); '
+        f'antenna_angle: {rec.antenna_matched} of {rec.antenna.t.size} equal to a measurement\'s',
     ]
 
 
