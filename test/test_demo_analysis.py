@@ -110,6 +110,9 @@ def test_antenna_angle_no_measurement_gives_keeps_its_arrival(cfg: AntennaConfig
     rec = recording(messages, topics, cfg)
     assert rec.antenna_matched == 200 and rec.antenna.t.size == 201
     assert rec.antenna.t[50] == pytest.approx(0.502, abs=1e-9)
+    messages[topics.antenna_angle][0] = (T0, Msg(data=0.5))  # before the first found: left out
+    rec = recording(messages, topics, cfg)
+    assert rec.antenna_matched == 199 and rec.antenna.t.size == 200
 
 
 def test_summary_figures(cfg: AntennaConfig) -> None:

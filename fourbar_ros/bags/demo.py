@@ -113,6 +113,7 @@ class Recording:
     measured: Measured
     antenna: Series  #: the node's measured antenna angle (rad), timed by the measurement it completes (see below)
     antenna_matched: int  #: antenna_angle messages equal to the core's completion of a recorded measurement
+    antenna_recorded: int  #: antenna_angle messages in the recording
     completed: Completed
     planned: Series  #: the driven joint's planned position (rad), each trajectory up to the next one's start
     planned_velocity: FloatArray  #: rad/s, at the planned samples
@@ -223,7 +224,7 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
         measured=Measured(Series(measured_t, measured_q),
                           field(measured_rows, driven, 'velocity'), field(measured_rows, driven, 'effort'),
                           measured_stamps),
-        antenna=antenna, antenna_matched=matched,
+        antenna=antenna, antenna_matched=matched, antenna_recorded=len(angles),
         completed=Completed(np.array([_stamp_ns(m.header) for _, m in completed_rows], dtype=np.int64),
                             field(completed_rows, other_name, 'position'),
                             field(completed_rows, coupler_name, 'position'),
@@ -239,15 +240,16 @@ def _antenna_series(cfg: AntennaConfig, angles: Sequence[tuple[int, Any]], recei
                     measured_t: FloatArray) -> tuple[Series, int]:
     """The antenna_angle messages (Float64: no stamp) timed by the measurement each completes: in order, the next
     recorded measurement whose completion by the core (``complete``, the node's scalar path) gives exactly its
-    value; a message no measurement gives keeps its receive time. Returns the series, sorted by time, and the
-    number found."""
+    value; a message no measurement gives keeps its receive time, except before the first found (the recording of
+    the measurements started after them): those are left out. Returns the series, sorted by time, and the number
+    found."""
     branch = rocker_branch(cfg)
     where: dict[float, list[int]] = {}
     for i, x in enumerate(q.tolist()):
         where.setdefault(float(complete(cfg.linkage, float(x), cfg.driven, branch).theta), []).append(i)
     values = np.array([m.data for _, m in angles], dtype=np.float64)
     times = received.copy()
-    matched, after = 0, 0
+    matched, after, first = 0, 0, None
     for k, v in enumerate(values.tolist()):
         candidates = where.get(float(v), [])
         n = bisect.bisect_left(candidates, after)
@@ -255,6 +257,9 @@ def _antenna_series(cfg: AntennaConfig, angles: Sequence[tuple[int, Any]], recei
             times[k] = measured_t[candidates[n]]
             after = candidates[n] + 1
             matched += 1
+            first = k if first is None else first
+    keep = slice(first or 0, None)  # before the first found: completions of measurements the recording missed
+    times, values = times[keep], values[keep]
     order = np.argsort(times, kind='stable')
     return Series(times[order], values[order]), matched
 
@@ -385,7 +390,7 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
         f'({"speed" if s.speed_margin <= s.torque_margin else "torque"})',
         f'counts   {rec.trajectories} trajectories, {rec.planned.t.size} planned points followed, '
         f'{rec.measured.position.t.size} measured joint_states, {rec.completed.stamp_ns.size} completed, '
-        f'{rec.antenna.t.size} antenna_angle, {rec.input_torque.t.size} input_torque, {rec.diagnostics} diagnostics',
+        f'{rec.antenna_recorded} antenna_angle, {rec.input_torque.t.size} input_torque, {rec.diagnostics} diagnostics',
         f'check    completion vs core: max |d position| = {s.completion_position:.3g} rad, max |d velocity| = '
         f'{s.completion_velocity:.3g} rad/s over {s.completed_paired} measurements ({s.completed_unpaired} unpaired); '
         f'antenna_angle: {rec.antenna_matched} of {rec.antenna.t.size} equal to a measurement\'s',
