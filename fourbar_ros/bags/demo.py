@@ -399,7 +399,7 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
 
 def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str) -> Path:
     """Write a PNG: commanded, planned and measured antenna angle; tracking error; driven-joint speed against its
-    limit; motor torque against its limit; all against time."""
+    limit; motor torque (planned feed-forward, measured effort) against its limit; all against time."""
     import matplotlib
 
     matplotlib.use('Agg')
@@ -437,13 +437,10 @@ def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str)
     ax_speed.set_ylabel('driven joint speed (deg/s)')
     ax_speed.legend(loc='lower left', fontsize=8, ncols=3)
 
-    ax_torque.plot(rec.measured.position.t, motor_torque(cfg, rec.measured.effort), color='0.6', lw=0.8,
+    ax_torque.plot(rec.measured.position.t, motor_torque(cfg, rec.measured.effort), color='k', lw=0.8,
                    label='measured effort')
     ax_torque.plot(rec.planned.t, motor_torque(cfg, rec.planned_effort), color='tab:blue', ls='--', lw=1,
                    label='planned feed-forward')
-    if rec.input_torque.t.size:
-        ax_torque.plot(rec.input_torque.t, motor_torque(cfg, rec.input_torque.value), color='tab:green', lw=1,
-                       label='input_torque (node, at the command)')
     ax_torque.axhline(cfg.motor_torque_limit, color='tab:red', ls=':', lw=1.2,
                       label=f'motor limit {cfg.motor_torque_limit:g} N m')
     ax_torque.set_ylim(0.0, 1.2 * max(cfg.motor_torque_limit, s.peak_motor_torque))
