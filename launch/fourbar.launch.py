@@ -3,6 +3,10 @@ file), RViz and the simulated actuator (for users without the drive's hardware a
 
     ros2 launch fourbar_ros fourbar.launch.py [params_file:=FILE] [namespace:=NS] [use_sim_time:=true]
         [robot_state_publisher:=true|false] [rviz:=true|false] [sim_actuator:=true|false]
+        [mode:=open_loop|trajectory|forward]
+
+mode (fourbar_node's parameter, default: the parameter file's, else open_loop): trajectory or forward send the
+motion to the drive's controllers; with sim_actuator:=true the simulated actuator follows it.
 
 robot_state_publisher and RViz start only where they are installed; otherwise one log line says so and the
 node runs alone. Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
@@ -75,10 +79,12 @@ def _setup(context: LaunchContext) -> list[object]:
     want_rsp = _true(LaunchConfiguration('robot_state_publisher').perform(context))
     want_rviz = _true(LaunchConfiguration('rviz').perform(context))
     want_sim = _true(LaunchConfiguration('sim_actuator').perform(context))
+    mode = LaunchConfiguration('mode').perform(context)
     ros_namespace = '' if namespace == '/' else namespace
+    node_overrides: dict[str, object] = {'use_sim_time': use_sim_time, **({'mode': mode} if mode else {})}
     actions: list[object] = [
         Node(package='fourbar_ros', executable='fourbar_node', name=NODE_NAME, namespace=ros_namespace,
-             parameters=[params_file, {'use_sim_time': use_sim_time}], output='screen', emulate_tty=False),
+             parameters=[params_file, node_overrides], output='screen', emulate_tty=False),
     ]
     if want_rsp or want_rviz or want_sim:
         cfg, urdf = robot_description_for(params_file, NODE_NAME, namespace)
@@ -121,5 +127,8 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument('sim_actuator', default_value='false',
                               description='start the simulated actuator (fourbar_sim_actuator) in place of the '
                                           'drive\'s ros2_control hardware and controllers'),
+        DeclareLaunchArgument('mode', default_value='',
+                              description='fourbar_node\'s mode: open_loop, trajectory or forward (default: the '
+                                          'parameter file\'s, else open_loop)'),
         OpaqueFunction(function=_setup),
     ])

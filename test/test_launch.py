@@ -110,9 +110,14 @@ def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: Install
 
 def test_sim_actuator_argument_starts_the_simulated_drive(install: Install) -> None:
     launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_sim',
-                         'sim_actuator:=true', 'robot_state_publisher:=false'], install.env, cwd=install.cwd)
+                         'sim_actuator:=true', 'robot_state_publisher:=false', 'mode:=trajectory'],
+                        install.env, cwd=install.cwd)
     try:
         wait_node(install.env, '/tilt_sim/sim_actuator')
+        wait_node(install.env, '/tilt_sim/fourbar_node')
+        got = run([ros2(), 'param', 'get', '--no-daemon', '--spin-time', '3', '/tilt_sim/fourbar_node', 'mode'],
+                  install.env, timeout=60, cwd=install.cwd)
+        assert 'trajectory' in got.stdout, got.stdout + got.stderr  # the mode argument reached the node
         echo = echo_once(install.env, '/tilt_sim/joint_states', 'sensor_msgs/msg/JointState')
         assert echo.wait_exit() == 0, echo.stderr  # the drive publishes by itself, at its rate
         # ros2 topic echo may first note messages lost before it matched ("A message was lost ..."): skip to the

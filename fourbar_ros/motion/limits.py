@@ -156,10 +156,10 @@ def enforce_limits(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConf
     if policy == 'reject':
         raise LimitError(max((v for _, v in motion), key=lambda v: v.ratio).describe())
     k = max(v.ratio ** (1.0 / order) for order, v in motion)
-    for attempt in range(8):  # rounding may leave a point an ulp over: nudge k up and check again
+    for attempt in range(8):  # rounding (of the values, of the times to ns) may leave a point just over: again
         out = traj.scaled_in_time(k)
         left = motion_violations(out, limits)
         if not left:
             return out
-        k *= 1.0 + _RETIME_NUDGE * 2.0 ** attempt
+        k *= max(v.ratio ** (1.0 / order) for order, v in left) * (1.0 + _RETIME_NUDGE * 2.0 ** attempt)
     raise LimitError(f'retiming by {k:.6g} left {left[0][1].describe()}')  # pragma: no cover - rounding only

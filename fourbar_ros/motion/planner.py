@@ -22,7 +22,7 @@ from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import LimitError, TrajectoryError
 from fourbar_ros.motion.limits import JointLimits, worst_violation
-from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, static_efforts
+from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, on_wire, static_efforts
 
 #: ruckig is given the limits times this: its own rounding (seen at ~1e-13 relative) and that of the controller's
 #: jerk at a point (positions over h^3: ~1e-9 relative at h = 10 ms, ~1e-6 at 1 ms) then leave every sampled point
@@ -177,7 +177,7 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     if plan.duration / spacing + 2 > cfg.max_trajectory_points:
         raise TrajectoryError(f'a {plan.duration:.6g} s motion at {spacing!r} s spacing exceeds '
                               f'max_trajectory_points = {cfg.max_trajectory_points}')
-    times = _merged(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing)
+    times = on_wire(_merged(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing))
     q, q_dot, q_ddot = plan.sample(times)
     theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)

@@ -39,7 +39,7 @@ from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import TooManyPointsError, TrajectoryError
 from fourbar_ros.motion.splines import derivative_bound, evaluate, hermite_coefficients
-from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, to_driven
+from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire, to_driven
 
 IndexArray = npt.NDArray[np.intp]
 
@@ -126,16 +126,18 @@ def deviation_bounds(cfg: AntennaConfig, traj: DrivenTrajectory, segments: Index
 
 
 def _midpoints(a: AntennaTrajectory, segments: IndexArray) -> AntennaTrajectory:
-    """The points at the middle times of the given segments, on the requested path T."""
+    """The points at the middle times (``on_wire``) of the given segments, on the requested path T."""
     tc = _antenna_coefficients(a)[segments]
+    t0 = a.times[segments]
     h = np.diff(a.times)[segments]
-    half = np.full((segments.size, 1), 0.5)
+    mid = on_wire(t0 + 0.5 * h)
+    half = ((mid - t0) / h)[:, None]
     theta_dot = theta_ddot = None
     if a.kind is not SplineKind.LINEAR:
         theta_dot = evaluate(tc, half, 1)[:, 0] / h
         if a.kind is SplineKind.QUINTIC:
             theta_ddot = evaluate(tc, half, 2)[:, 0] / (h * h)
-    return AntennaTrajectory(0.5 * (a.times[segments] + a.times[segments + 1]), evaluate(tc, half)[:, 0],
+    return AntennaTrajectory(mid, evaluate(tc, half)[:, 0],
                              theta_dot, theta_ddot)
 
 

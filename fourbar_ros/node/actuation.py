@@ -89,8 +89,8 @@ class Actuation:
         self.motion: Motion | None = None
         self.measured: float | None = None
         self._setpoints: Setpoints | None = None
-        #: (time s on the node clock the setpoint stands for, position rad) of the setpoints published
-        self.recent_setpoints: deque[tuple[float, float]] = deque(maxlen=RECENT_SETPOINTS)
+        #: (time on the node clock the setpoint stands for, ns; position rad) of the setpoints published
+        self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
         if self.mode == 'trajectory':
             out = trajectory_topic(cfg.trajectory_controller)
             self._trajectory_pub = node.create_publisher(JointTrajectory, out.name, _qos(out))
@@ -124,15 +124,15 @@ class Actuation:
         if position - position == 0.0:  # finite
             self.measured = position
 
-    def start_state(self, now_s: float) -> JointMotionState | None:
+    def start_state(self, now_ns: int) -> JointMotionState | None:
         """Where a new motion starts: the running motion's state now, else the measured position at rest, else
         the end of the last motion; None before any of them exists."""
         motion = self.motion
-        if motion is not None and not motion.done(now_s):
-            return motion.state_at(now_s)
+        if motion is not None and not motion.done(now_ns):
+            return motion.state_at(now_ns)
         if self.measured is not None:
             return JointMotionState(self.measured)
-        return None if motion is None else motion.state_at(now_s)
+        return None if motion is None else motion.state_at(now_ns)
 
     # ------------------------------------------------------------------ plain commands
 
@@ -140,8 +140,7 @@ class Actuation:
         """Plan and send the motion to a served antenna angle theta (rad)."""
         cfg = self._config()
         now_ns = self._now_ns()
-        now_s = now_ns * 1e-9
-        start = self.start_state(now_s)
+        start = self.start_state(now_ns)
         if start is None:
             self.counters.commands_not_planned += 1
             self._warn(f'command theta = {theta!r} rad not planned: no measured {cfg.driven_joint} on '
@@ -157,7 +156,7 @@ class Actuation:
                        throttle_duration_sec=WARN_THROTTLE_S)
             return
         self.counters.commands_planned += 1
-        self.motion = Motion(now_s, plan=plan)
+        self.motion = Motion(now_ns, plan=plan)
         if points is not None:
             self._send(cfg, points, now_ns)
         else:
@@ -173,7 +172,7 @@ class Actuation:
         stream, motion = self._setpoints, self.motion
         if stream is None or motion is None:
             return
-        t = self._now_ns() * 1e-9 - motion.start_s
+        t = motion.elapsed(self._now_ns())
         i = int(stream.times.searchsorted(t, side='right')) - 1  # the latest setpoint due: never ahead of the plan
         i = max(i, 0)
         if i == stream.times.size - 1:
@@ -181,7 +180,7 @@ class Actuation:
         position = float(stream.positions[i])
         self._setpoint_msg.data = [position]
         self._setpoint_pub.publish(self._setpoint_msg)
-        self.recent_setpoints.append((motion.start_s + float(stream.times[i]), position))
+        self.recent_setpoints.append((motion.start_ns + round(float(stream.times[i]) * 1e9), position))
         self.counters.setpoints_published += 1
 
     # ------------------------------------------------------------------ antenna trajectories
@@ -203,7 +202,7 @@ class Actuation:
         self.counters.trajectory_points_inserted += converted.inserted
         self.counters.trajectories_retimed += converted.retimed
         self._send(cfg, traj, stamp_ns)
-        self.motion = Motion(stamp_ns * 1e-9, trajectory=traj)
+        self.motion = Motion(stamp_ns, trajectory=traj)
 
     # ------------------------------------------------------------------ diagnostics
 

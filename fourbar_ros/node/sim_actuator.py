@@ -28,6 +28,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, declared_values
 from fourbar_ros.config.interface import JOINT_STATES
+from fourbar_ros.config.params import PARAMETERS_BY_NAME
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
 from fourbar_ros.core.errors import FourBarError
@@ -76,7 +77,9 @@ class SimActuator(Node):
             destroy_node(self)
             raise
         self.declare_parameters('', list(declarations(self.config.as_values(), read_only=True)))
-        self.declare_parameters('', list(declarations(self.settings.as_values(), SIM_PARAMETERS, read_only=True)))
+        # The controller names are also the linkage table's (declared just above, one value serves both).
+        own = [spec for spec in SIM_PARAMETERS if spec.name not in PARAMETERS_BY_NAME]
+        self.declare_parameters('', list(declarations(self.settings.as_values(), own, read_only=True)))
         cfg, s = self.config, self.settings
         lim = joint_limits(cfg)[cfg.driven_joint]
         self.drive = LagActuator(DriveLimits(lim.lower, lim.upper, s.max_velocity, s.max_acceleration,

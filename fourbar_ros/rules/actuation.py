@@ -214,21 +214,26 @@ def planned_setpoints(cfg: AntennaConfig, plan: Plan) -> Setpoints:
 
 
 class Motion:
-    """What the drive is following from ``start_s`` (s, node clock): a plan, or a sent trajectory whose times count
-    from ``start_s``. ``state_at`` gives its position, velocity and acceleration at a time: a replan starts there."""
+    """What the drive is following from ``start_ns`` (integer ns, node clock: a float of seconds since 1970 would
+    keep only ~0.2 us): a plan, or a sent trajectory whose times count from ``start_ns``. ``state_at`` gives its
+    position, velocity and acceleration at a time: a replan starts there."""
 
-    def __init__(self, start_s: float, plan: Plan | None = None, trajectory: DrivenTrajectory | None = None) -> None:
+    def __init__(self, start_ns: int, plan: Plan | None = None, trajectory: DrivenTrajectory | None = None) -> None:
         if (plan is None) == (trajectory is None):
             raise ValueError('a Motion follows a plan or a trajectory')
-        self.start_s = start_s
+        self.start_ns = start_ns
         self.plan = plan
         self.trajectory = trajectory
-        self.end_s = start_s + (plan.duration if plan is not None else float(trajectory.times[-1]))  # type: ignore[union-attr]
+        self.duration = plan.duration if plan is not None else float(trajectory.times[-1])  # type: ignore[union-attr]
 
-    def state_at(self, now_s: float) -> JointMotionState:
-        """The reference at ``now_s`` (s): before the start, the first state; after the end, the last position at
+    def elapsed(self, now_ns: int) -> float:
+        """Seconds since the start at ``now_ns``."""
+        return (now_ns - self.start_ns) * 1e-9
+
+    def state_at(self, now_ns: int) -> JointMotionState:
+        """The reference at ``now_ns``: before the start, the first state; after the end, the last position at
         rest (the controller holds it)."""
-        t = now_s - self.start_s
+        t = self.elapsed(now_ns)
         if self.plan is not None:
             return self.plan.state_at(t)
         traj = self.trajectory
@@ -246,7 +251,7 @@ class Motion:
         p, v, a = (float(evaluate(c, s, k)[0, 0]) / h ** k for k in range(3))
         return JointMotionState(p, v, a)
 
-    def done(self, now_s: float) -> bool:
+    def done(self, now_ns: int) -> bool:
         """True from the end of the motion on."""
-        return now_s >= self.end_s
+        return self.elapsed(now_ns) >= self.duration
 

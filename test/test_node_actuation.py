@@ -1,0 +1,256 @@
+"""fourbar_node's actuator modes over the real middleware, driving the simulated actuator: plain commands become
+motion the sim follows to the command's driven angle (trajectory and forward modes), antenna trajectories are
+converted and followed, replanning mid-motion continues the running motion without a jump, every bad antenna
+trajectory is counted with nothing sent, and every point and setpoint sent is within the limits.
+
+One trajectory-mode node and one forward-mode node, each with its own sim actuator in its own namespace, for the
+whole module. No timing is asserted: each check waits for a state with a deadline, or holds for every message.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Duration, Time
+from rclpy.parameter import Parameter
+from ros_support import Collector, RosSession, wait_for
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64, Float64MultiArray
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.motion.limits import JointLimits, worst_violation
+from fourbar_ros.motion.planner import PLAN_SHRINK, driven_angles
+from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
+from fourbar_ros.node.fourbar_node import FourBarNode
+from fourbar_ros.node.sim_actuator import SimActuator
+from fourbar_ros.rules.actuation import Motion, TrajectoryProblem
+
+pytestmark = pytest.mark.ros
+
+CFG = default_config()
+LIMITS = JointLimits.from_config(CFG)
+JOINT = CFG.driven_joint
+#: The sim's lag converges exponentially to a reference at rest: after many time constants its remaining error is
+#: far below this (no noise, no quantization by default).
+SETTLED = 1e-9
+
+
+def q_of(theta: float) -> float:
+    return float(driven_angles(CFG, np.array([theta]))[0])
+
+
+def duration(t: float) -> Duration:
+    ns = round(t * 1e9)
+    return Duration(sec=ns // 10**9, nanosec=ns % 10**9)
+
+
+def as_driven(msg: JointTrajectory) -> DrivenTrajectory:
+    """A received JointTrajectory as arrays (the antenna path is not in the message: zeros stand in)."""
+    pts = msg.points
+    t = np.array([p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec for p in pts])
+
+    def col(name: str) -> Any:
+        rows = [getattr(p, name) for p in pts]
+        return np.array([r[0] for r in rows]) if all(len(r) == 1 for r in rows) else None
+
+    return DrivenTrajectory(t, col('positions'), col('velocities'), col('accelerations'), col('effort'),
+                            AntennaTrajectory(t, np.zeros_like(t)))
+
+
+def stamp_ns(stamp: Time) -> int:
+    return stamp.sec * 10**9 + stamp.nanosec
+
+
+class Pair:
+    """A FourBarNode in ``mode`` and a SimActuator in one namespace, with the client's endpoints."""
+
+    def __init__(self, ros: RosSession, mode: str) -> None:
+        self.ros, self.ns = ros, f'/actuation_{mode}'
+        self.mark = 0
+        self.sim = SimActuator(context=ros.context, namespace=self.ns)
+        self.node = FourBarNode(context=ros.context, namespace=self.ns,
+                                parameter_overrides=[Parameter('mode', value=mode)])
+        ros.add_node(self.sim)
+        ros.add_node(self.node)
+        self.measured: Collector[JointState] = ros.collect(JointState, f'{self.ns}/joint_states')
+        self.trajectories: Collector[JointTrajectory] = ros.collect(
+            JointTrajectory, f'{self.ns}/joint_trajectory_controller/joint_trajectory', 10)
+        self.setpoints: Collector[Float64MultiArray] = ros.collect(
+            Float64MultiArray, f'{self.ns}/forward_position_controller/commands', 10)
+        self.cmd = ros.publisher(Float64, f'{self.ns}/antenna_angle_cmd', 10)
+        self.antenna = ros.publisher(JointTrajectory, f'{self.ns}/antenna_trajectory', 10)
+        ros.wait_subscribers(self.cmd)
+        ros.wait_subscribers(self.antenna, 1 if mode == 'trajectory' else 0)
+        out = self.actuation._trajectory_pub if mode == 'trajectory' else self.actuation._setpoint_pub
+        ros.wait_subscribers(out, 2)  # the sim and the client
+        wait_for(lambda: self.actuation.measured is not None, what='the measured driven joint at the node')
+
+    @property
+    def actuation(self) -> Any:
+        return self.node.actuation
+
+    def command(self, theta: float) -> None:
+        self.mark = len(self.measured)
+        self.cmd.publish(Float64(data=theta))
+
+    def settle_at(self, theta: float) -> JointState:
+        """The first measured message since the last command or trajectory (``mark``) at theta's driven angle."""
+        q = q_of(theta)
+        return self.measured.wait_match(lambda m: JOINT in m.name
+                                        and abs(m.position[list(m.name).index(JOINT)] - q) <= SETTLED,
+                                        start=self.mark)
+
+    def close(self) -> None:
+        for c in (self.measured, self.trajectories, self.setpoints):
+            self.ros.uncollect(c)
+        self.ros.node.destroy_publisher(self.cmd)
+        self.ros.node.destroy_publisher(self.antenna)
+        self.ros.remove_node(self.node)
+        self.ros.remove_node(self.sim)
+
+
+@pytest.fixture(scope='module')
+def ros() -> Iterator[RosSession]:
+    with RosSession() as session:
+        yield session
+
+
+@pytest.fixture(scope='module')
+def traj(ros: RosSession) -> Iterator[Pair]:
+    pair = Pair(ros, 'trajectory')
+    yield pair
+    # Every point the node sent in this module, whatever the test: within every limit.
+    for msg in pair.trajectories.messages:
+        assert msg.joint_names == [JOINT]
+        assert worst_violation(as_driven(msg), LIMITS, CFG) is None
+    pair.close()
+
+
+@pytest.fixture(scope='module')
+def fwd(ros: RosSession) -> Iterator[Pair]:
+    pair = Pair(ros, 'forward')
+    yield pair
+    pair.close()
+
+
+def test_a_command_in_trajectory_mode_moves_the_actuator_to_its_driven_angle(traj: Pair) -> None:
+    before = len(traj.trajectories)
+    traj.command(0.03)
+    msg = traj.trajectories.wait_count(before + 1)[-1]
+    out = as_driven(msg)
+    assert out.velocities is not None and out.accelerations is not None  # quintic segments for the controller
+    assert out.positions[-1] == pytest.approx(q_of(0.03), abs=1e-12)  # ruckig's target, to its rounding
+    traj.settle_at(0.03)
+    assert traj.actuation.counters.commands_planned >= 1
+
+
+def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
+    before = len(traj.trajectories)
+    traj.command(CFG.theta_max)  # a motion of seconds ...
+    first = traj.trajectories.wait_count(before + 1)[-1]
+    traj.command(CFG.theta_min)  # ... interrupted by a command the other way
+    second = traj.trajectories.wait_count(before + 2)[-1]
+    a, b = as_driven(first), as_driven(second)
+    at = stamp_ns(second.header.stamp)
+    assert at > stamp_ns(first.header.stamp)
+    state = Motion(stamp_ns(first.header.stamp), trajectory=a).state_at(at)
+    assert state.velocity > 0.0  # it was moving when replanned
+    # The new motion starts at the running plan's state at its stamp: the quintic segments sent for the first plan
+    # reproduce its cubic pieces (phase boundaries are points), so the two agree to rounding (~1e-15 relative);
+    # a jump would be of the order of the motion itself (1e-2 rad, 1e-2 rad/s).
+    assert b.positions[0] == pytest.approx(state.position, abs=1e-9)
+    assert b.velocities is not None and b.accelerations is not None
+    assert b.velocities[0] == pytest.approx(state.velocity, abs=1e-9)
+    assert b.accelerations[0] == pytest.approx(state.acceleration, abs=1e-7)
+    assert b.times[0] == 0.0
+    traj.settle_at(CFG.theta_min)
+
+
+def antenna_msg(times: list[float], theta: list[float], theta_dot: list[float] | None = None,
+                joint: str = ANTENNA_JOINT, stamp_ns: int = 0) -> JointTrajectory:
+    pts = [JointTrajectoryPoint(positions=[th], velocities=[] if theta_dot is None else [theta_dot[i]],
+                                time_from_start=duration(t))
+           for i, (t, th) in enumerate(zip(times, theta, strict=True))]
+    msg = JointTrajectory(joint_names=[joint], points=pts)
+    msg.header.stamp = Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    return msg
+
+
+def test_an_antenna_trajectory_is_converted_and_followed(traj: Pair) -> None:
+    traj.command(0.0)
+    traj.settle_at(0.0)
+    before = len(traj.trajectories)
+    t = [0.0, 1.0, 2.0, 3.0]
+    theta = [0.0, 0.01, 0.02, 0.025]
+    theta_dot = [0.0, 0.01, 0.008, 0.0]
+    traj.mark = len(traj.measured)
+    traj.antenna.publish(antenna_msg(t, theta, theta_dot))
+    msg = traj.trajectories.wait_count(before + 1)[-1]
+    out = as_driven(msg)
+    sent = [float(x) for x in out.times]
+    assert set(t) <= set(sent)  # the requested points are kept (refinement may insert more)
+    idx = [sent.index(x) for x in t]
+    # Positions are the core's driven angles, bit for bit (the same vectorized solve).
+    assert out.positions[idx].tolist() == driven_angles(CFG, np.array(theta)).tolist()
+    assert out.velocities is not None and len(out.efforts) == len(out)
+    traj.settle_at(0.025)
+
+
+BAD = {
+    TrajectoryProblem.EMPTY: antenna_msg([], []),
+    TrajectoryProblem.TIME_NOT_INCREASING: antenna_msg([0.0, 1.0, 1.0], [0.0, 0.01, 0.02]),
+    TrajectoryProblem.NOT_FINITE: antenna_msg([0.0, 1.0], [0.0, math.nan]),
+    TrajectoryProblem.WRONG_JOINT: antenna_msg([0.0, 1.0], [0.0, 0.01], joint='tilt'),
+    TrajectoryProblem.OUT_OF_REACH: antenna_msg([0.0, 1.0], [0.0, CFG.theta_max + 0.01]),
+    TrajectoryProblem.TOO_MANY_POINTS: antenna_msg([0.01 * i for i in range(CFG.max_trajectory_points + 1)],
+                                                   [0.0] * (CFG.max_trajectory_points + 1)),
+    # limit_policy reject (the default): the whole range in 10 ms is far over the motor's speed
+    TrajectoryProblem.OVER_LIMITS: antenna_msg([0.0, 0.01], [CFG.theta_min, CFG.theta_max]),
+}
+
+
+@pytest.mark.parametrize('problem', list(BAD), ids=lambda p: p.value)
+def test_a_bad_antenna_trajectory_is_counted_and_nothing_is_sent(traj: Pair, problem: TrajectoryProblem) -> None:
+    counters = traj.actuation.counters
+    was, sent = counters.rejected[problem], counters.trajectories_sent
+    before = len(traj.trajectories)
+    traj.antenna.publish(BAD[problem])
+    wait_for(lambda: counters.rejected[problem] == was + 1, what=f'{problem.value} counted')
+    assert counters.trajectories_sent == sent
+    # The next good one is the only message that goes out.
+    now = traj.measured.messages[-1]
+    q = now.position[list(now.name).index(JOINT)]
+    theta = float(CFG.linkage.from_rocker(np.array([q]), CFG.driven, CFG.branch)[0][0])
+    traj.antenna.publish(antenna_msg([0.5], [theta]))
+    assert len(traj.trajectories.wait_count(before + 1)) == before + 1
+    values = {kv.key: kv.value for kv in traj.node.diagnostic_status().values}
+    assert values[f'trajectories_rejected_{problem.value}'] == str(was + 1)
+
+
+def test_a_command_in_forward_mode_streams_setpoints_within_limits_without_jumps(fwd: Pair) -> None:
+    fwd.command(0.04)
+    wait_for(lambda: fwd.actuation.counters.setpoints_published > 3, what='setpoints')
+    fwd.command(-0.04)  # mid-motion: the stream continues from where the first plan is
+    fwd.settle_at(-0.04)
+    recorded = list(fwd.actuation.recent_setpoints)
+    assert len(recorded) >= 10
+    received = [m.data[0] for m in fwd.setpoints.messages]
+    assert [q for _, q in recorded] == received[-len(recorded):]  # what is on the wire is what was recorded
+    t_ns, q = np.array([t for t, _ in recorded]), np.array([q for _, q in recorded])
+    dt, dq = 1e-9 * np.diff(t_ns), np.abs(np.diff(q))
+    assert (dt >= 0.0).all()
+    # Samples of one continuous reference whose speed is below the limit (PLAN_SHRINK of it), across the replan too:
+    # each step is at most the speed times the time between the samples (ns, exact), up to the rounding of the
+    # sample times to ns (1e-7 of a 10 ms step) and ruckig's (~1e-13 relative): 1e-6 of headroom covers both.
+    vmax = LIMITS.at_rocker(1)
+    bad = np.flatnonzero(dq > PLAN_SHRINK * vmax * dt + 1e-12)
+    assert bad.size == 0, [(int(t_ns[i]), int(t_ns[i + 1]), q[i], q[i + 1]) for i in bad]
+    lo, hi = sorted(driven_angles(CFG, np.array([CFG.theta_min, CFG.theta_max])))
+    assert ((lo <= q) & (q <= hi)).all()
+    assert q[-1] == pytest.approx(q_of(-0.04), abs=1e-12)

@@ -1,0 +1,126 @@
+"""The actuator modes' rules without ROS: what an antenna trajectory message becomes (or why it is refused, one
+problem per case), the plans and setpoints of plain commands, and the running motion's state for replanning."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+import pytest
+
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.motion.limits import JointLimits, worst_violation
+from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_angles
+from fourbar_ros.rules.actuation import (
+    ActuationCounters,
+    Motion,
+    TrajectoryProblem,
+    convert,
+    duration_parts,
+    plan_command,
+    planned_points,
+    planned_setpoints,
+    problem_of,
+)
+
+CFG = default_config()
+LIMITS = JointLimits.from_config(CFG)
+
+
+@dataclass
+class Dur:
+    sec: int
+    nanosec: int
+
+
+@dataclass
+class Pt:
+    positions: list[float]
+    time_from_start: Dur
+    velocities: list[float] = field(default_factory=list)
+    accelerations: list[float] = field(default_factory=list)
+
+
+def pts(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Pt]:
+    return [Pt([th], Dur(*duration_parts(t)), [] if theta_dot is None else [theta_dot[i]])
+            for i, (t, th) in enumerate(zip(times, theta, strict=True))]
+
+
+def test_a_trajectory_converts_with_every_point_within_the_limits() -> None:
+    out = convert(CFG, [ANTENNA_JOINT], pts([0.0, 1.0, 2.0], [0.0, 0.02, 0.03], [0.0, 0.015, 0.0]))
+    d = out.trajectory
+    assert d.velocities is not None and d.accelerations is None  # cubic in, cubic out
+    assert worst_violation(d, LIMITS, CFG) is None
+    assert out.bound <= CFG.trajectory_tolerance and not out.retimed
+    kept = np.isin(d.times, [0.0, 1.0, 2.0])
+    # The same vectorized solve on other arrays: equal, but under --ulp-jitter each call's transcendentals may be
+    # moved by an ulp, which the solve's few operations carry to a few ulps of the angle (< 1 rad).
+    np.testing.assert_allclose(d.positions[kept], driven_angles(CFG, np.array([0.0, 0.02, 0.03])), rtol=0,
+                               atol=8 * np.finfo(float).eps)
+
+
+CASES = {
+    TrajectoryProblem.EMPTY: ([ANTENNA_JOINT], []),
+    TrajectoryProblem.TOO_MANY_POINTS: ([ANTENNA_JOINT], pts([0.01 * i for i in range(CFG.max_trajectory_points + 1)],
+                                                             [0.0] * (CFG.max_trajectory_points + 1))),
+    TrajectoryProblem.WRONG_JOINT: (['tilt'], pts([0.0], [0.0])),
+    TrajectoryProblem.NOT_FINITE: ([ANTENNA_JOINT], pts([0.0, 1.0], [0.0, math.inf])),
+    TrajectoryProblem.TIME_NOT_INCREASING: ([ANTENNA_JOINT], pts([1.0, 0.5], [0.0, 0.01])),
+    TrajectoryProblem.OUT_OF_REACH: ([ANTENNA_JOINT], pts([0.0, 1.0], [0.0, CFG.theta_min - 1e-6])),
+    TrajectoryProblem.OVER_LIMITS: ([ANTENNA_JOINT], pts([0.0, 0.01], [CFG.theta_min, CFG.theta_max])),
+    TrajectoryProblem.INVALID: ([ANTENNA_JOINT], [Pt([0.0, 1.0], Dur(0, 0))]),
+}
+
+
+@pytest.mark.parametrize('problem', list(CASES), ids=lambda p: p.value)
+def test_each_bad_trajectory_is_one_line_of_its_problem(problem: TrajectoryProblem) -> None:
+    names, points = CASES[problem]
+    with pytest.raises(FourBarError) as err:
+        convert(CFG, names, points)
+    assert problem_of(err.value) is problem
+    assert '\n' not in str(err.value)
+
+
+def test_retime_policy_slows_a_fast_trajectory_down_instead() -> None:
+    names, points = CASES[TrajectoryProblem.OVER_LIMITS]
+    out = convert(replace(CFG, limit_policy='retime'), names, points)
+    assert out.retimed and worst_violation(out.trajectory, LIMITS, CFG) is None
+    # Times as a Duration carries them: whole nanoseconds.
+    assert (np.round(out.trajectory.times * 1e9) / 1e9 == out.trajectory.times).all()
+
+
+def test_counters_name_every_problem() -> None:
+    keys = ActuationCounters().as_dict()
+    assert all(f'trajectories_rejected_{p.value}' in keys for p in TrajectoryProblem)
+
+
+def test_planned_points_and_setpoints_are_within_the_limits_and_reach_the_target() -> None:
+    q = driven_angles(CFG, np.array([CFG.theta_min, 0.05]))
+    plan = plan_command(CFG, JointMotionState(float(q[0])), 0.05)
+    points = planned_points(CFG, plan)
+    assert worst_violation(points, LIMITS, CFG) is None
+    assert points.positions[-1] == pytest.approx(float(q[1]), abs=1e-12)
+    stream = planned_setpoints(CFG, plan)
+    assert (LIMITS.ratio * np.abs(np.diff(stream.positions)) / np.diff(stream.times)
+            <= PLAN_SHRINK * LIMITS.motor_speed * (1 + 1e-12)).all()
+
+
+def test_a_replan_from_the_running_motion_starts_at_its_state() -> None:
+    q = driven_angles(CFG, np.array([CFG.theta_min]))
+    plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
+    start_ns = 1_700_000_000_123_456_789  # a realistic clock: integer ns keep the elapsed time exact
+    on_plan = Motion(start_ns, plan=plan)
+    on_points = Motion(start_ns, trajectory=planned_points(CFG, plan))
+    now = start_ns + 1_234_567_891
+    a, b = on_plan.state_at(now), on_points.state_at(now)
+    # The sent points' quintics reproduce the plan's cubic pieces (phase boundaries are points, times whole ns):
+    # the two agree to rounding, far below the motion (1e-2 rad, rad/s).
+    assert (b.position, b.velocity) == pytest.approx((a.position, a.velocity), abs=1e-9)
+    assert b.acceleration == pytest.approx(a.acceleration, abs=1e-7)
+    replan = plan_command(CFG, a, 0.0)
+    assert replan.state_at(0.0) == a  # ruckig starts at exactly the state it is given
+    assert on_plan.done(start_ns + round(plan.duration * 1e9) + 1)
+    assert on_points.state_at(start_ns + 10**12) == JointMotionState(float(on_points.trajectory.positions[-1]))
