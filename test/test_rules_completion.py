@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 import pytest
-from ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps, sine_ratio_scale
+from ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps, completion_scales
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values
 from fourbar_ros.core.antenna import Branch, Driven
@@ -90,25 +90,8 @@ def test_per_message_and_block_paths_agree(cfg: AntennaConfig) -> None:
     assert np.array_equal(block.theta[ok], exact.theta[ok])  # the block is the core's array path, as is
     theta, other = block.theta[ok], block.positions[ok, 0]
     qs = q[ok]
-    gamma_driven = cfg.driven is Driven.GAMMA
-    g, d = (qs, other) if gamma_driven else (other, qs)
-    link = cfg.linkage
-    h, ab, cd = link.coupler, link.rocker_ab, float(link.rocker_cd or 0.0)
-    x, u, v = g + d, d - theta, g + theta
-    lever, across = (u, v) if gamma_driven else (v, u)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        dtheta = np.abs(np.sin(x) / np.sin(lever))  # ~ |dtheta/dq| up to the length ratio (scales only)
-        dother = np.abs(np.sin(across) / np.sin(lever))
-        # Each path rounds theta and the other rocker to n ulps of these (core.completion's test): the inverse's own
-        # rounding plus q's, carried by the derivatives.
-        theta_scale = math.pi + np.abs(theta) + np.abs(qs) * dtheta * max(ab, cd) / h
-        other_scale = math.pi + np.abs(other) + np.abs(qs) * dother * max(ab, cd) / min(ab, cd)
-        x_scale = theta_scale + other_scale + np.abs(qs)
-        rate_scale = sine_ratio_scale(max(ab, cd) / h, x, x_scale, lever, 2 * x_scale)
-        other_rate_scale = sine_ratio_scale(max(ab, cd) / min(ab, cd), across, 2 * x_scale, lever, 2 * x_scale)
-        load_scale = sine_ratio_scale(h / min(ab, cd), lever, 2 * x_scale, x, x_scale)
-    for scale in (rate_scale, other_rate_scale, load_scale):  # 0/0 exactly at a dead point: unbounded condition
-        scale[np.isnan(scale)] = np.inf
+    theta_scale, other_scale, x_scale, rate_scale, other_rate_scale, load_scale = completion_scales(
+        cfg.linkage, cfg.driven, qs, theta, other)
     n = 2 * CHAIN_ULPS  # two paths, each within CHAIN_ULPS of the scale
     top = rule.reach.theta_max
     for i, (qi, ti) in enumerate(zip(qs.tolist(), theta.tolist(), strict=True)):

@@ -15,6 +15,7 @@ below give the condition-weighted magnitudes of this package's quantities.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -118,3 +119,32 @@ def second_derivative_scales(ab: float, cd: float, coupler: float, theta: ArrayL
         scale_g = (np.abs(by_g[0].imag) * sg + np.abs(by_d[0].imag) * sd) / step + round_g.real
         scale_d = (np.abs(by_g[1].imag) * sg + np.abs(by_d[1].imag) * sd) / step + round_d.real
     return scale_g, scale_d
+
+
+def completion_scales(link: Any, driven: Any, q: npt.NDArray[np.float64], theta: npt.NDArray[np.float64],
+                      other: npt.NDArray[np.float64]) -> tuple[npt.NDArray[np.float64], ...]:
+    """Scales of the linkage completed from a measured rocker q (rad; ``rules.completion``), for two paths that
+    each round to a few ulps of them: (theta, other rocker, coupler joint, dtheta/dq, d other/dq, dq/dtheta).
+
+    theta and the other rocker: the inverse's own rounding (pi: angles wrapped to [-pi, pi]) plus q's carried by
+    the derivatives (|q| |d./dq|, with |d./dq| bounded by the sine ratio and the length ratio); the coupler joint,
+    a sum, the sum of its terms'; the rates and dq/dtheta, sine ratios (``sine_ratio_scale``) of angles known to
+    those scales. Infinite where the condition is (exactly at a dead point).
+    """
+    gamma_driven = driven.value == 'gamma'
+    g, d = (q, other) if gamma_driven else (other, q)
+    h, ab, cd = link.coupler, link.rocker_ab, float(link.rocker_cd or 0.0)
+    x, u, v = g + d, d - theta, g + theta
+    lever, across = (u, v) if gamma_driven else (v, u)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        dtheta = np.abs(np.sin(x) / np.sin(lever))
+        dother = np.abs(np.sin(across) / np.sin(lever))
+        theta_scale = math.pi + np.abs(theta) + np.abs(q) * dtheta * max(ab, cd) / h
+        other_scale = math.pi + np.abs(other) + np.abs(q) * dother * max(ab, cd) / min(ab, cd)
+        x_scale = theta_scale + other_scale + np.abs(q)
+        rate = sine_ratio_scale(max(ab, cd) / h, x, x_scale, lever, 2 * x_scale)
+        other_rate = sine_ratio_scale(max(ab, cd) / min(ab, cd), across, 2 * x_scale, lever, 2 * x_scale)
+        load = sine_ratio_scale(h / min(ab, cd), lever, 2 * x_scale, x, x_scale)
+    for scale in (rate, other_rate, load):  # 0/0 exactly at a dead point: unbounded condition
+        scale[np.isnan(scale)] = np.inf
+    return theta_scale, other_scale, x_scale, rate, other_rate, load

@@ -1,4 +1,5 @@
-r"""Compare two bags of the node's outputs message by message (no rclpy): joint_states and input_torque.
+r"""Compare two bags of the node's outputs message by message (no rclpy): joint_states and input_torque, and the
+completion's antenna_angle, antenna_rate and load_torque.
 
 Per topic (every ``sensor_msgs/JointState`` and ``std_msgs/Float64`` topic of either bag), in bag order, the
 i-th message of A against the i-th of B: the message count, joint names, frame_id and whether a velocity is
@@ -19,7 +20,9 @@ value's *scale*, the magnitude its rounding errors are relative to when two corr
   (sin r -> 0) the scale, like the true uncertainty, grows without bound. The input_torque message i takes
   the condition of joint_states message i of A; a Float64 topic without one, and an effort of 0.0 at the
   rocker that is not driven, have scale |value|;
-- any other Float64: scale = |value|.
+- antenna_angle theta (rad), completed from a measured rocker: scale = |theta| + pi, as a position;
+- any other Float64 (antenna_rate, load_torque: their rounding is relative to themselves away from the dead points
+  and the reach limit): scale = |value|.
 
 Values equal as floats (same NaN or inf included) always match. Each topic is read ``BLOCK`` messages at a time
 from both bags at once (the fixed JointState layouts decoded on arrays, see joint_state_cdr), so memory does not
@@ -43,7 +46,7 @@ import numpy.typing as npt
 from fourbar_ros.bags.joint_state_cdr import decode_float64s, decode_joint_states
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import COMPARED_FIELDS, INPUT_TORQUE, JOINT_STATES, sibling_topic
+from fourbar_ros.config.interface import ANTENNA_ANGLE, COMPARED_FIELDS, INPUT_TORQUE, JOINT_STATES, sibling_topic
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.rules.outputs import driven_index
@@ -330,9 +333,9 @@ class Comparer:
         assert a.data is not None and b.data is not None
         if 'stamps' not in self.ignore:
             self.exact(topic, 'log time (ns)', a.log_ns, b.log_ns, offset)
-        if 'input_torque' in self.ignore and topic.rsplit('/', 1)[-1] == 'input_torque':
+        if topic.rsplit('/', 1)[-1] in self.ignore:  # input_torque, antenna_angle, antenna_rate, load_torque
             return
-        scale = np.abs(a.data)
+        scale = position_scale(a.data) if topic.rsplit('/', 1)[-1] == ANTENNA_ANGLE.name else np.abs(a.data)
         if joints is not None and joints.positions is not None and len(joints) == len(a) \
                 and joints.positions.shape[1] == 2:
             scale = scale * torque_condition(self.cfg, joints.positions)

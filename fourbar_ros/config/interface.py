@@ -95,7 +95,8 @@ PER_COMMAND_OUTPUTS = (JOINT_STATES, INPUT_TORQUE)
 RECORDED_OUTPUTS = (JOINT_STATES, INPUT_TORQUE, DIAGNOSTICS)
 
 #: The fields ``fourbar compare`` compares (and may be told to ignore).
-COMPARED_FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque')
+COMPARED_FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque', 'antenna_angle', 'antenna_rate',
+                   'load_torque')
 
 
 class Storage(enum.Enum):

@@ -1,0 +1,182 @@
+"""The completion fourbar_node publishes in its actuator modes, for a bag of measured joint states (no rclpy).
+
+For every ``sensor_msgs/JointState`` of the measured topic (``/joint_states``, else the one ``*/joint_states``) in
+bag order, the node's rules for a measurement (``fourbar_ros.rules.completion``, on blocks): JointStates without the
+driven joint (a completed state, or another joint's) and with mismatched array lengths are skipped, non-finite ones
+refused, angles the driven rocker cannot take publish nothing; the others give ``joint_states`` (the passive
+joints, the measurement's header stamp), ``antenna_angle``, ``antenna_rate`` (with a measured velocity) and
+``load_torque`` (with a measured effort), next to the measured topic and at its log time, in that order. Every output
+is written (a recording has every subscriber). Blocks of ``BLOCK`` measurements at a time; the output appears
+atomically.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fourbar_ros.bags.storage import (
+    FLOAT64,
+    JOINT_STATE,
+    AtomicBagWriter,
+    BagError,
+    jazzy_typestore,
+    open_bag,
+    recorded_qos,
+    storage_of,
+    topic_types,
+)
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.interface import JOINT_STATES, MEASURED_JOINT_STATES, PER_MEASUREMENT_OUTPUTS, sibling_topic
+from fourbar_ros.core.errors import one_line
+from fourbar_ros.rules.completion import CompletionRule, complete_block
+
+#: Measurements per block.
+BLOCK = 65536
+
+
+@dataclass
+class MeasuredStats:
+    """Counts of a run, named like the node's completion counters."""
+
+    measurements: int = 0
+    completed: int = 0
+    refused_not_finite: int = 0
+    ignored: int = 0  # no driven joint (completed states included) or mismatched lengths
+    out_of_range: int = 0
+    seconds: float = 0.0
+
+    def summary(self) -> str:
+        """One line for the user."""
+        return (f'{self.measurements} measured joint states -> {self.completed} completed ({self.out_of_range} out '
+                f'of range, {self.refused_not_finite} not finite, {self.ignored} ignored) in {self.seconds:.2f} s')
+
+
+def measured_topic(path: Path, types: dict[str, str], topic: str | None) -> str | None:
+    """The measured JointState topic of a bag: ``topic``, else ``/joint_states``, else the one ``*/joint_states``;
+    None if there is none."""
+    if topic is not None:
+        return topic if types.get(topic) == JOINT_STATE else None
+    name = MEASURED_JOINT_STATES.name
+    candidates = [t for t, ty in types.items() if ty == JOINT_STATE and t.rsplit('/', 1)[-1] == name]
+    return f'/{name}' if f'/{name}' in candidates else (candidates[0] if len(candidates) == 1 else None)
+
+
+class _Block:
+    """Measurements gathered for one block: log times, header stamps and (q, q_dot, effort) with NaN for absent."""
+
+    def __init__(self) -> None:
+        self.log: list[int] = []
+        self.stamp: list[tuple[int, int]] = []
+        self.values: list[tuple[float, float, float]] = []
+
+
+def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
+                         topic: str | None = None, storage: str | None = None, block: int = BLOCK) -> MeasuredStats:
+    """Write to ``dst`` what fourbar_node in an actuator mode publishes for the measured joint states of ``src``
+    (see the module docstring). Raises BagError (one line) for bad input; ``dst`` then does not appear."""
+    start = time.perf_counter()
+    src_path = Path(src)
+    stats = MeasuredStats()
+    rule = CompletionRule(cfg)
+    store = jazzy_typestore()
+    with open_bag(src_path) as reader:
+        chosen = measured_topic(src_path, topic_types(reader), topic)
+        if chosen is None:
+            raise BagError(f'{src_path}: no measured {JOINT_STATE} topic {topic or "/" + MEASURED_JOINT_STATES.name}')
+        conns = [c for c in reader.connections if c.topic == chosen]
+        names = [sibling_topic(chosen, t.name) for t in PER_MEASUREMENT_OUTPUTS]
+        names[0] = chosen  # the completed joints go where the measured ones are (a sibling of itself)
+        with AtomicBagWriter(dst, storage or storage_of(reader)) as bag:
+            qos = [recorded_qos()]
+            outs = [bag.add_topic(name, JOINT_STATE if t is JOINT_STATES else FLOAT64, qos)
+                    for name, t in zip(names, PER_MEASUREMENT_OUTPUTS, strict=True)]
+            pending = _Block()
+            try:
+                for _, log, data in reader.messages(connections=conns):
+                    stats.measurements += 1
+                    msg = _joint_state(store, bytes(data))
+                    values = _measurement(rule, msg, stats)
+                    if values is not None:
+                        pending.log.append(log)
+                        pending.stamp.append((int(msg.header.stamp.sec), int(msg.header.stamp.nanosec)))
+                        pending.values.append(values)
+                    if len(pending.log) == block:
+                        _write(bag, outs, cfg, rule, pending, stats)
+                        pending = _Block()
+            except BagError:
+                raise
+            except Exception as exc:
+                raise BagError(f'{src_path}: unreadable bag after {stats.measurements} messages ({one_line(exc)})'
+                               ) from exc
+            _write(bag, outs, cfg, rule, pending, stats)
+            if stats.measurements == 0:
+                raise BagError(f'{src_path}: topic {chosen} has no messages')
+    stats.seconds = time.perf_counter() - start
+    return stats
+
+
+def _joint_state(store: Any, raw: bytes) -> Any:
+    """A JointState from CDR bytes, trailing bytes allowed: rmw_serialize (rclpy's serialize_message, and so
+    recordings made through it) may leave up to 8 bytes after a JointState with an empty sequence, which rosbags'
+    deserialize_cdr refuses."""
+    if len(raw) < 4 or raw[:2] not in (b'\x00\x00', b'\x00\x01'):
+        raise BagError('not a CDR message')
+    msgdef = store.get_msgdef(JOINT_STATE)
+    func = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
+    msg, _ = func(raw[4:], 0, msgdef.cls, store)
+    return msg
+
+
+def _measurement(rule: CompletionRule, msg: Any, stats: MeasuredStats) -> tuple[float, float, float] | None:
+    """(q, q_dot, effort) of the driven joint, NaN where absent; None for a message the node skips (counted)."""
+    names = list(msg.name)
+    if rule.driven_joint not in names:
+        stats.ignored += 1
+        return None
+    i, n = names.index(rule.driven_joint), len(names)
+    position, velocity, effort = msg.position, msg.velocity, msg.effort
+    if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
+        stats.ignored += 1
+        return None
+    values = (float(position[i]), float(velocity[i]) if len(velocity) else None,
+              float(effort[i]) if len(effort) else None)
+    if not all(v is None or math.isfinite(v) for v in values):
+        stats.refused_not_finite += 1
+        return None
+    return values[0], math.nan if values[1] is None else values[1], math.nan if values[2] is None else values[2]
+
+
+def _write(bag: AtomicBagWriter, outs: list[Any], cfg: AntennaConfig, rule: CompletionRule, pending: _Block,
+           stats: MeasuredStats) -> None:
+    """Complete one block and write its outputs."""
+    if not pending.log:
+        return
+    q, q_dot, effort = (np.array(column, dtype=np.float64) for column in zip(*pending.values, strict=True))
+    done = complete_block(cfg, q, q_dot, effort, rule)
+    store = jazzy_typestore()
+    js_type, f64_type = store.types[JOINT_STATE], store.types[FLOAT64]
+    header_type, time_type = store.types['std_msgs/msg/Header'], store.types['builtin_interfaces/msg/Time']
+    empty = np.empty(0, dtype=np.float64)
+    js_conn, angle_conn, rate_conn, load_conn = outs
+    write = bag.write
+    for k in np.flatnonzero(done.valid).tolist():
+        log = pending.log[k]
+        sec, nanosec = pending.stamp[k]
+        has_rate = bool(np.isfinite(done.velocities[k]).all())
+        js = js_type(header=header_type(stamp=time_type(sec=sec, nanosec=nanosec), frame_id=''), name=rule.names,
+                     position=done.positions[k].copy(), velocity=done.velocities[k].copy() if has_rate else empty,
+                     effort=empty)
+        write(js_conn, log, bytes(store.serialize_cdr(js, JOINT_STATE)))
+        write(angle_conn, log, bytes(store.serialize_cdr(f64_type(data=float(done.theta[k])), FLOAT64)))
+        for conn, value in ((rate_conn, done.theta_rate[k]), (load_conn, done.load_torque[k])):
+            if math.isfinite(value):
+                write(conn, log, bytes(store.serialize_cdr(f64_type(data=float(value)), FLOAT64)))
+        stats.completed += 1
+    stats.out_of_range += int(np.count_nonzero(~done.valid))

@@ -1,0 +1,114 @@
+"""`fourbar process` on a bag of measured joint states: the completed outputs written next to the measured topic at
+the measurements' log times and stamps, through the completion rule's block path (exactly its floats); bad
+measurements skipped and counted; `fourbar compare` covering the new outputs (and ignoring them when told). No ROS
+middleware (bags written with rosbags' serializer)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag
+from fourbar_ros.commands import main
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.rules.completion import CompletionRule, complete_block
+
+CFG = default_config()
+RULE = CompletionRule(CFG)
+DRIVEN = CFG.driven_joint
+STORE = jazzy_typestore()
+JS = 'sensor_msgs/msg/JointState'
+
+
+def joint_state(names: list[str], position: list[float], velocity: list[float], effort: list[float],
+                sec: int) -> bytes:
+    t = STORE.types
+    msg = t[JS](header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=sec, nanosec=5),
+                                                frame_id=''),
+                name=names, position=np.array(position), velocity=np.array(velocity), effort=np.array(effort))
+    return bytes(STORE.serialize_cdr(msg, JS))
+
+
+GOOD = [(0.2 + 0.02 * i, [0.1 * i] if i % 3 else [], [0.01 * i] if i % 2 else []) for i in range(12)]
+
+
+def measured_bag(path: Path, topic: str = '/joint_states') -> Path:
+    with AtomicBagWriter(path) as bag:
+        conn = bag.add_topic(topic, JS)
+        sec = 0
+        for q, v, e in GOOD:
+            sec += 1
+            bag.write(conn, sec * 10**9, joint_state([DRIVEN], [q], v, e, sec))
+        for names, p, v, e in ([['elbow'], [0.3], [], []], [RULE.names, [0.3, 0.4], [], []],  # no driven joint
+                               [[DRIVEN], [0.3], [0.1, 0.2], []],  # mismatched lengths
+                               [[DRIVEN], [math.nan], [], []], [[DRIVEN], [0.3], [math.inf], []],  # not finite
+                               [[DRIVEN], [3.0], [], []]):  # out of the rocker's range
+            sec += 1
+            bag.write(conn, sec * 10**9, joint_state(names, p, v, e, sec))
+    return path
+
+
+def read(path: Path) -> dict[str, list[tuple[int, Any]]]:
+    out: dict[str, list[tuple[int, Any]]] = {}
+    with open_bag(path) as reader:
+        for c, log, data in reader.messages():
+            out.setdefault(c.topic, []).append((log, STORE.deserialize_cdr(bytes(data), c.msgtype)))
+    return out
+
+
+def test_a_measured_bag_is_completed_by_the_block_rule(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = measured_bag(tmp_path / 'measured')
+    assert main(['process', str(src), str(tmp_path / 'out')]) == 0
+    line = capsys.readouterr().err
+    assert '18 measured joint states -> 12 completed (1 out of range, 2 not finite, 3 ignored)' in line
+    out = read(tmp_path / 'out')
+    q = np.array([g[0] for g in GOOD])
+    q_dot = np.array([g[1][0] if g[1] else math.nan for g in GOOD])
+    effort = np.array([g[2][0] if g[2] else math.nan for g in GOOD])
+    block = complete_block(CFG, q, q_dot, effort)
+    js = out['/joint_states']
+    assert [log for log, _ in js] == [(i + 1) * 10**9 for i in range(12)]
+    assert [(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in js] == [(i + 1, 5) for i in range(12)]
+    for k, (_, m) in enumerate(js):
+        assert list(m.name) == RULE.names and len(m.effort) == 0
+        assert m.position.tolist() == block.positions[k].tolist()
+        assert m.velocity.tolist() == ([] if math.isnan(q_dot[k]) else block.velocities[k].tolist())
+    assert [m.data for _, m in out['/antenna_angle']] == block.theta.tolist()
+    assert [m.data for _, m in out['/antenna_rate']] == block.theta_rate[np.isfinite(q_dot)].tolist()
+    assert [m.data for _, m in out['/load_torque']] == block.load_torque[np.isfinite(effort)].tolist()
+
+
+def test_compare_covers_the_completion_outputs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = measured_bag(tmp_path / 'measured')
+    assert main(['process', str(src), str(tmp_path / 'a')]) == 0
+    assert main(['compare', str(tmp_path / 'a'), str(tmp_path / 'a')]) == 0
+    # B: the same with one load torque off by 1e-6 N m.
+    with AtomicBagWriter(tmp_path / 'b') as bag, open_bag(tmp_path / 'a') as reader:
+        conns = {c.topic: bag.add_topic(c.topic, c.msgtype) for c in reader.connections}
+        for c, log, data in reader.messages():
+            raw = bytes(data)
+            if c.topic == '/load_torque' and log == 4 * 10**9:
+                raw = bytes(STORE.serialize_cdr(STORE.types['std_msgs/msg/Float64'](
+                    data=STORE.deserialize_cdr(raw, c.msgtype).data + 1e-6), c.msgtype))
+            bag.write(conns[c.topic], log, raw)
+    capsys.readouterr()
+    assert main(['compare', str(tmp_path / 'a'), str(tmp_path / 'b')]) == 1
+    assert '/load_torque message 1: data' in capsys.readouterr().out
+    assert main(['compare', str(tmp_path / 'a'), str(tmp_path / 'b'), '--ignore', 'load_torque']) == 0
+
+
+def test_a_namespaced_measured_topic_and_a_bag_without_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    src = measured_bag(tmp_path / 'measured', '/robot/joint_states')
+    assert main(['process', str(src), str(tmp_path / 'out')]) == 0
+    assert set(read(tmp_path / 'out')) == {'/robot/joint_states', '/robot/antenna_angle', '/robot/antenna_rate',
+                                           '/robot/load_torque'}
+    with AtomicBagWriter(tmp_path / 'other') as bag:
+        bag.write(bag.add_topic('/elsewhere', JS), 1, joint_state([DRIVEN], [0.3], [], [], 1))
+    capsys.readouterr()
+    assert main(['process', str(tmp_path / 'other'), str(tmp_path / 'out2')]) == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert not (tmp_path / 'out2').exists()
