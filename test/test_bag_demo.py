@@ -1,5 +1,6 @@
-"""`fourbar demo` (the README's main job) end to end: node process, lock-step replay of the bundled sweep,
-recording, summary, PNG; it finishes by itself and leaves no node behind, also when interrupted."""
+"""`fourbar demo` (the README's main job) end to end: fourbar_node in trajectory mode and the simulated actuator
+as processes, paced replay of the bundled sweep, recording, summary (checked against the recorded bag), PNG; it
+finishes by itself and leaves no node behind, also when interrupted."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ from colcon_support import CliEnv, ros2
 from ros_support import DomainLease, lease_domain_id, wait_for
 
 from fourbar_ros.bags.storage import read_commands, read_messages
+from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.live.node_process import domain_in_use
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -39,33 +41,55 @@ def _env() -> dict[str, str]:
 def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
     out = tmp_path / 'demo'
     with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
-        rc = demo.wait(120.0)  # a deadline against hangs; the demo takes a few seconds here
+        rc = demo.wait(120.0)  # a deadline against hangs; the demo takes about 20 s here
         assert rc == 0, demo.lines
         stdout = demo.stdout
-    assert not domain_in_use(lease.domain_id)  # the node process is gone
+    assert not domain_in_use(lease.domain_id)  # both node processes are gone
     lines = {line.split()[0]: line for line in stdout.splitlines() if line.strip()}
-    for key in ('theta', 'gamma', 'delta', 'torque', 'motor', 'rejected', 'check', 'replay', 'plot'):
+    for key in ('command', 'tracking', 'speed', 'torque', 'margin', 'counts', 'check', 'replay', 'plot'):
         assert key in lines, stdout
-    assert lines['gamma'].startswith('gamma    +40.92 deg .. +57.33 deg')  # reference table: 40.921..57.328 deg
-    assert lines['delta'].startswith('delta    +39.39 deg .. +56.38 deg')
-    assert 'rejected 0 commands' in lines['rejected'] and '521 received' in lines['rejected']
-    deviations = [float(x) for x in re.findall(r'= ([0-9.e+-]+) ', lines['check'] + ' ')]
-    # Exactly 0: the node (loads.pose_solver) and the demo's check (loads.solve) make the identical scalar core
-    # calls on the same float theta; float64 crosses CDR and the bag unchanged.
-    assert len(deviations) == 2 and max(deviations) == 0.0
+    n = len(read_commands(DEMO_BAG))
+    assert lines['command'].startswith(f'command  -6.0000 deg .. +7.0000 deg ({n} served of {n} sent; 0 rejected')
+    assert f'{n} received' in lines['command']
+    # The node's completion and the demo's check make the identical scalar core calls on the same float measurement
+    # (float64 crosses CDR and the bag unchanged): exactly 0, over every completed measurement (none unpaired).
+    deviations = [float(x) for x in re.findall(r'= ([0-9.e+-]+) ', lines['check'])]
+    assert deviations == [0.0, 0.0] and '(0 unpaired)' in lines['check'], lines['check']
+    found = re.findall(r'antenna_angle: ([0-9]+) of ([0-9]+) equal', lines['check'])
+    assert found and found[0][0] == found[0][1], lines['check']  # every antenna_angle is a measurement's completion
     png = out / 'demo.png'
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and png.stat().st_size > 20_000
+
+    # The summary's figures against the recorded bag, read here without the demo's analysis.
+    cfg = load_config(CONFIG)
     recorded = read_messages(out / 'outputs')
-    n = len(read_commands(DEMO_BAG))
-    assert len(recorded['/joint_states']) == len(recorded['/input_torque']) == n
+    commands = [m.data for _, m in recorded['/antenna_angle_cmd']]
+    assert len(commands) == n
+    angles = [m.data for _, m in recorded['/antenna_angle']]
+    final = commands[-1] - angles[-1]
+    # The run ends once the measured antenna angle has settled within the trajectory tolerance of the last command.
+    assert abs(final) <= cfg.trajectory_tolerance
+    printed = float(re.findall(r'tracking final (\S+) rad', lines['tracking'])[0])
+    assert printed == pytest.approx(final, rel=5e-3, abs=1e-300)  # printed to 3 significant digits
+    limit = cfg.motor_speed_limit / cfg.reducer_ratio
+    measured = [m for _, m in recorded['/joint_states'] if list(m.name) == [cfg.driven_joint]]
+    assert measured and max(abs(m.velocity[0]) for m in measured) <= limit  # no measured speed over the limit
+    points = [p for _, m in recorded[f'/{cfg.trajectory_controller}/joint_trajectory'] for p in m.points]
+    assert points and max(abs(p.velocities[0]) for p in points) <= limit  # no planned point over the limit
+    margin = float(re.findall(r'margin (-?[0-9.]+)%', lines['speed'])[0])
+    assert 0.0 <= margin < 100.0
+    counts = lines['counts']
+    assert f'{len(measured)} measured joint_states' in counts and f'{len(angles)} antenna_angle' in counts
 
 
 def _nodes(pid: int) -> list[int]:
-    """The child processes of ``pid`` that run fourbar_node (exec'd, not merely forked; Linux's /proc)."""
+    """The child processes of ``pid`` that run fourbar_node or the simulated actuator (exec'd, not merely forked;
+    Linux's /proc)."""
     found = []
     for child in Path(f'/proc/{pid}/task/{pid}/children').read_text().split():
         with contextlib.suppress(OSError):
-            if b'fourbar_ros.node' in Path(f'/proc/{child}/cmdline').read_bytes():
+            cmdline = Path(f'/proc/{child}/cmdline').read_bytes()
+            if any(name in cmdline for name in (b'fourbar_node', b'fourbar_sim_actuator', b'fourbar_ros.node')):
                 found.append(int(child))
     return found
 
@@ -76,19 +100,19 @@ def test_demo_interrupted_cleans_up(when: str, lease: DomainLease, tmp_path: Pat
     nodes: list[int] = []
     with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
         if when == 'starting':
-            demo.wait_line('fourbar demo: fourbar_node with', 60.0, stdout=True)  # before the node starts
-        elif when == 'node_started':  # the node process exists; the demo is still setting up its own rclpy
+            demo.wait_line('fourbar demo: fourbar_node (mode trajectory)', 60.0, stdout=True)  # before they start
+        elif when == 'node_started':  # the processes exist; the demo is still setting up its own rclpy
             wait_for(lambda: bool(_nodes(demo.proc.pid)) or demo.proc.poll() is not None, 60.0, 'the node process')
             nodes = _nodes(demo.proc.pid)
         else:
-            demo.wait_line('is up; replaying lock-step', 60.0)
+            demo.wait_line('are up; replaying paced', 60.0)
         demo.signal(signal.SIGINT)
         assert demo.wait(60.0) == 130, demo.lines
-    # The node process is gone (a node still starting holds no discovery port yet: check its pid too).
+    # Both node processes are gone (a node still starting holds no discovery port yet: check the pids too).
     assert not domain_in_use(lease.domain_id)
     assert not [pid for pid in nodes if Path(f'/proc/{pid}').exists()], nodes
     if (out / 'outputs').exists():  # interrupted after the recording was complete (while plotting)
-        assert len(read_messages(out / 'outputs')['/joint_states']) == len(read_commands(DEMO_BAG))
+        assert len(read_messages(out / 'outputs')['/antenna_angle_cmd']) == len(read_commands(DEMO_BAG))
 
 
 def test_demo_bad_params_is_one_line(tmp_path: Path) -> None:
@@ -116,12 +140,13 @@ def _run_from(command: list[str], env: dict[str, str], cwd: Path, timeout: float
 def _check_demo_output(rc: int, out: str, err: str, cwd: Path, params: Path, bag: Path) -> None:
     assert rc == 0, err
     first = out.splitlines()[0]
-    assert first.startswith(f'fourbar demo: fourbar_node with {params} on ROS_DOMAIN_ID '), first
-    assert first.endswith(f'replaying {len(read_commands(DEMO_BAG))} commands from {bag}'), first
+    assert first.startswith('fourbar demo: fourbar_node (mode trajectory) and the simulated actuator with '
+                            f'{params} on ROS_DOMAIN_ID '), first
+    assert f'replaying {len(read_commands(DEMO_BAG))} commands from {bag}, one every ' in first, first
     png = cwd / 'out' / 'demo' / 'demo.png'  # the default --out, relative to where it was started
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
     recorded = read_messages(cwd / 'out' / 'demo' / 'outputs')
-    assert len(recorded['/joint_states']) == len(read_commands(DEMO_BAG))
+    assert len(recorded['/antenna_angle_cmd']) == len(read_commands(DEMO_BAG))
 
 
 def test_demo_with_no_arguments_from_another_directory(tmp_path: Path) -> None:

@@ -26,6 +26,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import ConfigError, load_config
+from fourbar_ros.live.node_process import sim_actuator_command
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -81,6 +82,7 @@ def assert_clean_exit(proc: NodeProcess, status: int) -> None:
 
 def test_console_script_is_used() -> None:
     assert Path(node_command()[0]).name == 'fourbar_node'
+    assert Path(sim_actuator_command()[0]).name == 'fourbar_sim_actuator'
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])

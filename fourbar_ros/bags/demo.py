@@ -1,14 +1,18 @@
-"""The demo's analysis: pair a replayed command bag with the recorded node outputs, compare with the
-core, summarize and plot. No ROS here (the recording is read back with ``rosbags``).
+"""The demo's analysis of a closed-loop recording: fourbar_node in trajectory mode driving the simulated actuator.
+No ROS here (the recording is read back with ``rosbags``).
 
-Angles in rad (degrees only for display), torques in N m: ``input_torque`` at the driven rocker,
-motor torque before the reducer (``loads.motor_torque``).
+From the recorded messages it builds time series, the summary figures (tracking error, limit margins, counts, the
+node's completion against the core's) and the plot. Times in s from the first recorded command (receive times of
+the recording, one clock); angles in rad (degrees only for display); driven-joint speeds in rad/s at the driven
+rocker (the reducer's output side); torques at the motor in N m (``loads.motor_torque``: the rocker's torque over
+reducer_ratio * reducer_efficiency).
 """
 
 from __future__ import annotations
 
+import bisect
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -17,145 +21,434 @@ import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.interface import (
+    ANTENNA_ANGLE,
+    COMMAND,
+    DIAGNOSTICS,
+    INPUT_TORQUE,
+    JOINT_STATES,
+    trajectory_topic,
+)
+from fourbar_ros.core.antenna import Branch, Driven
+from fourbar_ros.core.completion import complete, inverse_branch
 from fourbar_ros.core.errors import FourBarError
-from fourbar_ros.core.loads import motor_torque, solve
-from fourbar_ros.rules.outputs import driven_index
-from fourbar_ros.rules.policy import Outcome, Policy, serve
+from fourbar_ros.core.loads import motor_torque
+from fourbar_ros.rules.completion import completed_names
+from fourbar_ros.rules.outputs import poses
+from fourbar_ros.rules.policy import Outcome, Policy, Served, serve
 
 FloatArray = npt.NDArray[np.float64]
+IntArray = npt.NDArray[np.int64]
+#: A recording as ``read_messages`` gives it: topic -> [(receive time ns, message), ...].
+Messages = Mapping[str, Sequence[tuple[int, Any]]]
 
 
 class DemoError(FourBarError):
-    """The recording does not match the replayed commands (counts or order)."""
+    """The recording cannot be analysed (no command, no measurement)."""
 
 
 @dataclass(frozen=True)
-class DemoData:
-    """One row per answered command: served theta, the node's gamma, delta (rad) and torque (N m)."""
+class DemoTopics:
+    """The recorded topics' names."""
 
-    theta: FloatArray
-    gamma: FloatArray
-    delta: FloatArray
-    input_torque: FloatArray
+    command: str
+    joint_states: str
+    antenna_angle: str
+    input_torque: str
+    trajectory: str
+    diagnostics: str
+
+    def all(self) -> tuple[str, ...]:
+        """Every name, in recording order."""
+        return (self.command, self.joint_states, self.antenna_angle, self.input_torque, self.trajectory,
+                self.diagnostics)
+
+
+def demo_topics(trajectory_controller: str) -> DemoTopics:
+    """The recorded topics in the root namespace, where the demo runs its nodes."""
+    return DemoTopics(f'/{COMMAND.name}', f'/{JOINT_STATES.name}', f'/{ANTENNA_ANGLE.name}', f'/{INPUT_TORQUE.name}',
+                      f'/{trajectory_topic(trajectory_controller).name}', DIAGNOSTICS.name)
+
+
+@dataclass(frozen=True)
+class Series:
+    """Samples of one quantity: times (s from the first command) and values (units as named where used)."""
+
+    t: FloatArray
+    value: FloatArray
+
+
+@dataclass(frozen=True)
+class Measured:
+    """The simulated actuator's joint_states: driven joint position (rad), velocity (rad/s), effort (N m at the
+    driven rocker) and the header stamps (ns) the completion carries over. Timed by these stamps (when measured,
+    on the same clock as the recording's receive times), not by when they arrived."""
+
+    position: Series
+    velocity: FloatArray
     effort: FloatArray
+    stamp_ns: IntArray
+
+
+@dataclass(frozen=True)
+class Completed:
+    """fourbar_node's completed joint_states: the other rocker and the coupler joint, positions (rad) and velocities
+    (rad/s; NaN where a message has none), with the measurement stamps (ns) they carry."""
+
+    stamp_ns: IntArray
+    other: FloatArray
+    coupler: FloatArray
+    other_rate: FloatArray
+    coupler_rate: FloatArray
+
+
+@dataclass(frozen=True)
+class Recording:
+    """A closed-loop run as time series."""
+
+    command: Series  #: served antenna angle commands (rad)
+    commands_recorded: int
     rejected: int
     clamped: int
+    measured: Measured
+    antenna: Series  #: the node's measured antenna angle (rad), timed by the measurement it completes (see below)
+    antenna_matched: int  #: antenna_angle messages equal to the core's completion of a recorded measurement
+    antenna_recorded: int  #: antenna_angle messages in the recording
+    completed: Completed
+    planned: Series  #: the driven joint's planned position (rad), each trajectory up to the next one's start
+    planned_velocity: FloatArray  #: rad/s, at the planned samples
+    planned_effort: FloatArray  #: N m at the driven rocker (the feed-forward), at the planned samples
+    input_torque: Series  #: N m at the driven rocker
+    trajectories: int
+    diagnostics: int
 
 
-def served_angles(commands: Sequence[float], cfg: AntennaConfig) -> tuple[FloatArray, int, int]:
-    """The angles the node serves for ``commands`` (rad, its policy), and the rejected and clamped counts."""
-    served = serve(np.asarray(commands, dtype=np.float64), cfg.theta_min, cfg.theta_max, Policy(cfg.out_of_limits),
-                   cfg.linkage.reach())
-    rejected = sum(n for outcome, n in served.outcomes.items() if outcome.rejected)
-    return served.theta, rejected, served.outcomes[Outcome.CLAMPED]
+#: The paced replay asks the driven joint for this fraction of its speed limit, on average, between two commands.
+PACE_FRACTION = 0.8
+#: Shortest time (s) between two replayed commands.
+MIN_PERIOD_S = 0.01
 
 
-def pair(commands: Sequence[float], cfg: AntennaConfig, joint_states: Sequence[Any],
-         torques: Sequence[Any]) -> DemoData:
-    """Match the i-th answered command with the i-th JointState and input_torque message (in order)."""
-    served, rejected, clamped = served_angles(commands, cfg)
-    if len(joint_states) != len(served) or len(torques) != len(served):
-        raise DemoError(f'{len(served)} commands answered but {len(joint_states)} joint_states and '
-                        f'{len(torques)} input_torque messages recorded')
-    driven = driven_index(cfg)
-    return DemoData(
-        theta=served,
-        gamma=np.array([m.position[0] for m in joint_states], dtype=np.float64),
-        delta=np.array([m.position[1] for m in joint_states], dtype=np.float64),
-        input_torque=np.array([m.data for m in torques], dtype=np.float64),
-        effort=np.array([m.effort[driven] for m in joint_states], dtype=np.float64),
-        rejected=rejected, clamped=clamped)
+def served(values: Sequence[float], cfg: AntennaConfig) -> Served:
+    """What the node serves of ``values`` (rad): ``rules.policy.serve`` with the configured limits and policy."""
+    return serve(np.asarray(values, dtype=np.float64), cfg.theta_min, cfg.theta_max, Policy(cfg.out_of_limits),
+                 cfg.linkage.reach())
 
 
-def core_deviation(data: DemoData, cfg: AntennaConfig) -> tuple[float, float]:
-    """Largest |node - core| over the rows: (rocker angles, rad; torque, N m)."""
-    angle, torque = 0.0, 0.0
-    for theta, gamma, delta, tau, effort in zip(data.theta, data.gamma, data.delta, data.input_torque,
-                                                data.effort, strict=True):
-        state = solve(cfg, float(theta))
-        angle = max(angle, abs(gamma - float(state.gamma)), abs(delta - float(state.delta)))
-        torque = max(torque, abs(tau - float(state.input_torque)), abs(effort - float(state.input_torque)))
-    return angle, torque
+def served_driven(values: Sequence[float], cfg: AntennaConfig) -> FloatArray:
+    """The driven joint's angle (rad) at each command the node serves."""
+    gamma, delta, _ = poses(cfg, served(values, cfg).theta)
+    return gamma if cfg.driven is Driven.GAMMA else delta
+
+
+def pace(values: Sequence[float], cfg: AntennaConfig) -> float:
+    """Seconds between replayed commands so that the largest step between two served commands, taken in that
+    time, asks the driven joint for PACE_FRACTION of its speed limit (motor_speed_limit / reducer_ratio); at
+    least MIN_PERIOD_S."""
+    q = served_driven(values, cfg)
+    step = float(np.max(np.abs(np.diff(q)))) if q.size > 1 else 0.0
+    return max(step / (PACE_FRACTION * cfg.motor_speed_limit / cfg.reducer_ratio), MIN_PERIOD_S)
+
+
+def _stamp_ns(header: Any) -> int:
+    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+
+
+def _column(values: Sequence[float], index: int) -> float:
+    return float(values[index]) if len(values) > index else math.nan
+
+
+def _planned(trajectories: Sequence[tuple[int, Any]], joint: str, t0: int) -> tuple[Series, FloatArray, FloatArray]:
+    """The planned motion of ``joint``: each trajectory from its start (header stamp, else its arrival) up to the
+    next one's start, as the controller follows the latest (times in s from ``t0`` ns)."""
+    starts = [(_stamp_ns(m.header) or t) for t, m in trajectories]
+    t_out: list[float] = []
+    q_out: list[float] = []
+    v_out: list[float] = []
+    e_out: list[float] = []
+    for k, (_, msg) in enumerate(trajectories):
+        if joint not in msg.joint_names:
+            continue
+        j = list(msg.joint_names).index(joint)
+        end = starts[k + 1] if k + 1 < len(starts) else math.inf
+        for p in msg.points:
+            at = starts[k] + int(p.time_from_start.sec) * 1_000_000_000 + int(p.time_from_start.nanosec)
+            if at > end:
+                break
+            t_out.append((at - t0) * 1e-9)
+            q_out.append(float(p.positions[j]))
+            v_out.append(_column(p.velocities, j))
+            e_out.append(_column(p.effort, j))
+    return Series(np.array(t_out), np.array(q_out)), np.array(v_out), np.array(e_out)
+
+
+def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Recording:
+    """The time series of a recording of ``topics``. Raises DemoError without a command or a measurement."""
+    commands = messages.get(topics.command, [])
+    if not commands:
+        raise DemoError(f'no command recorded on {topics.command}')
+    t0 = commands[0][0]
+
+    def seconds(rows: Sequence[tuple[int, Any]]) -> FloatArray:
+        return np.array([(t - t0) * 1e-9 for t, _ in rows], dtype=np.float64)
+
+    answered = served([m.data for _, m in commands], cfg)
+    rejected = sum(n for outcome, n in answered.outcomes.items() if outcome.rejected)
+    driven = cfg.driven_joint
+    other_name, coupler_name = completed_names(cfg)
+    measured_rows: list[tuple[int, Any]] = []
+    completed_rows: list[tuple[int, Any]] = []
+    for row in messages.get(topics.joint_states, []):
+        names = list(row[1].name)
+        if names == [driven]:
+            measured_rows.append(row)
+        elif other_name in names:
+            completed_rows.append(row)
+    if not measured_rows:
+        raise DemoError(f'no measured {driven!r} recorded on {topics.joint_states}')
+
+    def field(rows: Sequence[tuple[int, Any]], name: str, attr: str) -> FloatArray:
+        return np.array([_column(getattr(m, attr), list(m.name).index(name)) for _, m in rows], dtype=np.float64)
+
+    measured_stamps = np.array([_stamp_ns(m.header) for _, m in measured_rows], dtype=np.int64)
+    measured_t = ((measured_stamps - t0) * 1e-9).astype(np.float64)
+    measured_q = field(measured_rows, driven, 'position')
+
+    planned, planned_velocity, planned_effort = _planned(messages.get(topics.trajectory, []), driven, t0)
+    torques = messages.get(topics.input_torque, [])
+    angles = messages.get(topics.antenna_angle, [])
+    antenna, matched = _antenna_series(cfg, angles, seconds(angles), measured_q, measured_t)
+    return Recording(
+        command=Series(seconds(commands)[answered.index], answered.theta),
+        commands_recorded=len(commands), rejected=rejected, clamped=answered.outcomes[Outcome.CLAMPED],
+        measured=Measured(Series(measured_t, measured_q),
+                          field(measured_rows, driven, 'velocity'), field(measured_rows, driven, 'effort'),
+                          measured_stamps),
+        antenna=antenna, antenna_matched=matched, antenna_recorded=len(angles),
+        completed=Completed(np.array([_stamp_ns(m.header) for _, m in completed_rows], dtype=np.int64),
+                            field(completed_rows, other_name, 'position'),
+                            field(completed_rows, coupler_name, 'position'),
+                            field(completed_rows, other_name, 'velocity'),
+                            field(completed_rows, coupler_name, 'velocity')),
+        planned=planned, planned_velocity=planned_velocity, planned_effort=planned_effort,
+        input_torque=Series(seconds(torques), np.array([m.data for _, m in torques], dtype=np.float64)),
+        trajectories=len(messages.get(topics.trajectory, [])),
+        diagnostics=len(messages.get(topics.diagnostics, [])))
+
+
+def _antenna_series(cfg: AntennaConfig, angles: Sequence[tuple[int, Any]], received: FloatArray, q: FloatArray,
+                    measured_t: FloatArray) -> tuple[Series, int]:
+    """The antenna_angle messages (Float64: no stamp) timed by the measurement each completes: in order, the next
+    recorded measurement whose completion by the core (``complete``, the node's scalar path) gives exactly its
+    value; a message no measurement gives keeps its receive time, except before the first found (the recording of
+    the measurements started after them): those are left out. Returns the series, sorted by time, and the number
+    found."""
+    branch = rocker_branch(cfg)
+    where: dict[float, list[int]] = {}
+    for i, x in enumerate(q.tolist()):
+        where.setdefault(float(complete(cfg.linkage, float(x), cfg.driven, branch).theta), []).append(i)
+    values = np.array([m.data for _, m in angles], dtype=np.float64)
+    times = received.copy()
+    matched, after, first = 0, 0, None
+    for k, v in enumerate(values.tolist()):
+        candidates = where.get(float(v), [])
+        n = bisect.bisect_left(candidates, after)
+        if n < len(candidates):
+            times[k] = measured_t[candidates[n]]
+            after = candidates[n] + 1
+            matched += 1
+            first = k if first is None else first
+    keep = slice(first or 0, None)  # before the first found: completions of measurements the recording missed
+    times, values = times[keep], values[keep]
+    order = np.argsort(times, kind='stable')
+    return Series(times[order], values[order]), matched
+
+
+def commanded_at(command: Series, t: FloatArray) -> FloatArray:
+    """The latest served command (rad) at each time of ``t`` (s); NaN before the first."""
+    i = np.searchsorted(command.t, t, side='right') - 1
+    out = np.full(t.shape, np.nan)
+    out[i >= 0] = command.value[i[i >= 0]]
+    return out
+
+
+def antenna_of(cfg: AntennaConfig, q: FloatArray) -> FloatArray:
+    """The antenna angle (rad) of driven-joint angles ``q`` (rad), by the core's exact completion."""
+    if q.size == 0:
+        return q.copy()
+    return np.asarray(complete(cfg.linkage, q, cfg.driven, rocker_branch(cfg), on_invalid='nan').theta)
+
+
+def rocker_branch(cfg: AntennaConfig) -> Branch:
+    """The completion's branch (``from_rocker``'s sense) of the configured assembly, as the node takes it."""
+    return inverse_branch(cfg.linkage, 0.5 * (cfg.theta_min + cfg.theta_max), cfg.driven, cfg.branch)
+
+
+@dataclass(frozen=True)
+class Summary:
+    """The demo's figures. Errors are commanded minus measured antenna angle (rad)."""
+
+    final_error: float
+    worst_error: float
+    worst_error_t: float  #: s
+    speed_limit: float  #: rad/s at the driven rocker: motor_speed_limit / reducer_ratio
+    peak_speed_measured: float  #: rad/s
+    peak_speed_planned: float  #: rad/s (NaN without planned velocities)
+    torque_limit: float  #: N m at the motor
+    peak_motor_torque: float  #: N m, over input_torque, the planned feed-forward and the measured effort
+    completion_position: float  #: rad, largest |node - core| over the completed positions
+    completion_velocity: float  #: rad/s, the same for the velocities
+    completed_paired: int  #: completed messages matched to a measurement by stamp
+    completed_unpaired: int
+
+    @property
+    def speed_margin(self) -> float:
+        """1 - peak / limit over the measured and planned speeds (negative: over the limit)."""
+        peak = np.nanmax([self.peak_speed_measured, self.peak_speed_planned])
+        return 1.0 - float(peak) / self.speed_limit
+
+    @property
+    def torque_margin(self) -> float:
+        """1 - peak / limit of the motor torque (negative: over the limit)."""
+        return 1.0 - self.peak_motor_torque / self.torque_limit
+
+
+def _peak(values: FloatArray) -> float:
+    finite = values[np.isfinite(values)]
+    return float(np.max(np.abs(finite))) if finite.size else math.nan
+
+
+def completion_deviation(rec: Recording, cfg: AntennaConfig) -> tuple[float, float, int, int]:
+    """Largest |node - core| of the completed positions (rad) and velocities (rad/s), each completed message
+    against ``core.completion.complete`` of the measurement with its stamp; and the paired and unpaired counts
+    (completions stamped before the first recorded measurement are left out: the recording started after them)."""
+    by_stamp = {int(s): i for i, s in enumerate(rec.measured.stamp_ns)}
+    branch = rocker_branch(cfg)
+    position, velocity, paired = 0.0, 0.0, 0
+    c = rec.completed
+    first = int(rec.measured.stamp_ns[0])  # completions of measurements sent before the recording matched: not ours
+    considered = 0
+    for k, stamp in enumerate(c.stamp_ns):
+        if stamp < first:
+            continue
+        considered += 1
+        i = by_stamp.get(int(stamp))
+        if i is None:
+            continue
+        paired += 1
+        q, q_rate = float(rec.measured.position.value[i]), float(rec.measured.velocity[i])
+        core = complete(cfg.linkage, q, cfg.driven, branch, q_rate=q_rate if math.isfinite(q_rate) else None)
+        position = max(position, abs(c.other[k] - float(core.other)), abs(c.coupler[k] - float(core.coupler_joint)))
+        if core.other_rate is not None and core.coupler_joint_rate is not None:
+            velocity = max(velocity, abs(c.other_rate[k] - float(core.other_rate)),
+                           abs(c.coupler_rate[k] - float(core.coupler_joint_rate)))
+    return position, velocity, paired, considered - paired
+
+
+def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
+    """The figures of a recording."""
+    if rec.command.t.size == 0 or rec.antenna.t.size == 0:
+        raise DemoError('no served command or no measured antenna angle to compare')
+    after = rec.antenna.t >= rec.command.t[0]
+    t = rec.antenna.t[after]
+    error = commanded_at(rec.command, t) - rec.antenna.value[after]
+    if error.size == 0:
+        raise DemoError('no measured antenna angle after the first command')
+    worst = int(np.argmax(np.abs(error)))
+    torque = np.concatenate([rec.input_torque.value, rec.planned_effort, rec.measured.effort])
+    position, velocity, paired, unpaired = completion_deviation(rec, cfg)
+    return Summary(
+        final_error=float(error[-1]), worst_error=float(error[worst]), worst_error_t=float(t[worst]),
+        speed_limit=cfg.motor_speed_limit / cfg.reducer_ratio,
+        peak_speed_measured=_peak(rec.measured.velocity), peak_speed_planned=_peak(rec.planned_velocity),
+        torque_limit=cfg.motor_torque_limit, peak_motor_torque=abs(motor_torque(cfg, _peak(torque))),
+        completion_position=position, completion_velocity=velocity, completed_paired=paired,
+        completed_unpaired=unpaired)
 
 
 def _deg(x: float) -> str:
-    return f'{math.degrees(x):+.2f} deg'
+    return f'{math.degrees(x):+.4f} deg'
 
 
-def summary_lines(data: DemoData, cfg: AntennaConfig, diagnostics: dict[str, str]) -> list[str]:
-    """The demo's short report: rocker angle ranges, peak torques against the limits, rejections."""
-    if data.theta.size == 0:
-        return ['no command was answered']
-    peak = int(np.argmax(np.abs(data.input_torque)))
-    tau = float(data.input_torque[peak])
-    tau_motor = motor_torque(cfg, tau)
-    driven = cfg.driven.value
-    rejected_diag = sum(int(diagnostics.get(k, '0')) for k in (
-        'commands_rejected_not_finite', 'commands_rejected_out_of_limits', 'commands_rejected_out_of_reach'))
+def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: Mapping[str, str]) -> list[str]:
+    """The demo's short report."""
+    speed_peak = float(np.nanmax([s.peak_speed_measured, s.peak_speed_planned]))
     return [
-        f'theta    {_deg(float(data.theta.min()))} .. {_deg(float(data.theta.max()))} '
-        f'({data.theta.size} commands served)',
-        f'gamma    {_deg(float(data.gamma.min()))} .. {_deg(float(data.gamma.max()))}   (rocker AB, at A)',
-        f'delta    {_deg(float(data.delta.min()))} .. {_deg(float(data.delta.max()))}   (rocker CD, at D)',
-        f'torque   peak {abs(tau):.4f} N m at the driven rocker ({driven}) at theta {_deg(float(data.theta[peak]))}'
-        f' for a {cfg.load_torque:g} N m load: {100 * abs(tau) / cfg.output_torque_limit:.0f}% of the '
-        f'{cfg.output_torque_limit:g} N m reducer rating',
-        f'motor    peak {abs(tau_motor):.5f} N m through {cfg.reducer_ratio:g}:1 at efficiency '
-        f'{cfg.reducer_efficiency:g}: {100 * abs(tau_motor) / cfg.motor_torque_limit:.0f}% of the '
-        f'{cfg.motor_torque_limit:g} N m motor limit',
-        f'rejected {data.rejected} commands by the limits (node diagnostics: {rejected_diag} rejected, '
-        f'{diagnostics.get("commands_clamped", "?")} clamped of {diagnostics.get("commands_received", "?")} '
-        'received)',
+        f'command  {_deg(float(rec.command.value.min()))} .. {_deg(float(rec.command.value.max()))} '
+        f'({rec.command.value.size} served of {rec.commands_recorded} sent; {rec.rejected} rejected, '
+        f'{rec.clamped} clamped; node diagnostics: {diagnostics.get("commands_received", "?")} received, '
+        f'{diagnostics.get("commands_planned", "?")} planned, {diagnostics.get("commands_not_planned", "?")} not)',
+        f'tracking final {s.final_error:+.3g} rad (commanded - measured antenna angle; trajectory_tolerance '
+        f'{cfg.trajectory_tolerance:g}), worst {_deg(s.worst_error)} at {s.worst_error_t:.2f} s',
+        f'speed    peak {math.degrees(speed_peak):.3f} deg/s at the driven rocker (measured '
+        f'{math.degrees(s.peak_speed_measured):.3f}, planned {math.degrees(s.peak_speed_planned):.3f}) of the '
+        f'{math.degrees(s.speed_limit):.3f} deg/s limit ({cfg.motor_speed_limit:g} rad/s / {cfg.reducer_ratio:g}): '
+        f'margin {100 * s.speed_margin:.1f}%',
+        f'torque   peak {s.peak_motor_torque:.5f} N m at the motor of the {s.torque_limit:g} N m limit: '
+        f'margin {100 * s.torque_margin:.1f}%',
+        f'margin   worst {100 * min(s.speed_margin, s.torque_margin):.1f}% '
+        f'({"speed" if s.speed_margin <= s.torque_margin else "torque"})',
+        f'counts   {rec.trajectories} trajectories, {rec.planned.t.size} planned points followed, '
+        f'{rec.measured.position.t.size} measured joint_states, {rec.completed.stamp_ns.size} completed, '
+        f'{rec.antenna_recorded} antenna_angle, {rec.input_torque.t.size} input_torque, {rec.diagnostics} diagnostics',
+        f'check    completion vs core: max |d position| = {s.completion_position:.3g} rad, max |d velocity| = '
+        f'{s.completion_velocity:.3g} rad/s over {s.completed_paired} measurements ({s.completed_unpaired} unpaired); '
+        f'antenna_angle: {rec.antenna_matched} of {rec.antenna.t.size} equal to a measurement\'s',
     ]
 
 
-def plot(data: DemoData, cfg: AntennaConfig, path: Path, title: str) -> Path:
-    """Write a PNG: gamma and delta (deg), and the driven rocker's torque (N m) against theta (deg)."""
+def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str) -> Path:
+    """Write a PNG: commanded, planned and measured antenna angle; tracking error; driven-joint speed against its
+    limit; motor torque (planned feed-forward, measured effort) against its limit; all against time."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    order = np.argsort(data.theta, kind='stable')
-    theta_deg = np.degrees(data.theta[order])
-    grid = np.linspace(cfg.theta_min, cfg.theta_max, 400)
-    core = [solve(cfg, float(t)) for t in grid]
-    grid_deg = np.degrees(grid)
+    fig, (ax_angle, ax_error, ax_speed, ax_torque) = plt.subplots(
+        4, 1, figsize=(8.5, 10.0), sharex=True, layout='constrained', height_ratios=(3, 1.6, 2, 2))
+    ax_angle.step(rec.command.t, np.degrees(rec.command.value), where='post', color='tab:red', lw=1.2,
+                  label='commanded (antenna_angle_cmd)')
+    ax_angle.plot(rec.planned.t, np.degrees(antenna_of(cfg, rec.planned.value)), color='tab:blue', ls='--', lw=1,
+                  label='planned (joint_trajectory, completed by the core)')
+    ax_angle.plot(rec.antenna.t, np.degrees(rec.antenna.value), color='k', lw=0.8,
+                  label='measured (antenna_angle, completed by the node)')
+    ax_angle.set_ylabel('antenna angle theta (deg)')
+    ax_angle.legend(loc='lower center', fontsize=8)
 
-    fig, (ax_angle, ax_torque) = plt.subplots(2, 1, figsize=(8.0, 7.0), sharex=True, layout='constrained')
-    # Recorded samples as rings, the core as a thin line through them: the line must run through
-    # every ring.
-    ring = {'marker': 'o', 'ms': 4, 'mfc': 'none', 'mew': 0.6, 'ls': 'none'}
-    ax_angle.plot(theta_deg, np.degrees(data.gamma[order]), color='tab:blue', label='gamma, recorded from the node',
-                  **ring)
-    ax_angle.plot(theta_deg, np.degrees(data.delta[order]), color='tab:orange',
-                  label='delta, recorded from the node', **ring)
-    ax_angle.plot(grid_deg, [math.degrees(float(s.gamma)) for s in core], color='k', lw=0.8,
-                  label='gamma and delta, core')
-    ax_angle.plot(grid_deg, [math.degrees(float(s.delta)) for s in core], color='k', lw=0.8)
-    ax_angle.set_ylabel('rocker angle (deg)')
-    ax_angle.legend(loc='center right', fontsize=8)
-    ax_angle.grid(True, alpha=0.3)
+    after = rec.antenna.t >= rec.command.t[0]
+    t = rec.antenna.t[after]
+    error = commanded_at(rec.command, t) - rec.antenna.value[after]
+    ax_error.plot(t, np.degrees(error), color='k', lw=0.8, label='commanded - measured')
+    ax_error.axhline(0.0, color='0.5', lw=0.6)
+    ax_error.set_ylabel('tracking error (deg)')
+    ax_error.legend(loc='upper right', fontsize=8,
+                    title=f'final {s.final_error:+.2g} rad, worst {math.degrees(s.worst_error):+.2f} deg',
+                    title_fontsize=8)
 
-    driven = cfg.driven.value
-    ax_torque.plot(theta_deg, data.input_torque[order], color='tab:green',
-                   label=f'input torque at rocker {driven}, recorded from the node', **ring)
-    ax_torque.plot(grid_deg, [float(s.input_torque) for s in core], color='k', lw=0.8, label='input torque, core')
-    ax_torque.axhline(cfg.output_torque_limit, color='tab:red', ls='--', lw=1,
-                      label=f'reducer rating {cfg.output_torque_limit:g} N m')
-    motor_limit_at_rocker = cfg.motor_torque_limit * cfg.reducer_ratio * cfg.reducer_efficiency
-    ax_torque.axhline(motor_limit_at_rocker, color='tab:purple', ls=':', lw=1,
-                      label=f'motor limit {cfg.motor_torque_limit:g} N m x {cfg.reducer_ratio:g}:1')
-    ax_torque.axhline(cfg.load_torque, color='0.5', ls='-.', lw=1, label=f'load {cfg.load_torque:g} N m about theta')
-    ax_torque.set_ylim(0.0, 1.15 * max(cfg.output_torque_limit, motor_limit_at_rocker,
-                                       float(np.max(np.abs(data.input_torque)))))
-    ax_torque.set_ylabel('torque at the driven rocker (N m)')
-    ax_torque.set_xlabel('antenna angle theta (deg, positive tilts down)')
-    ax_torque.legend(loc='lower right', fontsize=8)
-    ax_torque.grid(True, alpha=0.3)
-    ratio = cfg.reducer_ratio * cfg.reducer_efficiency
-    motor_axis = ax_torque.secondary_yaxis('right', functions=(lambda t: t / ratio, lambda m: m * ratio))
-    motor_axis.set_ylabel('motor torque (N m)')
+    limit = math.degrees(s.speed_limit)
+    ax_speed.plot(rec.planned.t, np.degrees(rec.planned_velocity), color='tab:blue', ls='--', lw=1, label='planned')
+    ax_speed.plot(rec.measured.position.t, np.degrees(rec.measured.velocity), color='k', lw=0.8,
+                  label=f'measured ({cfg.driven_joint})')
+    for sign in (1.0, -1.0):
+        ax_speed.axhline(sign * limit, color='tab:red', ls=':', lw=1.2,
+                         label=f'limit {cfg.motor_speed_limit:.4g} rad/s / {cfg.reducer_ratio:g}' if sign > 0 else None)
+    ax_speed.set_ylim(-1.25 * limit, 1.25 * limit)
+    ax_speed.set_ylabel('driven joint speed (deg/s)')
+    ax_speed.legend(loc='lower left', fontsize=8, ncols=3)
+
+    ax_torque.plot(rec.measured.position.t, motor_torque(cfg, rec.measured.effort), color='k', lw=0.8,
+                   label='measured effort')
+    ax_torque.plot(rec.planned.t, motor_torque(cfg, rec.planned_effort), color='tab:blue', ls='--', lw=1,
+                   label='planned feed-forward')
+    ax_torque.axhline(cfg.motor_torque_limit, color='tab:red', ls=':', lw=1.2,
+                      label=f'motor limit {cfg.motor_torque_limit:g} N m')
+    ax_torque.set_ylim(0.0, 1.2 * max(cfg.motor_torque_limit, s.peak_motor_torque))
+    ax_torque.set_ylabel(f'torque at the motor (N m)\n(rocker / ({cfg.reducer_ratio:g} x {cfg.reducer_efficiency:g}))')
+    ax_torque.set_xlabel('time since the first command (s)')
+    ax_torque.legend(loc='lower left', fontsize=8, ncols=3)
+    for ax in (ax_angle, ax_error, ax_speed, ax_torque):
+        ax.grid(True, alpha=0.3)
     fig.suptitle(title, fontsize=10)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f'.{path.name}.tmp')

@@ -1,8 +1,10 @@
-"""`fourbar demo`: start fourbar_node, replay the bundled sweep into it, record its outputs, summarize, plot.
+"""`fourbar demo`: the closed loop. Start fourbar_node in trajectory mode and the simulated actuator, replay the
+bundled sweep paced so the drive can follow, record commands, planned trajectories, measured and completed state,
+summarize and plot.
 
 Runs on --domain-id, else an exported ROS_DOMAIN_ID, else one nobody on this host uses, with discovery limited to this
 host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so it neither sees nor disturbs other ROS traffic.
-The node process is stopped on every path (done, error, Ctrl-C).
+Both node processes are stopped on every path (done, error, Ctrl-C).
 """
 
 from __future__ import annotations
@@ -14,24 +16,15 @@ import time
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
-from fourbar_ros.config.interface import (
-    DEFAULT_STORAGE,
-    DIAGNOSTICS,
-    PER_COMMAND_OUTPUTS,
-    RECORDED_OUTPUTS,
-    STORAGES,
-)
+from fourbar_ros.config.interface import DEFAULT_STORAGE, DIAGNOSTICS, STORAGES, STREAM_DEPTH
 from fourbar_ros.live.node_process import FREE_DOMAIN_IDS
 
-HELP = ('the main job: start fourbar_node with a parameter file, replay the bundled sweep, record the '
-        'outputs, print a summary and write a PNG plot')
+HELP = ('the main job: start fourbar_node (trajectory mode) with a parameter file and the simulated actuator, '
+        'replay the bundled sweep, record, print a summary and write a PNG plot')
 
 #: Defaults, paths inside the package's share/ (found by config.share.share_path when the demo runs).
 DEFAULT_PARAMS = 'config/antenna.yaml'
 DEFAULT_BAG = 'bags/demo_sweep'
-#: The recorded outputs and their names in the root namespace, where the demo's node runs.
-OUTPUT_TOPICS = tuple(t.name for t in RECORDED_OUTPUTS)
-JOINTS, TORQUE = (f'/{t.name}' for t in PER_COMMAND_OUTPUTS)
 
 
 def _id_ranges(ids: tuple[int, ...]) -> str:
@@ -85,13 +78,14 @@ def _environment_domain() -> tuple[int | None, str]:
 def run(args: argparse.Namespace) -> int:
     """Run the demo; exit 0 with the summary on stdout and the plot written."""
     import contextlib
+    import dataclasses
     import shutil
 
-    from fourbar_ros.bags.demo import core_deviation, pair, plot, summary_lines
+    from fourbar_ros.bags.demo import demo_topics, pace, recording, summarize, summary_lines
+    from fourbar_ros.bags.demo import plot as plot_demo
     from fourbar_ros.bags.storage import read_commands, read_messages
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.config.share import share_path
-    from fourbar_ros.live.node_params import predictor
     from fourbar_ros.live.node_process import free_domain_id
 
     prog = 'fourbar demo'
@@ -105,41 +99,51 @@ def run(args: argparse.Namespace) -> int:
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise CommandError(f'--domain-id must be in 0..232, got {args.domain_id}')
     chosen, source = (args.domain_id, '--domain-id') if args.domain_id is not None else _environment_domain()
+    period = pace(stream.values, cfg)
+    first = stream.stamps_ns[0] if stream.stamps_ns else 0
+    paced = dataclasses.replace(stream, stamps_ns=tuple(first + round(i * period * 1e9) for i in range(len(stream))))
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     outputs = out / 'outputs'
     if outputs.exists():  # the previous demo's recording: ours to replace
         shutil.rmtree(outputs)
 
+    topics = demo_topics(cfg.trajectory_controller)
     domain = contextlib.nullcontext(chosen) if chosen is not None else free_domain_id()
     with domain as domain_id:
-        print(f'{prog}: fourbar_node with {args.params} on ROS_DOMAIN_ID {domain_id} ({source}; this host only); '
-              f'replaying {len(stream)} commands from {args.bag}', flush=True)
-        replay_seconds, diagnostics = _run_ros(args, stream, domain_id, outputs,
-                                               predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits))
+        print(f'{prog}: fourbar_node (mode trajectory) and the simulated actuator with {args.params} on '
+              f'ROS_DOMAIN_ID {domain_id} ({source}; this host only); replaying {len(stream)} commands from '
+              f'{args.bag}, one every {period * 1e3:.1f} ms', flush=True)
+        replay_seconds, diagnostics = _run_ros(args, paced, domain_id, outputs, topics, cfg)
 
-    topics = read_messages(outputs, [JOINTS, TORQUE])  # read back with rosbags
-    data = pair(stream.values, cfg, [m for _, m in topics[JOINTS]], [m for _, m in topics[TORQUE]])
-    angle_err, torque_err = core_deviation(data, cfg)
-    png = plot(data, cfg, out / 'demo.png',
-               f'fourbar demo: {args.bag.name} replayed through fourbar_node ({args.params})\n'
-               f'frame {cfg.frame_length:g} m, rockers {cfg.rocker_ab_length:g}/{cfg.rocker_cd_length:g} m, '
-               f'coupler {cfg.coupler_length:g} m, load {cfg.load_torque:g} N m, driven rocker {cfg.driven.value}')
-    for line in summary_lines(data, cfg, diagnostics):
+    rec = recording(read_messages(outputs, topics.all()), topics, cfg)  # read back with rosbags
+    figures = summarize(rec, cfg)
+    png = plot_demo(rec, figures, cfg, out / 'demo.png',
+                    f'fourbar demo: {args.bag.name} replayed into fourbar_node (mode trajectory) driving the '
+                    f'simulated actuator\n({args.params}; driven rocker {cfg.driven.value}, {cfg.reducer_ratio:g}:1, '
+                    f'motor {cfg.motor_speed_limit:.4g} rad/s, {cfg.motor_acceleration_limit:g} rad/s^2, '
+                    f'{cfg.motor_jerk_limit:g} rad/s^3)')
+    for line in summary_lines(rec, figures, cfg, diagnostics):
         print(line)
-    print(f'check    node vs core: max |d angle| = {angle_err:.3g} rad, max |d torque| = {torque_err:.3g} N m')
-    print(f'replay   {len(stream)} commands lock-step in {replay_seconds:.2f} s; outputs bag {outputs} '
-          f'({args.storage})')
+    print(f'replay   {len(stream)} commands in {replay_seconds:.2f} s; outputs bag {outputs} ({args.storage})')
     print(f'plot     {png}')
     print(f'{prog}: done in {time.monotonic() - start:.1f} s')
     return 0
 
 
-def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: Path,
-             answers: object) -> tuple[float, dict[str, str]]:
-    """Node process + in-process replay and recording. Returns (replay seconds, last diagnostics).
+#: Measured antenna angles in a row within the tolerance of the last command that end the run.
+SETTLE_SAMPLES = 10
 
-    A node that fails or does not answer raises CommandError with status 1.
+
+def _settled(antenna: list[float], target: float, tolerance: float, samples: int) -> bool:
+    """The last ``samples`` measured antenna angles (rad) are all within ``tolerance`` (rad) of ``target``."""
+    return len(antenna) >= samples and all(abs(a - target) <= tolerance for a in antenna[-samples:])
+
+
+def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: Path, topics: object,
+             cfg: object) -> tuple[float, dict[str, str]]:
+    """Node and simulated actuator processes, in-process paced replay and recording. Returns (replay seconds,
+    last diagnostics). A process that fails or a node that does not answer raises CommandError with status 1.
     """
     import contextlib
     import os
@@ -148,64 +152,100 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from rclpy.context import Context
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
     from rclpy.node import Node
+    from std_msgs.msg import Float64
 
+    from fourbar_ros.bags.demo import DemoTopics, served
     from fourbar_ros.bags.storage import BagError, CommandStream
+    from fourbar_ros.config.antenna_config import AntennaConfig
     from fourbar_ros.live.graph import ReplayError, spin_until
-    from fourbar_ros.live.node_process import NodeProcess, node_args
+    from fourbar_ros.live.node_process import NodeProcess, node_args, sim_actuator_command
     from fourbar_ros.live.progress import Progress
     from fourbar_ros.live.record import Recorder, discover
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
     from fourbar_ros.node.run import stop_on_signals
 
-    assert isinstance(stream, CommandStream)
+    assert isinstance(stream, CommandStream) and isinstance(topics, DemoTopics) and isinstance(cfg, AntennaConfig)
     prog = 'fourbar demo'
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'  # read by the middleware at init
-    # One JointState per answered command: the recording is paired with the commands (no idle republishing).
-    proc = NodeProcess(node_args(args.params, '-p', 'joint_state_rate:=0.0'),
-                       dict(os.environ, ROS_DOMAIN_ID=str(domain_id)), log_path=args.out / 'node.log')
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
+    commands = served(stream.values, cfg).theta
+    if commands.size == 0:
+        raise CommandError(f'{args.bag}: the node serves none of its {len(stream)} commands', status=2)
+    # The drive starts at rest at the first served command; its limits are the motor's through the reducer.
+    node = NodeProcess(node_args(args.params, '-p', 'mode:=trajectory', '-p', 'joint_state_rate:=0.0'), env,
+                       log_path=args.out / 'node.log')
+    sim = NodeProcess(node_args(args.params, '-p', f'initial_theta:={float(commands[0])!r}',
+                                '-p', f'max_velocity:={cfg.motor_speed_limit / cfg.reducer_ratio!r}',
+                                '-p', f'max_acceleration:={cfg.motor_acceleration_limit / cfg.reducer_ratio!r}'),
+                      env, command=sim_actuator_command(), log_path=args.out / 'sim_actuator.log')
     stack = contextlib.ExitStack()
     stack.enter_context(stop_on_signals())
-    stack.callback(_stop_node, proc)  # on every path, last
+    stack.callback(_stop_process, node, 'fourbar_node')  # on every path, last
+    stack.callback(_stop_process, sim, 'the simulated actuator')
     context: Context | None = None
-    node: Node | None = None
+    ros: Node | None = None
     executor: SingleThreadedExecutor | None = None
     recorder: Recorder | None = None
     diagnostics: list[dict[str, str]] = []
-    try:  # from the node's start on: a Ctrl-C at any point still stops it (finally)
-        proc.start()
+    antenna: list[float] = []
+
+    names = {'fourbar_node': node, 'the simulated actuator': sim}
+
+    def failed() -> str | None:
+        return next((name for name, p in names.items() if not p.running()), None)
+    try:  # from the processes' start on: a Ctrl-C at any point still stops them (the stack's callbacks)
+        node.start()
+        sim.start()
         context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt
-        node = Node('fourbar_demo', context=context, start_parameter_services=False)
+        ros = Node('fourbar_demo', context=context, start_parameter_services=False)
         executor = SingleThreadedExecutor(context=context)
-        executor.add_node(node)
-        replayer = Replayer(node, stream, answer_topic=TORQUE)
-        node.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
-                                 lambda m: diagnostics.append(_diag_values(m)), DIAGNOSTICS.depth)
-        plans = discover(node, executor, OUTPUT_TOPICS, args.timeout, stop=lambda: not proc.running())
-        if not proc.running():
-            raise ReplayError(f'fourbar_node exited with status {proc.proc.poll() if proc.proc else "?"}: '
+        executor.add_node(ros)
+        replayer = Replayer(ros, stream, topic=topics.command)
+        ros.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
+                                lambda m: diagnostics.append(_diag_values(m)), DIAGNOSTICS.depth)
+
+        def on_antenna(msg: Float64) -> None:
+            antenna.append(msg.data)
+        ros.create_subscription(Float64, topics.antenna_angle, on_antenna, STREAM_DEPTH)
+        # joint_states has two publishers, the simulated actuator (measured) and the node (completed): both first.
+        spin_until(executor, lambda: failed() is not None or ros.count_publishers(topics.joint_states) >= 2,
+                   args.timeout)
+        plans = discover(ros, executor, topics.all(), args.timeout, stop=lambda: failed() is not None)
+        if (dead := failed()) is not None:
+            proc = names[dead]
+            raise ReplayError(f'{dead} exited with status {proc.proc.poll() if proc.proc else "?"}: '
                               f'{proc.last_log_line()}')
-        recorder = Recorder(node, outputs, plans, args.storage)
-        replayer.wait_for_node(executor, args.timeout)
-        predicted = replayer.prepare_lockstep(executor, args.timeout, answers)  # type: ignore[arg-type]
-        pid = proc.proc.pid if proc.proc else '?'
-        print(f'{prog}: fourbar_node (pid {pid}) is up; replaying lock-step', file=sys.stderr, flush=True)
-        progress = Progress(len(stream), 'replay')
-        stats = replayer.run_lockstep(executor, predicted, 5.0, progress)
-        progress.end()
+        recorder = Recorder(ros, outputs, plans, args.storage)
+        recorder.handshake(executor, args.timeout, own=(topics.command,))
         rec = recorder
-        want = stats.expected_answers
-        if not spin_until(executor, lambda: rec.counts[JOINTS] >= want
-                          and rec.counts[TORQUE] >= want, args.timeout):
-            raise ReplayError(f'recorded {rec.counts} of {want} answers')
-        # The first status that counts every command (published every diagnostics_period s).
+        # Every publisher matched, and the node completes measurements (so it plans from the measured position).
+        if not spin_until(executor, lambda: rec.matched() and bool(antenna), args.timeout):
+            raise ReplayError(f'no measured antenna angle from fourbar_node within {args.timeout:g} s'
+                              if rec.matched() else
+                              f'the recording did not match every publisher of {", ".join(topics.all())} within '
+                              f'{args.timeout:g} s')
+        replayer.prepare_timed(executor, args.timeout)
+        print(f'{prog}: fourbar_node (pid {node.proc.pid if node.proc else "?"}) and the simulated actuator '
+              f'(pid {sim.proc.pid if sim.proc else "?"}) are up; replaying paced', file=sys.stderr, flush=True)
+        progress = Progress(len(stream), 'replay')
+        stats = replayer.run_timed(executor, 1.0, progress)
+        progress.end()
+        # The drive comes to rest at the last served command: SETTLE_SAMPLES measured angles in a row within the
+        # trajectory tolerance (or the deadline; the summary then shows the error left).
+        target = float(commands[-1])
+        seen = len(antenna)
+        if not spin_until(executor, lambda: len(antenna) > seen and _settled(
+                antenna, target, cfg.trajectory_tolerance, SETTLE_SAMPLES), args.timeout):
+            print(f'{prog}: warning: the measured antenna angle did not settle within '
+                  f'{cfg.trajectory_tolerance:g} rad of the last command in {args.timeout:g} s', file=sys.stderr)
         total = len(stream)
         seen = len(diagnostics)
         if not spin_until(executor, lambda: any(d.get('commands_received') == str(total)
                                                 for d in diagnostics[seen:]), args.timeout):
             raise ReplayError(f'no diagnostics counting all {total} commands within {args.timeout:g} s')
         final = next(d for d in diagnostics[seen:] if d.get('commands_received') == str(total))
-        recorder = None
+        rec, recorder = recorder, None
         rec.close()
         return stats.seconds, final
     except (ReplayError, BagError) as exc:
@@ -220,13 +260,13 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
             if executor is not None:
                 executor.shutdown()
             if context is not None:
-                close_context(context, *([] if node is None else [node]))
+                close_context(context, *([] if ros is None else [ros]))
         finally:
             stack.close()
 
 
-def _stop_node(proc: object) -> None:
-    """Stop the node process; say so if it did not exit cleanly."""
+def _stop_process(proc: object, name: str) -> None:
+    """Stop a node process; say so if it did not exit cleanly."""
     from fourbar_ros.live.node_process import NodeProcess, NodeStopError
 
     assert isinstance(proc, NodeProcess)
@@ -236,5 +276,5 @@ def _stop_node(proc: object) -> None:
         print(f'fourbar demo: warning: {exc}; killed (see {proc.log_path})', file=sys.stderr)
         return
     if status != 0:
-        print(f'fourbar demo: warning: fourbar_node exited with status {status} (see {proc.log_path})',
+        print(f'fourbar demo: warning: {name} exited with status {status} (see {proc.log_path})',
               file=sys.stderr)

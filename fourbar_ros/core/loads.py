@@ -172,7 +172,14 @@ def pose_solver(cfg: LoadSpec) -> Callable[[float], Pose]:
     return constant_load_pose
 
 
-def motor_torque(cfg: LoadSpec, input_torque: float) -> float:
+@overload
+def motor_torque(cfg: LoadSpec, input_torque: float) -> float: ...
+@overload
+def motor_torque(cfg: LoadSpec, input_torque: FloatArray) -> FloatArray: ...
+
+
+def motor_torque(cfg: LoadSpec, input_torque: ArrayLike) -> ArrayLike:
     """Motor-side torque (N m) for a driven-rocker torque, driving through the reducer:
-    input_torque / (reducer_ratio * reducer_efficiency). (Back-driven, the motor would need less.)"""
+    input_torque / (reducer_ratio * reducer_efficiency); floats or arrays. (Back-driven, the motor would need
+    less.)"""
     return input_torque / (cfg.reducer_ratio * cfg.reducer_efficiency)

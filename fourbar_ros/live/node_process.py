@@ -20,8 +20,10 @@ from typing import IO
 
 from fourbar_ros.core.errors import FourBarError
 
-#: The console script ``fourbar_node`` (setup.py) as a ``python -c`` program, for an uninstalled tree.
+#: The console scripts ``fourbar_node`` and ``fourbar_sim_actuator`` (setup.py) as ``python -c`` programs, for an
+#: uninstalled tree.
 NODE_MAIN = 'import sys; from fourbar_ros.node import main; sys.exit(main())'
+SIM_ACTUATOR_MAIN = 'import sys; from fourbar_ros.node import sim_actuator_main; sys.exit(sim_actuator_main())'
 #: Domain ids a fourbar run may take: safe on Linux (discovery ports outside the ephemeral range) and
 #: clear of the ranges developers use by hand (10-89).
 FREE_DOMAIN_IDS: tuple[int, ...] = (*range(90, 102), *range(215, 233))
@@ -113,13 +115,23 @@ def free_domain_id(candidates: Sequence[int] = FREE_DOMAIN_IDS,
 
 # --------------------------------------------------------------------------- the node as a process
 
+def _console_command(script: str, program: str) -> list[str]:
+    """The console script ``script`` next to this Python, else ``program`` (its entry point) through this
+    interpreter."""
+    path = Path(sys.executable).parent / script
+    if path.exists():
+        return [str(path)]
+    return [sys.executable, '-c', program]
+
+
 def node_command() -> list[str]:
-    """How to start ``fourbar_node``: the console script next to this Python, else the same entry point
-    through this interpreter."""
-    script = Path(sys.executable).parent / 'fourbar_node'
-    if script.exists():
-        return [str(script)]
-    return [sys.executable, '-c', NODE_MAIN]
+    """How to start ``fourbar_node`` (the default command of ``NodeProcess``)."""
+    return _console_command('fourbar_node', NODE_MAIN)
+
+
+def sim_actuator_command() -> list[str]:
+    """How to start the simulated actuator, ``fourbar_sim_actuator`` (``NodeProcess(command=...)``)."""
+    return _console_command('fourbar_sim_actuator', SIM_ACTUATOR_MAIN)
 
 
 def node_args(params: Path | None, *ros_args: str) -> list[str]:

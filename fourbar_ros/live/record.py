@@ -10,7 +10,7 @@ reader accept it. The bag appears at its path only when closed (``bags.storage.A
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -176,18 +176,23 @@ class Recorder:
         return max(0.0, self._next_flush - time.monotonic())
 
     def matched(self) -> bool:
-        """True once every subscription has matched at least one publisher."""
-        return all(s.get_publisher_count() >= 1 for s in self._subs)
+        """True once every subscription has matched as many publishers as its topic had when discovered (at least
+        one): several nodes may publish one topic (joint_states)."""
+        return all(s.get_publisher_count() >= max(1, len(p.offered)) for s, p in zip(self._subs, self.plans,
+                                                                                     strict=False))
 
-    def handshake(self, executor: Executor, timeout_s: float) -> list[str]:
+    def handshake(self, executor: Executor, timeout_s: float, own: Collection[str] = ()) -> list[str]:
         """Wait until every publishing node has discovered this recorder's subscriptions.
 
         A parameter-service round trip with each publishing node (see ``node_params.fetch_parameters``):
         without it, the first messages could go out before a publisher has matched the new
-        subscription, and be lost. Returns the nodes that could not be asked (no parameter services).
+        subscription, and be lost. Topics in ``own`` are published by the recorder's node itself: no other node
+        to ask. Returns the nodes that could not be asked (no parameter services).
         """
         names: list[str] = []
         for plan in self.plans:
+            if plan.name in own:
+                continue
             for fqn in wait_for_node_names(self.node, executor, partial(publisher_nodes, self.node, plan.name),
                                            timeout_s, f'publishing {plan.name}'):
                 if fqn not in names:

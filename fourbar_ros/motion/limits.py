@@ -120,7 +120,7 @@ def _worst(traj: DrivenTrajectory, quantity: str, unit: str, values: FloatArray,
 def torque_violation(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConfig) -> Violation | None:
     """The worst point whose static torque exceeds the motor's limit or the reducer's rated torque, if any."""
     effort = np.abs(traj.efforts)
-    found = [_worst(traj, 'motor torque', 'N m', np.abs(motor_torque(cfg, effort)), limits.motor_torque),  # type: ignore[arg-type]
+    found = [_worst(traj, 'motor torque', 'N m', np.abs(motor_torque(cfg, effort)), limits.motor_torque),
              _worst(traj, 'reducer output torque', 'N m', effort, limits.output_torque)]
     return max((v for v in found if v is not None), key=lambda v: v.ratio, default=None)
 
