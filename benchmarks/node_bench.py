@@ -24,6 +24,14 @@ Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py):
   without a subscriber.
 Targets (node vs relay on one executor): latency ratio <= 1.10, rate ratio >= 0.9. No figure here is
 asserted by any test.
+
+Completion section (``--completion``, ``run_completion(quick)``): the same paced, interleaved executor rounds for
+measured joint_states in, completed state out. The client publishes the driven joint's JointState (position,
+velocity, effort) at 200 Hz, one outstanding, and waits for the completed JointState: fourbar_node in
+``mode:=trajectory`` (its joint_states, the client's own measurement filtered out) against a bare relay
+(``relay --measured``: JointState in, a JointState of the same shape out on ``relayed_joint_states``, so it never
+receives its own output while the node does). Same targets for the shipped node against the relay on the
+SingleThreadedExecutor; the 1-minute load average at start and end is recorded.
 """
 
 from __future__ import annotations
@@ -37,10 +45,10 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
-from contextlib import ExitStack
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import ExitStack, contextmanager
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from fourbar_ros.live.node_process import free_domain_id
 
@@ -49,6 +57,7 @@ YAML = REPO / 'config' / 'antenna.yaml'
 DEPTH = 1000
 PACED_HZ = 200.0  # command rate of the executor comparison (one outstanding at a time)
 LAG_S = 0.25  # a rate is sustained if the last answer comes at most this long after the last command
+RELAYED = 'relayed_joint_states'  # the measured relay's output topic
 
 
 # --------------------------------------------------------------------------- helper processes
@@ -73,8 +82,31 @@ def relay_callback(node: Any, pub: Any) -> Callable[[Any], None]:
     return relay
 
 
+def measured_relay_callback(pub: Any) -> Callable[[Any], None]:
+    """The completion's baseline per measurement: a JointState with the completed message's shape (the
+    measurement's stamp, two names, two positions, two velocities when measured, no efforts), all copies of the
+    measured joint: no math, no check."""
+    from sensor_msgs.msg import JointState
+
+    names = ['rocker_cd_joint', 'coupler_joint']
+
+    def relay(msg: Any) -> None:
+        out = JointState()
+        out.header.stamp = msg.header.stamp
+        out.name = names
+        q = msg.position[0]
+        out.position = [q, q]
+        if msg.velocity:
+            out.velocity = [msg.velocity[0], msg.velocity[0]]
+        pub.publish(out)
+
+    return relay
+
+
 def relay_main(argv: Sequence[str]) -> int:
-    """The baseline process: subscribe Float64 ``antenna_angle_cmd``, publish ``joint_states`` (relay_callback).
+    """The baseline process: subscribe Float64 ``antenna_angle_cmd``, publish ``joint_states`` (relay_callback);
+    with ``--measured``, subscribe JointState ``joint_states`` and publish ``relayed_joint_states``
+    (measured_relay_callback: another topic, so a bare relay never receives its own output).
 
     ``--executor single|events`` (before ``--ros-args``) picks the executor; it is spun the way fourbar_node
     spins its own (fourbar_ros.ros_executor), and SIGINT/SIGTERM end it.
@@ -96,10 +128,17 @@ def relay_main(argv: Sequence[str]) -> int:
         at = args.index('--executor')
         kind = args[at + 1]
         del args[at:at + 2]
+    measured = '--measured' in args
+    if measured:
+        args.remove('--measured')
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     node = Node('relay')
-    pub = node.create_publisher(JointState, 'joint_states', DEPTH)
-    node.create_subscription(Float64, 'antenna_angle_cmd', relay_callback(node, pub), DEPTH)
+    if measured:
+        pub = node.create_publisher(JointState, RELAYED, DEPTH)
+        node.create_subscription(JointState, 'joint_states', measured_relay_callback(pub), DEPTH)
+    else:
+        pub = node.create_publisher(JointState, 'joint_states', DEPTH)
+        node.create_subscription(Float64, 'antenna_angle_cmd', relay_callback(node, pub), DEPTH)
     executor = create_executor(kind)
     executor.add_node(node)
     spinner = Spinner(executor)
@@ -206,6 +245,30 @@ class Target:
 
     def send(self, theta: float) -> None:
         self.pub.publish(self.Float64(data=theta))
+
+
+class MeasuredTarget(Target):
+    """A completion under test: the driven joint's JointState (position, velocity, effort, as
+    joint_state_broadcaster publishes it) to ``<ns>/joint_states``, counting the JointStates without the driven
+    joint (the completed ones; the client's own measurement comes back too) on ``<ns>/<reply>``."""
+
+    def __init__(self, client: Any, ns: str, driven: str, reply: str) -> None:
+        from sensor_msgs.msg import JointState
+
+        self.JointState = JointState
+        self.driven = [driven]
+        self.pub = client.create_publisher(JointState, f'{ns}/joint_states', DEPTH)
+        self.count = 0
+        self.last_arrival = 0.0
+        self.sub = client.create_subscription(JointState, f'{ns}/{reply}', self._on_completed, DEPTH)
+
+    def _on_completed(self, msg: Any) -> None:
+        if self.driven[0] not in msg.name:
+            self._on_reply(msg)
+
+    def send(self, theta: float) -> None:
+        """Publish a measurement of the driven rocker at ``theta`` (here its angle q, rad)."""
+        self.pub.publish(self.JointState(name=self.driven, position=[theta], velocity=[0.1], effort=[0.01]))
 
 
 def ping(executor: Any, target: Target, theta: float, timeout: float = 2.0) -> float | None:
@@ -472,48 +535,97 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
 
 # --------------------------------------------------------------------------- entry points
 
-def run(quick: bool) -> dict[str, Any]:
-    """Measure everything once; JSON-serialisable figures (times in microseconds, rates in Hz)."""
+class Bench(NamedTuple):
+    """Helper processes on a leased domain, and the client that measures them."""
+
+    context: Any
+    env: dict[str, str]
+    domain_id: int
+    client: Any
+    executor: Any
+    children: dict[str, Child]
+
+
+@contextmanager
+def running(commands: dict[str, list[str]]) -> Iterator[Bench]:
+    """Start ``commands`` (name -> argv) on a free domain (the lock files the tests and tools use) with a client
+    node on a SingleThreadedExecutor; stop everything on exit."""
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.node import Node
 
-    from fourbar_ros.config.antenna_config import load_config
+    with ExitStack() as hold:
+        domain_id = hold.enter_context(free_domain_id())
+        env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
+        children: dict[str, Child] = {}
+        context = Context()
+        try:
+            for name, cmd in commands.items():
+                children[name] = Child(cmd, env)
+            rclpy.init(context=context, domain_id=domain_id)
+            client = Node('bench_client', context=context)
+            executor = SingleThreadedExecutor(context=context)
+            executor.add_node(client)
+            yield Bench(context, env, domain_id, client, executor, children)
+        finally:
+            for child in children.values():
+                child.close()
+            context.try_shutdown()
+
+
+def executor_systems(relay_options: list[str], node_parameters: list[str]) -> dict[str, list[str]]:
+    """The four processes of an executor comparison, named ``relay_<kind>`` and ``node_<kind>`` (and namespaced
+    so): a bare relay (``relay`` with ``relay_options``) and fourbar_node (with ``-p`` ``node_parameters``, the
+    joint_states republish off) on each executor. The shipped node is started as a user starts it (no option)."""
     from fourbar_ros.node.executor import DEFAULT_EXECUTOR, EXECUTORS
+
+    out: dict[str, list[str]] = {}
+    for kind in EXECUTORS:
+        option = [] if kind == DEFAULT_EXECUTOR else ['--executor', kind]
+        out[f'relay_{kind}'] = [sys.executable, '-m', 'benchmarks.node_bench', 'relay', *relay_options, '--executor',
+                                kind, '--ros-args', '-r', f'__ns:=/relay_{kind}']
+        params = [a for p in ('joint_state_rate:=0.0', *node_parameters) for a in ('-p', p)]
+        out[f'node_{kind}'] = [*node_script(), *option, '--ros-args', '--params-file', str(YAML), '-r',
+                               f'__ns:=/node_{kind}', *params]
+    return out
+
+
+def executor_comparison(bench: Bench, systems: dict[str, Target], values: list[float], quick: bool) -> dict[str, Any]:
+    """``executor_rounds`` at PACED_HZ against the relay on the SingleThreadedExecutor, with its settings."""
+    from fourbar_ros.node.executor import DEFAULT_EXECUTOR
+
+    per_round, rounds = (100, 1) if quick else (400, 3)
+    return {'rate_hz': PACED_HZ, 'rounds': rounds, 'commands_per_round': per_round,
+            'baseline': 'relay_single', 'shipped': f'node_{DEFAULT_EXECUTOR}',
+            'systems': executor_rounds(bench.executor, systems, {k: c.proc.pid for k, c in bench.children.items()},
+                                       values, per_round, rounds, PACED_HZ, 'relay_single')}
+
+
+def shipped_targets(executors: dict[str, Any]) -> dict[str, bool]:
+    """The shipped node against the relay on the SingleThreadedExecutor: median latency <= 0.85x, CPU <= 0.6x."""
+    row = executors['systems'][executors['shipped']]
+    return {'shipped_latency': row['latency_ratio_median'] <= 0.85,
+            'shipped_cpu': row['cpu_ratio'] is not None and row['cpu_ratio'] <= 0.6}
+
+
+def run(quick: bool) -> dict[str, Any]:
+    """Measure everything once; JSON-serialisable figures (times in microseconds, rates in Hz)."""
+    from fourbar_ros.config.antenna_config import load_config
+    from fourbar_ros.node.executor import DEFAULT_EXECUTOR
 
     cfg = load_config(YAML)
     n_lat, duration, bisections, repeats, rounds = (300, 1.0, 2, 5, 1) if quick else (2000, 2.0, 4, 15, 3)
-    per_round, paced_rounds = (100, 1) if quick else (400, 3)
-    hold = ExitStack()
-    domain_id = hold.enter_context(free_domain_id())  # the lock files the tests and tools use
-    env = dict(os.environ, ROS_DOMAIN_ID=str(domain_id))
-    children: dict[str, Child] = {}
-    context = Context()
-    result: dict[str, Any] = {'quick': quick, 'domain_id': domain_id, 'default_executor': DEFAULT_EXECUTOR}
-    try:
-        for kind in EXECUTORS:
-            # The shipped node is started as a user starts it (no option); the other executor by its option.
-            # The joint_states republish is off: the client counts one JointState per command.
-            option = [] if kind == DEFAULT_EXECUTOR else ['--executor', kind]
-            children[f'relay_{kind}'] = Child([sys.executable, '-m', 'benchmarks.node_bench', 'relay', '--executor',
-                                               kind, '--ros-args', '-r', f'__ns:=/relay_{kind}'], env)
-            children[f'node_{kind}'] = Child([*node_script(), *option, '--ros-args', '--params-file', str(YAML), '-r',
-                                              f'__ns:=/node_{kind}', '-p', 'joint_state_rate:=0.0'], env)
-        rclpy.init(context=context, domain_id=domain_id)
-        client = Node('bench_client', context=context)
-        executor = SingleThreadedExecutor(context=context)
-        executor.add_node(client)
-        systems = {name: Target(client, f'/{name}') for name in children}
+    result: dict[str, Any] = {'quick': quick, 'default_executor': DEFAULT_EXECUTOR}
+    with running(executor_systems([], [])) as bench:
+        client, executor = bench.client, bench.executor
+        result['domain_id'] = bench.domain_id
+        systems = {name: Target(client, f'/{name}') for name in bench.children}
         thetas = commands(max(n_lat, 4096), cfg.theta_min, cfg.theta_max)
         for target in systems.values():
             connect(executor, target, thetas[0])
-        shipped = f'node_{DEFAULT_EXECUTOR}'
-        result['executors'] = {
-            'rate_hz': PACED_HZ, 'rounds': paced_rounds, 'commands_per_round': per_round,
-            'baseline': 'relay_single', 'shipped': shipped,
-            'systems': executor_rounds(executor, systems, {k: c.proc.pid for k, c in children.items()}, thetas,
-                                       per_round, paced_rounds, PACED_HZ, 'relay_single')}
+        result['executors'] = executor_comparison(bench, dict(systems), thetas, quick)
+        shipped = result['executors']['shipped']
         # The node against a relay on the same (default) executor: what the node adds.
         targets = {'relay': systems[f'relay_{DEFAULT_EXECUTOR}'], 'node': systems[shipped]}
         lat = latency(executor, targets, thetas[:n_lat])
@@ -548,22 +660,44 @@ def run(quick: bool) -> dict[str, Any]:
         })
         executor.remove_node(client)
         destroy(client)
-        result['skipped_work'] = callback_costs(context, env, repeats)
-    finally:
-        for child in children.values():
-            child.close()
-        context.try_shutdown()
-        hold.close()
-    row = result['executors']['systems'][result['executors']['shipped']]
+        result['skipped_work'] = callback_costs(bench.context, bench.env, repeats)
     result['targets'] = {'latency_ratio_max': 1.10, 'rate_ratio_min': 0.9,
                          'shipped_latency_over_single_relay_max': 0.85, 'shipped_cpu_over_single_relay_max': 0.6}
     result['meets_targets'] = {
         'latency': result['latency_ratio_median'] <= 1.10,
         'rate': result['rate_ratio'] is not None and result['rate_ratio'] >= 0.9,
-        'shipped_latency': row['latency_ratio_median'] <= 0.85,
-        'shipped_cpu': row['cpu_ratio'] is not None and row['cpu_ratio'] <= 0.6,
+        **shipped_targets(result['executors']),
     }
     result['command'] = 'python -m benchmarks.node_bench' + (' --quick' if quick else '')
+    return result
+
+
+def run_completion(quick: bool) -> dict[str, Any]:
+    """The completion section: measured joint_states in, completed JointState out, for fourbar_node in
+    ``mode:=trajectory`` and a bare JointState relay (``relay --measured``), each on both executors, in
+    interleaved paced rounds (``executor_comparison``); JSON-serialisable figures (us)."""
+    from fourbar_ros.config.antenna_config import load_config
+    from fourbar_ros.core.antenna import Driven
+    from fourbar_ros.core.loads import pose
+
+    cfg = load_config(YAML)
+    # Driven rocker angles (rad) of distinct antenna angles over the tilt range: no repeats.
+    qs = [pose(cfg, t).gamma if cfg.driven is Driven.GAMMA else pose(cfg, t).delta
+          for t in commands(4096, cfg.theta_min, cfg.theta_max)]
+    result: dict[str, Any] = {'quick': quick, 'load_average_1min_start': os.getloadavg()[0]}
+    with running(executor_systems(['--measured'], ['mode:=trajectory'])) as bench:
+        result['domain_id'] = bench.domain_id
+        systems: dict[str, Target] = {
+            name: MeasuredTarget(bench.client, f'/{name}', cfg.driven_joint,
+                                 RELAYED if name.startswith('relay') else 'joint_states')
+            for name in bench.children}
+        for target in systems.values():
+            connect(bench.executor, target, qs[0])
+        result['executors'] = executor_comparison(bench, systems, qs, quick)
+    result['load_average_1min_end'] = os.getloadavg()[0]
+    result['targets'] = {'shipped_latency_over_single_relay_max': 0.85, 'shipped_cpu_over_single_relay_max': 0.6}
+    result['meets_targets'] = shipped_targets(result['executors'])
+    result['command'] = 'python -m benchmarks.node_bench --completion' + (' --quick' if quick else '')
     return result
 
 
@@ -576,8 +710,9 @@ def main(argv: list[str] | None = None) -> int:
         return sink_main(argv[1:])
     parser = argparse.ArgumentParser(prog='python -m benchmarks.node_bench', description=__doc__)
     parser.add_argument('--quick', action='store_true', help='fewer samples, shorter rate trials')
+    parser.add_argument('--completion', action='store_true', help='the completion section only (run_completion)')
     args = parser.parse_args(argv)
-    print(json.dumps(run(args.quick), indent=2))
+    print(json.dumps((run_completion if args.completion else run)(args.quick), indent=2))
     return 0
 
 

@@ -372,6 +372,8 @@ def readme_section(data: dict[str, Any], out: Path, doc: Path) -> str:
         '',
         *([f'![latency by executor]({rel}/latency.png)', ''] if data.get('latency_plot') else []),
         figures_table('node (benchmarks/node_bench.py)', data.get('node')),
+        figures_table('node completion: measured joint_states in, completed JointState out '
+                      '(benchmarks/node_bench.py --completion)', data.get('node_completion')),
         figures_table('bag (benchmarks/bag_bench.py)', data.get('bag')),
         figures_table('fourbar process against a rosbags copy of the same bag (benchmarks/process_bench.py)',
                     data.get('process')),

@@ -82,6 +82,33 @@ def test_a_measured_bag_is_completed_by_the_block_rule(tmp_path: Path, capsys: p
     assert [m.data for _, m in out['/load_torque']] == block.load_torque[np.isfinite(effort)].tolist()
 
 
+def test_a_nan_velocity_or_effort_is_not_measured(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # joint_state_broadcaster's NaN for a missing state interface: completed without that value; inf refused.
+    nan, inf = math.nan, math.inf
+    sent = [(0.30, nan, 0.02), (0.31, 0.1, nan), (0.32, nan, nan), (0.33, 0.2, 0.03), (0.34, inf, 0.0),
+            (0.35, 0.0, -inf)]
+    with AtomicBagWriter(tmp_path / 'measured') as bag:
+        conn = bag.add_topic('/joint_states', JS)
+        for k, (q, v, e) in enumerate(sent):
+            bag.write(conn, (k + 1) * 10**9, joint_state([DRIVEN, 'other'], [q, 1.0], [v, 0.0], [e, 0.0], k + 1))
+    assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out')]) == 0
+    assert '6 measured joint states -> 4 completed (0 out of range, 2 not finite, 0 ignored)' in capsys.readouterr().err
+    out = read(tmp_path / 'out')
+    good = sent[:4]
+    block = complete_block(CFG, np.array([g[0] for g in good]), np.array([g[1] for g in good]),
+                           np.array([g[2] for g in good]))
+    js = [m for _, m in out['/joint_states']]
+    assert [m.header.stamp.sec for m in js] == [1, 2, 3, 4]
+    for k, m in enumerate(js):
+        assert m.position.tolist() == block.positions[k].tolist()
+        assert m.velocity.tolist() == ([] if math.isnan(good[k][1]) else block.velocities[k].tolist())
+    assert [m.data for _, m in out['/antenna_angle']] == block.theta.tolist()
+    assert [log for log, _ in out['/antenna_rate']] == [2 * 10**9, 4 * 10**9]
+    assert [m.data for _, m in out['/antenna_rate']] == block.theta_rate[[1, 3]].tolist()
+    assert [log for log, _ in out['/load_torque']] == [1 * 10**9, 4 * 10**9]
+    assert [m.data for _, m in out['/load_torque']] == block.load_torque[[0, 3]].tolist()
+
+
 def test_compare_covers_the_completion_outputs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src = measured_bag(tmp_path / 'measured')
     assert main(['process', str(src), str(tmp_path / 'a')]) == 0

@@ -181,6 +181,32 @@ def test_bad_measurements_are_counted_and_publish_nothing(rig: Any) -> None:
     assert not [m for m in r.angle.messages if not math.isfinite(m.data)]
 
 
+def test_a_nan_velocity_or_effort_is_not_measured(rig: Any) -> None:
+    # joint_state_broadcaster's NaN for a state interface the joint lacks: positions and angle, no rate or no load.
+    r = rig(mode='trajectory')
+    c = r.completion.counters
+    nan, inf = math.nan, math.inf
+    sent = [(0.30, nan, 0.02), (0.31, 0.1, nan), (0.32, nan, nan), (0.33, 0.2, 0.03)]
+    for k, (q, v, e) in enumerate(sent):
+        r.measure([DRIVEN, 'other'], [q, 1.0], [v, 0.0], [e, 0.0], sec=20 + k)
+    r.measure([DRIVEN], [0.34], [inf], [0.0], sec=30)  # an infinite one is still refused
+    r.measure([DRIVEN], [0.35], [0.0], [-inf], sec=31)
+    wait_for(lambda: c.measurements_completed == 4 and len(r.completed()) == 4 and len(r.angle.messages) == 4
+             and len(r.rate.messages) == 2 and len(r.load.messages) == 2 and c.measurements_refused_not_finite == 2,
+             what=f'four completed, two refused ({c})')
+    out = r.completed()
+    assert [m.header.stamp.sec for m in out] == [20, 21, 22, 23]
+    for m, (q, v, e) in zip(out, sent, strict=True):
+        expected = RULE.one(q, None if math.isnan(v) else v, None if math.isnan(e) else e)
+        assert list(m.position) == expected.positions  # the same floats: the node runs the rule
+        assert list(m.velocity) == expected.velocities and (len(m.velocity) == 0) == math.isnan(v)
+    assert [a.data for a in r.angle.messages] == [RULE.one(q).theta for q, _, _ in sent]
+    assert [x.data for x in r.rate.messages] == [RULE.one(q, v).theta_rate for q, v, _ in sent if not math.isnan(v)]
+    assert [x.data for x in r.load.messages] == [RULE.one(q, None, e).load_torque for q, _, e in sent
+                                                 if not math.isnan(e)]
+    assert c.measurements_out_of_range == c.measurements_not_completed == 0
+
+
 def test_no_measurement_warns_and_tracking_is_reported(rig: Any) -> None:
     r = rig(measurement_timeout=0.05, tracking_window=1000.0)
     wait_for(lambda: r.status()[0] is Level.WARN, what='the WARN without measurements')

@@ -20,7 +20,7 @@ from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.completion import complete
 from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
-from fourbar_ros.rules.completion import CompletionRule, complete_block, completed_names
+from fourbar_ros.rules.completion import CompletionRule, complete_block, completed_names, measured
 
 #: Geometries (frame, rocker AB, coupler, rocker CD in m; tilt range in rad) with either branch mapping.
 GEOMETRIES = [
@@ -144,6 +144,25 @@ def test_what_is_not_given_is_not_computed_and_names() -> None:
     block = complete_block(cfg, np.array([0.5, 0.6]), np.full(2, np.nan), np.array([np.nan, 0.01]))
     assert np.isnan(block.velocities).all() and np.isnan(block.theta_rate).all()
     assert np.isnan(block.load_torque[0]) and np.isfinite(block.load_torque[1])
+
+
+def test_a_nan_velocity_or_effort_is_not_measured_and_an_infinite_one_is_refused() -> None:
+    # joint_state_broadcaster publishes NaN for a state interface the joint lacks: that value is absent.
+    assert measured(0.5, 0.1, -0.02) == (0.5, 0.1, -0.02)
+    assert measured(0.5, None, None) == (0.5, None, None)
+    assert measured(0.5, math.nan, -0.02) == (0.5, None, -0.02)
+    assert measured(0.5, 0.1, -math.nan) == (0.5, 0.1, None)
+    assert measured(0.5, math.nan, math.nan) == (0.5, None, None)
+    for q in (math.nan, -math.nan, math.inf, -math.inf):  # no position: refused, whatever else it has
+        assert measured(q, 0.1, 0.0) is None and measured(q, None, None) is None
+    for bad in (math.inf, -math.inf):
+        assert measured(0.5, bad, 0.0) is None and measured(0.5, 0.1, bad) is None
+        assert measured(0.5, bad, math.nan) is None and measured(0.5, math.nan, bad) is None
+    # What is not measured is not published: the same as a message without that array.
+    rule = CompletionRule(CONFIGS[0])
+    q, q_dot, effort = measured(0.5, math.nan, 0.01) or (0.0, 0.0, 0.0)
+    assert rule.one(q, q_dot, effort) == rule.one(0.5, None, 0.01)
+    assert rule.one(0.5, None, 0.01).velocities == [] and rule.one(0.5, None, 0.01).load_torque is not None
 
 
 def test_range_check_names_the_value_and_the_range() -> None:

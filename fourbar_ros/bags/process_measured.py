@@ -2,8 +2,9 @@
 
 For every ``sensor_msgs/JointState`` of the measured topic (``/joint_states``, else the one ``*/joint_states``) in
 bag order, the node's rules for a measurement (``fourbar_ros.rules.completion``, on blocks): JointStates without the
-driven joint (a completed state, or another joint's) and with mismatched array lengths are skipped, non-finite ones
-refused, angles the driven rocker cannot take publish nothing; the others give ``joint_states`` (the passive
+driven joint (a completed state, or another joint's) and with mismatched array lengths are skipped, refused ones
+(``measured``: a position NaN or inf, an infinite velocity or effort; a NaN velocity or effort is not measured)
+skipped, angles the driven rocker cannot take publish nothing; the others give ``joint_states`` (the passive
 joints, the measurement's header stamp), ``antenna_angle``, ``antenna_rate`` (with a measured velocity) and
 ``load_torque`` (with a measured effort), next to the measured topic and at its log time, in that order. Every output
 is written (a recording has every subscriber). Blocks of ``BLOCK`` measurements at a time; the output appears
@@ -35,7 +36,7 @@ from fourbar_ros.bags.storage import (
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.interface import JOINT_STATES, MEASURED_JOINT_STATES, PER_MEASUREMENT_OUTPUTS, sibling_topic
 from fourbar_ros.core.errors import one_line
-from fourbar_ros.rules.completion import CompletionRule, complete_block
+from fourbar_ros.rules.completion import CompletionRule, complete_block, measured
 
 #: Measurements per block.
 BLOCK = 65536
@@ -145,12 +146,13 @@ def _measurement(rule: CompletionRule, msg: Any, stats: MeasuredStats) -> tuple[
     if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
         stats.ignored += 1
         return None
-    values = (float(position[i]), float(velocity[i]) if len(velocity) else None,
-              float(effort[i]) if len(effort) else None)
-    if not all(v is None or math.isfinite(v) for v in values):
+    values = measured(float(position[i]), float(velocity[i]) if len(velocity) else None,
+                      float(effort[i]) if len(effort) else None)
+    if values is None:
         stats.refused_not_finite += 1
         return None
-    return values[0], math.nan if values[1] is None else values[1], math.nan if values[2] is None else values[2]
+    q, q_dot, tau = values
+    return q, math.nan if q_dot is None else q_dot, math.nan if tau is None else tau
 
 
 def _write(bag: AtomicBagWriter, outs: list[Any], cfg: AntennaConfig, rule: CompletionRule, pending: _Block,

@@ -15,7 +15,9 @@ not counted). What is published: ``fourbar_ros.rules.completion``.
 No echo: the node's completed JointState has no driven joint, so it is skipped at the first check (counted as
 ``measurements_own_skipped`` when its names are the completed ones). rclpy 7.1.6's message info carries no
 publisher gid to compare, so the names are the guard.
-Bad measurements publish nothing, are counted and logged in one throttled line: NaN or inf (refused), no driven
+A NaN velocity or effort is not measured (joint_state_broadcaster's NaN for a missing state interface): no rates,
+or no load torque, for that message. Bad measurements publish nothing, are counted and logged in one throttled
+line: a position NaN or inf, an infinite velocity or effort (refused), no driven
 joint or mismatched array lengths (ignored), an angle the driven rocker cannot take (out of range: diagnostics
 ERROR naming the value and the range until a good measurement arrives). No measurement for ``measurement_timeout``
 s: WARN. ``set_commanded(theta)`` (rad) gives the commanded antenna angle; diagnostics then report commanded minus
@@ -24,7 +26,6 @@ measured theta, now and the worst over ``tracking_window`` s.
 
 from __future__ import annotations
 
-import math
 import time
 from collections import deque
 from collections.abc import Callable
@@ -40,7 +41,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.interface import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.node.diagnostic_values import Level
-from fourbar_ros.rules.completion import CompletionRule
+from fourbar_ros.rules.completion import CompletionRule, measured
 
 WARN_THROTTLE_S = 1.0
 
@@ -117,14 +118,15 @@ class MeasuredCompletion:
                        f'{len(effort)} efforts: ignored', throttle_duration_sec=WARN_THROTTLE_S)
             return
         self._last_time = now = time.monotonic()
-        q = position[i]
-        q_dot = velocity[i] if velocity else None
-        tau = effort[i] if effort else None
-        if not (math.isfinite(q) and (q_dot is None or math.isfinite(q_dot)) and (tau is None or math.isfinite(tau))):
+        raw = (position[i], velocity[i] if velocity else None, effort[i] if effort else None)
+        values = measured(*raw)
+        if values is None:
             counters.measurements_refused_not_finite += 1
-            self._warn(f'measured {self._driven}: position {q!r}, velocity {q_dot!r}, effort {tau!r}: not finite, '
-                       'refused', throttle_duration_sec=WARN_THROTTLE_S)
+            self._warn(f'measured {self._driven}: position {raw[0]!r}, velocity {raw[1]!r}, effort {raw[2]!r}: '
+                       'refused (a position not finite, or an infinite velocity or effort)',
+                       throttle_duration_sec=WARN_THROTTLE_S)
             return
+        q, q_dot, tau = values
         rule = self.rule
         if not rule.in_reach(q):
             counters.measurements_out_of_range += 1

@@ -14,8 +14,10 @@ in the sense of increasing q), through the core's exact inverse (``core.completi
   reducer losses since the effort is measured at the rocker) where the effort is given and bounded (not at the
   antenna's reach limit).
 
-A measurement is *refused* when q, q_dot or effort is NaN or inf, and *out of range* when the rocker cannot take q
-(outside ``AntennaLinkage.rocker_reach``): nothing is published for either.
+A NaN velocity or effort means *not measured* (``measured``): ros2_control's joint_state_broadcaster publishes NaN
+for a state interface the joint does not have; the message is completed without the rates or without the load
+torque. A measurement is *refused* when q is NaN or inf or q_dot or effort is infinite, and *out of range* when the
+rocker cannot take q (outside ``AntennaLinkage.rocker_reach``): nothing is published for either.
 
 Two paths over the same core calls: ``CompletionRule.one`` per message (Python floats, the math module: the node)
 and ``complete_block`` on arrays (numpy: ``fourbar process``). They agree within a few ulps (numpy's SIMD
@@ -37,7 +39,7 @@ from fourbar_ros.core.errors import DeadPointError, SingularPositionError
 from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
 
-__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'complete_block', 'completed_names']
+__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'complete_block', 'completed_names', 'measured']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -46,6 +48,22 @@ def completed_names(cfg: AntennaConfig) -> tuple[str, str]:
     """JointState names of the completed joints: the rocker not driven, then the coupler joint."""
     other = cfg.delta_joint if cfg.driven is Driven.GAMMA else cfg.gamma_joint
     return other, cfg.coupler_joint
+
+
+def measured(q: float, q_dot: float | None, effort: float | None) -> tuple[float, float | None, float | None] | None:
+    """The driven joint's (position rad, velocity rad/s, effort N m) as completed, None where not measured (absent
+    or NaN); None for the whole measurement when it is refused (q NaN or inf, an infinite velocity or effort)."""
+    if not math.isfinite(q):
+        return None
+    if q_dot is not None and not math.isfinite(q_dot):
+        if not math.isnan(q_dot):
+            return None
+        q_dot = None
+    if effort is not None and not math.isfinite(effort):
+        if not math.isnan(effort):
+            return None
+        effort = None
+    return q, q_dot, effort
 
 
 class Completed(NamedTuple):
@@ -127,7 +145,7 @@ def complete_block(cfg: AntennaConfig, q: FloatArray, q_dot: FloatArray, effort:
                    rule: CompletionRule | None = None) -> CompletedBlock:
     """The block path of ``CompletionRule.one``: q (rad) with q_dot (rad/s) and effort (N m) NaN where the
     measurement had none. Where q is not finite or out of reach everything is NaN and ``valid`` False (the caller
-    refuses non-finite q_dot and effort before: NaN here means absent)."""
+    refuses measurements through ``measured`` before: NaN here means not measured)."""
     rule = rule or CompletionRule(cfg)
     q = np.asarray(q, dtype=np.float64)
     q_dot, effort = np.asarray(q_dot, dtype=np.float64), np.asarray(effort, dtype=np.float64)
