@@ -27,6 +27,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+
+pytest.importorskip('pytest_codeblocks', reason='the documentation tests read Markdown with pytest-codeblocks')
 from pytest_codeblocks import CodeBlock, extract_from_file
 
 REPO = Path(__file__).resolve().parent.parent

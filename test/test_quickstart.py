@@ -21,11 +21,11 @@ from pathlib import Path
 
 import pytest
 from colcon_support import colcon_install, ros2, ros2_cli_missing
-from pytest_codeblocks import extract_from_file
 
 if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
-
+pytest.importorskip('pytest_codeblocks', reason='the quick start is read from Markdown with pytest-codeblocks')
+from pytest_codeblocks import extract_from_file
 from ros_cli_support import TIMEOUT, Background, run  # psutil: with ros2cli
 from ros_support import DomainLease, lease_domain_id
 

@@ -30,6 +30,7 @@ IMPORT_KEYS: dict[str, str | None] = {
     'mpmath': None,
     'pylinkage': None,                 # benchmark peers, imported only by benchmarks (skipped where missing)
     'mechanism': None,
+    'pytest_codeblocks': None,         # the documentation tests' Markdown parser (skipped where missing)
 }
 #: Modules without a rosdep key: tests that import them must skip where they are missing (the reference values
 #: they compute are also kept as data in the repository).
