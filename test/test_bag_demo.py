@@ -85,8 +85,12 @@ def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
 def _nodes(pid: int) -> list[int]:
     """The child processes of ``pid`` that run fourbar_node or the simulated actuator (exec'd, not merely forked;
     Linux's /proc)."""
-    found = []
-    for child in Path(f'/proc/{pid}/task/{pid}/children').read_text().split():
+    found: list[int] = []
+    try:
+        children = Path(f'/proc/{pid}/task/{pid}/children').read_text().split()
+    except OSError:  # the demo itself has exited
+        return found
+    for child in children:
         with contextlib.suppress(OSError):
             cmdline = Path(f'/proc/{child}/cmdline').read_bytes()
             if any(name in cmdline for name in (b'fourbar_node', b'fourbar_sim_actuator', b'fourbar_ros.node')):
