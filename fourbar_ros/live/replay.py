@@ -197,11 +197,12 @@ class Replayer:
         context goes away.
 
         A reliable publisher can wait for acknowledgements, but the node's best-effort subscription sends none:
-        a timed replay that closed its context right after the last publish lost the commands the node had not
-        taken yet (under load: the node took 299 of 300; the last, published 2 ms before the close, never came).
-        So ask each subscriber node (``prepare_timed``/``prepare_lockstep`` found them) for a parameter: the
-        request leaves this participant after the commands, for the same node, which takes its messages in
-        the order they arrive; its answer proves the commands before it were taken.
+        a timed replay that closed its context right after the last publish lost the commands still in flight to
+        a node whose receiving threads lagged (under load: the node took 299 of 300; the last, published 2 ms
+        before the close, never came; commands already received but not yet taken survive the close). So ask
+        each subscriber node (``prepare_timed``/``prepare_lockstep`` found them) for a parameter: the request
+        leaves this participant after the commands, for the same node, which receives them in order; its
+        answer proves the commands before it arrived.
         """
         if self.publisher.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
             self.publisher.wait_for_all_acked(Duration(seconds=timeout_s))
