@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from cli_support import fourbar
-from ros_support import REPO, TIMEOUT
+from ros_support import REPO, TIMEOUT, Collector
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 
@@ -73,6 +73,19 @@ def expected_outputs(thetas: Sequence[float], cfg: AntennaConfig) -> list[Expect
 def diag_values(msg: Any) -> dict[str, str]:
     """Key/value pairs of the first status of a DiagnosticArray."""
     return {kv.key: kv.value for kv in msg.status[0].values} if msg.status else {}
+
+
+def what_the_node_took(diagnostics: Collector[Any], commands: int, answers: int) -> str:
+    """Where messages went missing, from the node's latest diagnostics status: the commands it took of
+    ``commands`` published (those lost in a gap of publication sequence numbers counted apart; the last ones
+    leave no gap), the answers it published of ``answers`` expected."""
+    values = diag_values(diagnostics.messages[-1]) if len(diagnostics) else {}
+    if not values:
+        return 'no diagnostics from the node'
+    return (f'latest status: the node took {values.get("commands_received")} of {commands} commands '
+            f'(commands_lost by sequence gaps: {values.get("commands_lost")}) and published '
+            f'{values.get("joint_states_published")} joint_states and {values.get("input_torque_published")} '
+            f'input_torque of {answers}')
 
 
 # --------------------------------------------------------------------------- the CLI as a process

@@ -21,6 +21,7 @@ from bag_support import (
     read_with_sqlite,
     run_tool,
     served,
+    what_the_node_took,
 )
 from diagnostic_msgs.msg import DiagnosticArray
 from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
@@ -81,11 +82,14 @@ def replay_through_node(ros: RosSession, bag: Path, out: Path, cfg: AntennaConfi
             recorder.wait_line('recording')
             rc, lines, _ = run_tool(['replay', bag, '--no-progress', *replay_args], env)
             assert rc == 0, lines
-            assert recorder.wait() == 0, recorder.lines
+            try:
+                assert recorder.wait() == 0, recorder.lines
+                # The first status counting every command of the bag carries the final counts.
+                final = diagnostics.wait_match(
+                    lambda m: diag_values(m).get('commands_received') == str(len(stream)))
+            except AssertionError as exc:
+                raise AssertionError(f'{exc}; {what_the_node_took(diagnostics, len(stream), n)}') from None
             assert any(f'wrote {out}' in line for line in recorder.lines), recorder.lines
-            # The first status counting every command of the bag carries the final counts.
-            final = diagnostics.wait_match(
-                lambda m: diag_values(m).get('commands_received') == str(len(stream)))
             assert node.running()
     finally:
         ros.uncollect(diagnostics)

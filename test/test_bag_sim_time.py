@@ -21,7 +21,8 @@ import math
 from pathlib import Path
 
 import pytest
-from bag_support import CONFIG, Tool, run_tool
+from bag_support import CONFIG, Tool, run_tool, what_the_node_took
+from diagnostic_msgs.msg import DiagnosticArray
 from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import read_messages, write_command_bag
@@ -64,16 +65,23 @@ def test_velocity_under_sim_time_from_a_replayed_clock(rate: float, clock_hz: fl
     bag = write_command_bag(tmp_path / 'ramp', stamps, values)
     out = tmp_path / 'joints'
     env = ros.env()
-    with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-p', 'use_sim_time:=true',
-                      *ONE_JOINT_STATE_PER_COMMAND], env) as node, \
-            Tool(['record', out, '--topics', 'joint_states', '--stop-after', f'joint_states={N}'], env) as recorder:
-        recorder.wait_line('recording')
-        rc, lines, _ = run_tool(['replay', bag, '--no-progress', '--rate', str(rate), '--clock', str(clock_hz)],
-                                env)
-        assert rc == 0, lines
-        assert not any('use_sim_time false' in line for line in lines), lines
-        assert recorder.wait() == 0, recorder.lines
-        assert node.running()
+    diagnostics = ros.collect(DiagnosticArray, '/diagnostics', qos=100)
+    try:
+        with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-p', 'use_sim_time:=true',
+                          *ONE_JOINT_STATE_PER_COMMAND], env) as node, \
+                Tool(['record', out, '--topics', 'joint_states', '--stop-after', f'joint_states={N}'], env) as recorder:
+            recorder.wait_line('recording')
+            rc, lines, _ = run_tool(['replay', bag, '--no-progress', '--rate', str(rate), '--clock', str(clock_hz)],
+                                    env)
+            assert rc == 0, lines
+            assert not any('use_sim_time false' in line for line in lines), lines
+            try:
+                assert recorder.wait() == 0, recorder.lines
+            except AssertionError as exc:
+                raise AssertionError(f'{exc}; {what_the_node_took(diagnostics, N, N)}') from None
+            assert node.running()
+    finally:
+        ros.uncollect(diagnostics)
     joints = [m for _, m in read_messages(out)['/joint_states']]
     assert len(joints) == N
 

@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
             if not args.lockstep:
                 unreachable, ignoring = replayer.prepare_timed(executor, args.wait)
                 for fqn in unreachable:
-                    print(f'{prog}: warning: {fqn} has no parameter services; it may miss the first commands',
+                    print(f'{prog}: warning: {fqn} has no parameter services; it may miss the first and last commands',
                           file=sys.stderr)
                 for fqn in ignoring if args.clock is not None else []:
                     print(f'{prog}: warning: {fqn} has use_sim_time false; it ignores /clock', file=sys.stderr)

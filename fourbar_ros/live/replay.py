@@ -113,6 +113,8 @@ class Replayer:
                                           reliability=ReliabilityPolicy.BEST_EFFORT))
         self.answer_topic = answer_topic
         self.answers = 0
+        #: Subscriber nodes with parameter services, asked by ``confirm_delivery`` (set by ``prepare_*``).
+        self.reachable: list[str] = []
         self.subscription = None
         if answer_topic is not None:
             if answer_type is None:
@@ -154,6 +156,7 @@ class Replayer:
         publishers = wait_for_node_names(self.node, executor, lambda: publisher_nodes(self.node, out),
                                          timeout_s, f'publishing {out}')
         others = [n for n in publishers if n not in subscribers]
+        self.reachable = subscribers
         if answers is None:
             if len(subscribers) != 1:
                 raise ReplayError(f'lock-step needs exactly one node subscribed to {cmd} to ask for its '
@@ -170,10 +173,11 @@ class Replayer:
         replayer's publishers (the handshake of ``fetch_parameters``). A best-effort subscription (the node's)
         drops whatever arrives before it has matched the publisher, and nothing is resent.
 
-        Returns (subscribers without parameter services, which may miss the first commands; subscribers whose
-        ``use_sim_time`` is false, which ignore ``/clock``).
+        Returns (subscribers without parameter services, which may miss the first and last commands; subscribers
+        whose ``use_sim_time`` is false, which ignore ``/clock``).
         """
         cmd = self.publisher.topic_name
+        self.reachable = []
         unreachable: list[str] = []
         ignoring: list[str] = []
         for target in wait_for_node_names(self.node, executor, lambda: subscriber_nodes(self.node, cmd),
@@ -183,9 +187,26 @@ class Replayer:
             except ReplayError:
                 unreachable.append(target)
                 continue
+            self.reachable.append(target)
             if values.get('use_sim_time') is not True:
                 ignoring.append(target)
         return unreachable, ignoring
+
+    def confirm_delivery(self, executor: Executor, timeout_s: float) -> None:
+        """Return once every subscriber has received every command published so far; call before this node's
+        context goes away.
+
+        A reliable publisher can wait for acknowledgements, but the node's best-effort subscription sends none:
+        a timed replay that closed its context right after the last publish lost the commands still in flight to
+        a node whose receiving threads lagged (under load: the node took 299 of 300; the last, published 2 ms
+        before the close, never came; commands already received but not yet taken survive the close). So ask
+        each subscriber node (``prepare_timed``/``prepare_lockstep`` found them) for a parameter: the request
+        leaves this participant after the commands, for the same node, which receives them in order; its
+        answer proves the commands before it arrived.
+        """
+        if self.publisher.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
+            self.publisher.wait_for_all_acked(Duration(seconds=timeout_s))
+        handshake(self.node, executor, self.reachable, timeout_s)
 
     def _publish_clock(self, stamp_ns: int) -> None:
         from builtin_interfaces.msg import Time
@@ -196,7 +217,7 @@ class Replayer:
     def run_timed(self, executor: Executor, rate: float = 1.0,
                   progress: Progress | None = None, ack_timeout_s: float = 10.0,
                   clock_hz: float = DEFAULT_CLOCK_HZ) -> ReplayStats:
-        """Publish with the recorded timing scaled by ``1/rate``; wait until the node acknowledged.
+        """Publish with the recorded timing scaled by ``1/rate``; return once the subscribers have every command.
 
         With a clock publisher (``Replayer(clock=True)``), ``/clock`` carries the playback time every
         ``1/clock_hz`` s of wall time from the start (the first command's stamp) to the last command.
@@ -233,10 +254,9 @@ class Replayer:
             if progress:
                 progress.update(stats.published)
         stats.seconds = time.monotonic() - start
-        if self.publisher.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
-            # Exiting with unacknowledged samples would drop them; this can take one DDS
-            # heartbeat period (seconds), which is why it is not counted in ``seconds``.
-            self.publisher.wait_for_all_acked(Duration(seconds=ack_timeout_s))
+        # Exiting with commands in flight would drop them; not counted in ``seconds`` (an acknowledgement
+        # can take one DDS heartbeat period).
+        self.confirm_delivery(executor, ack_timeout_s)
         stats.answers = self.answers
         return stats
 
@@ -282,6 +302,6 @@ class Replayer:
         if not (self.stream.values and answers(self.stream.values[-1])):
             # Unanswered commands at the end: make sure they reached the node's reader (the last
             # answer already proves every earlier command was consumed).
-            self.publisher.wait_for_all_acked(Duration(seconds=deadline_s))
+            self.confirm_delivery(executor, deadline_s)
         stats.answers = self.answers - base
         return stats
