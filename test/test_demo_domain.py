@@ -29,7 +29,8 @@ def _env(domain: str) -> dict[str, str]:
 @pytest.mark.slow
 def test_demo_runs_on_the_exported_domain(lease: DomainLease, tmp_path: Path) -> None:
     with Tool(['demo', '--params', CONFIG, '--out', tmp_path / 'demo'], _env(str(lease.domain_id))) as demo:
-        first = demo.wait_line('fourbar demo: fourbar_node with', stdout=True)
+        first = demo.wait_line('fourbar demo: fourbar_node (mode trajectory) and the simulated actuator with',
+                               stdout=True)
         assert demo.wait(120.0) == 0, demo.lines
     assert f' on ROS_DOMAIN_ID {lease.domain_id} (from ROS_DOMAIN_ID; this host only); ' in first, first
 
