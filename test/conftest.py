@@ -39,7 +39,7 @@ import ulp_jitter  # found through the path above
 
 if TYPE_CHECKING:
     from colcon_support import CliEnv
-    from ros_support import RosSession
+    from ros_support import DomainLease, RosSession
 
 settings.register_profile('deterministic', derandomize=True, deadline=None, print_blob=True)
 settings.register_profile('explore', derandomize=False, deadline=None, print_blob=True)
@@ -106,6 +106,18 @@ def ros(ros_session: RosSession) -> Iterator[RosSession]:
     before = ros_session.entities()
     yield ros_session
     ros_session.destroy_entities_since(before)
+
+
+@pytest.fixture
+def lease() -> Iterator[DomainLease]:
+    """A ROS_DOMAIN_ID of this test's own, for a process the test starts (released at its end)."""
+    from ros_support import lease_domain_id
+
+    held = lease_domain_id()
+    try:
+        yield held
+    finally:
+        held.release()
 
 
 @pytest.fixture(scope='session')

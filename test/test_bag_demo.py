@@ -10,28 +10,18 @@ import re
 import signal
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
 from colcon_support import CliEnv, ros2
-from ros_support import DomainLease, lease_domain_id, wait_for
+from ros_support import DomainLease, wait_for
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.live.node_process import domain_in_use
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
-
-
-@pytest.fixture
-def lease() -> Iterator[DomainLease]:
-    lease = lease_domain_id()
-    try:
-        yield lease
-    finally:
-        lease.release()
 
 
 def _env() -> dict[str, str]:

@@ -4,21 +4,11 @@ domain it runs on and why; a bad exported value is one line."""
 from __future__ import annotations
 
 import os
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 from bag_support import CONFIG, Tool
-from ros_support import DomainLease, lease_domain_id
-
-
-@pytest.fixture
-def lease() -> Iterator[DomainLease]:
-    lease = lease_domain_id()
-    try:
-        yield lease
-    finally:
-        lease.release()
+from ros_support import DomainLease
 
 
 def _env(domain: str) -> dict[str, str]:

@@ -16,7 +16,6 @@ import os
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -27,7 +26,7 @@ if (_why := ros2_cli_missing()) is not None:
 pytest.importorskip('pytest_codeblocks', reason='the quick start is read from Markdown with pytest-codeblocks')
 from pytest_codeblocks import extract_from_file
 from ros_cli_support import TIMEOUT, Background, run  # psutil: with ros2cli
-from ros_support import DomainLease, lease_domain_id
+from ros_support import DomainLease
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -79,15 +78,6 @@ def home(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if not venv.exists():
         venv.symlink_to(Path(sys.prefix))
     return home
-
-
-@pytest.fixture
-def lease() -> Iterator[DomainLease]:
-    lease = lease_domain_id()
-    try:
-        yield lease
-    finally:
-        lease.release()
 
 
 def _env(home: Path, lease: DomainLease) -> dict[str, str]:
