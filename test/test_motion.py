@@ -115,7 +115,7 @@ def dense_deviation(cfg: AntennaConfig, d: DrivenTrajectory, samples: int = 1024
     q = evaluate(hermite_coefficients(d.times, d.positions, d.velocities, d.accelerations), s)
     a = d.antenna
     t = evaluate(hermite_coefficients(a.times, a.theta, a.theta_dot, a.theta_ddot), s)
-    theta, _ = cfg.linkage.from_rocker(q, cfg.driven, cfg.branch)
+    theta, _ = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     return float(np.max(np.abs(np.asarray(theta) - t)))
 
 

@@ -197,7 +197,7 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     else:
         times = on_wire(_merged(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing, shortest))
     q, q_dot, q_ddot = plan.sample(np.minimum(times, plan.duration))
-    theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.branch)
+    theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)
     gamma, delta = (q, other) if cfg.driven is Driven.GAMMA else (other, q)
     rates = cfg.linkage.rates_at(theta, gamma, delta)
