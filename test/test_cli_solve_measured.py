@@ -52,7 +52,7 @@ def test_measured_rocker_gives_the_theta_pose(capsys: pytest.CaptureFixture[str]
 
 def test_degrees_and_second_derivatives_are_the_cores(capsys: pytest.CaptureFixture[str]) -> None:
     v = solve_json(capsys, '--delta', '45', '--deg')
-    theta, gamma = LINK.from_rocker(math.radians(45.0), Driven.DELTA, CFG.branch)
+    theta, gamma = LINK.from_rocker(math.radians(45.0), Driven.DELTA, CFG.measured_branch)
     assert v['theta'] == theta and v['gamma'] == gamma and v['delta'] == math.radians(45.0)
     second = LINK.second_derivatives_at(theta, gamma, math.radians(45.0))
     assert (v['d2gamma_dtheta2'], v['d2delta_dtheta2']) == tuple(second)

@@ -15,6 +15,7 @@ from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.motion.errors import LimitError, TrajectoryError
 from fourbar_ros.motion.limits import JointLimits, enforce_limits, point_magnitudes, worst_violation
 from fourbar_ros.motion.planner import (
+    PLAN_SHRINK,
     JointMotionState,
     driven_angles,
     plan_motion,
@@ -114,7 +115,7 @@ def dense_deviation(cfg: AntennaConfig, d: DrivenTrajectory, samples: int = 1024
     q = evaluate(hermite_coefficients(d.times, d.positions, d.velocities, d.accelerations), s)
     a = d.antenna
     t = evaluate(hermite_coefficients(a.times, a.theta, a.theta_dot, a.theta_ddot), s)
-    theta, _ = cfg.linkage.from_rocker(q, cfg.driven, cfg.branch)
+    theta, _ = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     return float(np.max(np.abs(np.asarray(theta) - t)))
 
 
@@ -266,3 +267,39 @@ def test_planner_bad_input() -> None:
         trajectory_points(CFG, LIMITS, plan, 1e-5)
     with pytest.raises(TrajectoryError, match='positive'):
         trajectory_points(CFG, LIMITS, plan, 0.0)
+
+
+def _replan_starts() -> list[tuple[JointMotionState, float]]:
+    """(start state, the running plan's target theta rad) along running plans: a dense grid, the phase boundaries
+    (and a few ns either side), the phase at maximum acceleration, and the end at rest."""
+    starts = []
+    for q0, target in ((Q_MIN, CFG.theta_max), (Q_MAX, 0.0)):
+        plan = plan_to_angle(CFG, LIMITS, JointMotionState(q0), target)
+        switches = plan.switch_times()
+        times = np.concatenate([np.linspace(0.0, plan.duration, 301), switches, switches - 3e-9, switches + 3e-9,
+                                np.linspace(switches[0], switches[1], 23), [plan.duration]])
+        starts += [(plan.state_at(float(t)), target) for t in times]
+    return starts
+
+
+@needs_ruckig
+def test_a_replan_from_any_state_of_a_running_plan_is_never_refused_for_its_limits() -> None:
+    # A jerk-limited plan starts at the state it is given and stays within the limits: its points (on the phase
+    # boundaries, so each segment lies on one cubic piece of the profile) must be too, wherever the replan starts:
+    # mid-phase, a few ns from a phase boundary, at maximum acceleration, at rest on the target itself.
+    starts = _replan_starts()
+    assert max(abs(s.acceleration) for s, _ in starts) >= PLAN_SHRINK * LIMITS.at_rocker(2) * (1 - 1e-9)
+    refused = []
+    for start, running_target in starts:
+        for theta in (CFG.theta_min, -0.05, 0.0, 0.03, CFG.theta_max, running_target):
+            try:
+                plan = plan_to_angle(CFG, LIMITS, start, theta)
+            except UnreachableError:
+                continue  # cannot stop within the range: refused before any point, rightly
+            try:
+                points = trajectory_points(CFG, LIMITS, plan, 1.0 / CFG.control_rate)
+            except LimitError as exc:
+                refused.append(f'{start} -> {theta!r}: {exc}')
+                continue
+            assert points.positions[0] == start.position
+    assert not refused, f'{len(refused)} refused, e.g. {refused[:3]}'

@@ -227,7 +227,7 @@ def test_a_bad_antenna_trajectory_is_counted_and_nothing_is_sent(traj: Pair, pro
     # The last measurement (joint_states also carries the node's completed passive joints).
     now = next(m for m in reversed(traj.measured.messages) if JOINT in m.name)
     q = now.position[list(now.name).index(JOINT)]
-    theta = float(CFG.linkage.from_rocker(np.array([q]), CFG.driven, CFG.branch)[0][0])
+    theta = float(CFG.linkage.from_rocker(np.array([q]), CFG.driven, CFG.measured_branch)[0][0])
     traj.antenna.publish(antenna_msg([0.5], [theta]))
     assert len(traj.trajectories.wait_count(before + 1)) == before + 1
     values = {kv.key: kv.value for kv in traj.node.diagnostic_status().values}

@@ -30,7 +30,7 @@ from fourbar_ros.config.interface import (
     trajectory_topic,
 )
 from fourbar_ros.core.antenna import Branch, Driven
-from fourbar_ros.core.completion import complete, inverse_branch
+from fourbar_ros.core.completion import complete
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import motor_torque
 from fourbar_ros.rules.completion import completed_names
@@ -281,7 +281,7 @@ def antenna_of(cfg: AntennaConfig, q: FloatArray) -> FloatArray:
 
 def rocker_branch(cfg: AntennaConfig) -> Branch:
     """The completion's branch (``from_rocker``'s sense) of the configured assembly, as the node takes it."""
-    return inverse_branch(cfg.linkage, 0.5 * (cfg.theta_min + cfg.theta_max), cfg.driven, cfg.branch)
+    return cfg.measured_branch
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     for rocker in Driven:
         given.add_argument(f'--{rocker.value}', type=float, metavar='V',
                            help=f'measured {rocker.value} rocker angle (rad; deg with --deg): the pose it completes '
-                           '(on --branch, as from_rocker counts branches)')
+                           '(on --branch: the pose that --theta on --branch gives)')
     parser.add_argument('--deg', action='store_true', help='the given angle is in degrees')
     parser.add_argument('--params', metavar='YAML', help='ROS parameter file (e.g. config/antenna.yaml); '
                         'default: the built-in Turnantenna configuration')
@@ -77,7 +77,9 @@ _RATES = ('dgamma_dtheta', 'ddelta_dtheta', 'd2gamma_dtheta2', 'd2delta_dtheta2'
 
 
 def _pose(linkage: AntennaLinkage, args: argparse.Namespace, cfg: AntennaConfig) -> tuple[float, float, float]:
-    """(theta, gamma, delta) in rad from --theta, or completed from a measured --gamma / --delta on cfg.branch.
+    """(theta, gamma, delta) in rad from --theta, or completed from a measured --gamma / --delta: the pose on
+    cfg.branch with that rocker angle (of from_rocker's two, the one whose theta gives it back on cfg.branch; the
+    two count branches differently, ``core.completion.inverse_branch``).
 
     Raises FourBarError if theta is out of reach (as a number: angles are not wrapped), if the rocker cannot take
     the measured angle (the message names the value and the rocker's range), or if the angle is not finite.
@@ -90,7 +92,12 @@ def _pose(linkage: AntennaLinkage, args: argparse.Namespace, cfg: AntennaConfig)
             raise UnreachableError(f'theta={angle_text(value)} {out_of_reach_text(linkage.reach(), value)}')
         gamma, delta = linkage.rocker_angles(value, cfg.branch)
         return value, float(gamma), float(delta)
-    theta, other = linkage.from_rocker(value, measured, cfg.branch)
+    poses = [linkage.from_rocker(value, measured, b) for b in Branch]
+
+    def miss(pose: tuple[object, object]) -> float:
+        rockers = linkage.rocker_angles(float(pose[0]), cfg.branch)  # type: ignore[arg-type]
+        return abs(math.remainder(float(rockers[0 if measured is Driven.GAMMA else 1]) - value, 2.0 * math.pi))
+    theta, other = min(poses, key=miss)
     return (float(theta), value, float(other)) if measured is Driven.GAMMA else (float(theta), float(other), value)
 
 

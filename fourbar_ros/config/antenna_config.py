@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,7 @@ from fourbar_ros.config.rcl_yaml import (
     values_from_yaml,
 )
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
+from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import has_gravity_load
 
@@ -112,6 +114,14 @@ class AntennaConfig:
     def driven_joint(self) -> str:
         """JointState name of the driven rocker: ``gamma_joint`` or ``delta_joint``, as ``driven_rocker`` says."""
         return self.gamma_joint if self.driven is Driven.GAMMA else self.delta_joint
+
+    @cached_property
+    def measured_branch(self) -> Branch:
+        """The branch to pass to ``from_rocker`` (and ``complete``) when the driven rocker is given: the one that
+        gives back the configured ``branch``'s pose (``core.completion.inverse_branch``; the two count branches
+        differently, so they differ for some geometries, e.g. a coupler longer than the frame). Found at mid-range:
+        it holds over the whole tilt range, which has no dead point of the driven rocker (checked at load)."""
+        return inverse_branch(self.linkage, 0.5 * (self.theta_min + self.theta_max), self.driven, self.branch)
 
     def as_values(self) -> dict[str, ParamValue]:
         """Parameter name -> value (the inverse of ``config_from_values``)."""

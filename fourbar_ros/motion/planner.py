@@ -25,12 +25,12 @@ from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, on_wire, static_efforts
 
 #: ruckig is given the limits times this: its own rounding (seen at ~1e-13 relative) and that of the controller's
-#: jerk at a point (positions over h^3: ~1e-9 relative at h = 10 ms, ~1e-6 at 1 ms) then leave every sampled point
-#: within the limits themselves; the motion is 1e-6 slower than time-optimal.
-PLAN_SHRINK = 1.0 - 1e-6
+#: jerk at a point (positions over h^3: ``min_segment``) then leave every sampled point within the limits
+#: themselves; the motion is 1e-4 slower than time-optimal.
+PLAN_SHRINK = 1.0 - 1e-4
 
-__all__ = ['PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles', 'plan_motion', 'plan_to_angle',
-           'setpoints', 'trajectory_points']
+__all__ = ['PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles', 'min_segment', 'plan_motion',
+           'plan_to_angle', 'setpoints', 'trajectory_points']
 
 
 @dataclass(frozen=True)
@@ -145,15 +145,25 @@ def _grid(duration: float, step: float) -> FloatArray:
     return np.append(t[t < duration - 0.5 * step], duration) if duration > 0.5 * step else np.array([0.0, duration])
 
 
-def _merged(grid: FloatArray, switches: FloatArray, gap: float) -> FloatArray:
-    """The grid (s, from 0 to the end) with the switch times added, no two times within gap: a switch time within
-    gap of 0 or of the end is left out (0 and the end stay), a grid time within gap of a switch time gives way to it,
-    and of switch times within gap of each other the first stays. A left-out switch makes its segment inexact; the
-    limit check then judges that segment like any other."""
+def min_segment(limits: JointLimits, q_scale: float) -> float:
+    """The shortest segment (s) between two points of a plan: the positions on the wire are doubles, each within
+    half an ulp of the plan (ruckig's evaluation adds about as much), and the controller's quintic takes its jerk
+    from them as 60 dp / h^3 (``splines.hermite_coefficients``): over 4 ulps of the largest |position| q_scale
+    (rad), h^3 >= 240 ulp(q_scale) / (margin J) keeps that rounding within a quarter of the margin 1 - PLAN_SHRINK
+    left under the rocker's jerk limit J (about 0.6 ms with the defaults)."""
+    margin = (1.0 - PLAN_SHRINK) * limits.at_rocker(3)
+    return float(np.cbrt(240.0 * math.ulp(q_scale) / margin))
+
+
+def _merged(grid: FloatArray, switches: FloatArray, gap: float, shortest: float) -> FloatArray:
+    """The grid (s, from 0 to the end) with the switch times added: a grid time within gap of a switch time gives
+    way to it, and no two times are within ``shortest`` (s, <= gap): a switch time that close to 0, to the end or
+    to the previous switch kept is left out (0 and the end stay). Each segment then lies on one cubic piece of the
+    profile unless a phase is shorter than ``shortest``; the limit check judges such a segment like any other."""
     end = grid[-1]
     kept: list[float] = []
     for t in np.unique(switches):
-        if gap < t < end - gap and (not kept or t - kept[-1] > gap):
+        if shortest < t < end - shortest and (not kept or t - kept[-1] > shortest):
             kept.append(float(t))
     sw = np.array(kept)
     near = np.abs(grid[:, None] - sw[None, :]).min(axis=1, initial=np.inf) <= gap
@@ -167,19 +177,27 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     static effort at each pose; the antenna path beside them.
 
     Every point is checked against the limits (``worst_violation``): LimitError names the worst one, e.g. a pose
-    needing more torque than the motor or the reducer gives, or a start state already over a limit. Segments are at
-    least spacing / 2 long: the controller's jerk at a point comes from positions over h^3, so much shorter segments
-    would turn rounding into jerk. Raises TrajectoryError for a spacing that is not positive or that gives more
-    than max_trajectory_points.
+    needing more torque than the motor or the reducer gives, or a start state already over a limit. Every phase
+    boundary at least ``min_segment`` (or spacing / 2, if less) from the others is a point: a segment across a
+    left-out boundary would not lie on one cubic piece, and the quintic through its ends overshoots the jerk there
+    by up to 1.375 times the jerk step (a phase of length x h at the start of a segment of length h moves the jerk
+    at its start by (10 x^3 - 18 x^2 + 9 x) times the step). A plan shorter than that (the drive already within
+    rounding of the target) becomes one segment of that length from the start state to the target at rest.
+    Raises TrajectoryError for a spacing that is not positive or that gives more than max_trajectory_points.
     """
     if not (math.isfinite(spacing) and spacing > 0.0):
         raise TrajectoryError(f'point spacing {spacing!r} s must be finite and positive')
     if plan.duration / spacing + 2 > cfg.max_trajectory_points:
         raise TrajectoryError(f'a {plan.duration:.6g} s motion at {spacing!r} s spacing exceeds '
                               f'max_trajectory_points = {cfg.max_trajectory_points}')
-    times = on_wire(_merged(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing))
-    q, q_dot, q_ddot = plan.sample(times)
-    theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.branch)
+    lo, hi = plan.position_range()
+    shortest = min(min_segment(limits, max(abs(lo), abs(hi))), 0.5 * spacing)
+    if plan.duration < shortest:
+        times = on_wire(np.array([0.0, shortest]))
+    else:
+        times = on_wire(_merged(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing, shortest))
+    q, q_dot, q_ddot = plan.sample(np.minimum(times, plan.duration))
+    theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)
     gamma, delta = (q, other) if cfg.driven is Driven.GAMMA else (other, q)
     rates = cfg.linkage.rates_at(theta, gamma, delta)

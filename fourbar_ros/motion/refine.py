@@ -75,7 +75,7 @@ def dtheta_dq_bounds(cfg: AntennaConfig) -> tuple[float, float]:
     lo, hi = q_band(cfg)
     q = np.linspace(lo, hi, _GRID)
     link = cfg.linkage
-    theta_a, other_a = link.from_rocker(q, cfg.driven, cfg.branch)
+    theta_a, other_a = link.from_rocker(q, cfg.driven, cfg.measured_branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)
     gamma, delta = (q, other) if cfg.driven is Driven.GAMMA else (other, q)
     rates = link.rates_at(theta, gamma, delta)
@@ -116,7 +116,7 @@ def deviation_bounds(cfg: AntennaConfig, traj: DrivenTrajectory, segments: Index
     bounds = np.full(idx.size, np.inf)
     if inside.any():
         q_path = evaluate(qc[inside], s)
-        theta, _ = cfg.linkage.from_rocker(q_path, cfg.driven, cfg.branch)
+        theta, _ = cfg.linkage.from_rocker(q_path, cfg.driven, cfg.measured_branch)
         e = np.abs(np.asarray(theta) - t_path[inside])
         qi = qc[inside]
         curvature = (l2 * derivative_bound(qi) ** 2 + l1 * derivative_bound(qi, 2)

@@ -27,7 +27,8 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 
-from fourbar_ros.core.loads import LoadSpec, pose
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.core.loads import pose
 
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
@@ -287,9 +288,10 @@ class Encoder:
                 velocity + self._noise(self.velocity_noise), effort + self._noise(self.effort_noise))
 
 
-def effort_at(cfg: LoadSpec, q: float) -> float:
+def effort_at(cfg: AntennaConfig, q: float) -> float:
     """Torque (N m, in the sense of increasing q) the driven rocker needs at its angle ``q`` (rad) under the
-    configured load: the antenna angle from the rocker (``from_rocker`` on the configured branch), then the statics.
+    configured load: the antenna angle from the rocker (``from_rocker`` on ``cfg.measured_branch``, the configured
+    assembly), then the statics.
     Raises the core's UnreachableError for an angle the rocker cannot take."""
-    theta = float(cfg.linkage.from_rocker(q, cfg.driven, cfg.branch).theta)
+    theta = float(cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch).theta)
     return pose(cfg, theta).input_torque

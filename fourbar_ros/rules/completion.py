@@ -3,7 +3,7 @@ recorded one. No ROS.
 
 From the measured driven rocker q (rad), and where given its velocity q_dot (rad/s) and effort (N m at the rocker,
 in the sense of increasing q), through the core's exact inverse (``core.completion.complete``, on the branch of
-``from_rocker`` that matches the configured one, ``inverse_branch``):
+``from_rocker`` that matches the configured one, ``AntennaConfig.measured_branch``):
 
 - ``joint_states``: names [the other rocker's joint, the coupler joint], positions [other rocker, gamma + theta]
   rad (each the turn nearest the open-loop pose at mid-range, so they lie within the URDF's limits), velocities
@@ -34,7 +34,7 @@ import numpy.typing as npt
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import Driven
-from fourbar_ros.core.completion import complete, inverse_branch
+from fourbar_ros.core.completion import complete
 from fourbar_ros.core.errors import DeadPointError, SingularPositionError
 from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
@@ -82,7 +82,7 @@ class CompletionRule:
     def __init__(self, cfg: AntennaConfig) -> None:
         self.link = cfg.linkage
         self.driven = cfg.driven
-        self.branch = inverse_branch(cfg.linkage, 0.5 * (cfg.theta_min + cfg.theta_max), cfg.driven, cfg.branch)
+        self.branch = cfg.measured_branch
         self.reach = cfg.linkage.rocker_reach(cfg.driven)
         self.driven_joint = cfg.driven_joint
         self.names = list(completed_names(cfg))
