@@ -23,12 +23,13 @@ import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Protocol
+from typing import NamedTuple
 
 import numpy as np
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.loads import pose
+from fourbar_ros.rules.actuation import PointLike
 
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
@@ -56,28 +57,6 @@ class Waypoint(NamedTuple):
     position: float
     velocity: float | None
     acceleration: float | None
-
-
-class DurationLike(Protocol):
-    """``builtin_interfaces/Duration``."""
-
-    @property
-    def sec(self) -> int: ...
-    @property
-    def nanosec(self) -> int: ...
-
-
-class PointLike(Protocol):
-    """``trajectory_msgs/JointTrajectoryPoint`` (what ``waypoints`` reads of it)."""
-
-    @property
-    def positions(self) -> Sequence[float]: ...
-    @property
-    def velocities(self) -> Sequence[float]: ...
-    @property
-    def accelerations(self) -> Sequence[float]: ...
-    @property
-    def time_from_start(self) -> DurationLike: ...
 
 
 def _column(values: Sequence[float], index: int, width: int, field: str, k: int, required: bool) -> float | None:
