@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import IO
 
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.node.run import STOP
 
 #: The console scripts ``fourbar_node`` and ``fourbar_sim_actuator`` (setup.py) as ``python -c`` programs, for an
 #: uninstalled tree.
@@ -174,9 +175,10 @@ class NodeProcess:
         else:
             self._out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in _collect_output
             self._err = tempfile.TemporaryFile()  # noqa: SIM115
-        self.proc = subprocess.Popen([*self.command, *self.args], env=self.env, cwd=self.cwd,
-                                     stdin=subprocess.DEVNULL, stdout=self._out, stderr=self._err,
-                                     start_new_session=True)
+        with STOP.deferred():  # a Ctrl-C while Popen waits for the exec would lose the running child's handle
+            self.proc = subprocess.Popen([*self.command, *self.args], env=self.env, cwd=self.cwd,
+                                         stdin=subprocess.DEVNULL, stdout=self._out, stderr=self._err,
+                                         start_new_session=True)
         return self
 
     def __enter__(self) -> NodeProcess:

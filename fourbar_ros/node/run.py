@@ -83,16 +83,23 @@ class Stop:
         for signum in STOP_SIGNALS:
             signal.signal(signum, self)
 
-    def spin_once(self, executor: Executor, timeout_sec: float) -> None:
-        """``executor.spin_once(timeout_sec)``; a signal that came during it is raised after it, not inside."""
+    @contextlib.contextmanager
+    def deferred(self) -> Iterator[None]:
+        """A stop that comes inside the block is raised after it, not inside (an executor's callbacks; starting a
+        child process, whose handle would be lost with the child running)."""
         self._in_callbacks = True
         try:
-            executor.spin_once(timeout_sec=timeout_sec)
+            yield
         finally:
             self._in_callbacks = False
         if self._pending and self.raises is not None:
             self._pending = False
             raise self.raises()
+
+    def spin_once(self, executor: Executor, timeout_sec: float) -> None:
+        """``executor.spin_once(timeout_sec)``; a signal that came during it is raised after it, not inside."""
+        with self.deferred():
+            executor.spin_once(timeout_sec=timeout_sec)
 
 
 #: The one stop of this process.
