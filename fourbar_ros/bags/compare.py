@@ -24,6 +24,12 @@ value's *scale*, the magnitude its rounding errors are relative to when two corr
 - any other Float64 (antenna_rate, load_torque: their rounding is relative to themselves away from the dead points
   and the reach limit): scale = |value|.
 
+Actuator trajectories (``trajectory_msgs/JointTrajectory``, what ``fourbar process`` makes of antenna
+trajectories): joint names, header stamp, log time, the number of points and each point's field lengths and
+time_from_start exactly; per point the positions as positions (scale |q| + pi), velocities, accelerations and
+efforts with scale |value| (chain-rule products and the static torque, relative to themselves away from the dead
+points).
+
 Values equal as floats (same NaN or inf included) always match. Each topic is read ``BLOCK`` messages at a time
 from both bags at once (the fixed JointState layouts decoded on arrays, see joint_state_cdr), so memory does not
 grow with the bags; a longer topic's extra messages are counted, not compared. The default of 16 ulps allows a 1-2 ulp
@@ -46,7 +52,14 @@ import numpy.typing as npt
 from fourbar_ros.bags.joint_state_cdr import decode_float64s, decode_joint_states
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import ANTENNA_ANGLE, COMPARED_FIELDS, INPUT_TORQUE, JOINT_STATES, sibling_topic
+from fourbar_ros.config.interface import (
+    ANTENNA_ANGLE,
+    COMPARED_FIELDS,
+    INPUT_TORQUE,
+    JOINT_STATES,
+    JOINT_TRAJECTORY,
+    sibling_topic,
+)
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.rules.outputs import driven_index
@@ -73,6 +86,7 @@ class TopicData:
     has_velocity: npt.NDArray[np.bool_] | None = None
     efforts: FloatArray | None = None
     data: FloatArray | None = None
+    messages: list[Any] = field(default_factory=list)  # JointTrajectory: the decoded messages
 
     def __len__(self) -> int:
         return int(self.log_ns.size)
@@ -87,9 +101,9 @@ def _rows(seqs: list[Any], width: int) -> FloatArray:
 
 
 def topic_types_of(path: str | os.PathLike[str]) -> dict[str, str]:
-    """Topic -> type of the JointState and Float64 topics of a bag. Raises BagError (one line)."""
+    """Topic -> type of the JointState, Float64 and JointTrajectory topics of a bag. Raises BagError (one line)."""
     with open_bag(path) as reader:
-        return {c.topic: c.msgtype for c in reader.connections if c.msgtype in (JOINT_STATE, FLOAT64)}
+        return {c.topic: c.msgtype for c in reader.connections if c.msgtype in (JOINT_STATE, FLOAT64, JOINT_TRAJECTORY)}
 
 
 def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[bytes], start: int) -> TopicData:
@@ -108,6 +122,12 @@ def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[by
         values = decode_float64s(raws)
         td.data = values if values is not None else np.array([full(j, r).data for j, r in enumerate(raws)],
                                                              dtype=np.float64)
+        return td
+    if msgtype == JOINT_TRAJECTORY:
+        td.messages = [full(j, r) for j, r in enumerate(raws)]
+        td.stamp_ns = np.array([m.header.stamp.sec * 1_000_000_000 + m.header.stamp.nanosec for m in td.messages],
+                               dtype=np.int64)
+        td.names = [tuple(m.joint_names) for m in td.messages]
         return td
     first = full(0, raws[0])
     fast = decode_joint_states(raws, first.header.frame_id, tuple(first.name))
@@ -328,6 +348,37 @@ class Comparer:
             scale[:, d] = scale[:, d] * torque_condition(self.cfg, a.positions)
         return scale
 
+    def trajectories(self, topic: str, a: TopicData, b: TopicData, offset: int) -> None:
+        """One block of JointTrajectories (message ``offset`` on): see the module docstring."""
+        assert a.stamp_ns is not None and b.stamp_ns is not None
+        self.exact(topic, 'joint_names', a.names, b.names, offset)
+        if 'stamps' not in self.ignore:
+            self.exact(topic, 'header stamp (ns)', a.stamp_ns, b.stamp_ns, offset)
+            self.exact(topic, 'log time (ns)', a.log_ns, b.log_ns, offset)
+        for i, (ma, mb) in enumerate(zip(a.messages, b.messages, strict=True)):
+            k = offset + i
+            layout_a, layout_b = _layout(ma.points), _layout(mb.points)
+            if layout_a != layout_b:
+                self.result.add(Difference(topic, k, 'points (count, field lengths)', layout_a, layout_b))
+                continue
+            if not ma.points:
+                continue
+            ns = [[p.time_from_start.sec * 1_000_000_000 + p.time_from_start.nanosec for p in m.points]
+                  for m in (ma, mb)]
+            if ns[0] != ns[1]:
+                j = next(j for j, (x, y) in enumerate(zip(*ns, strict=True)) if x != y)
+                self.result.add(Difference(topic, k, f'time_from_start (ns)[{j}]', ns[0][j], ns[1][j]))
+            for what, attr, ignored in (('position', 'positions', 'positions'),
+                                        ('velocity', 'velocities', 'velocities'),
+                                        ('acceleration', 'accelerations', 'velocities'),
+                                        ('effort', 'effort', 'efforts')):
+                if ignored in self.ignore or not len(getattr(ma.points[0], attr)):
+                    continue
+                va = np.concatenate([getattr(p, attr) for p in ma.points]).astype(np.float64)[None, :]
+                vb = np.concatenate([getattr(p, attr) for p in mb.points]).astype(np.float64)[None, :]
+                scale = position_scale(va) if attr == 'positions' else np.abs(va)
+                self.floats(topic, f'point {what}', va, vb, scale, k)
+
     def float64s(self, topic: str, a: TopicData, b: TopicData, joints: TopicData | None, offset: int) -> None:
         """One block of Float64s; ``joints``: A's joint_states of the same messages (the torque's condition)."""
         assert a.data is not None and b.data is not None
@@ -351,7 +402,7 @@ def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str],
     result = comparer.result
     types_a, types_b = topic_types_of(path_a), topic_types_of(path_b)
     if not types_a and not types_b:
-        raise BagError(f'{path_a}, {path_b}: no JointState or Float64 topic to compare')
+        raise BagError(f'{path_a}, {path_b}: no JointState, Float64 or JointTrajectory topic to compare')
     for topic in sorted(set(types_a) | set(types_b)):
         ta, tb = types_a.get(topic), types_b.get(topic)
         if ta is None or tb is None:
@@ -376,6 +427,8 @@ def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str],
                 a_n, b_n = _head(a, n), _head(b, n)  # type: ignore[arg-type]
                 if ta == JOINT_STATE:
                     comparer.joint_states(topic, a_n, b_n, count_a, anchor)
+                elif ta == JOINT_TRAJECTORY:
+                    comparer.trajectories(topic, a_n, b_n, count_a)
                 else:
                     comparer.float64s(topic, a_n, b_n, None if joints is None else _head(joints, n), count_a)
             count_a += len(a)
@@ -397,4 +450,10 @@ def _head(td: TopicData, n: int) -> TopicData:
     def cut(x: Any) -> Any:
         return None if x is None else x[:n]
     return TopicData(td.msgtype, td.log_ns[:n], cut(td.stamp_ns), td.names[:n], td.frame_ids[:n],
-                     cut(td.positions), cut(td.velocities), cut(td.has_velocity), cut(td.efforts), cut(td.data))
+                     cut(td.positions), cut(td.velocities), cut(td.has_velocity), cut(td.efforts), cut(td.data),
+                     td.messages[:n])
+
+
+def _layout(points: Sequence[Any]) -> list[tuple[int, int, int, int]]:
+    """(positions, velocities, accelerations, effort) lengths per JointTrajectory point."""
+    return [(len(p.positions), len(p.velocities), len(p.accelerations), len(p.effort)) for p in points]

@@ -14,21 +14,23 @@ if TYPE_CHECKING:
     from fourbar_ros.config.antenna_config import AntennaConfig
 
 HELP = ('write the joint_states and input_torque fourbar_node would publish for a command bag, or the completed '
-        'joint_states, antenna_angle, antenna_rate and load_torque for a bag of measured joint_states, computed '
-        'without the middleware')
+        'joint_states, antenna_angle, antenna_rate and load_torque for a bag of measured joint_states, or the '
+        'actuator trajectories for a bag of antenna_trajectory, computed without the middleware')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `fourbar process`."""
     parser.add_argument('bag', type=Path, metavar='IN',
-                        help='command bag or measured joint_states bag (directory, .mcap or .db3)')
+                        help='command bag, measured joint_states bag or antenna_trajectory bag (directory, .mcap or '
+                        '.db3)')
     parser.add_argument('out', type=Path, metavar='OUT', help='bag directory to create (must not exist)')
     parser.add_argument('--params', type=Path, metavar='YAML',
                         help='the node\'s parameter file (default: the node\'s default parameters)')
     parser.add_argument('--topic', metavar='NAME',
                         help='command topic (std_msgs/Float64) in IN (default: /antenna_angle_cmd, else the one '
                         '*/antenna_angle_cmd), or measured JointState topic (default /joint_states, else the one '
-                        '*/joint_states); the outputs go next to it')
+                        '*/joint_states), or antenna trajectory topic (default /antenna_trajectory, else the one '
+                        '*/antenna_trajectory); the outputs go next to it')
     parser.add_argument('--storage', choices=STORAGES,
                         help='storage plugin of OUT (default: that of IN)')
 
@@ -41,6 +43,11 @@ def _commands(args: argparse.Namespace, cfg: AntennaConfig) -> str:
 def _measured(args: argparse.Namespace, cfg: AntennaConfig) -> str:
     from fourbar_ros.bags.process_measured import process_measured_bag
     return process_measured_bag(args.bag, args.out, cfg, topic=args.topic, storage=args.storage).summary()
+
+
+def _trajectories(args: argparse.Namespace, cfg: AntennaConfig) -> str:
+    from fourbar_ros.bags.process_trajectory import process_trajectory_bag
+    return process_trajectory_bag(args.bag, args.out, cfg, topic=args.topic, storage=args.storage).summary()
 
 
 def _has_commands(path: Path, types: dict[str, str], topic: str | None) -> bool:
@@ -57,11 +64,17 @@ def _has_measured(path: Path, types: dict[str, str], topic: str | None) -> bool:
     return measured_topic(path, types, topic) is not None
 
 
+def _has_trajectories(path: Path, types: dict[str, str], topic: str | None) -> bool:
+    from fourbar_ros.bags.process_trajectory import antenna_trajectory_topic
+    return antenna_trajectory_topic(types, topic) is not None
+
+
 #: What a bag holds -> how it is processed, by the input's topics: the first kind the bag has is processed.
 KINDS: tuple[tuple[str, Callable[[Path, dict[str, str], str | None], bool],
                    Callable[[argparse.Namespace, AntennaConfig], str]], ...] = (
     ('commands', _has_commands, _commands),
     ('measured joint states', _has_measured, _measured),
+    ('antenna trajectories', _has_trajectories, _trajectories),
 )
 
 

@@ -1,0 +1,124 @@
+"""The actuator trajectories fourbar_node publishes in trajectory mode, for a bag of antenna trajectories (no rclpy).
+
+For every ``trajectory_msgs/JointTrajectory`` of the antenna trajectory topic (``/antenna_trajectory``, else the one
+``*/antenna_trajectory``) in bag order, the node's rule (``fourbar_ros.rules.actuation.convert``): a refused
+trajectory is counted by its problem (``problem_of``) and writes nothing; a converted one gives the driven joint's
+JointTrajectory on ``<trajectory_controller>/joint_trajectory`` next to the input topic, at the input's log time,
+with the input's header stamp (a zero stamp, which the node replaces by its arrival time, by the log time). The
+output appears atomically.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fourbar_ros.bags.storage import (
+    AtomicBagWriter,
+    BagError,
+    jazzy_typestore,
+    open_bag,
+    recorded_qos,
+    storage_of,
+    topic_types,
+)
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.interface import ANTENNA_TRAJECTORY, JOINT_TRAJECTORY, sibling_topic, trajectory_topic
+from fourbar_ros.core.errors import FourBarError, one_line
+from fourbar_ros.motion.trajectory import DrivenTrajectory
+from fourbar_ros.rules.actuation import ActuationCounters, convert, duration_parts, problem_of
+
+
+@dataclass
+class TrajectoryStats:
+    """Counts of a run, named like the node's actuation counters."""
+
+    counters: ActuationCounters = field(default_factory=ActuationCounters)
+    seconds: float = 0.0
+
+    def summary(self) -> str:
+        """One line for the user."""
+        c = self.counters
+        refused = ', '.join(f'{n} {p.value}' for p, n in c.rejected.items() if n) or 'none'
+        return (f'{c.trajectories_received} antenna trajectories -> {c.trajectories_sent} actuator trajectories '
+                f'({c.trajectory_points_sent} points, {c.trajectory_points_inserted} inserted, '
+                f'{c.trajectories_retimed} retimed; refused: {refused}) in {self.seconds:.2f} s')
+
+
+def antenna_trajectory_topic(types: dict[str, str], topic: str | None) -> str | None:
+    """The antenna trajectory topic of a bag: ``topic``, else ``/antenna_trajectory``, else the one
+    ``*/antenna_trajectory``; None if there is none."""
+    if topic is not None:
+        return topic if types.get(topic) == JOINT_TRAJECTORY else None
+    name = ANTENNA_TRAJECTORY.name
+    candidates = [t for t, ty in types.items() if ty == JOINT_TRAJECTORY and t.rsplit('/', 1)[-1] == name]
+    return f'/{name}' if f'/{name}' in candidates else (candidates[0] if len(candidates) == 1 else None)
+
+
+def trajectory_cdr(store: Any, joint: str, traj: DrivenTrajectory, stamp_ns: int) -> bytes:
+    """The serialized JointTrajectory of a driven-joint trajectory starting at ``stamp_ns``: the fields the node's
+    message has (one joint; velocities and accelerations where given; the effort feed-forward)."""
+    t = store.types
+    point_type, duration_type = t['trajectory_msgs/msg/JointTrajectoryPoint'], t['builtin_interfaces/msg/Duration']
+    empty = np.empty(0, dtype=np.float64)
+    vel, acc = traj.velocities, traj.accelerations
+    points = []
+    for i, (s, p, e) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), traj.efforts.tolist(),
+                                      strict=True)):
+        sec, nanosec = duration_parts(s)
+        points.append(point_type(
+            positions=np.array([p]), velocities=empty if vel is None else np.array([float(vel[i])]),
+            accelerations=empty if acc is None else np.array([float(acc[i])]), effort=np.array([e]),
+            time_from_start=duration_type(sec=sec, nanosec=nanosec)))
+    stamp = t['builtin_interfaces/msg/Time'](sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+    msg = t[JOINT_TRAJECTORY](header=t['std_msgs/msg/Header'](stamp=stamp, frame_id=''), joint_names=[joint],
+                              points=points)
+    return bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY))
+
+
+def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
+                           topic: str | None = None, storage: str | None = None) -> TrajectoryStats:
+    """Write to ``dst`` what fourbar_node in trajectory mode publishes for the antenna trajectories of ``src``
+    (see the module docstring). Raises BagError (one line) for bad input; ``dst`` then does not appear."""
+    start = time.perf_counter()
+    src_path = Path(src)
+    stats = TrajectoryStats()
+    counters = stats.counters
+    store = jazzy_typestore()
+    with open_bag(src_path) as reader:
+        chosen = antenna_trajectory_topic(topic_types(reader), topic)
+        if chosen is None:
+            raise BagError(f'{src_path}: no {JOINT_TRAJECTORY} topic {topic or "/" + ANTENNA_TRAJECTORY.name}')
+        conns = [c for c in reader.connections if c.topic == chosen]
+        with AtomicBagWriter(dst, storage or storage_of(reader)) as bag:
+            out = bag.add_topic(sibling_topic(chosen, trajectory_topic(cfg.trajectory_controller).name),
+                                JOINT_TRAJECTORY, [recorded_qos()])
+            try:
+                for _, log, data in reader.messages(connections=conns):
+                    counters.trajectories_received += 1
+                    msg: Any = store.deserialize_cdr(bytes(data), JOINT_TRAJECTORY)
+                    try:
+                        converted = convert(cfg, msg.joint_names, msg.points)
+                    except FourBarError as exc:
+                        counters.rejected[problem_of(exc)] += 1
+                        continue
+                    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or int(log)
+                    bag.write(out, log, trajectory_cdr(store, cfg.driven_joint, converted.trajectory, stamp_ns))
+                    counters.trajectories_sent += 1
+                    counters.trajectory_points_sent += len(converted.trajectory)
+                    counters.trajectory_points_inserted += converted.inserted
+                    counters.trajectories_retimed += converted.retimed
+            except BagError:
+                raise
+            except Exception as exc:
+                raise BagError(f'{src_path}: unreadable bag after {counters.trajectories_received} messages '
+                               f'({one_line(exc)})') from exc
+            if counters.trajectories_received == 0:
+                raise BagError(f'{src_path}: topic {chosen} has no messages')
+    stats.seconds = time.perf_counter() - start
+    return stats
