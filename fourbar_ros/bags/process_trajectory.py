@@ -31,7 +31,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.interface import ANTENNA_TRAJECTORY, JOINT_TRAJECTORY, sibling_topic, trajectory_topic
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.motion.trajectory import DrivenTrajectory
-from fourbar_ros.rules.actuation import ActuationCounters, convert, duration_parts, problem_of
+from fourbar_ros.rules.actuation import ActuationCounters, convert, point_values, problem_of
 
 
 @dataclass
@@ -61,20 +61,14 @@ def antenna_trajectory_topic(types: dict[str, str], topic: str | None) -> str | 
 
 
 def trajectory_cdr(store: Any, joint: str, traj: DrivenTrajectory, stamp_ns: int) -> bytes:
-    """The serialized JointTrajectory of a driven-joint trajectory starting at ``stamp_ns``: the fields the node's
-    message has (one joint; velocities and accelerations where given; the effort feed-forward)."""
+    """The serialized JointTrajectory of a driven-joint trajectory starting at ``stamp_ns``, with the node's points
+    (``point_values``)."""
     t = store.types
     point_type, duration_type = t['trajectory_msgs/msg/JointTrajectoryPoint'], t['builtin_interfaces/msg/Duration']
-    empty = np.empty(0, dtype=np.float64)
-    vel, acc = traj.velocities, traj.accelerations
-    points = []
-    for i, (s, p, e) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), traj.efforts.tolist(),
-                                      strict=True)):
-        sec, nanosec = duration_parts(s)
-        points.append(point_type(
-            positions=np.array([p]), velocities=empty if vel is None else np.array([float(vel[i])]),
-            accelerations=empty if acc is None else np.array([float(acc[i])]), effort=np.array([e]),
-            time_from_start=duration_type(sec=sec, nanosec=nanosec)))
+    points = [point_type(positions=np.array(p, dtype=np.float64), velocities=np.array(v, dtype=np.float64),
+                         accelerations=np.array(a, dtype=np.float64), effort=np.array(e, dtype=np.float64),
+                         time_from_start=duration_type(sec=sec, nanosec=nanosec))
+              for p, v, a, e, (sec, nanosec) in point_values(traj)]
     stamp = t['builtin_interfaces/msg/Time'](sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
     msg = t[JOINT_TRAJECTORY](header=t['std_msgs/msg/Header'](stamp=stamp, frame_id=''), joint_names=[joint],
                               points=points)

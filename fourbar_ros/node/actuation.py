@@ -39,10 +39,10 @@ from fourbar_ros.rules.actuation import (
     ActuationCounters,
     Motion,
     convert,
-    duration_parts,
     plan_command,
     planned_points,
     planned_setpoints,
+    point_values,
     problem_of,
 )
 
@@ -59,15 +59,9 @@ def _qos(topic: Topic) -> QoSProfile:
 
 def trajectory_message(joint: str, traj: DrivenTrajectory, stamp_ns: int) -> JointTrajectory:
     """The JointTrajectory of a driven-joint trajectory starting at ``stamp_ns`` (node clock)."""
-    vel, acc = traj.velocities, traj.accelerations
-    points = []
-    for i, (t, p, e) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), traj.efforts.tolist(),
-                                      strict=True)):
-        sec, nanosec = duration_parts(t)
-        points.append(JointTrajectoryPoint(
-            positions=[p], velocities=[] if vel is None else [float(vel[i])],
-            accelerations=[] if acc is None else [float(acc[i])], effort=[e],
-            time_from_start=Duration(sec=sec, nanosec=nanosec)))
+    points = [JointTrajectoryPoint(positions=p, velocities=v, accelerations=a, effort=e,
+                                   time_from_start=Duration(sec=sec, nanosec=nanosec))
+              for p, v, a, e, (sec, nanosec) in point_values(traj)]
     msg = JointTrajectory(joint_names=[joint], points=points)
     msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
     return msg

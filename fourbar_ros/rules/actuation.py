@@ -50,7 +50,7 @@ from fourbar_ros.motion.splines import evaluate, hermite_coefficients
 from fourbar_ros.motion.trajectory import DrivenTrajectory, antenna_trajectory, to_driven
 
 __all__ = ['ActuationCounters', 'Converted', 'Motion', 'PointLike', 'TrajectoryProblem', 'antenna_arrays', 'convert',
-           'duration_parts', 'plan_command', 'planned_points', 'planned_setpoints', 'problem_of']
+           'duration_parts', 'plan_command', 'planned_points', 'planned_setpoints', 'point_values', 'problem_of']
 
 
 class DurationLike(Protocol):
@@ -175,6 +175,21 @@ def duration_parts(t: float) -> tuple[int, int]:
     """(sec, nanosec) of a time t >= 0 s, nanosec rounded and in [0, 1e9)."""
     ns = round(t * 1e9)
     return ns // 1_000_000_000, ns % 1_000_000_000
+
+
+#: One JointTrajectoryPoint's fields: positions rad, velocities rad/s, accelerations rad/s^2, effort N m, and
+#: time_from_start (sec, nanosec).
+PointValues = tuple[list[float], list[float], list[float], list[float], tuple[int, int]]
+
+
+def point_values(traj: DrivenTrajectory) -> list[PointValues]:
+    """The points of the JointTrajectory sent for a driven-joint trajectory (the node live, ``fourbar process`` for a
+    bag): one joint; velocities and accelerations where given, else empty; the static torque as effort."""
+    vel, acc = traj.velocities, traj.accelerations
+    return [([p], [] if vel is None else [float(vel[i])], [] if acc is None else [float(acc[i])], [e],
+             duration_parts(t))
+            for i, (t, p, e) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), traj.efforts.tolist(),
+                                              strict=True))]
 
 
 # --------------------------------------------------------------------------- plain commands
