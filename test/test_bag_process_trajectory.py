@@ -114,3 +114,15 @@ def test_compare_covers_actuator_trajectories(tmp_path: Path, capsys: pytest.Cap
     assert main(['compare', str(tmp_path / 'a'), str(tmp_path / 'b')]) == 1
     assert f'{OUT_TOPIC} message 1: point position[2]' in capsys.readouterr().out
     assert main(['compare', str(tmp_path / 'a'), str(tmp_path / 'b'), '--ignore', 'positions']) == 0
+
+
+def test_an_undecodable_trajectory_message_is_one_line_and_no_output(tmp_path: Path,
+                                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    with AtomicBagWriter(tmp_path / 'in') as bag:
+        conn = bag.add_topic('/antenna_trajectory', JOINT_TRAJECTORY)
+        bag.write(conn, 10**9, bytes(STORE.serialize_cdr(GOOD[0], JOINT_TRAJECTORY)))
+        bag.write(conn, 2 * 10**9, b'\x00\x01\x00\x00\x07')
+    assert main(['process', str(tmp_path / 'in'), str(tmp_path / 'out')]) == 2
+    err = capsys.readouterr().err.strip()
+    assert 'unreadable bag after 2 messages' in err and len(err.splitlines()) == 1
+    assert not (tmp_path / 'out').exists()
