@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 from bag_support import BAG_DIR, CONFIG, Tool, run_main, run_tool, served
-from ros_support import NodeProcess, RosSession
+from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.compare import compare_bags
 from fourbar_ros.bags.process import process_bag
@@ -182,7 +182,8 @@ def test_live_node_recording_equals_processed_bag(bag_name: str, policy: str, ro
     n = len(served(stream.values, cfg, policy))
     live = tmp_path / 'live'
     env = ros.env()
-    with NodeProcess(['--ros-args', '--params-file', str(params)], env) as node, \
+    # One JointState per command: idle republishing would add poses the processed bag does not have.
+    with NodeProcess(['--ros-args', '--params-file', str(params), *ONE_JOINT_STATE_PER_COMMAND], env) as node, \
             Tool(['record', live, '--storage', stream.storage, '--stop-after', f'joint_states={n}',
                   '--stop-after', f'input_torque={n}'], env) as recorder:
         recorder.wait_line('recording')
