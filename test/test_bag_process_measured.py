@@ -7,12 +7,11 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pytest
 
-from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag
+from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_messages
 from fourbar_ros.commands import main
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.rules.completion import CompletionRule, complete_block
@@ -52,20 +51,12 @@ def measured_bag(path: Path, topic: str = '/joint_states') -> Path:
     return path
 
 
-def read(path: Path) -> dict[str, list[tuple[int, Any]]]:
-    out: dict[str, list[tuple[int, Any]]] = {}
-    with open_bag(path) as reader:
-        for c, log, data in reader.messages():
-            out.setdefault(c.topic, []).append((log, STORE.deserialize_cdr(bytes(data), c.msgtype)))
-    return out
-
-
 def test_a_measured_bag_is_completed_by_the_block_rule(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src = measured_bag(tmp_path / 'measured')
     assert main(['process', str(src), str(tmp_path / 'out')]) == 0
     line = capsys.readouterr().err
     assert '18 measured joint states -> 12 completed (1 out of range, 2 not finite, 3 ignored)' in line
-    out = read(tmp_path / 'out')
+    out = read_messages(tmp_path / 'out')
     q = np.array([g[0] for g in GOOD])
     q_dot = np.array([g[1][0] if g[1] else math.nan for g in GOOD])
     effort = np.array([g[2][0] if g[2] else math.nan for g in GOOD])
@@ -93,7 +84,7 @@ def test_a_nan_velocity_or_effort_is_not_measured(tmp_path: Path, capsys: pytest
             bag.write(conn, (k + 1) * 10**9, joint_state([DRIVEN, 'other'], [q, 1.0], [v, 0.0], [e, 0.0], k + 1))
     assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out')]) == 0
     assert '6 measured joint states -> 4 completed (0 out of range, 2 not finite, 0 ignored)' in capsys.readouterr().err
-    out = read(tmp_path / 'out')
+    out = read_messages(tmp_path / 'out')
     good = sent[:4]
     block = complete_block(CFG, np.array([g[0] for g in good]), np.array([g[1] for g in good]),
                            np.array([g[2] for g in good]))
@@ -131,8 +122,8 @@ def test_compare_covers_the_completion_outputs(tmp_path: Path, capsys: pytest.Ca
 def test_a_namespaced_measured_topic_and_a_bag_without_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     src = measured_bag(tmp_path / 'measured', '/robot/joint_states')
     assert main(['process', str(src), str(tmp_path / 'out')]) == 0
-    assert set(read(tmp_path / 'out')) == {'/robot/joint_states', '/robot/antenna_angle', '/robot/antenna_rate',
-                                           '/robot/load_torque'}
+    assert set(read_messages(tmp_path / 'out')) == {'/robot/joint_states', '/robot/antenna_angle',
+                                                    '/robot/antenna_rate', '/robot/load_torque'}
     with AtomicBagWriter(tmp_path / 'other') as bag:
         bag.write(bag.add_topic('/elsewhere', JS), 1, joint_state([DRIVEN], [0.3], [], [], 1))
     capsys.readouterr()

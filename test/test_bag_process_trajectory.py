@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 import pytest
 
-from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag
+from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_messages
 from fourbar_ros.commands import main
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import ANTENNA_JOINT, JOINT_TRAJECTORY, trajectory_topic
@@ -50,20 +50,12 @@ def trajectory_bag(path: Path) -> Path:
     return path
 
 
-def read(path: Path) -> dict[str, list[tuple[int, Any]]]:
-    out: dict[str, list[tuple[int, Any]]] = {}
-    with open_bag(path) as reader:
-        for c, log, data in reader.messages():
-            out.setdefault(c.topic, []).append((log, STORE.deserialize_cdr(bytes(data), c.msgtype)))
-    return out
-
-
 def test_a_trajectory_bag_is_converted_by_the_node_rule(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(['process', str(trajectory_bag(tmp_path / 'in')), str(tmp_path / 'out')]) == 0
     line = capsys.readouterr().err
     assert '5 antenna trajectories -> 2 actuator trajectories' in line
     assert 'refused: 1 wrong_joint, 1 not_finite, 1 time_not_increasing' in line
-    out = read(tmp_path / 'out')
+    out = read_messages(tmp_path / 'out')
     assert list(out) == [OUT_TOPIC]
     sent = out[OUT_TOPIC]
     assert [log for log, _ in sent] == [1 * 10**9, 5 * 10**9]

@@ -8,24 +8,12 @@ import math
 
 import numpy as np
 import pytest
+from linkages import TURNANTENNA, links
 from ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps
 
-from fourbar_ros import AntennaLinkage, Branch, DeadPointError, Driven, InvalidGeometryError, UnreachableError
+from fourbar_ros import AntennaLinkage, Branch, DeadPointError, Driven, UnreachableError
 from fourbar_ros.core.completion import complete
 from fourbar_ros.core.numeric import FloatArray
-
-TURNANTENNA = AntennaLinkage(frame=0.180, rocker_ab=0.060, coupler=0.102)
-
-
-def links(seed: int, n: int) -> list[AntennaLinkage]:
-    rng = np.random.default_rng(seed)
-    out: list[AntennaLinkage] = [TURNANTENNA]
-    while len(out) < n:
-        try:
-            out.append(AntennaLinkage(*(float(v) for v in rng.uniform(0.05, 2.0, 3)), float(rng.uniform(0.05, 2.0))))
-        except InvalidGeometryError:
-            continue
-    return out
 
 
 def rocker_angles(link: AntennaLinkage, driven: Driven) -> FloatArray:

@@ -8,13 +8,12 @@ import math
 
 import numpy as np
 import pytest
+from linkages import TURNANTENNA, links
 from reference_table import FLOAT_ROWS
 from ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, second_derivative_scales
 
-from fourbar_ros import AntennaLinkage, Branch, Driven, InvalidGeometryError, SingularPositionError, UnreachableError
+from fourbar_ros import AntennaLinkage, Branch, Driven, SingularPositionError, UnreachableError
 from fourbar_ros.core.numeric import FloatArray
-
-TURNANTENNA = AntennaLinkage(frame=0.180, rocker_ab=0.060, coupler=0.102)
 
 
 def scales(link: AntennaLinkage, t: FloatArray, branch: Branch = Branch.UPPER) -> tuple[FloatArray, FloatArray]:
@@ -23,17 +22,6 @@ def scales(link: AntennaLinkage, t: FloatArray, branch: Branch = Branch.UPPER) -
     r = link.rates_at(t, g, d)
     return second_derivative_scales(link.rocker_ab, float(link.rocker_cd or 0), link.coupler, t, g, d,
                                     angle_scale(g, t, r.dgamma_dtheta), angle_scale(d, t, r.ddelta_dtheta))
-
-
-def links(seed: int, n: int) -> list[AntennaLinkage]:
-    rng = np.random.default_rng(seed)
-    out: list[AntennaLinkage] = [TURNANTENNA]
-    while len(out) < n:
-        try:
-            out.append(AntennaLinkage(*(float(v) for v in rng.uniform(0.05, 2.0, 3)), float(rng.uniform(0.05, 2.0))))
-        except InvalidGeometryError:
-            continue
-    return out
 
 
 def inside(link: AntennaLinkage, n: int = 201, margin: float = 1e-9) -> FloatArray:
