@@ -115,6 +115,19 @@ def test_antenna_angle_no_measurement_gives_keeps_its_arrival(cfg: AntennaConfig
     assert rec.antenna_matched == 199 and rec.antenna.t.size == 200
 
 
+def test_antenna_angle_of_a_measurement_the_recording_missed_at_rest(cfg: AntennaConfig) -> None:
+    # The recording matched the actuator's joint_states after the node's antenna_angle: the first measurement is
+    # missing but its completion is there. The antenna sits still until 0.5 s, so the next 50 measurements give
+    # the same value: that one is left out (received before any of them was stamped), and every later message is
+    # found, the one where the value first changes too.
+    messages = _recording(cfg)
+    topics = demo_topics(cfg.trajectory_controller)
+    messages[topics.joint_states] = messages[topics.joint_states][2:]
+    rec = recording(messages, topics, cfg)
+    assert rec.antenna_matched == rec.antenna.t.size == 200
+    assert rec.antenna.t.tolist() == rec.measured.position.t.tolist()
+
+
 def test_summary_figures(cfg: AntennaConfig) -> None:
     lag = 1e-3
     rec = recording(_recording(cfg, lag=lag), demo_topics(cfg.trajectory_controller), cfg)

@@ -238,27 +238,30 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
 
 def _antenna_series(cfg: AntennaConfig, angles: Sequence[tuple[int, Any]], received: FloatArray, q: FloatArray,
                     measured_t: FloatArray) -> tuple[Series, int]:
-    """The antenna_angle messages (Float64: no stamp) timed by the measurement each completes: in order, the next
-    recorded measurement whose completion by the core (``complete``, the node's scalar path) gives exactly its
-    value; a message no measurement gives keeps its receive time, except before the first found (the recording of
-    the measurements started after them): those are left out. Returns the series, sorted by time, and the number
-    found."""
+    """The antenna_angle messages (Float64: no stamp) timed by the measurement each completes: the latest recorded
+    measurement stamped no later than the message was received whose completion by the core (``complete``, the
+    node's scalar path) gives exactly its value. A message no measurement gives keeps its receive time, except
+    before the first found (completions of measurements sent before the recording matched them): those are left
+    out. Returns the series, sorted by time, and the number found.
+
+    Matched by time, not in order: the recording can miss the first measurements while it has their completions,
+    and at rest many measurements give the same value, so an in-order match would shift by one and lose a message
+    where the value next changes."""
     branch = rocker_branch(cfg)
-    where: dict[float, list[int]] = {}
-    for i, x in enumerate(q.tolist()):
-        where.setdefault(float(complete(cfg.linkage, float(x), cfg.driven, branch).theta), []).append(i)
+    stamps: dict[float, list[float]] = {}  # value -> the stamps (s) of the measurements completing to it, ascending
+    for x, t in sorted(zip(q.tolist(), measured_t.tolist()), key=lambda xt: xt[1]):
+        stamps.setdefault(float(complete(cfg.linkage, float(x), cfg.driven, branch).theta), []).append(t)
     values = np.array([m.data for _, m in angles], dtype=np.float64)
     times = received.copy()
-    matched, after, first = 0, 0, None
+    matched, first = 0, None
     for k, v in enumerate(values.tolist()):
-        candidates = where.get(float(v), [])
-        n = bisect.bisect_left(candidates, after)
-        if n < len(candidates):
-            times[k] = measured_t[candidates[n]]
-            after = candidates[n] + 1
+        candidates = stamps.get(float(v), [])
+        n = bisect.bisect_right(candidates, float(received[k]))
+        if n > 0:
+            times[k] = candidates[n - 1]
             matched += 1
             first = k if first is None else first
-    keep = slice(first or 0, None)  # before the first found: completions of measurements the recording missed
+    keep = slice(first or 0, None)
     times, values = times[keep], values[keep]
     order = np.argsort(times, kind='stable')
     return Series(times[order], values[order]), matched
