@@ -2,6 +2,8 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
+# pytest-xdist workers: one per CPU, at most 4; each test file runs whole on one worker (its shared node processes).
+PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile
 
 .PHONY: setup demo test test-jitter test-stress lint bench-deps bench bench-quick clean
 
@@ -17,7 +19,7 @@ lint: setup
 
 # Every test once; the statistical repeats (marker `stress`) are left out here and run by test-stress.
 test: lint
-	$(BIN)/python -m pytest
+	$(BIN)/python -m pytest $(PARALLEL)
 
 # The statistical repeats: each stop case 20 times, the soaks and long bursts.
 test-stress: setup
@@ -25,7 +27,7 @@ test-stress: setup
 
 # The pure (non-ROS) tests as if on another CPU: numpy's transcendentals moved by one ulp (test/ulp_jitter.py).
 test-jitter: setup
-	$(BIN)/python -m pytest -m 'not ros' --ulp-jitter
+	$(BIN)/python -m pytest $(PARALLEL) -m 'not ros' --ulp-jitter
 
 bench-deps: setup
 	$(BIN)/python -m pip install --quiet -c requirements/constraints.txt -r requirements/bench.txt

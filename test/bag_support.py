@@ -97,11 +97,13 @@ def fourbar_command() -> list[str]:
 
 
 class Tool:
-    """``fourbar ARGS`` as a child process (own session); its output lines can be waited for."""
+    """``fourbar ARGS`` (or ``COMMAND ARGS``) as a child process (own session, in ``cwd``); its output lines can be
+    waited for."""
 
-    def __init__(self, args: Sequence[str | os.PathLike[str]], env: dict[str, str]) -> None:
+    def __init__(self, args: Sequence[str | os.PathLike[str]], env: dict[str, str],
+                 command: Sequence[str] | None = None, cwd: Path = REPO) -> None:
         self.args = [str(a) for a in args]
-        self.proc = subprocess.Popen([*fourbar_command(), *self.args], env=env, cwd=REPO,
+        self.proc = subprocess.Popen([*(command or fourbar_command()), *self.args], env=env, cwd=cwd,
                                      stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
                                      stderr=subprocess.PIPE, text=True, start_new_session=True)
         self.lines: list[str] = []  # stderr
@@ -152,9 +154,12 @@ class Tool:
             reader.join(timeout=5)
         return rc
 
-    def signal(self, sig: int) -> None:
-        """Send ``sig`` to the process."""
-        self.proc.send_signal(sig)
+    def signal(self, sig: int, group: bool = False) -> None:
+        """Send ``sig`` to the process (``group``: to its whole process group, as a terminal's Ctrl-C does)."""
+        if group:
+            os.killpg(self.proc.pid, sig)
+        else:
+            self.proc.send_signal(sig)
 
     def kill(self) -> None:
         """Kill if still running and reap (safe to repeat)."""

@@ -1,4 +1,4 @@
-"""A colcon-built install of this package, built once per pytest process, and the environment that sourcing
+"""A colcon-built install of this package, built once per test run, and the environment that sourcing
 its setup script gives a child process (plus a leased ROS domain limited to this host).
 
 conftest.py's session fixtures ``colcon_install`` and ``ros2_cli`` are built on ``colcon_install()`` and
@@ -8,12 +8,12 @@ launch_testing, ``ros2 run ... demo``) shares that one build and, for the ros2 c
 
 from __future__ import annotations
 
+import fcntl
 import importlib.util
 import os
 import shutil
 import subprocess
 import sys
-import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -26,43 +26,53 @@ REPO = Path(__file__).resolve().parent.parent
 PACKAGE_FILES = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'fourbar_ros', 'config', 'launch', 'rviz')
 BIN = Path(sys.executable).parent
 
-_lock = threading.Lock()
-_built: dict[str, Path | str] = {}
-
-
 def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Install base (``.../install``) of a colcon build of a copy of the package; skip without colcon."""
+    """Install base (``.../install``) of a colcon build of a copy of the package; skip without colcon.
+
+    Built once per run: pytest-xdist's workers share the directory above their own temporary roots, and the first
+    to get its lock builds there while the others wait (a failed build is written down, so each fails fast)."""
     colcon = BIN / 'colcon'
     if not colcon.exists():
         pytest.skip('colcon is not installed in this environment (pip install colcon-core colcon-ros)')
-    with _lock:
-        if 'install' in _built:
-            return Path(_built['install'])
-        if 'error' in _built:
-            pytest.fail(str(_built['error']))
-        ws = tmp_path_factory.mktemp('colcon_ws')
-        src = ws / 'src' / 'fourbar_ros'
-        src.mkdir(parents=True)
-        for name in PACKAGE_FILES:
-            path = REPO / name
-            if path.is_dir():
-                shutil.copytree(path, src / name, ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
-            else:
-                shutil.copy2(path, src / name)
-        result = subprocess.run(
-            [str(colcon), '--log-base', str(ws / 'log'), 'build', '--base-paths', str(ws / 'src'),
-             '--build-base', str(ws / 'build'), '--install-base', str(ws / 'install')],
-            cwd=ws, capture_output=True, text=True, timeout=600, check=False)
-        if result.returncode != 0:
-            _built['error'] = 'colcon build failed: ' + result.stdout[-3000:] + result.stderr[-3000:]
-            pytest.fail(str(_built['error']))
-        log = (ws / 'log' / 'latest_build' / 'logger_all.log').read_text(encoding='utf-8')
-        # Without a valid package.xml colcon silently builds a plain Python package instead.
-        if "with type 'ros.ament_python' and name 'fourbar_ros'" not in log:
-            _built['error'] = 'colcon did not build fourbar_ros as ros.ament_python'
-            pytest.fail(str(_built['error']))
-        _built['install'] = ws / 'install'
-        return ws / 'install'
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get('PYTEST_XDIST_WORKER') else base
+    ws = root / 'colcon_ws'
+    failed = root / 'colcon_build_failed.txt'
+    with open(root / 'colcon_build.lock', 'w') as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        if failed.exists():
+            pytest.fail(failed.read_text(encoding='utf-8'))
+        if not (ws / 'built').exists():
+            error = _build(colcon, ws)
+            if error:
+                failed.write_text(error, encoding='utf-8')
+                pytest.fail(error)
+    return ws / 'install'
+
+
+def _build(colcon: Path, ws: Path) -> str | None:
+    """Build a copy of the package in ``ws``; the error, or None."""
+    src = ws / 'src' / 'fourbar_ros'
+    shutil.rmtree(ws, ignore_errors=True)
+    src.mkdir(parents=True)
+    for name in PACKAGE_FILES:
+        path = REPO / name
+        if path.is_dir():
+            shutil.copytree(path, src / name, ignore=shutil.ignore_patterns('__pycache__', '*.pyc'))
+        else:
+            shutil.copy2(path, src / name)
+    result = subprocess.run(
+        [str(colcon), '--log-base', str(ws / 'log'), 'build', '--base-paths', str(ws / 'src'),
+         '--build-base', str(ws / 'build'), '--install-base', str(ws / 'install')],
+        cwd=ws, capture_output=True, text=True, timeout=600, check=False)
+    if result.returncode != 0:
+        return 'colcon build failed: ' + result.stdout[-3000:] + result.stderr[-3000:]
+    log = (ws / 'log' / 'latest_build' / 'logger_all.log').read_text(encoding='utf-8')
+    # Without a valid package.xml colcon silently builds a plain Python package instead.
+    if "with type 'ros.ament_python' and name 'fourbar_ros'" not in log:
+        return 'colcon did not build fourbar_ros as ros.ament_python'
+    (ws / 'built').touch()
+    return None
 
 
 def sourced_env(base: dict[str, str], prefix: Path, domain_id: int, localhost: bool = True) -> dict[str, str]:

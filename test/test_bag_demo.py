@@ -28,13 +28,16 @@ def _env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'}
 
 
-def test_demo_runs_to_the_end(lease: DomainLease, tmp_path: Path) -> None:
+def test_demo_runs_to_the_end_on_the_exported_domain(lease: DomainLease, tmp_path: Path) -> None:
+    # On an exported ROS_DOMAIN_ID (so a user's other terminals see its topics), said in its first line.
     out = tmp_path / 'demo'
-    with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
+    with Tool(['demo', '--params', CONFIG, '--out', out], {**_env(), 'ROS_DOMAIN_ID': str(lease.domain_id)}) as demo:
         rc = demo.wait(120.0)  # a deadline against hangs; the demo takes about 20 s here
         assert rc == 0, demo.lines
         stdout = demo.stdout
     assert not domain_in_use(lease.domain_id)  # both node processes are gone
+    first = stdout.splitlines()[0]
+    assert f' on ROS_DOMAIN_ID {lease.domain_id} (from ROS_DOMAIN_ID; this host only); ' in first, first
     lines = {line.split()[0]: line for line in stdout.splitlines() if line.strip()}
     for key in ('command', 'tracking', 'speed', 'torque', 'margin', 'counts', 'check', 'replay', 'plot'):
         assert key in lines, stdout
@@ -94,7 +97,8 @@ def test_demo_interrupted_cleans_up(when: str, lease: DomainLease, tmp_path: Pat
     nodes: list[int] = []
     with Tool(['demo', '--params', CONFIG, '--out', out, '--domain-id', str(lease.domain_id)], _env()) as demo:
         if when == 'starting':
-            demo.wait_line('fourbar demo: fourbar_node (mode trajectory)', 60.0, stdout=True)  # before they start
+            first = demo.wait_line('fourbar demo: fourbar_node (mode trajectory)', 60.0, stdout=True)  # not yet
+            assert f' on ROS_DOMAIN_ID {lease.domain_id} (--domain-id; this host only); ' in first, first
         elif when == 'node_started':  # the processes exist; the demo is still setting up its own rclpy
             wait_for(lambda: bool(_nodes(demo.proc.pid)) or demo.proc.poll() is not None, 60.0, 'the node process')
             nodes = _nodes(demo.proc.pid)
@@ -156,10 +160,20 @@ def test_demo_with_no_arguments_from_another_directory(tmp_path: Path) -> None:
 
 def test_ros2_run_demo_uses_the_installed_share(ros2_cli: CliEnv,
                                                 tmp_path_factory: pytest.TempPathFactory) -> None:
-    """`ros2 run fourbar_ros fourbar demo` over a colcon install, from an empty directory, with no arguments."""
+    """`ros2 run fourbar_ros fourbar demo` over a colcon install, from an empty directory, with no arguments: it
+    takes the installed share's parameters and bag, and Ctrl-C (to the terminal's process group) once it replays
+    ends it with 130 and no traceback (the run to the end from these defaults is the test above)."""
     share = ros2_cli.prefix / 'share' / 'fourbar_ros'
     env = {k: v for k, v in ros2_cli.env.items() if k != 'ROS_DOMAIN_ID'}  # the demo leases its own free id
     cwd = tmp_path_factory.mktemp('anywhere')
-    rc, out, err = _run_from([ros2(), 'run', 'fourbar_ros', 'fourbar', 'demo'], env, cwd)
-    _check_demo_output(rc, out, err, cwd, share / 'config' / 'antenna.yaml', share / 'bags' / 'demo_sweep')
+    with Tool(['run', 'fourbar_ros', 'fourbar', 'demo'], env, command=[ros2()], cwd=cwd) as demo:
+        first = demo.wait_line('fourbar demo: fourbar_node (mode trajectory)', 60.0, stdout=True)
+        demo.wait_line('are up; replaying paced', 60.0)
+        demo.signal(signal.SIGINT, group=True)
+        assert demo.wait(60.0) == 130, demo.lines
+    params, bag = share / 'config' / 'antenna.yaml', share / 'bags' / 'demo_sweep'
+    assert first.startswith(f'fourbar demo: fourbar_node (mode trajectory) and the simulated actuator with {params} '
+                            'on ROS_DOMAIN_ID '), first
+    assert f'replaying {len(read_commands(bag))} commands from {bag}, one every ' in first, first
+    assert not [line for line in demo.lines if 'Traceback' in line], demo.lines
     assert os.listdir(cwd) == ['out']

@@ -249,7 +249,7 @@ def _antenna_series(cfg: AntennaConfig, angles: Sequence[tuple[int, Any]], recei
     where the value next changes."""
     branch = rocker_branch(cfg)
     stamps: dict[float, list[float]] = {}  # value -> the stamps (s) of the measurements completing to it, ascending
-    for x, t in sorted(zip(q.tolist(), measured_t.tolist()), key=lambda xt: xt[1]):
+    for x, t in sorted(zip(q.tolist(), measured_t.tolist(), strict=True), key=lambda xt: xt[1]):
         stamps.setdefault(float(complete(cfg.linkage, float(x), cfg.driven, branch).theta), []).append(t)
     values = np.array([m.data for _, m in angles], dtype=np.float64)
     times = received.copy()
