@@ -97,7 +97,7 @@ def test_sim_actuator_argument_starts_the_simulated_drive(install: CliEnv) -> No
     try:
         wait_node(install.env, '/tilt_sim/sim_actuator')
         wait_node(install.env, '/tilt_sim/fourbar_node')
-        got = run([ros2(), 'param', 'get', '--no-daemon', '--spin-time', '3', '/tilt_sim/fourbar_node', 'mode'],
+        got = run([ros2(), 'param', 'get', '--timeout', '30', '/tilt_sim/fourbar_node', 'mode'],
                   install.env, timeout=60, cwd=install.cwd)
         assert 'trajectory' in got.stdout, got.stdout + got.stderr  # the mode argument reached the node
         echo = echo_once(install.env, '/tilt_sim/joint_states', 'sensor_msgs/msg/JointState')
