@@ -183,6 +183,19 @@ BAD_STARTS = [
 ]
 
 
+def _error_line(ros: RosSession, *ros_args: str) -> str:
+    """Start the node with ``--ros-args ROS_ARGS``; it must exit 2 with one stderr line, no traceback: that line."""
+    proc = NodeProcess(['--ros-args', *ros_args], ros.env())
+    proc.start()
+    try:
+        status = proc.wait_exit()
+    finally:
+        proc.kill()
+    lines = proc.stderr.strip().splitlines()
+    assert status == 2 and len(lines) == 1 and 'Traceback' not in proc.stderr, (status, proc.stderr)
+    return lines[0]
+
+
 @pytest.mark.parametrize(('line', 'name'), BAD_STARTS)
 def test_invalid_startup_parameters_exit_with_one_line(ros: RosSession, tmp_path: Path, line: str,
                                                        name: str) -> None:
@@ -194,57 +207,25 @@ def test_invalid_startup_parameters_exit_with_one_line(ros: RosSession, tmp_path
     path.write_text(text + '\n', encoding='utf-8')
     with pytest.raises(ConfigError) as loader:
         load_config(path)
-    proc = NodeProcess(['--ros-args', '--params-file', str(path)], ros.env())
-    proc.start()
-    try:
-        status = proc.wait_exit()
-    finally:
-        proc.kill()
-    assert status == 2
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, proc.stderr
-    assert lines[0].startswith(f'fourbar_node: error: {name}: ')
-    assert f'{path}: {lines[0].removeprefix("fourbar_node: error: ")}' == str(loader.value)
-    assert 'Traceback' not in proc.stderr
+    line = _error_line(ros, '--params-file', str(path))
+    assert line.startswith(f'fourbar_node: error: {name}: ')
+    assert f'{path}: {line.removeprefix("fourbar_node: error: ")}' == str(loader.value)
 
 
 def test_unreadable_params_file_exits_with_one_line(ros: RosSession, tmp_path: Path) -> None:
-    proc = NodeProcess(['--ros-args', '--params-file', str(tmp_path / 'missing.yaml')], ros.env())
-    proc.start()
-    try:
-        status = proc.wait_exit()
-    finally:
-        proc.kill()
-    assert status == 2
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, proc.stderr
-    assert lines[0].startswith('fourbar_node: error: ') and 'missing.yaml' in lines[0]
+    line = _error_line(ros, '--params-file', str(tmp_path / 'missing.yaml'))
+    assert line.startswith('fourbar_node: error: ') and 'missing.yaml' in line
 
 
 def test_malformed_params_file_exits_with_one_line(ros: RosSession, tmp_path: Path) -> None:
     path = tmp_path / 'broken.yaml'
     path.write_text('/**:\n  ros__parameters:\n    load_torque: [1.0\n', encoding='utf-8')
-    proc = NodeProcess(['--ros-args', '--params-file', str(path)], ros.env())
-    proc.start()
-    try:
-        status = proc.wait_exit()
-    finally:
-        proc.kill()
-    assert status == 2
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, proc.stderr
-    assert lines[0].startswith(f'fourbar_node: error: {path}: not valid YAML')
+    assert _error_line(ros, '--params-file', str(path)).startswith(f'fourbar_node: error: {path}: not valid YAML')
 
 
 def test_command_line_override_is_validated_too(ros: RosSession) -> None:
-    proc = start(ros, '-p', 'theta_min:=0.5')
-    try:
-        status = proc.wait_exit()
-    finally:
-        proc.kill()
-    assert status == 2
-    assert proc.stderr.strip().startswith('fourbar_node: error: theta_min')  # 'theta_min, theta_max: ...'
-    assert len(proc.stderr.strip().splitlines()) == 1
+    line = _error_line(ros, '--params-file', str(YAML), '-p', 'theta_min:=0.5')
+    assert line.startswith('fourbar_node: error: theta_min')  # 'theta_min, theta_max: ...'
 
 
 def test_robot_wide_params_file_other_nodes_parameters_are_ignored(ros: RosSession, tmp_path: Path) -> None:
