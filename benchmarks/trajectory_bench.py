@@ -16,14 +16,13 @@ No figure here is asserted by any test.
 
 from __future__ import annotations
 
-import argparse
-import json
 import statistics
 import time
 from typing import Any
 
 import numpy as np
 
+from benchmarks import options, print_json
 from benchmarks.cases import TURNANTENNA
 from benchmarks.sweep import floor_inputs, floor_ufuncs
 from benchmarks.timing import Case, interleaved
@@ -83,13 +82,5 @@ def run(quick: bool) -> dict[str, Any]:
     return {'conversion': conversion(7 if quick else 21), 'replanning': replanning(200 if quick else 2000)}
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
-    parser.add_argument('--quick', action='store_true', help='fewer rounds')
-    args = parser.parse_args(argv)
-    print(json.dumps(run(args.quick), indent=2))
-    return 0
-
-
 if __name__ == '__main__':
-    raise SystemExit(main())
+    raise SystemExit(print_json(run(options(None, __doc__).quick)))
