@@ -76,7 +76,8 @@ def _annex(atan2_fix: bool = False, dtype: type[np.floating] = np.float64) -> Ca
             raise NotApplicableError('the annex formula assumes equal rockers')
         f = dtype
         H, h, ll = f(g.frame), f(g.coupler), f(g.rocker_ab)
-        hh, two_hh, two_l2 = H * H + h * h, f(2) * H * h, f(2) * ll * ll
+        with np.errstate(over='ignore'):  # lengths beyond the specification overflow, as in Python floats
+            hh, two_hh, two_l2 = H * H + h * h, f(2) * H * h, f(2) * ll * ll
         one, half, two = f(1), f(0.5), f(2)
 
         def vector(theta: FloatArray) -> tuple[npt.NDArray[np.floating], npt.NDArray[np.floating]]:

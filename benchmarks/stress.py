@@ -32,6 +32,7 @@ from benchmarks.reference import (
     ReferenceUnreachableError,
     angle_error,
     condition,
+    inward,
     reach_mp,
     rocker_angles_mp,
     to_double_double,
@@ -52,15 +53,6 @@ class StressCase:
 
 # ---------------------------------------------------------------------------------------------- generators
 
-def _inward(x: mpmath.mpf, toward: float) -> float:
-    """float(x), moved one ulp toward ``toward`` if rounding crossed x (so a limit rounds to the reachable side)."""
-    with mpmath.workdps(DPS):
-        f = float(x)
-        if (toward < f and mpmath.mpf(f) > x) or (toward > f and mpmath.mpf(f) < x):
-            f = math.nextafter(f, toward)
-    return f
-
-
 def _reach_cases(family: str, g: Geometry, distances: list[float]) -> list[StressCase]:
     gap, top = reach_mp(g)
     out = []
@@ -68,10 +60,10 @@ def _reach_cases(family: str, g: Geometry, distances: list[float]) -> list[Stres
         for r in distances:
             if top < mpmath.pi:
                 for sign in (1, -1):
-                    t = _inward(sign * top * (1 - mpmath.mpf(r)), 0.0)
+                    t = inward(sign * top * (1 - mpmath.mpf(r)), 0.0)
                     out.append(StressCase(family, g, t, f'{"+" if sign > 0 else "-"}theta_max (1 - {r:g})'))
             if gap > 0:
-                t = _inward(gap * (1 + mpmath.mpf(r)), math.inf)
+                t = inward(gap * (1 + mpmath.mpf(r)), math.inf)
                 out.append(StressCase(family, g, t, f'theta_gap (1 + {r:g})'))
     return out
 
