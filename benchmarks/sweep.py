@@ -237,39 +237,30 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
         if name in by_name:
             by_name[name].seconds_per_solve_vector = cpu
             by_name[name].wall_seconds_per_solve_vector = wall
-    return {'floor': v_times['floor'][0], 'python_call': s_times['python_call'][0],
-            'stable_plain': s_times['stable_plain'][0], 'stable_plain_wall': s_times['stable_plain'][1],
-            'array_path_one': s_times['array_path_one'][0], 'array_path_one_wall': s_times['array_path_one'][1],
-            'floor_wall': v_times['floor'][1], 'python_call_wall': s_times['python_call'][1]}
+    measured = {'floor_per_element': v_times['floor'], 'python_call_per_call': s_times['python_call'],
+                'stable_plain_scalar_per_call': s_times['stable_plain'],
+                'array_path_one_angle_per_call': s_times['array_path_one']}
+    return {**{k: cpu for k, (cpu, _) in measured.items()}, **{f'{k}_wall': wall for k, (_, wall) in measured.items()}}
+
+
+def dominates(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """(time, error) a is no slower and no less accurate than b, and strictly better in one of the two."""
+    return a[0] <= b[0] and a[1] <= b[1] and a != b
 
 
 def pareto_front(points: Sequence[tuple[str, float | None, float | None]]) -> set[str]:
-    """Names of the non-dominated (time, error) points; points with a None or non-finite value are excluded.
-
-    A point is dominated if another is no slower and no less accurate, and strictly better in one of the two.
-    """
-    valid = [(n, t, e) for n, t, e in points if t is not None and e is not None and math.isfinite(t)
-             and math.isfinite(e)]
-    front = set()
-    for n, t, e in valid:
-        dominated = any((t2 <= t and e2 <= e) and (t2 < t or e2 < e) for n2, t2, e2 in valid if n2 != n)
-        if not dominated:
-            front.add(n)
-    return front
+    """Names of the non-dominated (time, error) points; points with a None or non-finite value are excluded."""
+    valid = {n: (t, e) for n, t, e in points if t is not None and e is not None and math.isfinite(t)
+             and math.isfinite(e)}
+    return {n for n, p in valid.items() if not any(dominates(q, p) for m, q in valid.items() if m != n)}
 
 
 def dominators(results: list[MethodResult], name: str, vector: bool = True) -> list[str]:
     """Methods that dominate ``name`` (used to explain a shipped method off the front)."""
-    by = {r.name: r for r in results}
-    me = by[name]
-    t0 = me.seconds_per_solve_vector if vector else me.seconds_per_solve_scalar
-    e0 = me.max_error
-    out = []
-    for r in results:
+    def point(r: MethodResult) -> tuple[float, float] | None:
         t = r.seconds_per_solve_vector if vector else r.seconds_per_solve_scalar
-        e = r.max_error
-        if r.name == name or t is None or e is None or t0 is None or e0 is None:
-            continue
-        if t <= t0 and e <= e0 and (t < t0 or e < e0):
-            out.append(f'{r.name} ({t:.3g} s, {e:.3g} rad)')
-    return out
+        return None if t is None or r.max_error is None else (t, r.max_error)
+
+    me = point(next(r for r in results if r.name == name))
+    return [f'{r.name} ({p[0]:.3g} s, {p[1]:.3g} rad)' for r in results
+            if r.name != name and me is not None and (p := point(r)) is not None and dominates(p, me)]
