@@ -12,10 +12,10 @@ import pytest
 from ulp_bounds import CHAIN_ULPS
 
 from benchmarks import completion_peers as cp
-from benchmarks.report import completion_markdown
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
 from benchmarks.reference import Geometry, ReferenceUnreachableError, rates_mp, rocker_angles_mp
 from benchmarks.reference_driven import driven_pose_mp, working_range
+from benchmarks.report import completion_markdown
 
 
 def wrapped(x: mpmath.mpf) -> float:
