@@ -23,7 +23,8 @@ import mpmath
 import numpy as np
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
-from benchmarks.methods import linkage
+from benchmarks.methods import NotApplicableError, Solver, annex_solver, linkage
+from benchmarks.peers import pylinkage_solver
 from benchmarks.reference import (
     DPS,
     UNIT_ROUNDOFF,
@@ -207,48 +208,12 @@ def subnormal_cases(_quick: bool) -> list[StressCase]:
 Scalar = Callable[[float], tuple[float, float]]
 
 
-def _annex_scalar(g: Geometry) -> Scalar | None:
-    from benchmarks.methods import NotApplicableError, annex_solver
-
+def _solver(build: Callable[[Geometry, tuple[float, float]], Solver], g: Geometry) -> Solver | None:
+    """A benchmark method on a stress geometry; None where it does not apply."""
     try:
-        s = annex_solver(g, (0.0, 0.0)).scalar
+        return build(g, (0.0, 0.0))
     except NotApplicableError:
         return None
-    return s
-
-
-def _pylinkage_scalar(g: Geometry) -> Scalar | None:
-    from benchmarks.methods import NotApplicableError
-    from benchmarks.peers import pylinkage_solver
-
-    try:
-        return pylinkage_solver(g, (0.0, 0.0)).scalar
-    except NotApplicableError:
-        return None
-
-
-def _shipped_scalar(g: Geometry) -> Scalar | None:
-    try:
-        return linkage(g).rocker_angles  # type: ignore[return-value]
-    except ValueError:
-        return None
-
-
-def _shipped_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    gam, dlt = linkage(g).rocker_angles(th, on_invalid='nan')
-    return np.asarray(gam), np.asarray(dlt)
-
-
-def _annex_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    from benchmarks.methods import NotApplicableError, annex_solver
-
-    try:
-        v = annex_solver(g, (0.0, 0.0)).vector
-    except NotApplicableError:
-        return None
-    assert v is not None
-    gam, dlt = v(th)
-    return np.asarray(gam), np.asarray(dlt)
 
 
 @dataclass
@@ -284,8 +249,12 @@ def evaluate(cases: list[StressCase]) -> tuple[dict[str, dict[str, Tally]], list
     for (family, g), group in groups.items():
         fam = tallies.setdefault(family, {})
         th = np.array([c.theta for c in group])
-        vec_out = {'shipped-vector': _shipped_vector(g, th), 'annex-vector': _annex_vector(g, th)}
-        scalars = {'shipped': _shipped_scalar(g), 'annex': _annex_scalar(g), 'pylinkage': _pylinkage_scalar(g)}
+        link, annex, pylinkage = linkage(g), _solver(annex_solver, g), _solver(pylinkage_solver, g)
+        scalars: dict[str, Scalar | None] = {
+            'shipped': link.rocker_angles,  # type: ignore[dict-item]
+            'annex': annex and annex.scalar, 'pylinkage': pylinkage and pylinkage.scalar}
+        vec_out = {'shipped-vector': link.rocker_angles(th, on_invalid='nan'),
+                   'annex-vector': annex.vector(th) if annex and annex.vector else None}
         for i, c in enumerate(group):
             try:
                 gm, dm = rocker_angles_mp(g, c.theta)
