@@ -90,6 +90,11 @@ class Peer:
 
 # ---------------------------------------------------------------------------------------------- the methods
 
+def _from_rows(rows: list[tuple[float, float, float, float]]) -> Completed:
+    """The completion of a stream from one (theta, other, theta_dot, load) row per message."""
+    return Completed(*(np.array(c, dtype=np.float64) for c in zip(*rows, strict=True)))
+
+
 def exact_peer(g: Geometry, r: DrivenRange) -> Peer:
     """The core's completion: positions by from_rocker, dq/dtheta by rates_at (driven rocker AB)."""
     link = linkage(g)
@@ -102,8 +107,7 @@ def exact_peer(g: Geometry, r: DrivenRange) -> Peer:
         return theta, other, Q_RATE / dq_dtheta, EFFORT * dq_dtheta  # type: ignore[return-value]
 
     def stream(q: FloatArray) -> Completed:
-        rows = [one(x) for x in q.tolist()]
-        return Completed(*(np.array(c, dtype=np.float64) for c in zip(*rows, strict=True)))
+        return _from_rows([one(x) for x in q.tolist()])
 
     def vector(q: FloatArray) -> Completed:
         theta, other = from_rocker(q, branch=branch)
@@ -132,7 +136,7 @@ def cubic_peer(g: Geometry, r: DrivenRange, over_mid: bool) -> Peer:
             rate = (r2 * x + r1) * x + r0
             rows.append((((t3 * x + t2) * x + t1) * x + t0, ((o3 * x + o2) * x + o1) * x + o0,
                          Q_RATE * rate, EFFORT / rate))
-        return Completed(*(np.array(c, dtype=np.float64) for c in zip(*rows, strict=True)))
+        return _from_rows(rows)
 
     def vector(q: FloatArray) -> Completed:
         rate = np.asarray(np.polyval(c_rate, q), dtype=np.float64)
@@ -331,22 +335,19 @@ def errors(out: Completed, ref: Reference, exact: bool) -> dict[str, float]:
     return row
 
 
-def _merge(a: dict[str, float], b: dict[str, float]) -> dict[str, float]:
-    return {k: max(a[k], b[k]) for k in a}
-
-
 def geometry_errors(g: Geometry, max_mid: int | None = None) -> dict[str, Any]:
     """Errors of every method on one geometry: mid-range and each limit distance (worst of both ends)."""
     r = working_range(g)
     ps = peers(g, r)
     q_mid = mid_stream(r, max_mid)
     ref_mid = reference(g, r, q_mid[1:])  # the first message has no predecessor to difference against
-    where: dict[str, dict[str, dict[str, float]]] = {p.name: {} for p in ps}
-    for p in ps:
-        row = errors(_tail(p.stream(q_mid), 1), ref_mid, p.name == 'exact')
-        if p.vector is not None:
-            row = _merge(row, errors(_tail(p.vector(q_mid), 1), ref_mid, p.name == 'exact'))
-        where[p.name]['mid'] = row
+    def worst(p: Peer, q: FloatArray, ref: Reference) -> dict[str, float]:
+        """Errors of both paths at the reference's messages, the last ones of q."""
+        skip = q.size - len(ref.poses)
+        rows = [errors(_tail(path(q), skip), ref, p.name == 'exact') for path in (p.stream, p.vector) if path]
+        return {k: max(r[k] for r in rows) for k in rows[0]}
+
+    where: dict[str, dict[str, dict[str, float]]] = {p.name: {'mid': worst(p, q_mid, ref_mid)} for p in ps}
     if r.limited:
         for dist in LIMIT_DISTANCES:
             key = f'limit_{dist:g}'
@@ -354,10 +355,9 @@ def geometry_errors(g: Geometry, max_mid: int | None = None) -> dict[str, Any]:
                 q = limit_stream(r, upper, dist)
                 ref = reference(g, r, q[-1:])
                 for p in ps:
-                    row = errors(_tail(p.stream(q), q.size - 1), ref, p.name == 'exact')
-                    if p.vector is not None:
-                        row = _merge(row, errors(_tail(p.vector(q), q.size - 1), ref, p.name == 'exact'))
-                    where[p.name][key] = _merge(where[p.name][key], row) if key in where[p.name] else row
+                    row = worst(p, q, ref)
+                    old = where[p.name].setdefault(key, row)
+                    where[p.name][key] = {k: max(old[k], row[k]) for k in row}
     return {'range_rad': [r.lo, r.hi], 'mid_range_rad': [r.mid_lo, r.mid_hi], 'branch': r.branch,
             'limited': r.limited, 'mid_messages': int(q_mid.size),
             'methods': where, 'solver_stats': {p.name: dict(p.stats) for p in ps if p.stats}}
