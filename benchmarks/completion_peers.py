@@ -1,30 +1,12 @@
 r"""Completing the linkage from the measured driven rocker, against the two approaches users publish today.
 
-From the measured driven joint q = gamma (rad), its rate q_dot (rad/s) and effort (N m), completion gives the
-other rocker delta, the antenna angle theta, its rate theta_dot = q_dot / (dq/dtheta) and the load torque
-effort * dq/dtheta (power balance: effort dq = load dtheta). Three ways, on every geometry of
-:mod:`benchmarks.cases`, each on its working branch and driven range (:func:`working_range`):
-
-- ``exact``: the core's closed form, ``AntennaLinkage.from_rocker`` for the positions and ``rates_at`` for
-  dq/dtheta (scalar per message, and vectorized).
-- ``cubic``: ``numpy.polyfit`` of degree 3 per passive joint (delta(q) and theta(q)) over the whole driven range
-  (the joint's limits), fitted to 100 exact samples, as a CAD exporter's relay does; ``cubic-mid``: the same
-  fitted over the mid-range only (it extrapolates toward the limits). That relay publishes positions only; their
-  rate and torque here come from the cubic's derivative.
-- ``gauss-newton``: Newton (Gauss-Newton on the square system) on the two loop-closure equations in (theta,
-  delta), warm-started from the last message's solution, stopping when the step is under 1e-5 rad (at most 50
-  steps; a singular Jacobian ends the solve), as public joint-state transformers do. ``lm-scipy``: the same
-  problem through ``scipy.optimize.least_squares(method='lm', xtol=1e-5)`` with the analytic Jacobian, when scipy
-  is installed (requirements/bench.txt). Both give positions only; their rate and torque here are finite
-  differences of successive messages.
-
-The measured stream: q moving at Q_RATE rad/s, sampled at RATE_HZ (a step of 2e-3 rad per message), effort
-EFFORT. Accuracy (against :mod:`benchmarks.reference_driven`, 60 digits): at mid-range (every message of a
-sweep over the working pose's mid-range, see :class:`DrivenRange`) and at the reach limits (the last message
-of a stream running into each end, stopping 1e-6 rad and 1e-12 rad short of it). Positions in rad, rate and
-torque as relative errors; the exact method's errors also in ulps of their condition. Cost per message on
-Turnantenna: scalar (a Python loop, what a node does per message) and vectorized (a bag's array), as ratios to
-``exact`` in the same interleaved run.
+Claim: from the driven joint's angle, rate and effort, the core's closed form (``exact``) gives the other rocker,
+theta, theta's rate and the load torque to within ulps of their condition, where a cubic fit per passive joint
+(``cubic``, ``cubic-mid``) and warm-started Gauss-Newton to 1e-5 rad (``gauss-newton``, ``lm-scipy``) do not; and
+what each costs per message. Errors against :mod:`benchmarks.reference_driven` (60 digits) on every geometry of
+:mod:`benchmarks.cases`, mid-range and 1e-6 / 1e-12 rad from the driven rocker's reach limits; cost on Turnantenna,
+scalar and vectorized, as ratios to ``exact`` in one interleaved run. Run by ``python -m benchmarks.run``
+(section "Completing the linkage"; the report's text says what each method is).
 """
 
 from __future__ import annotations

@@ -2,20 +2,8 @@ r"""The position solvers compared by the benchmark: theta (rad) -> (gamma, delta
 
 Every method is a :class:`Method` whose ``build(geometry, interval)`` returns a :class:`Solver` bound to one
 geometry: a scalar callable (Python float in, two floats out) and/or a vectorized one (float64 array in, two
-arrays out). ``interval`` is the (lo, hi) range of theta the method is asked to serve; only the tables use it.
-
-- ``annex``: Annex A as written, A.13-A.15: gamma = (2 atan P + acos Q)/2, delta = (acos Q - 2 atan P)/2.
-  Valid for equal rockers only; wrong by pi where H - h cos(theta) < 0; acos fails when rounding puts Q past 1.
-- ``annex-atan2``: the same with atan2(h sin t, H - h cos t) for atan P: isolates the acos(Q) weakness.
-- ``shipped``: the core, ``fourbar_ros.core.antenna.AntennaLinkage.rocker_angles`` (both paths).
-- ``stable-f32``: the core's stable form (half-angle diagonal, factored Heron root, atan2) transcribed in float32.
-- ``newton-K``: K Newton steps on the two loop-closure equations (the translation parts of
-  R(g) T(a) R(-t-g) T(h) [0 0 1]^T = T(H) R(pi-d) T(b) [0 0 1]^T), cold-started from the solution at the middle
-  of the interval.
-- ``lut-linear-N``, ``lut-hermite-N``: tables of N uniformly spaced angles over the interval, built once with the
-  core, interpolated linearly or by cubic Hermite (slopes from the core's rates); ``-f32`` stores and computes in
-  float32, as a small controller would.
-- ``lut-linear-N+newton1``: a linear table as the starting guess for one Newton step.
+arrays out). ``interval`` is the (lo, hi) range of theta the method is asked to serve (tables, Newton's start).
+The list is :func:`all_methods`, each with its description; the report says what each family is.
 """
 
 from __future__ import annotations
