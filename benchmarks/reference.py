@@ -143,12 +143,8 @@ def reference_arrays(g: Geometry, theta: FloatArray, branch: int = 1) -> Referen
     for i, t in enumerate(theta.ravel().tolist()):
         try:
             gm, dm = rocker_angles_mp(g, t, branch)
-        except ReferenceUnreachableError:
-            status[i] = 1
-            out[:, i] = np.nan
-            continue
-        except ReferenceSingularError:
-            status[i] = 2
+        except (ReferenceUnreachableError, ReferenceSingularError) as exc:
+            status[i] = 1 if isinstance(exc, ReferenceUnreachableError) else 2
             out[:, i] = np.nan
             continue
         out[0, i], out[1, i] = to_double_double(gm)

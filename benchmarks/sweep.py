@@ -229,14 +229,11 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
             by_name[m.name].n_vector = arr.size
     s_times = interleaved(scalar_cases, repeats)
     v_times = interleaved(vector_cases, repeats)
-    for name, (cpu, wall) in s_times.items():
-        if name in by_name:
-            by_name[name].seconds_per_solve_scalar = cpu
-            by_name[name].wall_seconds_per_solve_scalar = wall
-    for name, (cpu, wall) in v_times.items():
-        if name in by_name:
-            by_name[name].seconds_per_solve_vector = cpu
-            by_name[name].wall_seconds_per_solve_vector = wall
+    for path, times in (('scalar', s_times), ('vector', v_times)):
+        for name, (cpu, wall) in times.items():
+            if name in by_name:
+                setattr(by_name[name], f'seconds_per_solve_{path}', cpu)
+                setattr(by_name[name], f'wall_seconds_per_solve_{path}', wall)
     measured = {'floor_per_element': v_times['floor'], 'python_call_per_call': s_times['python_call'],
                 'stable_plain_scalar_per_call': s_times['stable_plain'],
                 'array_path_one_angle_per_call': s_times['array_path_one']}
