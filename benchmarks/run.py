@@ -1,21 +1,19 @@
-"""Entry point: ``python -m benchmarks.run [--quick] [--skip-node-bags] [--out docs/bench] [--doc docs/benchmarks.md]``.
+"""Entry point: ``python -m benchmarks.run [--quick] [--skip-node-bags]`` (``make bench``, ``make bench-quick``).
 
 Runs the common sweep (accuracy of every method against the 50-digit reference), the timings (scalar and
 vectorized, interleaved medians on the Turnantenna geometry, with the ufunc floor and the Python call overhead
 as same-run baselines), the numerical stress suite, the completion and trajectory benchmarks, and the node, bag
-(replay) and `fourbar process` benchmarks; writes results.json, markdown tables and PNG plots under --out and the
-README section --doc. Exit status 1 if the shipped method is off the vectorized Pareto front.
+(replay) and `fourbar process` benchmarks; writes results.json, markdown tables and PNG plots under docs/bench/ and
+the README section docs/benchmarks.md. Exit status 1 if the shipped method is off the vectorized Pareto front.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import math
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 from benchmarks import report, stress
@@ -101,8 +99,6 @@ def main(argv: list[str] | None = None) -> int:
     """Run everything and write the report."""
     parser = argparse.ArgumentParser(prog='python -m benchmarks.run', description=__doc__)
     parser.add_argument('--quick', action='store_true', help='smaller sizes and fewer repeats (under a minute)')
-    parser.add_argument('--out', type=Path, default=Path('docs/bench'), help='directory for tables, PNGs, JSON')
-    parser.add_argument('--doc', type=Path, default=Path('docs/benchmarks.md'), help='the README section to write')
     parser.add_argument('--skip-node-bags', action='store_true',
                         help='do not run the node, replay and `fourbar process` benchmarks')
     args = parser.parse_args(argv)
@@ -149,10 +145,7 @@ def main(argv: list[str] | None = None) -> int:
         'elapsed_seconds': round(time.perf_counter() - started, 1),
         'elapsed_seconds_parts': {k: round(v, 1) for k, v in parts.items()},
     }
-    args.out.mkdir(parents=True, exist_ok=True)
-    report.write_all(data, args.out, args.doc)
-    (args.out / 'results.json').write_text(json.dumps(report.sanitize(data), indent=1, allow_nan=False,
-                                                      default=report.json_default) + '\n', encoding='utf-8')
+    report.write_all(data)
     print(report.summary(data), flush=True)
     if not by[SHIPPED].pareto:
         print(f'WARNING: shipped is off the vectorized Pareto front; dominated by: '
