@@ -128,7 +128,10 @@ def cubic_peer(g: Geometry, r: DrivenRange, over_mid: bool) -> Peer:
     return Peer('cubic-mid' if over_mid else 'cubic', stream, vector, {})
 
 
-def _residual(g: Geometry, q: float) -> Callable[[float, float], tuple[float, float]]:
+Residual = Callable[[float, float], tuple[float, float]]
+
+
+def _residual(g: Geometry, q: float) -> Residual:
     """The loop-closure equations (A.2) at driven angle q as functions of (theta, delta), in metres."""
     H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
     aq_c, aq_s = a * math.cos(q), a * math.sin(q)
@@ -136,52 +139,52 @@ def _residual(g: Geometry, q: float) -> Callable[[float, float], tuple[float, fl
     return lambda t, d: (aq_c + h * cos(t) + b * cos(d) - H, aq_s - h * sin(t) - b * sin(d))
 
 
-def _differenced(q: FloatArray, theta: FloatArray, other: FloatArray) -> Completed:
-    """Rate and torque by backward differences of successive messages (NaN for the first)."""
-    dtheta = np.diff(theta, prepend=np.nan)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        return Completed(theta, other, dtheta * RATE_HZ, EFFORT * np.diff(q, prepend=np.nan) / dtheta)
-
-
-def _start(g: Geometry, r: DrivenRange) -> Callable[[float], tuple[float, float]]:
-    """The state before a stream's first message, (theta, delta) in rad: the exact pose there (a generous start;
-    a node would carry it over from its previous message)."""
+def _warm_started(name: str, g: Geometry, r: DrivenRange,
+                  solve: Callable[[Residual, float, float], tuple[float, float]], stats: dict[str, int]) -> Peer:
+    """An iterative solver run message by message: ``solve(residual, theta, delta)`` from the previous message's
+    solution (the first from the exact pose there: a generous start; a node would carry it over). Positions only:
+    rate and torque by backward differences of successive messages (NaN for the first)."""
     from_rocker, branch = linkage(g).from_rocker, Branch(r.branch)
-    return lambda q: from_rocker(q, branch=branch)  # type: ignore[return-value]
+
+    def stream(q: FloatArray) -> Completed:
+        x = from_rocker(float(q[0]), branch=branch)
+        theta, other = np.empty(q.size), np.empty(q.size)
+        for i, qi in enumerate(q.tolist()):
+            x = solve(_residual(g, qi), *x)
+            theta[i], other[i] = x
+        stats['messages'] += q.size
+        dtheta = np.diff(theta, prepend=np.nan)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            return Completed(theta, other, dtheta * RATE_HZ, EFFORT * np.diff(q, prepend=np.nan) / dtheta)
+
+    return Peer(name, stream, None, stats)
 
 
 def newton_peer(g: Geometry, r: DrivenRange) -> Peer:
     """Warm-started Newton on the loop equations to a 1e-5 rad step, scalar math; positions only."""
     h, b = g.coupler, g.rocker_cd
-    start = _start(g, r)
     cos, sin = math.cos, math.sin
     stats = {'messages': 0, 'steps': 0, 'not_converged': 0, 'singular': 0}
 
-    def stream(q: FloatArray) -> Completed:
-        t, d = start(float(q[0]))
-        theta, other = np.empty(q.size), np.empty(q.size)
-        for i, x in enumerate(q.tolist()):
-            f = _residual(g, x)
-            for k in range(MAX_STEPS):
-                f1, f2 = f(t, d)
-                det = h * b * sin(t - d)
-                if det == 0.0:
-                    stats['singular'] += 1
-                    break
-                st = (-b * cos(d) * f1 + b * sin(d) * f2) / det
-                sd = (h * cos(t) * f1 - h * sin(t) * f2) / det
-                t, d = t - st, d - sd
-                if max(abs(st), abs(sd)) < TOLERANCE:
-                    stats['steps'] += k + 1
-                    break
-            else:
-                stats['steps'] += MAX_STEPS
-                stats['not_converged'] += 1
-            theta[i], other[i] = t, d
-        stats['messages'] += q.size
-        return _differenced(q, theta, other)
+    def solve(f: Residual, t: float, d: float) -> tuple[float, float]:
+        for k in range(MAX_STEPS):
+            f1, f2 = f(t, d)
+            det = h * b * sin(t - d)
+            if det == 0.0:
+                stats['singular'] += 1
+                break
+            st = (-b * cos(d) * f1 + b * sin(d) * f2) / det
+            sd = (h * cos(t) * f1 - h * sin(t) * f2) / det
+            t, d = t - st, d - sd
+            if max(abs(st), abs(sd)) < TOLERANCE:
+                stats['steps'] += k + 1
+                break
+        else:
+            stats['steps'] += MAX_STEPS
+            stats['not_converged'] += 1
+        return t, d
 
-    return Peer('gauss-newton', stream, None, stats)
+    return _warm_started('gauss-newton', g, r, solve, stats)
 
 
 def lm_scipy_peer(g: Geometry, r: DrivenRange) -> Peer | None:
@@ -191,31 +194,22 @@ def lm_scipy_peer(g: Geometry, r: DrivenRange) -> Peer | None:
     except ImportError:
         return None
     h, b = g.coupler, g.rocker_cd
-    start = _start(g, r)
     stats = {'messages': 0, 'evaluations': 0, 'not_converged': 0}
 
-    def stream(q: FloatArray) -> Completed:
-        x = np.array(start(float(q[0])))
-        theta, other = np.empty(q.size), np.empty(q.size)
-        for i, qi in enumerate(q.tolist()):
-            f = _residual(g, qi)
+    def jac(v: FloatArray) -> FloatArray:
+        t, d = float(v[0]), float(v[1])
+        return np.array([[-h * math.sin(t), -b * math.sin(d)], [-h * math.cos(t), -b * math.cos(d)]])
 
-            def fun(v: FloatArray, f: Callable[[float, float], tuple[float, float]] = f) -> FloatArray:
-                return np.array(f(float(v[0]), float(v[1])))
+    def solve(f: Residual, t: float, d: float) -> tuple[float, float]:
+        def fun(v: FloatArray) -> FloatArray:
+            return np.array(f(float(v[0]), float(v[1])))
 
-            def jac(v: FloatArray) -> FloatArray:
-                t, d = float(v[0]), float(v[1])
-                return np.array([[-h * math.sin(t), -b * math.sin(d)], [-h * math.cos(t), -b * math.cos(d)]])
+        sol = least_squares(fun, np.array([t, d]), jac=jac, method='lm', xtol=TOLERANCE)
+        stats['evaluations'] += int(sol.nfev)
+        stats['not_converged'] += int(sol.status <= 0)
+        return float(sol.x[0]), float(sol.x[1])
 
-            sol = least_squares(fun, x, jac=jac, method='lm', xtol=TOLERANCE)
-            stats['evaluations'] += int(sol.nfev)
-            stats['not_converged'] += int(sol.status <= 0)
-            x = sol.x
-            theta[i], other[i] = float(x[0]), float(x[1])
-        stats['messages'] += q.size
-        return _differenced(q, theta, other)
-
-    return Peer('lm-scipy', stream, None, stats)
+    return _warm_started('lm-scipy', g, r, solve, stats)
 
 
 def peers(g: Geometry, r: DrivenRange) -> list[Peer]:
