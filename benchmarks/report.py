@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+from dataclasses import asdict
 from pathlib import Path
 from typing import Any
 
@@ -33,30 +34,9 @@ def json_default(o: object) -> object:
 
 
 def method_row(r: MethodResult) -> dict[str, Any]:
-    """One entry of results.json 'methods' (the required keys first)."""
-    row: dict[str, Any] = sanitize({
-        'name': r.name,
-        'seconds_per_solve_scalar': r.seconds_per_solve_scalar,
-        'seconds_per_solve_vector': r.seconds_per_solve_vector,
-        'max_error_rad': r.max_error,
-        'pareto': r.pareto,
-        'pareto_scalar': r.pareto_scalar,
-        'family': r.family,
-        'dtype': r.dtype,
-        'description': r.description,
-        'max_error_scalar_path': r.max_error_scalar,
-        'max_error_vector_path': r.max_error_vector,
-        'max_error_per_geometry': r.per_geometry,
-        'failed': r.max_error is not None and not math.isfinite(r.max_error),
-        'nan_count': r.nan_count,
-        'exception_count': r.exception_count,
-        'not_applicable': r.not_applicable,
-        'n_scalar': r.n_scalar,
-        'n_vector': r.n_vector,
-        'wall_seconds_per_solve_scalar': r.wall_seconds_per_solve_scalar,
-        'wall_seconds_per_solve_vector': r.wall_seconds_per_solve_vector,
-    })
-    return row
+    """One entry of results.json 'methods'."""
+    return sanitize({**asdict(r), 'max_error_rad': r.max_error,
+                     'failed': r.max_error is not None and not math.isfinite(r.max_error)})
 
 
 def _fmt(x: float | None, digits: int = 3) -> str:
@@ -156,14 +136,25 @@ def figures_table(title: str, figures: dict[str, Any] | None) -> str:
     return '\n'.join(lines) + '\n'
 
 
-def plot(data: dict[str, Any], path: Path) -> None:
-    """Log-log time per solve against max error, vectorized and scalar panels, Pareto fronts joined."""
+def _pyplot() -> Any:
+    """matplotlib.pyplot on the file-only backend."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(13, 5.5))
+    return plt
+
+
+def _save(fig: Any, path: Path) -> None:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    _pyplot().close(fig)
+
+
+def plot(data: dict[str, Any], path: Path) -> None:
+    """Log-log time per solve against max error, vectorized and scalar panels, Pareto fronts joined."""
+    fig, axes = _pyplot().subplots(1, 2, figsize=(13, 5.5))
     colors = {'annex': 'tab:red', 'shipped': 'tab:green', 'stable': 'tab:olive', 'newton': 'tab:blue',
               'lut': 'tab:purple', 'hybrid': 'tab:cyan', 'peer': 'tab:gray', 'lookup': 'tab:orange'}
     for ax, key, front_key, title in ((axes[0], 'seconds_per_solve_vector', 'pareto', 'vectorized (numpy arrays)'),
@@ -190,9 +181,7 @@ def plot(data: dict[str, Any], path: Path) -> None:
         ax.grid(True, which='both', alpha=0.3)
         ax.legend(loc='lower right', fontsize=7)
     fig.suptitle(f'time against error ({data["command"]}); shipped = star; outlined = on the front', fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
 
 
 def latency_plot(data: dict[str, Any], path: Path) -> bool:
@@ -201,12 +190,7 @@ def latency_plot(data: dict[str, Any], path: Path) -> bool:
     curves = {name: row['percentiles_us'] for name, row in systems.items() if row.get('percentiles_us')}
     if not curves:
         return False
-    import matplotlib
-
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(8, 4.5))
+    fig, ax = _pyplot().subplots(figsize=(8, 4.5))
     styles = {'relay_single': ('tab:gray', '--'), 'relay_events': ('tab:gray', '-'),
               'node_single': ('tab:blue', '--'), 'node_events': ('tab:green', '-')}
     for name, us in curves.items():
@@ -220,9 +204,7 @@ def latency_plot(data: dict[str, Any], path: Path) -> bool:
     ex = data['node']['executors']
     ax.set_title(f'latency by executor ({ex["rounds"]} interleaved rounds of {ex["commands_per_round"]}; '
                  f'shipped: {ex["shipped"]})', fontsize=9)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    _save(fig, path)
     return True
 
 

@@ -89,8 +89,8 @@ def peer_figures(by: dict[str, MethodResult]) -> dict[str, Any]:
                    'scalar_time_ratio': ratio(p.seconds_per_solve_scalar, shipped.seconds_per_solve_scalar),
                    'vector_time_ratio': ratio(p.seconds_per_solve_vector, shipped.seconds_per_solve_vector),
                    'error_ratio': ratio(p.max_error, shipped.max_error),
-                   'error_ratio_turnantenna': ratio(p.per_geometry.get('turnantenna'),
-                                                    shipped.per_geometry.get('turnantenna')),
+                   'error_ratio_turnantenna': ratio(p.max_error_per_geometry.get('turnantenna'),
+                                                    shipped.max_error_per_geometry.get('turnantenna')),
                    'not_applicable': p.not_applicable}
             for name, p in by.items() if name in versions}
 

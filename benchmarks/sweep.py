@@ -30,9 +30,9 @@ class MethodResult:
     family: str
     dtype: str
     description: str
-    max_error_scalar: float | None = None
-    max_error_vector: float | None = None
-    per_geometry: dict[str, float | None] = field(default_factory=dict)
+    max_error_scalar_path: float | None = None
+    max_error_vector_path: float | None = None
+    max_error_per_geometry: dict[str, float | None] = field(default_factory=dict)
     nan_count: int = 0
     exception_count: int = 0
     not_applicable: list[str] = field(default_factory=list)
@@ -48,7 +48,7 @@ class MethodResult:
     @property
     def max_error(self) -> float | None:
         """Worst of the two paths (None if the method produced nothing)."""
-        vals = [v for v in (self.max_error_scalar, self.max_error_vector) if v is not None]
+        vals = [v for v in (self.max_error_scalar_path, self.max_error_vector_path) if v is not None]
         return max(vals) if vals else None
 
 
@@ -94,7 +94,7 @@ def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], 
                 solver = m.build(g, sweep_interval(g))
             except NotApplicableError as exc:
                 r.not_applicable.append(f'{g.name}: {exc}')
-                r.per_geometry[g.name] = None
+                r.max_error_per_geometry[g.name] = None
                 continue
             errs = []
             if solver.scalar is not None:
@@ -113,9 +113,9 @@ def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], 
                 r.nan_count += nans
                 worst_v.append(e)
                 errs.append(e)
-            r.per_geometry[g.name] = max(errs) if errs else None
-        r.max_error_scalar = max(worst_s) if worst_s else None
-        r.max_error_vector = max(worst_v) if worst_v else None
+            r.max_error_per_geometry[g.name] = max(errs) if errs else None
+        r.max_error_scalar_path = max(worst_s) if worst_s else None
+        r.max_error_vector_path = max(worst_v) if worst_v else None
         results.append(r)
     info = {
         'geometries': [
