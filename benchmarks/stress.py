@@ -216,6 +216,15 @@ def _solver(build: Callable[[Geometry, tuple[float, float]], Solver], g: Geometr
         return None
 
 
+def _call(fn: Scalar, theta: float) -> tuple[float, float] | Exception:
+    """fn(theta) as two floats, or the exception it raised."""
+    try:
+        gamma, delta = fn(theta)
+        return float(gamma), float(delta)
+    except (ValueError, ArithmeticError) as exc:
+        return exc
+
+
 @dataclass
 class Tally:
     """Per family and method: cases, worst error, worst nu, NaN and exception counts, the worst case."""
@@ -264,15 +273,7 @@ def evaluate(cases: list[StressCase]) -> tuple[dict[str, dict[str, Tally]], list
             g_hi, g_lo = to_double_double(gm)
             d_hi, d_lo = to_double_double(dm)
             kg, kd = condition(g, c.theta)
-            outputs: dict[str, tuple[float, float] | Exception | None] = {}
-            for name, fn in scalars.items():
-                if fn is None:
-                    outputs[name] = None
-                    continue
-                try:
-                    outputs[name] = tuple(float(v) for v in fn(c.theta))  # type: ignore[assignment]
-                except (ValueError, ArithmeticError) as exc:
-                    outputs[name] = exc
+            outputs = {name: None if fn is None else _call(fn, c.theta) for name, fn in scalars.items()}
             for name, arrs in vec_out.items():
                 outputs[name] = None if arrs is None else (float(arrs[0][i]), float(arrs[1][i]))
             for name, out in outputs.items():
@@ -322,12 +323,9 @@ def _defect(c: StressCase, method: str, what: str, got: str, g_ref: float, d_ref
 def _singular_row(c: StressCase, scalars: dict[str, Scalar | None]) -> dict[str, object]:
     row: dict[str, object] = {'geometry': c.geometry.name, 'theta': c.theta}
     for name, fn in scalars.items():
-        if fn is None:
-            continue
-        try:
-            row[name] = [float(v) for v in fn(c.theta)]
-        except (ValueError, ArithmeticError) as exc:
-            row[name] = f'{type(exc).__name__}: {exc}'
+        if fn is not None:
+            out = _call(fn, c.theta)
+            row[name] = f'{type(out).__name__}: {out}' if isinstance(out, Exception) else list(out)
     return row
 
 
