@@ -139,6 +139,16 @@ def start(cmd: list[str], env: dict[str, str]) -> NodeProcess:
     return NodeProcess([], env, command=cmd, cwd=REPO).start()
 
 
+@contextmanager
+def subscribed(env: dict[str, str], *topics: str) -> Iterator[None]:
+    """A sink process subscribed to ``topics`` (each ``name:Type``) for the duration of the block."""
+    sink = start(helper('sink', *topics), env)
+    try:
+        yield
+    finally:
+        sink.kill()
+
+
 def wait_until(predicate: Callable[[], bool], timeout: float, what: str) -> None:
     """Poll ``predicate`` (graph state, no executor needed) until true; RuntimeError at the deadline."""
     deadline = time.monotonic() + timeout
@@ -399,8 +409,7 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
     clock = time.perf_counter
     try:
         for name, topics in scenarios.items():
-            sink = start(helper('sink', '/cost/relay_joint_states:JointState', *topics), domain_env)
-            try:
+            with subscribed(domain_env, '/cost/relay_joint_states:JointState', *topics):
                 wanted = {t.split(':')[0].rsplit('/', 1)[1] for t in topics}
                 wait_until(lambda w=wanted: relay_pub.get_subscription_count() > 0 and all(  # type: ignore[misc]
                     (pub.get_subscription_count() > 0) == (k in w) for k, pub in pubs.items()),
@@ -416,16 +425,13 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
                         node_calls.append(t1 - t0)
                 out[name] = 1e6 * statistics.median(node_calls)
                 relay_us.append(1e6 * statistics.median(relay_calls))
-            finally:
-                sink.kill()
         timers: dict[str, dict[str, float]] = {'markers': {}, 'diagnostics': {}}
         served = [m.data for m in msgs]
         for kind, pub, topic, tick in (
                 ('markers', node._marker_pub, '/cost/linkage_markers:MarkerArray', node._on_marker_timer),
                 ('diagnostics', node._diag_pub, '/diagnostics:DiagnosticArray', node._on_diagnostics_timer)):
             for name, topics in (('skipped', []), ('subscribed', [topic])):
-                sink = start(helper('sink', *topics), domain_env)
-                try:
+                with subscribed(domain_env, *topics):
                     wait_until(lambda p=pub, t=topics: (p.get_subscription_count() > 0) == bool(t),  # type: ignore[misc]
                                30.0, f'{kind} subscriber')
                     samples = []
@@ -436,8 +442,6 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
                             tick()
                         samples.append((time.perf_counter() - t0) / 50)
                     timers[kind][name] = 1e6 * statistics.median(samples)
-                finally:
-                    sink.kill()
     finally:
         destroy_node(node)
     relay_median = statistics.median(relay_us)
