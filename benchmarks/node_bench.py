@@ -1,26 +1,18 @@
 """fourbar_node against a bare rclpy relay, measured in the same run: ``python -m benchmarks.node_bench [--quick]``.
 
-Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py), all as ratios to a relay process
-(Float64 in, a JointState of the node's shape out with every field a copy of the command: no math, same QoS):
-- executors: four processes, a relay and fourbar_node on each rclpy executor (the node with the default one
-  started without the option, as a user starts it), sent commands at 200 Hz, one outstanding at a time, in blocks
-  that rotate between them every round; per process the round-trip median and p99, and its CPU time per command
-  (every thread, idle timers included, from /proc). Targets for the shipped node against the relay on the
-  SingleThreadedExecutor: median latency <= 0.85x, CPU per command <= 0.6x.
-- latency: round trips pinged alternately to the node and to the relay on the same (default) executor, with only
-  joint_states subscribed and again with every output subscribed. Target <= 1.10x.
-- rate: the highest command rate each sustains without loss (every command answered, the last answer at most
-  0.25 s after the last command), doubling from 250 Hz to the first failure, then bisecting; alternating rounds,
-  each side's median round. Target >= 0.9x.
-- skipped work: the node's command callback timed in-process, interleaved call by call with the relay's, with
-  subscribers (in another process) on joint_states only, on both per-command outputs, and on none; and the marker
-  and diagnostics timer callbacks with and without a subscriber.
-Commands cycle through distinct angles, so the node's repeat cache never helps.
-
-``--completion`` (``run_completion``): the same executor rounds for measured joint_states in, completed state out:
-the driven joint's JointState (position, velocity, effort) at 200 Hz to fourbar_node in ``mode:=trajectory``
-against a bare JointState relay (``relay --measured``, publishing on another topic so it never receives its own
-output), with the same targets. No figure here is asserted by any test.
+The relay: Float64 in, a JointState of the node's shape out with every field a copy of the command (no math, same
+QoS). Figures (JSON), commands cycling through distinct angles so the node's repeat cache never helps:
+- executors: a relay and fourbar_node on each rclpy executor, 200 Hz, one command outstanding, in blocks that
+  rotate between the four processes every round; round-trip median and p99 and CPU time per command (every
+  thread, from /proc). Targets, shipped node against the relay on the SingleThreadedExecutor: latency <= 0.85x,
+  CPU <= 0.6x.
+- latency (target <= 1.10x) and the highest loss-free rate (doubling, then bisecting; target >= 0.9x) of the node
+  against the relay on the same executor, pinged alternately; latency also with every output subscribed.
+- skipped work: the node's command callback in-process, interleaved call by call with the relay's, by which
+  outputs have subscribers; the marker and diagnostics timers with and without one.
+``--completion``: the same executor rounds for the driven joint's JointState in, the completed state out
+(fourbar_node in ``mode:=trajectory`` against the JointState relay ``measured-relay``), same targets.
+No figure here is asserted by a test.
 """
 
 from __future__ import annotations

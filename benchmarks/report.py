@@ -242,7 +242,6 @@ def readme_section(data: dict[str, Any]) -> str:
     by = {m['name']: m for m in data['methods']}
     s = by[data['shipped']]
     a = by.get('annex', {})
-    rel = REL
     peers = data['peers']
     lines = [
         '# Benchmarks: run time against error, and numerical stress',
@@ -251,7 +250,7 @@ def readme_section(data: dict[str, Any]) -> str:
         '`make bench-quick` (`--quick`: smaller sizes, under a minute). '
         f'The figures here come from `{data["command"]}` ({data["elapsed_seconds"]:.0f} s; by part: '
         + ', '.join(f'{k} {v:.0f} s' for k, v in data.get('elapsed_seconds_parts', {}).items()) + '). '
-        f'This file, `{rel}/methods.md`, `{rel}/stress.md`, `{rel}/pareto.png` and `{rel}/results.json` are '
+        f'This file, `{REL}/methods.md`, `{REL}/stress.md`, `{REL}/pareto.png` and `{REL}/results.json` are '
         'written by that command; do not edit them by hand.',
         '',
         f'Measured on: {data["machine"]["cpu"]}, {data["machine"]["cores"]} cores, Python '
@@ -304,7 +303,7 @@ def readme_section(data: dict[str, Any]) -> str:
         f'1e-6..1e6 m and beyond, |theta| to 6e15, subnormal angles): shipped defects '
         f'(error over {st["nu_flag"]:g} u kappa, NaN or exception on a reachable input): **{len(st["defects"])}**.',
         '',
-        f'![time against error]({rel}/pareto.png)',
+        f'![time against error]({REL}/pareto.png)',
         '',
         '## Methods (common sweep; times on the Turnantenna geometry)',
         '',
@@ -356,7 +355,7 @@ def readme_section(data: dict[str, Any]) -> str:
         completion_markdown(data.get('completion')),
         '## Node and bag figures',
         '',
-        *([f'![latency by executor]({rel}/latency.png)', ''] if data.get('latency_plot') else []),
+        *([f'![latency by executor]({REL}/latency.png)', ''] if data.get('latency_plot') else []),
         figures_table('node (benchmarks/node_bench.py)', data.get('node')),
         figures_table('node completion: measured joint_states in, completed JointState out '
                       '(benchmarks/node_bench.py --completion)', data.get('node_completion')),
