@@ -23,7 +23,7 @@ import numpy.typing as npt
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
 from benchmarks.methods import linkage
-from benchmarks.reference import Geometry
+from benchmarks.reference import Geometry, angle_error_mp
 from benchmarks.reference_driven import DrivenPose, DrivenRange, driven_pose_mp, working_range
 from benchmarks.timing import Case, interleaved
 from fourbar_ros.core.antenna import Branch
@@ -248,12 +248,7 @@ class Reference:
 
     def angle_errors(self, got: FloatArray, which: str) -> FloatArray:
         """|got - ref| in rad modulo 2 pi, resolved below one ulp."""
-        out = np.empty(len(self.poses))
-        with mpmath.workdps(40):
-            for i, (p, v) in enumerate(zip(self.poses, got.tolist(), strict=True)):
-                d = mpmath.mpf(v) - getattr(p, which)
-                out[i] = abs(float(d - 2 * mpmath.pi * mpmath.nint(d / (2 * mpmath.pi))))
-        return out
+        return np.array([angle_error_mp(v, getattr(p, which)) for p, v in zip(self.poses, got.tolist(), strict=True)])
 
     def relative_errors(self, got: FloatArray, ref: Sequence[mpmath.mpf]) -> FloatArray:
         """|got - ref| / |ref| (NaN where got is NaN)."""
