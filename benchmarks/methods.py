@@ -17,6 +17,7 @@ import numpy.typing as npt
 
 from benchmarks.reference import Geometry
 from fourbar_ros.core.antenna import AntennaLinkage
+from fourbar_ros.core.dyad import DyadConstants, dyad_constants
 from fourbar_ros.core.lookup import hermite_coefficients, horner_columns
 
 FloatArray = npt.NDArray[np.float64]
@@ -50,6 +51,11 @@ class Method:
 def linkage(g: Geometry) -> AntennaLinkage:
     """The core's linkage object for a benchmark geometry."""
     return AntennaLinkage(frame=g.frame, rocker_ab=g.rocker_ab, coupler=g.coupler, rocker_cd=g.rocker_cd)
+
+
+def stable_constants(g: Geometry) -> DyadConstants:
+    """The core's constants of its stable form for a benchmark geometry, in frame units (as AntennaLinkage's)."""
+    return dyad_constants(g.frame, g.coupler, g.rocker_ab, g.rocker_cd, unit=g.frame)
 
 
 # ---------------------------------------------------------------------------------------------- annex formula
@@ -113,13 +119,9 @@ def _shipped(g: Geometry, _interval: tuple[float, float]) -> Solver:
 def _stable_f32(g: Geometry, _interval: tuple[float, float]) -> Solver:
     """The half-angle / factored-Heron / atan2 form, every operation in float32 (lengths in frame units)."""
     f = np.float32
-    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
-    diff = f(1.0 - ch)
-    four_l1_l2 = f(4.0 * ch)
-    two_l2 = f(2.0 * ch)
-    far = f((a + b - (1.0 - ch)) * (a + b + (1.0 - ch)))
-    near = f(((1.0 - ch) - (a - b)) * ((1.0 - ch) + (a - b)))
-    r_sq_diff = f((a - b) * (a + b))
+    k = stable_constants(g)
+    diff, four_l1_l2, two_l2, far, near = (f(v) for v in (k.diff, k.four_l1_l2, k.two_l2, k.far, k.near))
+    r_sq_diff = f(0.5 * (k.cos_p - k.cos_q))  # (AB^2 - CD^2) / H^2
     half = f(0.5)
 
     def vector(theta: FloatArray) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:

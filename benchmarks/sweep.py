@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
-from benchmarks.methods import Method, NotApplicableError, Solver, linkage
+from benchmarks.methods import Method, NotApplicableError, Solver, linkage, stable_constants
 from benchmarks.reference import Geometry, ReferenceArrays, angle_error, reference_arrays
 from benchmarks.timing import Case, interleaved, pilot, scalar_loop
 
@@ -129,20 +129,18 @@ def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], 
 
 
 def floor_inputs(g: Geometry, theta: FloatArray) -> tuple[FloatArray, ...]:
-    """The arrays the stable form feeds to its unavoidable ufuncs, computed here once, outside any timing.
+    """The arrays the stable form feeds to its unavoidable ufuncs, from the core's constants, outside any timing.
 
     half = theta/2; prod = far * near (the factored Heron product, >= 0 inside the reach); (y, x) of the
     diagonal's direction phi; (root, x) of the triangle's angle alpha. Equal rockers: alpha serves both rockers.
     """
-    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
+    k = stable_constants(g)
     half = 0.5 * theta
     s, c = np.sin(half), np.cos(half)
-    w = 4.0 * ch * s * s
-    prod = np.maximum(((a + b) ** 2 - (1.0 - ch) ** 2) - w, 0.0) * np.maximum(((1.0 - ch) ** 2 - (a - b) ** 2) + w,
-                                                                               0.0)
-    y_phi, x_phi = 2.0 * ch * s * c, (1.0 - ch) + 2.0 * ch * s * s
-    x_alpha = (1.0 - ch) ** 2 + w + (a - b) * (a + b)
-    return half, prod, y_phi, x_phi, np.sqrt(prod), x_alpha
+    w = k.four_l1_l2 * s * s
+    prod = np.maximum(k.far - w, 0.0) * np.maximum(k.near + w, 0.0)
+    y_phi, x_phi = k.two_l2 * s * c, k.diff + k.two_l2 * s * s
+    return half, prod, y_phi, x_phi, np.sqrt(prod), k.cos_p + w
 
 
 def floor_ufuncs(inputs: tuple[FloatArray, ...]) -> object:
@@ -162,14 +160,8 @@ def stable_plain_scalar(g: Geometry) -> Callable[[float], tuple[float, float]]:
     No validation, no clamping, no NamedTuple: a lower bound for any scalar path that evaluates the stable form
     in CPython (sin, cos, sqrt and two or three atan2 of the half-angle diagonal and the factored Heron root).
     """
-    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
-    diff = 1.0 - ch
-    two_l2 = 2.0 * ch
-    far0 = (a + b - diff) * (a + b + diff)
-    near0 = (diff - (a - b)) * (diff + (a - b))
-    cos_p = diff * diff + (a - b) * (a + b)
-    cos_q = diff * diff - (a - b) * (a + b)
-    equal = a == b
+    k = stable_constants(g)
+    diff, two_l2, far0, near0, cos_p, cos_q, equal = k.diff, k.two_l2, k.far, k.near, k.cos_p, k.cos_q, k.equal_links
     sin, cos, sqrt, atan2 = math.sin, math.cos, math.sqrt, math.atan2
 
     def solve(theta: float) -> tuple[float, float]:
