@@ -340,12 +340,13 @@ def _tail(c: Completed, start: int) -> Completed:
 
 # ---------------------------------------------------------------------------------------------- the cost
 
-def costs(n_scalar: int, n_vector: int, repeats: int, g: Geometry = TURNANTENNA) -> dict[str, Any]:
+def costs(n_scalar: int, n_vector: int, repeats: int) -> dict[str, Any]:
     """CPU seconds per message (median of interleaved rounds), scalar and vectorized, and ratios to exact.
 
     The scalar stream walks back and forth over the mid-range STEP by STEP (n_scalar
     messages, fewer for lm-scipy: a tenth); the vectorized input is n_vector angles spread over the same span.
     """
+    g = TURNANTENNA
     r = working_range(g)
     span = mid_stream(r)
     walk = np.concatenate([span, span[::-1]])
@@ -371,7 +372,7 @@ def costs(n_scalar: int, n_vector: int, repeats: int, g: Geometry = TURNANTENNA)
     return out
 
 
-def run(quick: bool, geometries: Sequence[Geometry] = COMMON_GEOMETRIES) -> dict[str, Any]:
+def run(quick: bool) -> dict[str, Any]:
     """Errors on every geometry and the cost on Turnantenna (smaller streams and fewer repeats when quick)."""
     max_mid, n_scalar, n_vector, repeats = (60, 300, 20_000, 3) if quick else (None, 2000, 200_000, 7)
     return {
@@ -381,6 +382,6 @@ def run(quick: bool, geometries: Sequence[Geometry] = COMMON_GEOMETRIES) -> dict
         'tolerance_rad': TOLERANCE,
         'fit_points': FIT_POINTS,
         'publishes': PUBLISHES,
-        'geometries': {g.name: geometry_errors(g, max_mid) for g in geometries},
+        'geometries': {g.name: geometry_errors(g, max_mid) for g in COMMON_GEOMETRIES},
         'cost': costs(n_scalar, n_vector, repeats),
     }
