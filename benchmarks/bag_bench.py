@@ -1,6 +1,6 @@
 """Replay throughput through fourbar_node against the bare rosbags read rate of the same bag, same run.
 
-    .venv/bin/python -m benchmarks.bag_bench [--quick]
+    .venv/bin/python -m benchmarks.bag_bench [--quick]   (figures printed as JSON)
 
 - baseline: how fast ``rosbags`` reads the bag's command messages (raw CDR, and decoded to floats as
   ``fourbar replay`` does before it starts), messages per second, median of repeats;
@@ -18,8 +18,6 @@ on a free ROS_DOMAIN_ID (the test suite's lock files) and this host only. Nothin
 
 from __future__ import annotations
 
-import argparse
-import json
 import os
 import statistics
 import sys
@@ -28,25 +26,11 @@ import time
 from pathlib import Path
 from typing import Any
 
-REPO = Path(__file__).resolve().parent.parent
-CONFIG = REPO / 'config' / 'antenna.yaml'
-T0_NS = 1_700_000_000 * 1_000_000_000
+from benchmarks import CONFIG, options, print_json
+from benchmarks.process_bench import make_bag
+from benchmarks.timing import cpu_seconds
 
-
-def make_bag(path: Path, n: int, storage: str) -> Path:
-    """A sweep theta_min -> theta_max -> theta_min repeated, ``n`` commands at 100 Hz."""
-    from fourbar_ros.bags.storage import write_command_bag
-    from fourbar_ros.config.antenna_config import load_config
-
-    cfg = load_config(CONFIG)
-    span = cfg.theta_max - cfg.theta_min
-    period = 200
-    values = []
-    for k in range(n):
-        phase = (k % period) / (period / 2)
-        frac = phase if phase <= 1.0 else 2.0 - phase
-        values.append(cfg.theta_min + span * frac)
-    return write_command_bag(path, [T0_NS + k * 10_000_000 for k in range(n)], values, storage)
+WINDOWS = (1, 16)
 
 
 def read_rates(bag: Path) -> tuple[float, float]:
@@ -65,25 +49,14 @@ def read_rates(bag: Path) -> tuple[float, float]:
     return raw, decoded
 
 
-WINDOWS = (1, 16)
-
-
 def thread_cpu_s(pid: int) -> dict[str, float]:
     """CPU seconds of process ``pid`` so far: its main thread (Python, the executor, the callbacks) and its
-    other threads (the middleware's receive and event threads); empty without /proc."""
+    other threads (the middleware's receive and event threads; those that ended are left out)."""
     out = {'main_thread': 0.0, 'other_threads': 0.0}
-    tick = os.sysconf('SC_CLK_TCK')
-    try:
-        tids = os.listdir(f'/proc/{pid}/task')
-    except OSError:
-        return {}
-    for tid in tids:
-        try:
-            with open(f'/proc/{pid}/task/{tid}/stat', encoding='ascii', errors='replace') as f:
-                fields = f.read().rsplit(')', 1)[1].split()
-        except OSError:  # the thread ended
-            continue
-        out['main_thread' if tid == str(pid) else 'other_threads'] += (int(fields[11]) + int(fields[12])) / tick
+    for tid in os.listdir(f'/proc/{pid}/task'):
+        seconds = cpu_seconds(pid, tid)
+        if seconds is not None:
+            out['main_thread' if tid == str(pid) else 'other_threads'] += seconds
     return out
 
 
@@ -131,11 +104,11 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
                 replayer.wait_for_node(executor, timeout_s)
                 replayers[kind] = replayer
             predicts = {k: replayers[k].prepare_lockstep(executors[k], timeout_s) for k in EXECUTORS}
+            node_pids = {k: p.proc.pid for k, p in procs.items() if p.proc is not None}
             for _ in range(repeats):
                 for window in WINDOWS:
                     for kind in EXECUTORS:
-                        child = procs[kind].proc
-                        pids = {'node': child.pid if child is not None else -1, 'replayer': os.getpid()}
+                        pids = {'node': node_pids[kind], 'replayer': os.getpid()}
                         before = {side: thread_cpu_s(pid) for side, pid in pids.items()}
                         stats = replayers[kind].run_lockstep(executors[kind], predicts[kind], 5.0, window=window)
                         rates[kind][window].append(stats.published / stats.seconds)
@@ -184,7 +157,7 @@ def run(quick: bool) -> dict[str, Any]:
                            'bag_commands': n, 'repeats': repeats}
     with tempfile.TemporaryDirectory() as tmp:
         for storage in storages:
-            bag = make_bag(Path(tmp) / f'bench_{storage}', n, storage)
+            bag = make_bag(Path(tmp) / f'bench_{storage}', n, storage, bad_every=0)
             reads = [read_rates(bag) for _ in range(repeats)]
             replay = replay_rates(bag, repeats)
             reads += [read_rates(bag) for _ in range(repeats)]  # before and after: same machine load
@@ -200,15 +173,5 @@ def run(quick: bool) -> dict[str, Any]:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Print the figures as JSON."""
-    parser = argparse.ArgumentParser(prog='python -m benchmarks.bag_bench', description=__doc__.splitlines()[0])
-    parser.add_argument('--quick', action='store_true', help='1000 commands, 2 repeats, mcap only')
-    args = parser.parse_args(argv)
-    json.dump(run(args.quick), sys.stdout, indent=2)
-    print()
-    return 0
-
-
 if __name__ == '__main__':
-    sys.exit(main())
+    sys.exit(print_json(run(options(sys.argv[1:], __doc__).quick)))

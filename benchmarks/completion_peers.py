@@ -1,30 +1,12 @@
 r"""Completing the linkage from the measured driven rocker, against the two approaches users publish today.
 
-From the measured driven joint q = gamma (rad), its rate q_dot (rad/s) and effort (N m), completion gives the
-other rocker delta, the antenna angle theta, its rate theta_dot = q_dot / (dq/dtheta) and the load torque
-effort * dq/dtheta (power balance: effort dq = load dtheta). Three ways, on every geometry of
-:mod:`benchmarks.cases`, each on its working branch and driven range (:func:`working_range`):
-
-- ``exact``: the core's closed form, ``AntennaLinkage.from_rocker`` for the positions and ``rates_at`` for
-  dq/dtheta (scalar per message, and vectorized).
-- ``cubic``: ``numpy.polyfit`` of degree 3 per passive joint (delta(q) and theta(q)) over the whole driven range
-  (the joint's limits), fitted to 100 exact samples, as a CAD exporter's relay does; ``cubic-mid``: the same
-  fitted over the mid-range only (it extrapolates toward the limits). That relay publishes positions only; their
-  rate and torque here come from the cubic's derivative.
-- ``gauss-newton``: Newton (Gauss-Newton on the square system) on the two loop-closure equations in (theta,
-  delta), warm-started from the last message's solution, stopping when the step is under 1e-5 rad (at most 50
-  steps; a singular Jacobian ends the solve), as public joint-state transformers do. ``lm-scipy``: the same
-  problem through ``scipy.optimize.least_squares(method='lm', xtol=1e-5)`` with the analytic Jacobian, when scipy
-  is installed (requirements/bench.txt). Both give positions only; their rate and torque here are finite
-  differences of successive messages.
-
-The measured stream: q moving at Q_RATE rad/s, sampled at RATE_HZ (a step of 2e-3 rad per message), effort
-EFFORT. Accuracy (against :mod:`benchmarks.reference_driven`, 60 digits): at mid-range (every message of a
-sweep over the working pose's mid-range, see :class:`DrivenRange`) and at the reach limits (the last message
-of a stream running into each end, stopping 1e-6 rad and 1e-12 rad short of it). Positions in rad, rate and
-torque as relative errors; the exact method's errors also in ulps of their condition. Cost per message on
-Turnantenna: scalar (a Python loop, what a node does per message) and vectorized (a bag's array), as ratios to
-``exact`` in the same interleaved run.
+Claim: from the driven joint's angle, rate and effort, the core's closed form (``exact``) gives the other rocker,
+theta, theta's rate and the load torque to within ulps of their condition, where a cubic fit per passive joint
+(``cubic``, ``cubic-mid``) and warm-started Gauss-Newton to 1e-5 rad (``gauss-newton``, ``lm-scipy``) do not; and
+what each costs per message. Errors against :mod:`benchmarks.reference_driven` (60 digits) on every geometry of
+:mod:`benchmarks.cases`, mid-range and 1e-6 / 1e-12 rad from the driven rocker's reach limits; cost on Turnantenna,
+scalar and vectorized, as ratios to ``exact`` in one interleaved run. Run by ``python -m benchmarks.run``
+(section "Completing the linkage"; the report's text says what each method is).
 """
 
 from __future__ import annotations
@@ -41,7 +23,7 @@ import numpy.typing as npt
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
 from benchmarks.methods import linkage
-from benchmarks.reference import Geometry
+from benchmarks.reference import Geometry, angle_error_mp
 from benchmarks.reference_driven import DrivenPose, DrivenRange, driven_pose_mp, working_range
 from benchmarks.timing import Case, interleaved
 from fourbar_ros.core.antenna import Branch
@@ -90,6 +72,11 @@ class Peer:
 
 # ---------------------------------------------------------------------------------------------- the methods
 
+def _from_rows(rows: list[tuple[float, float, float, float]]) -> Completed:
+    """The completion of a stream from one (theta, other, theta_dot, load) row per message."""
+    return Completed(*(np.array(c, dtype=np.float64) for c in zip(*rows, strict=True)))
+
+
 def exact_peer(g: Geometry, r: DrivenRange) -> Peer:
     """The core's completion: positions by from_rocker, dq/dtheta by rates_at (driven rocker AB)."""
     link = linkage(g)
@@ -102,8 +89,7 @@ def exact_peer(g: Geometry, r: DrivenRange) -> Peer:
         return theta, other, Q_RATE / dq_dtheta, EFFORT * dq_dtheta  # type: ignore[return-value]
 
     def stream(q: FloatArray) -> Completed:
-        rows = [one(x) for x in q.tolist()]
-        return Completed(*(np.array(c, dtype=np.float64) for c in zip(*rows, strict=True)))
+        return _from_rows([one(x) for x in q.tolist()])
 
     def vector(q: FloatArray) -> Completed:
         theta, other = from_rocker(q, branch=branch)
@@ -132,7 +118,7 @@ def cubic_peer(g: Geometry, r: DrivenRange, over_mid: bool) -> Peer:
             rate = (r2 * x + r1) * x + r0
             rows.append((((t3 * x + t2) * x + t1) * x + t0, ((o3 * x + o2) * x + o1) * x + o0,
                          Q_RATE * rate, EFFORT / rate))
-        return Completed(*(np.array(c, dtype=np.float64) for c in zip(*rows, strict=True)))
+        return _from_rows(rows)
 
     def vector(q: FloatArray) -> Completed:
         rate = np.asarray(np.polyval(c_rate, q), dtype=np.float64)
@@ -142,7 +128,10 @@ def cubic_peer(g: Geometry, r: DrivenRange, over_mid: bool) -> Peer:
     return Peer('cubic-mid' if over_mid else 'cubic', stream, vector, {})
 
 
-def _residual(g: Geometry, q: float) -> Callable[[float, float], tuple[float, float]]:
+Residual = Callable[[float, float], tuple[float, float]]
+
+
+def _residual(g: Geometry, q: float) -> Residual:
     """The loop-closure equations (A.2) at driven angle q as functions of (theta, delta), in metres."""
     H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
     aq_c, aq_s = a * math.cos(q), a * math.sin(q)
@@ -150,52 +139,52 @@ def _residual(g: Geometry, q: float) -> Callable[[float, float], tuple[float, fl
     return lambda t, d: (aq_c + h * cos(t) + b * cos(d) - H, aq_s - h * sin(t) - b * sin(d))
 
 
-def _differenced(q: FloatArray, theta: FloatArray, other: FloatArray) -> Completed:
-    """Rate and torque by backward differences of successive messages (NaN for the first)."""
-    dtheta = np.diff(theta, prepend=np.nan)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        return Completed(theta, other, dtheta * RATE_HZ, EFFORT * np.diff(q, prepend=np.nan) / dtheta)
-
-
-def _start(g: Geometry, r: DrivenRange) -> Callable[[float], tuple[float, float]]:
-    """The state before a stream's first message, (theta, delta) in rad: the exact pose there (a generous start;
-    a node would carry it over from its previous message)."""
+def _warm_started(name: str, g: Geometry, r: DrivenRange,
+                  solve: Callable[[Residual, float, float], tuple[float, float]], stats: dict[str, int]) -> Peer:
+    """An iterative solver run message by message: ``solve(residual, theta, delta)`` from the previous message's
+    solution (the first from the exact pose there: a generous start; a node would carry it over). Positions only:
+    rate and torque by backward differences of successive messages (NaN for the first)."""
     from_rocker, branch = linkage(g).from_rocker, Branch(r.branch)
-    return lambda q: from_rocker(q, branch=branch)  # type: ignore[return-value]
+
+    def stream(q: FloatArray) -> Completed:
+        x = from_rocker(float(q[0]), branch=branch)
+        theta, other = np.empty(q.size), np.empty(q.size)
+        for i, qi in enumerate(q.tolist()):
+            x = solve(_residual(g, qi), *x)
+            theta[i], other[i] = x
+        stats['messages'] += q.size
+        dtheta = np.diff(theta, prepend=np.nan)
+        with np.errstate(divide='ignore', invalid='ignore'):
+            return Completed(theta, other, dtheta * RATE_HZ, EFFORT * np.diff(q, prepend=np.nan) / dtheta)
+
+    return Peer(name, stream, None, stats)
 
 
 def newton_peer(g: Geometry, r: DrivenRange) -> Peer:
     """Warm-started Newton on the loop equations to a 1e-5 rad step, scalar math; positions only."""
     h, b = g.coupler, g.rocker_cd
-    start = _start(g, r)
     cos, sin = math.cos, math.sin
     stats = {'messages': 0, 'steps': 0, 'not_converged': 0, 'singular': 0}
 
-    def stream(q: FloatArray) -> Completed:
-        t, d = start(float(q[0]))
-        theta, other = np.empty(q.size), np.empty(q.size)
-        for i, x in enumerate(q.tolist()):
-            f = _residual(g, x)
-            for k in range(MAX_STEPS):
-                f1, f2 = f(t, d)
-                det = h * b * sin(t - d)
-                if det == 0.0:
-                    stats['singular'] += 1
-                    break
-                st = (-b * cos(d) * f1 + b * sin(d) * f2) / det
-                sd = (h * cos(t) * f1 - h * sin(t) * f2) / det
-                t, d = t - st, d - sd
-                if max(abs(st), abs(sd)) < TOLERANCE:
-                    stats['steps'] += k + 1
-                    break
-            else:
-                stats['steps'] += MAX_STEPS
-                stats['not_converged'] += 1
-            theta[i], other[i] = t, d
-        stats['messages'] += q.size
-        return _differenced(q, theta, other)
+    def solve(f: Residual, t: float, d: float) -> tuple[float, float]:
+        for k in range(MAX_STEPS):
+            f1, f2 = f(t, d)
+            det = h * b * sin(t - d)
+            if det == 0.0:
+                stats['singular'] += 1
+                break
+            st = (-b * cos(d) * f1 + b * sin(d) * f2) / det
+            sd = (h * cos(t) * f1 - h * sin(t) * f2) / det
+            t, d = t - st, d - sd
+            if max(abs(st), abs(sd)) < TOLERANCE:
+                stats['steps'] += k + 1
+                break
+        else:
+            stats['steps'] += MAX_STEPS
+            stats['not_converged'] += 1
+        return t, d
 
-    return Peer('gauss-newton', stream, None, stats)
+    return _warm_started('gauss-newton', g, r, solve, stats)
 
 
 def lm_scipy_peer(g: Geometry, r: DrivenRange) -> Peer | None:
@@ -205,31 +194,22 @@ def lm_scipy_peer(g: Geometry, r: DrivenRange) -> Peer | None:
     except ImportError:
         return None
     h, b = g.coupler, g.rocker_cd
-    start = _start(g, r)
     stats = {'messages': 0, 'evaluations': 0, 'not_converged': 0}
 
-    def stream(q: FloatArray) -> Completed:
-        x = np.array(start(float(q[0])))
-        theta, other = np.empty(q.size), np.empty(q.size)
-        for i, qi in enumerate(q.tolist()):
-            f = _residual(g, qi)
+    def jac(v: FloatArray) -> FloatArray:
+        t, d = float(v[0]), float(v[1])
+        return np.array([[-h * math.sin(t), -b * math.sin(d)], [-h * math.cos(t), -b * math.cos(d)]])
 
-            def fun(v: FloatArray, f: Callable[[float, float], tuple[float, float]] = f) -> FloatArray:
-                return np.array(f(float(v[0]), float(v[1])))
+    def solve(f: Residual, t: float, d: float) -> tuple[float, float]:
+        def fun(v: FloatArray) -> FloatArray:
+            return np.array(f(float(v[0]), float(v[1])))
 
-            def jac(v: FloatArray) -> FloatArray:
-                t, d = float(v[0]), float(v[1])
-                return np.array([[-h * math.sin(t), -b * math.sin(d)], [-h * math.cos(t), -b * math.cos(d)]])
+        sol = least_squares(fun, np.array([t, d]), jac=jac, method='lm', xtol=TOLERANCE)
+        stats['evaluations'] += int(sol.nfev)
+        stats['not_converged'] += int(sol.status <= 0)
+        return float(sol.x[0]), float(sol.x[1])
 
-            sol = least_squares(fun, x, jac=jac, method='lm', xtol=TOLERANCE)
-            stats['evaluations'] += int(sol.nfev)
-            stats['not_converged'] += int(sol.status <= 0)
-            x = sol.x
-            theta[i], other[i] = float(x[0]), float(x[1])
-        stats['messages'] += q.size
-        return _differenced(q, theta, other)
-
-    return Peer('lm-scipy', stream, None, stats)
+    return _warm_started('lm-scipy', g, r, solve, stats)
 
 
 def peers(g: Geometry, r: DrivenRange) -> list[Peer]:
@@ -268,12 +248,7 @@ class Reference:
 
     def angle_errors(self, got: FloatArray, which: str) -> FloatArray:
         """|got - ref| in rad modulo 2 pi, resolved below one ulp."""
-        out = np.empty(len(self.poses))
-        with mpmath.workdps(40):
-            for i, (p, v) in enumerate(zip(self.poses, got.tolist(), strict=True)):
-                d = mpmath.mpf(v) - getattr(p, which)
-                out[i] = abs(float(d - 2 * mpmath.pi * mpmath.nint(d / (2 * mpmath.pi))))
-        return out
+        return np.array([angle_error_mp(v, getattr(p, which)) for p, v in zip(self.poses, got.tolist(), strict=True)])
 
     def relative_errors(self, got: FloatArray, ref: Sequence[mpmath.mpf]) -> FloatArray:
         """|got - ref| / |ref| (NaN where got is NaN)."""
@@ -331,22 +306,19 @@ def errors(out: Completed, ref: Reference, exact: bool) -> dict[str, float]:
     return row
 
 
-def _merge(a: dict[str, float], b: dict[str, float]) -> dict[str, float]:
-    return {k: max(a[k], b[k]) for k in a}
-
-
 def geometry_errors(g: Geometry, max_mid: int | None = None) -> dict[str, Any]:
     """Errors of every method on one geometry: mid-range and each limit distance (worst of both ends)."""
     r = working_range(g)
     ps = peers(g, r)
     q_mid = mid_stream(r, max_mid)
     ref_mid = reference(g, r, q_mid[1:])  # the first message has no predecessor to difference against
-    where: dict[str, dict[str, dict[str, float]]] = {p.name: {} for p in ps}
-    for p in ps:
-        row = errors(_tail(p.stream(q_mid), 1), ref_mid, p.name == 'exact')
-        if p.vector is not None:
-            row = _merge(row, errors(_tail(p.vector(q_mid), 1), ref_mid, p.name == 'exact'))
-        where[p.name]['mid'] = row
+    def worst(p: Peer, q: FloatArray, ref: Reference) -> dict[str, float]:
+        """Errors of both paths at the reference's messages, the last ones of q."""
+        skip = q.size - len(ref.poses)
+        rows = [errors(_tail(path(q), skip), ref, p.name == 'exact') for path in (p.stream, p.vector) if path]
+        return {k: max(r[k] for r in rows) for k in rows[0]}
+
+    where: dict[str, dict[str, dict[str, float]]] = {p.name: {'mid': worst(p, q_mid, ref_mid)} for p in ps}
     if r.limited:
         for dist in LIMIT_DISTANCES:
             key = f'limit_{dist:g}'
@@ -354,10 +326,9 @@ def geometry_errors(g: Geometry, max_mid: int | None = None) -> dict[str, Any]:
                 q = limit_stream(r, upper, dist)
                 ref = reference(g, r, q[-1:])
                 for p in ps:
-                    row = errors(_tail(p.stream(q), q.size - 1), ref, p.name == 'exact')
-                    if p.vector is not None:
-                        row = _merge(row, errors(_tail(p.vector(q), q.size - 1), ref, p.name == 'exact'))
-                    where[p.name][key] = _merge(where[p.name][key], row) if key in where[p.name] else row
+                    row = worst(p, q, ref)
+                    old = where[p.name].setdefault(key, row)
+                    where[p.name][key] = {k: max(old[k], row[k]) for k in row}
     return {'range_rad': [r.lo, r.hi], 'mid_range_rad': [r.mid_lo, r.mid_hi], 'branch': r.branch,
             'limited': r.limited, 'mid_messages': int(q_mid.size),
             'methods': where, 'solver_stats': {p.name: dict(p.stats) for p in ps if p.stats}}
@@ -369,12 +340,13 @@ def _tail(c: Completed, start: int) -> Completed:
 
 # ---------------------------------------------------------------------------------------------- the cost
 
-def costs(n_scalar: int, n_vector: int, repeats: int, g: Geometry = TURNANTENNA) -> dict[str, Any]:
+def costs(n_scalar: int, n_vector: int, repeats: int) -> dict[str, Any]:
     """CPU seconds per message (median of interleaved rounds), scalar and vectorized, and ratios to exact.
 
     The scalar stream walks back and forth over the mid-range STEP by STEP (n_scalar
     messages, fewer for lm-scipy: a tenth); the vectorized input is n_vector angles spread over the same span.
     """
+    g = TURNANTENNA
     r = working_range(g)
     span = mid_stream(r)
     walk = np.concatenate([span, span[::-1]])
@@ -400,7 +372,7 @@ def costs(n_scalar: int, n_vector: int, repeats: int, g: Geometry = TURNANTENNA)
     return out
 
 
-def run(quick: bool, geometries: Sequence[Geometry] = COMMON_GEOMETRIES) -> dict[str, Any]:
+def run(quick: bool) -> dict[str, Any]:
     """Errors on every geometry and the cost on Turnantenna (smaller streams and fewer repeats when quick)."""
     max_mid, n_scalar, n_vector, repeats = (60, 300, 20_000, 3) if quick else (None, 2000, 200_000, 7)
     return {
@@ -410,103 +382,6 @@ def run(quick: bool, geometries: Sequence[Geometry] = COMMON_GEOMETRIES) -> dict
         'tolerance_rad': TOLERANCE,
         'fit_points': FIT_POINTS,
         'publishes': PUBLISHES,
-        'geometries': {g.name: geometry_errors(g, max_mid) for g in geometries},
+        'geometries': {g.name: geometry_errors(g, max_mid) for g in COMMON_GEOMETRIES},
         'cost': costs(n_scalar, n_vector, repeats),
     }
-
-
-# ---------------------------------------------------------------------------------------------- the report
-
-_WHERE = {'mid': 'mid-range', 'limit_1e-06': '1e-6 rad from the limit', 'limit_1e-12': '1e-12 rad from the limit'}
-
-
-def _g(x: float | None) -> str:
-    return '-' if x is None else 'fail' if not math.isfinite(x) else f'{x:.2g}'
-
-
-def markdown(c: dict[str, Any] | None) -> str:
-    """The report section: errors (worst over the geometries), cost on Turnantenna, per-geometry positions."""
-    if not c or 'error' in c:
-        return f'Not measured in this run{": `" + c["error"] + "`" if c else ""}.\n'
-    geos = c['geometries']
-    names = list(next(iter(geos.values()))['methods'])
-    worst: dict[str, dict[str, dict[str, float]]] = {}
-    for per in geos.values():
-        for m, rows in per['methods'].items():
-            for where, row in rows.items():
-                w = worst.setdefault(m, {}).setdefault(where, {})
-                for k, v in row.items():
-                    w[k] = v if v is None or w.get(k) is None else max(w[k], v)
-    cost = c['cost']['methods']
-    st = c['stream']
-    lines = [
-        f'From the measured driven rocker ({c["driven"]}: angle, rate and effort, as `joint_state_broadcaster` '
-        'publishes them), each method gives the other rocker, the antenna angle theta, its rate and the load '
-        'torque. The measured stream moves at '
-        f'{st["q_rate_rad_s"]:g} rad/s, one message every {1.0 / st["rate_hz"]:g} s ({st["step_rad"]:g} rad), '
-        f'effort {st["effort_n_m"]:g} N m. `exact` is the core\'s closed form (`AntennaLinkage.from_rocker`, '
-        'and dq/dtheta from `rates_at`: theta_dot = q_dot / (dq/dtheta), load torque = effort dq/dtheta). '
-        f'`cubic` is `numpy.polyfit` of degree 3 per passive joint over the whole driven range ({c["fit_points"]} '
-        'exact samples), as a CAD exporter\'s relay does; `cubic-mid` the same fitted over the mid-range only. '
-        f'`gauss-newton` solves the loop equations to a {c["tolerance_rad"]:g} rad step, warm-started from the '
-        'previous message, as public joint-state transformers do; `lm-scipy` is scipy\'s Levenberg-Marquardt '
-        f'(`least_squares(method=\'lm\', xtol={c["tolerance_rad"]:g})`) on the same equations. '
-        '**The public relays publish positions only**: their rates and torques below come from the cubic\'s '
-        'derivative, or from finite differences of successive messages for the iterative solvers.',
-        '',
-        f'Errors against the 60-digit reference with the driven angle as input (`benchmarks/reference_driven.py`), '
-        f'the worst over {len(geos)} geometries ({", ".join(geos)}); positions in rad, rate and torque relative. '
-        'Mid-range: every message within half the distance from the working pose (theta = 0) to the nearest '
-        'singular point (on Turnantenna about its tilt range); near the limit: the last message of a stream '
-        'running into either reach limit of the driven rocker (its dead point: dq/dtheta = 0, theta_dot '
-        'unbounded).',
-        '',
-        '| method | publishes | where | theta (rad) | other rocker (rad) | theta_dot (rel.) | load torque (rel.) |',
-        '|---|---|---|---:|---:|---:|---:|',
-    ]
-    for m in names:
-        for where, label in _WHERE.items():
-            row = worst.get(m, {}).get(where)
-            if row is None:
-                continue
-            lines.append(f'| {m} | {c["publishes"].get(m, "")} | {label} | {_g(row["theta_rad"])} | '
-                         f'{_g(row["other_rad"])} | {_g(row["theta_dot_rel"])} | {_g(row["load_torque_rel"])} |')
-    ex = worst.get('exact', {})
-    lines += [
-        '',
-        'In ulps of their condition (the reference\'s condition number over the driven angle and the lengths), '
-        '`exact` errs by at most '
-        + ', '.join(f'{_g(r.get("position_ulps"))} (positions) and {_g(r.get("rate_ulps"))} (rate, torque) at '
-                    f'{_WHERE[w]}' for w, r in ex.items()) + '. '
-        'Near a reach limit the completion itself is ill-conditioned (theta moves as the square root of the '
-        'distance to the limit), so every method\'s rate there is only as good as that allows.',
-        '',
-        f'Cost per message on {c["cost"]["geometry"]} (process CPU time, median of {c["cost"]["repeats"]} '
-        'interleaved rounds; scalar: a Python loop, one call per message, what a node does; vectorized: one call '
-        'on an array, what a bag conversion does; the iterative solvers are sequential by nature, each message '
-        'warm-started from the last):',
-        '',
-        '| method | scalar us/message | scalar x exact | vectorized ns/message | vectorized x exact |',
-        '|---|---:|---:|---:|---:|',
-    ]
-    for m in names:
-        t = cost.get(m, {})
-        sc, vc = t.get('scalar_seconds'), t.get('vector_seconds')
-        lines.append(f'| {m} | {"-" if sc is None else f"{sc * 1e6:.3g}"} | {_g(t.get("scalar_ratio_to_exact"))} | '
-                     f'{"-" if vc is None else f"{vc * 1e9:.3g}"} | {_g(t.get("vector_ratio_to_exact"))} |')
-    lines += ['', 'theta error (rad) per geometry, mid-range / 1e-12 rad from the limit:', '',
-              '| geometry | ' + ' | '.join(names) + ' |', '|---|' + '---:|' * len(names)]
-    for name, per in geos.items():
-        cells = [f'{_g(per["methods"][m]["mid"]["theta_rad"])} / '
-                 f'{_g(per["methods"][m].get("limit_1e-12", {}).get("theta_rad"))}' for m in names]
-        lines.append(f'| {name} | ' + ' | '.join(cells) + ' |')
-    steps = []
-    for name, per in geos.items():
-        gn = per['solver_stats'].get('gauss-newton')
-        if gn and gn['messages']:
-            steps.append(f'{name} {gn["steps"] / gn["messages"]:.2g}'
-                         + (f' ({gn["not_converged"]} not converged)' if gn['not_converged'] else ''))
-    lines += ['', 'Newton steps per message (gauss-newton): ' + ', '.join(steps) + '.'
-              + ('' if 'lm-scipy' in names else ' `lm-scipy` was not run: scipy is not installed (`make bench-deps`).'),
-              '']
-    return '\n'.join(lines)

@@ -2,20 +2,8 @@ r"""The position solvers compared by the benchmark: theta (rad) -> (gamma, delta
 
 Every method is a :class:`Method` whose ``build(geometry, interval)`` returns a :class:`Solver` bound to one
 geometry: a scalar callable (Python float in, two floats out) and/or a vectorized one (float64 array in, two
-arrays out). ``interval`` is the (lo, hi) range of theta the method is asked to serve; only the tables use it.
-
-- ``annex``: Annex A as written, A.13-A.15: gamma = (2 atan P + acos Q)/2, delta = (acos Q - 2 atan P)/2.
-  Valid for equal rockers only; wrong by pi where H - h cos(theta) < 0; acos fails when rounding puts Q past 1.
-- ``annex-atan2``: the same with atan2(h sin t, H - h cos t) for atan P: isolates the acos(Q) weakness.
-- ``shipped``: the core, ``fourbar_ros.core.antenna.AntennaLinkage.rocker_angles`` (both paths).
-- ``stable-f32``: the core's stable form (half-angle diagonal, factored Heron root, atan2) transcribed in float32.
-- ``newton-K``: K Newton steps on the two loop-closure equations (the translation parts of
-  R(g) T(a) R(-t-g) T(h) [0 0 1]^T = T(H) R(pi-d) T(b) [0 0 1]^T), cold-started from the solution at the middle
-  of the interval.
-- ``lut-linear-N``, ``lut-hermite-N``: tables of N uniformly spaced angles over the interval, built once with the
-  core, interpolated linearly or by cubic Hermite (slopes from the core's rates); ``-f32`` stores and computes in
-  float32, as a small controller would.
-- ``lut-linear-N+newton1``: a linear table as the starting guess for one Newton step.
+arrays out). ``interval`` is the (lo, hi) range of theta the method is asked to serve (tables, Newton's start).
+The list is :func:`all_methods`, each with its description; the report says what each family is.
 """
 
 from __future__ import annotations
@@ -29,6 +17,7 @@ import numpy.typing as npt
 
 from benchmarks.reference import Geometry
 from fourbar_ros.core.antenna import AntennaLinkage
+from fourbar_ros.core.dyad import DyadConstants, dyad_constants
 from fourbar_ros.core.lookup import hermite_coefficients, horner_columns
 
 FloatArray = npt.NDArray[np.float64]
@@ -64,82 +53,59 @@ def linkage(g: Geometry) -> AntennaLinkage:
     return AntennaLinkage(frame=g.frame, rocker_ab=g.rocker_ab, coupler=g.coupler, rocker_cd=g.rocker_cd)
 
 
+def stable_constants(g: Geometry) -> DyadConstants:
+    """The core's constants of its stable form for a benchmark geometry, in frame units (as AntennaLinkage's)."""
+    return dyad_constants(g.frame, g.coupler, g.rocker_ab, g.rocker_cd, unit=g.frame)
+
+
 # ---------------------------------------------------------------------------------------------- annex formula
 
-def annex_solver(g: Geometry, _interval: tuple[float, float]) -> Solver:
-    if not g.equal_rockers:
-        raise NotApplicableError('the annex formula assumes equal rockers')
-    H, h, ll = g.frame, g.coupler, g.rocker_ab
-    hh = H * H + h * h
-    two_hh = 2.0 * H * h
-    two_l2 = 2.0 * ll * ll
-    atan, acos, sin, cos = math.atan, math.acos, math.sin, math.cos
+def _annex(atan2_fix: bool = False, dtype: type[np.floating] = np.float64) -> Callable[[Geometry, tuple[float, float]],
+                                                                                    Solver]:
+    """A.13-A.15 as written (``atan2_fix``: atan2(h sin t, H - h cos t) for atan P), every operation in ``dtype``;
+    the scalar path (Python floats) in float64 only."""
 
-    def scalar(theta: float) -> tuple[float, float]:
-        c = cos(theta)
-        p = h * sin(theta) / (H - h * c)
-        q = (hh - two_hh * c) / two_l2 - 1.0
-        a = acos(q)
-        t = 2.0 * atan(p)
-        return 0.5 * (t + a), 0.5 * (a - t)
+    def build(g: Geometry, _interval: tuple[float, float]) -> Solver:
+        if not g.equal_rockers:
+            raise NotApplicableError('the annex formula assumes equal rockers')
+        f = dtype
+        H, h, ll = f(g.frame), f(g.coupler), f(g.rocker_ab)
+        with np.errstate(over='ignore'):  # lengths beyond the specification overflow, as in Python floats
+            hh, two_hh, two_l2 = H * H + h * h, f(2) * H * h, f(2) * ll * ll
+        one, half, two = f(1), f(0.5), f(2)
 
-    def vector(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
-        with np.errstate(invalid='ignore', divide='ignore'):
-            c = np.cos(theta)
-            p = h * np.sin(theta) / (H - h * c)
-            q = (hh - two_hh * c) / two_l2 - 1.0
-            a = np.arccos(q)
-            t = 2.0 * np.arctan(p)
-        return 0.5 * (t + a), 0.5 * (a - t)
+        def vector(theta: FloatArray) -> tuple[npt.NDArray[np.floating], npt.NDArray[np.floating]]:
+            th = theta.astype(dtype, copy=False)
+            with np.errstate(invalid='ignore', divide='ignore'):
+                c = np.cos(th)
+                y, x = h * np.sin(th), H - h * c
+                t = two * (np.arctan2(y, x) if atan2_fix else np.arctan(y / x))
+                a = np.arccos((hh - two_hh * c) / two_l2 - one)
+            return half * (t + a), half * (a - t)
 
-    return Solver(scalar, vector)
+        if dtype is not np.float64:
+            return Solver(None, vector)
+        Hs, hs, hhs, two_hhs, two_l2s = float(H), float(h), float(hh), float(two_hh), float(two_l2)
+        atan, atan2, acos, sin, cos = math.atan, math.atan2, math.acos, math.sin, math.cos
 
+        def scalar(theta: float) -> tuple[float, float]:  # each variant inline: a call per solve would be timed too
+            c = cos(theta)
+            a = acos((hhs - two_hhs * c) / two_l2s - 1.0)
+            t = 2.0 * atan(hs * sin(theta) / (Hs - hs * c))
+            return 0.5 * (t + a), 0.5 * (a - t)
 
-def _annex_atan2(g: Geometry, _interval: tuple[float, float]) -> Solver:
-    if not g.equal_rockers:
-        raise NotApplicableError('the annex formula assumes equal rockers')
-    H, h, ll = g.frame, g.coupler, g.rocker_ab
-    hh = H * H + h * h
-    two_hh = 2.0 * H * h
-    two_l2 = 2.0 * ll * ll
-    atan2, acos, sin, cos = math.atan2, math.acos, math.sin, math.cos
+        def scalar_atan2(theta: float) -> tuple[float, float]:
+            c = cos(theta)
+            a = acos((hhs - two_hhs * c) / two_l2s - 1.0)
+            t = 2.0 * atan2(hs * sin(theta), Hs - hs * c)
+            return 0.5 * (t + a), 0.5 * (a - t)
 
-    def scalar(theta: float) -> tuple[float, float]:
-        c = cos(theta)
-        a = acos((hh - two_hh * c) / two_l2 - 1.0)
-        t = 2.0 * atan2(h * sin(theta), H - h * c)
-        return 0.5 * (t + a), 0.5 * (a - t)
+        return Solver(scalar_atan2 if atan2_fix else scalar, vector)
 
-    def vector(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
-        with np.errstate(invalid='ignore'):
-            c = np.cos(theta)
-            a = np.arccos((hh - two_hh * c) / two_l2 - 1.0)
-            t = 2.0 * np.arctan2(h * np.sin(theta), H - h * c)
-        return 0.5 * (t + a), 0.5 * (a - t)
-
-    return Solver(scalar, vector)
+    return build
 
 
-def _annex_f32(g: Geometry, _interval: tuple[float, float]) -> Solver:
-    if not g.equal_rockers:
-        raise NotApplicableError('the annex formula assumes equal rockers')
-    f = np.float32
-    H, h, ll = f(g.frame), f(g.coupler), f(g.rocker_ab)
-    hh = H * H + h * h
-    two_hh = f(2) * H * h
-    two_l2 = f(2) * ll * ll
-    one, half, two = f(1), f(0.5), f(2)
-
-    def vector(theta: FloatArray) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
-        t32 = theta.astype(np.float32)
-        with np.errstate(invalid='ignore', divide='ignore'):
-            c = np.cos(t32)
-            p = h * np.sin(t32) / (H - h * c)
-            a = np.arccos((hh - two_hh * c) / two_l2 - one)
-            t = two * np.arctan(p)
-        return half * (t + a), half * (a - t)
-
-    return Solver(None, vector)
+annex_solver = _annex()
 
 
 # ---------------------------------------------------------------------------------------------- the core
@@ -153,13 +119,9 @@ def _shipped(g: Geometry, _interval: tuple[float, float]) -> Solver:
 def _stable_f32(g: Geometry, _interval: tuple[float, float]) -> Solver:
     """The half-angle / factored-Heron / atan2 form, every operation in float32 (lengths in frame units)."""
     f = np.float32
-    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
-    diff = f(1.0 - ch)
-    four_l1_l2 = f(4.0 * ch)
-    two_l2 = f(2.0 * ch)
-    far = f((a + b - (1.0 - ch)) * (a + b + (1.0 - ch)))
-    near = f(((1.0 - ch) - (a - b)) * ((1.0 - ch) + (a - b)))
-    r_sq_diff = f((a - b) * (a + b))
+    k = stable_constants(g)
+    diff, four_l1_l2, two_l2, far, near = (f(v) for v in (k.diff, k.four_l1_l2, k.two_l2, k.far, k.near))
+    r_sq_diff = f(0.5 * (k.cos_p - k.cos_q))  # (AB^2 - CD^2) / H^2
     half = f(0.5)
 
     def vector(theta: FloatArray) -> tuple[npt.NDArray[np.float32], npt.NDArray[np.float32]]:
@@ -179,52 +141,45 @@ def _stable_f32(g: Geometry, _interval: tuple[float, float]) -> Solver:
 
 # ---------------------------------------------------------------------------------------------- Newton
 
-def _newton(iterations: int) -> Callable[[Geometry, tuple[float, float]], Solver]:
-    def build(g: Geometry, interval: tuple[float, float]) -> Solver:
-        H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
-        g0, d0 = (float(v) for v in linkage(g).rocker_angles(0.5 * (interval[0] + interval[1])))
-        sin, cos = math.sin, math.cos
-        ab = a * b
-
-        def scalar(theta: float) -> tuple[float, float]:
-            hc, hs = h * cos(theta), h * sin(theta)
-            gam, dlt = g0, d0
-            for _ in range(iterations):
-                cg, sg, cd, sd = cos(gam), sin(gam), cos(dlt), sin(dlt)
-                f1 = a * cg + hc + b * cd - H
-                f2 = a * sg - hs - b * sd
-                det = ab * (sg * cd + cg * sd)
-                gam += b * (cd * f1 - sd * f2) / det
-                dlt += a * (cg * f1 + sg * f2) / det
-            return gam, dlt
-
-        def vector(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
-            hc, hs = h * np.cos(theta), h * np.sin(theta)
-            gam = np.full_like(theta, g0)
-            dlt = np.full_like(theta, d0)
-            for _ in range(iterations):
-                cg, sg, cd, sd = np.cos(gam), np.sin(gam), np.cos(dlt), np.sin(dlt)
-                f1 = a * cg + hc + b * cd - H
-                f2 = a * sg - hs - b * sd
-                det = ab * (sg * cd + cg * sd)
-                gam += b * (cd * f1 - sd * f2) / det
-                dlt += a * (cg * f1 + sg * f2) / det
-            return gam, dlt
-
-        return Solver(scalar, vector)
-
-    return build
-
-
-def newton_step_vector(g: Geometry, theta: FloatArray, gam: FloatArray,
-                       dlt: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """One Newton step on the loop-closure equations from (gam, dlt) (radians), vectorized."""
+def newton_functions(g: Geometry, interval: tuple[float, float], iterations: int) -> tuple[
+        Callable[..., tuple[float, float]], Callable[..., tuple[FloatArray, FloatArray]]]:
+    """``iterations`` Newton steps on the loop-closure equations, scalar and vectorized: ``f(theta, gam, dlt)``
+    from (gam, dlt) (rad), by default the solution at the middle of ``interval`` (a cold start)."""
     H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
-    cg, sg, cd, sd = np.cos(gam), np.sin(gam), np.cos(dlt), np.sin(dlt)
-    f1 = a * cg + h * np.cos(theta) + b * cd - H
-    f2 = a * sg - h * np.sin(theta) - b * sd
-    det = (a * b) * (sg * cd + cg * sd)
-    return gam + b * (cd * f1 - sd * f2) / det, dlt + a * (cg * f1 + sg * f2) / det
+    g0, d0 = (float(v) for v in linkage(g).rocker_angles(0.5 * (interval[0] + interval[1])))
+    sin, cos = math.sin, math.cos
+    ab = a * b
+
+    def scalar(theta: float, gam: float = g0, dlt: float = d0) -> tuple[float, float]:
+        hc, hs = h * cos(theta), h * sin(theta)
+        for _ in range(iterations):  # inline, as the vector path's: a call per step would be timed too
+            cg, sg, cd, sd = cos(gam), sin(gam), cos(dlt), sin(dlt)
+            f1 = a * cg + hc + b * cd - H
+            f2 = a * sg - hs - b * sd
+            det = ab * (sg * cd + cg * sd)
+            gam += b * (cd * f1 - sd * f2) / det
+            dlt += a * (cg * f1 + sg * f2) / det
+        return gam, dlt
+
+    def vector(theta: FloatArray, gam: FloatArray | None = None,
+               dlt: FloatArray | None = None) -> tuple[FloatArray, FloatArray]:
+        hc, hs = h * np.cos(theta), h * np.sin(theta)
+        gam = np.full_like(theta, g0) if gam is None else gam
+        dlt = np.full_like(theta, d0) if dlt is None else dlt
+        for _ in range(iterations):
+            cg, sg, cd, sd = np.cos(gam), np.sin(gam), np.cos(dlt), np.sin(dlt)
+            f1 = a * cg + hc + b * cd - H
+            f2 = a * sg - hs - b * sd
+            det = ab * (sg * cd + cg * sd)
+            gam += b * (cd * f1 - sd * f2) / det
+            dlt += a * (cg * f1 + sg * f2) / det
+        return gam, dlt
+
+    return scalar, vector
+
+
+def _newton(iterations: int) -> Callable[[Geometry, tuple[float, float]], Solver]:
+    return lambda g, interval: Solver(*newton_functions(g, interval, iterations))
 
 
 def loop_residual(g: Geometry, theta: FloatArray, gam: FloatArray, dlt: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -321,23 +276,12 @@ def _lut(n: int, hermite: bool, dtype: type[np.floating] = np.float64,
                     dlt = np.take(cols_d[1], i)
                     dlt *= u
                     dlt += np.take(cols_d[0], i)
-            if polish:
-                return newton_step_vector(g, theta, gam, dlt)
             return gam, dlt
 
         if polish:
-            H, a, h, b = g.frame, g.rocker_ab, g.coupler, g.rocker_cd
-            sin, cos = math.sin, math.cos
-
-            def scalar_polished(theta: float) -> tuple[float, float]:
-                gam, dlt = scalar(theta)
-                cg_, sg_, cd_, sd_ = cos(gam), sin(gam), cos(dlt), sin(dlt)
-                f1 = a * cg_ + h * cos(theta) + b * cd_ - H
-                f2 = a * sg_ - h * sin(theta) - b * sd_
-                det = a * b * (sg_ * cd_ + cg_ * sd_)
-                return gam + b * (cd_ * f1 - sd_ * f2) / det, dlt + a * (cg_ * f1 + sg_ * f2) / det
-
-            return Solver(scalar_polished, vector)
+            newton_scalar, newton_vector = newton_functions(g, interval, 1)
+            return Solver(lambda theta: newton_scalar(theta, *scalar(theta)),
+                          lambda theta: newton_vector(theta, *vector(theta)))
         return Solver(scalar if is64 else None, vector)
 
     return build
@@ -367,8 +311,8 @@ def all_methods(quick: bool = False) -> list[Method]:
     """Every method of the common sweep (ours and the formula of the annex; peers are in benchmarks.peers)."""
     methods = [
         Method('annex', 'annex', 'float64', 'Annex A.13-A.15 as written (atan P, acos Q)', annex_solver),
-        Method('annex-atan2', 'annex', 'float64', 'annex with atan2 for atan P (acos Q kept)', _annex_atan2),
-        Method('annex-f32', 'annex', 'float32', 'annex as written, float32 arrays', _annex_f32),
+        Method('annex-atan2', 'annex', 'float64', 'annex with atan2 for atan P (acos Q kept)', _annex(True)),
+        Method('annex-f32', 'annex', 'float32', 'annex as written, float32 arrays', _annex(dtype=np.float32)),
         Method(SHIPPED, 'shipped', 'float64', 'fourbar_ros AntennaLinkage.rocker_angles', _shipped),
         Method('stable-f32', 'stable', 'float32', "the core's stable form transcribed in float32", _stable_f32),
     ]

@@ -59,33 +59,28 @@ def pylinkage_solver(g: Geometry, _interval: tuple[float, float]) -> Solver:
     return Solver(scalar, None)
 
 
-def _mechanism_parts(g: Geometry, interval: tuple[float, float]) -> tuple[Any, Any, Any, Any, Any]:
-    try:
-        from mechanism import Joint, Vector
-    except ImportError as exc:  # pragma: no cover - depends on the environment
-        raise NotApplicableError(f'mechanism is not installed: {exc}') from None
-    a_, b_, c_, d_ = Joint('A'), Joint('B'), Joint('C'), Joint('D')
-    ab = Vector((a_, b_), r=g.rocker_ab)
-    bc = Vector((b_, c_), r=g.coupler)
-    dc = Vector((d_, c_), r=g.rocker_cd)
-    ad = Vector((a_, d_), r=g.frame, theta=0.0, style='ground')
-
-    def loops(x: FloatArray, t: float) -> FloatArray:
-        return np.asarray(ab(x[0]) + bc(-t) - dc(x[1]) - ad())
-
-    g0, d0 = (float(v) for v in linkage(g).rocker_angles(0.5 * (interval[0] + interval[1])))
-    guess = np.array([g0, math.pi - d0])
-    return (ab, bc, dc, ad), a_, loops, guess, dc
-
-
 def _mechanism(g: Geometry, interval: tuple[float, float]) -> Solver:
     try:
-        from mechanism import Mechanism
-    except ImportError as exc:  # pragma: no cover
+        from mechanism import Joint, Mechanism, Vector
+    except ImportError as exc:  # pragma: no cover - depends on the environment
         raise NotApplicableError(f'mechanism is not installed: {exc}') from None
-    vectors, origin, loops, guess, _ = _mechanism_parts(g, interval)
-    ab, dc = vectors[0], vectors[2]
-    single = Mechanism(vectors=vectors, origin=origin, loops=loops, pos=0.0, guess=(guess,))
+    g0, d0 = (float(v) for v in linkage(g).rocker_angles(0.5 * (interval[0] + interval[1])))
+    guess = np.array([g0, math.pi - d0])
+
+    def build(pos: float | FloatArray) -> tuple[Any, Any, Any]:
+        """A fresh Mechanism at ``pos`` (its Vectors hold the solution), and its Vectors AB and DC."""
+        a_, b_, c_, d_ = Joint('A'), Joint('B'), Joint('C'), Joint('D')
+        ab = Vector((a_, b_), r=g.rocker_ab)
+        bc = Vector((b_, c_), r=g.coupler)
+        dc = Vector((d_, c_), r=g.rocker_cd)
+        ad = Vector((a_, d_), r=g.frame, theta=0.0, style='ground')
+
+        def loops(x: FloatArray, t: float) -> FloatArray:
+            return np.asarray(ab(x[0]) + bc(-t) - dc(x[1]) - ad())
+
+        return Mechanism(vectors=(ab, bc, dc, ad), origin=a_, loops=loops, pos=pos, guess=(guess,)), ab, dc
+
+    single, ab, dc = build(0.0)
 
     def scalar(theta: float) -> tuple[float, float]:
         single.pos = theta
@@ -94,10 +89,9 @@ def _mechanism(g: Geometry, interval: tuple[float, float]) -> Solver:
         return float(ab.pos.theta), math.pi - float(dc.pos.theta)
 
     def vector(theta: FloatArray) -> tuple[FloatArray, FloatArray]:
-        vs, org, lp, gs, _ = _mechanism_parts(g, interval)
-        mech = Mechanism(vectors=vs, origin=org, loops=lp, pos=theta, guess=(gs,))
+        mech, v_ab, v_dc = build(theta)
         mech.iterate()
-        return np.asarray(vs[0].pos.thetas, dtype=np.float64), math.pi - np.asarray(vs[2].pos.thetas)
+        return np.asarray(v_ab.pos.thetas, dtype=np.float64), math.pi - np.asarray(v_dc.pos.thetas)
 
     return Solver(scalar, vector)
 

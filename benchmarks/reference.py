@@ -14,8 +14,8 @@ A, D', B by its angles instead: a different route to the same pose.)
 Every float input (lengths, theta) is taken as an exact binary number; results lie in (-pi, pi] and are handed
 to float code as double-double pairs (hi, lo) so that errors far below one ulp can be measured.
 The condition number and :func:`rates_mp` use the implicit-function derivatives of the same loop equations;
-:func:`rates_numeric_mp` differentiates the angles numerically instead (an independent check of both); so do
-:func:`second_derivatives_mp` and :func:`second_derivatives_numeric_mp` for the second derivatives.
+:func:`numeric_derivative_mp` differentiates the angles numerically instead (an independent check of both), for the
+first and the second derivatives (:func:`second_derivatives_mp`).
 """
 
 from __future__ import annotations
@@ -143,12 +143,8 @@ def reference_arrays(g: Geometry, theta: FloatArray, branch: int = 1) -> Referen
     for i, t in enumerate(theta.ravel().tolist()):
         try:
             gm, dm = rocker_angles_mp(g, t, branch)
-        except ReferenceUnreachableError:
-            status[i] = 1
-            out[:, i] = np.nan
-            continue
-        except ReferenceSingularError:
-            status[i] = 2
+        except (ReferenceUnreachableError, ReferenceSingularError) as exc:
+            status[i] = 1 if isinstance(exc, ReferenceUnreachableError) else 2
             out[:, i] = np.nan
             continue
         out[0, i], out[1, i] = to_double_double(gm)
@@ -204,51 +200,54 @@ def condition(g: Geometry, theta: float, branch: int = 1) -> tuple[float, float]
         return float(kg), float(kd)
 
 
+def _first_derivatives(g: Geometry, t: mpmath.mpf, gm: mpmath.mpf, dm: mpmath.mpf) -> tuple[mpmath.mpf, ...]:
+    """(d gamma/d theta, d delta/d theta, det) by the implicit-function theorem (at the ambient precision)."""
+    _, a, h, b = _mp_lengths(g)
+    det = a * b * mpmath.sin(gm + dm)
+    v1, v2 = -h * mpmath.sin(t), -h * mpmath.cos(t)  # minus dF/dt
+    return (b * (mpmath.cos(dm) * v1 - mpmath.sin(dm) * v2) / det,
+            a * (mpmath.cos(gm) * v1 + mpmath.sin(gm) * v2) / det, det)
+
+
 def rates_mp(g: Geometry, theta: float, branch: int = 1) -> tuple[float, float]:
     """(d gamma/d theta, d delta/d theta) from the same implicit-function formulas.
 
     For checks against test/data/turnantenna_reference.csv."""
     gm, dm = rocker_angles_mp(g, theta, branch)
     with mpmath.workdps(DPS):
-        _, a, h, b = _mp_lengths(g)
-        t = mpmath.mpf(theta)
-        det = a * b * mpmath.sin(gm + dm)
-        v1, v2 = -h * mpmath.sin(t), -h * mpmath.cos(t)
-        dg = b * (mpmath.cos(dm) * v1 - mpmath.sin(dm) * v2) / det
-        dd = a * (mpmath.cos(gm) * v1 + mpmath.sin(gm) * v2) / det
+        dg, dd, _ = _first_derivatives(g, mpmath.mpf(theta), gm, dm)
         return float(dg), float(dd)
 
 
-def rates_numeric_mp(g: Geometry, theta: float, branch: int = 1, limit_slack: float = 0.0,
-                     dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
-    """(d gamma/d theta, d delta/d theta) by numerical differentiation of the angles, to ``dps`` digits.
+def numeric_derivative_mp(g: Geometry, theta: float, order: int, branch: int = 1, limit_slack: float = 0.0,
+                          dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """The ``order``-th derivatives of (gamma, delta) in theta (rad/rad^order) by numerical differentiation of
+    the angles, to ``dps`` digits.
 
     mpmath.diff raises the working precision for its difference quotients, so the angles are computed at the
-    ambient precision (a fixed precision inside would cap the result at ~18 digits).
+    ambient precision (a fixed precision inside would cap the result at ~18 digits); its step shrinks with the
+    precision, so it stays inside the reach for a theta far closer to the limit than 1e-20 of it.
     """
     def part(i: int) -> Callable[[mpmath.mpf], mpmath.mpf]:
         return lambda t: _angles(g, t, branch, limit_slack)[i]
 
     with mpmath.workdps(dps + 20):
         x = mpmath.mpf(theta)
-        dg, dd = mpmath.diff(part(0), x), mpmath.diff(part(1), x)
+        dg, dd = mpmath.diff(part(0), x, order), mpmath.diff(part(1), x, order)
     with mpmath.workdps(dps):
         return +dg, +dd
 
 
+def rates_numeric_mp(g: Geometry, theta: float, branch: int = 1, limit_slack: float = 0.0,
+                     dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
+    """(d gamma/d theta, d delta/d theta) by :func:`numeric_derivative_mp`."""
+    return numeric_derivative_mp(g, theta, 1, branch, limit_slack, dps)
+
+
 def second_derivatives_numeric_mp(g: Geometry, theta: float, branch: int = 1, limit_slack: float = 0.0,
                                   dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
-    """(d2 gamma/d theta2, d2 delta/d theta2) in rad/rad^2 by numerical differentiation of the angles (as
-    :func:`rates_numeric_mp`); mpmath.diff's step shrinks with the precision, so it stays inside the reach for a
-    theta far closer to the limit than 1e-20 of it."""
-    def part(i: int) -> Callable[[mpmath.mpf], mpmath.mpf]:
-        return lambda t: _angles(g, t, branch, limit_slack)[i]
-
-    with mpmath.workdps(dps + 20):
-        x = mpmath.mpf(theta)
-        d2g, d2d = mpmath.diff(part(0), x, 2), mpmath.diff(part(1), x, 2)
-    with mpmath.workdps(dps):
-        return +d2g, +d2d
+    """(d2 gamma/d theta2, d2 delta/d theta2) by :func:`numeric_derivative_mp`."""
+    return numeric_derivative_mp(g, theta, 2, branch, limit_slack, dps)
 
 
 def second_derivatives_mp(g: Geometry, theta: float, branch: int = 1) -> tuple[mpmath.mpf, mpmath.mpf]:
@@ -259,10 +258,7 @@ def second_derivatives_mp(g: Geometry, theta: float, branch: int = 1) -> tuple[m
     with mpmath.workdps(DPS):
         _, a, h, b = _mp_lengths(g)
         t = mpmath.mpf(theta)
-        det = a * b * mpmath.sin(gm + dm)
-        v1, v2 = -h * mpmath.sin(t), -h * mpmath.cos(t)  # minus dF/dt
-        dg = b * (mpmath.cos(dm) * v1 - mpmath.sin(dm) * v2) / det
-        dd = a * (mpmath.cos(gm) * v1 + mpmath.sin(gm) * v2) / det
+        dg, dd, det = _first_derivatives(g, t, gm, dm)
         w1 = -(a * dg**2 * mpmath.cos(gm) + b * dd**2 * mpmath.cos(dm) + h * mpmath.cos(t))  # minus the right side
         w2 = -(a * dg**2 * mpmath.sin(gm) - b * dd**2 * mpmath.sin(dm) - h * mpmath.sin(t))
         d2g = b * (mpmath.cos(dm) * w1 - mpmath.sin(dm) * w2) / det
@@ -287,28 +283,28 @@ def reach_mp(g: Geometry, dps: int = DPS) -> tuple[mpmath.mpf, mpmath.mpf]:
     with mpmath.workdps(dps):
         H, a, h, b = _mp_lengths(g)
 
-        def angle_for(s2: mpmath.mpf) -> mpmath.mpf:
-            c = (H * H + h * h - s2) / (2 * H * h)
-            if c >= 1:
-                return mpmath.mpf(0)
-            if c <= -1:
-                return +mpmath.pi
-            return mpmath.acos(c)
-
         lo, hi = (a - b) ** 2, (a + b) ** 2
         if hi < (H - h) ** 2 or lo > (H + h) ** 2:
             raise ReferenceUnreachableError(f'{g.name} never assembles')
-        return angle_for(lo), angle_for(hi)
+        return (clamped_acos((H * H + h * h - lo) / (2 * H * h)), clamped_acos((H * H + h * h - hi) / (2 * H * h)))
+
+
+def clamped_acos(c: mpmath.mpf) -> mpmath.mpf:
+    """acos(c) with c clamped to [-1, 1]: the angle of a triangle side from the law of cosines, 0 or pi at the
+    ends (at the ambient precision)."""
+    return mpmath.mpf(0) if c >= 1 else +mpmath.pi if c <= -1 else mpmath.acos(c)
+
+
+def inward(x: mpmath.mpf, toward: float) -> float:
+    """float(x), moved one ulp toward ``toward`` if rounding crossed x (so a limit rounds to the reachable side)."""
+    with mpmath.workdps(DPS):
+        f = float(x)
+        if (toward < f and mpmath.mpf(f) > x) or (toward > f and mpmath.mpf(f) < x):
+            f = math.nextafter(f, toward)
+    return f
 
 
 def reach_float(g: Geometry) -> tuple[float, float]:
     """(theta_gap, theta_max) rounded inward: the floats nearest the limits that are still reachable."""
     gap, top = reach_mp(g)
-    with mpmath.workdps(DPS):
-        gap_f = float(gap)
-        if mpmath.mpf(gap_f) < gap:
-            gap_f = math.nextafter(gap_f, math.inf)
-        top_f = float(top)
-        if mpmath.mpf(top_f) > top:
-            top_f = math.nextafter(top_f, -math.inf)
-    return gap_f, top_f
+    return inward(gap, math.inf), inward(top, -math.inf)

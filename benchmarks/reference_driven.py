@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import mpmath
 
-from benchmarks.reference import DPS, Geometry, ReferenceUnreachableError, rocker_angles_mp
+from benchmarks.reference import DPS, Geometry, ReferenceUnreachableError, clamped_acos, inward, rocker_angles_mp
 
 
 @dataclass(frozen=True)
@@ -88,14 +88,10 @@ def driven_reach_mp(g: Geometry) -> tuple[mpmath.mpf, mpmath.mpf]:
     with mpmath.workdps(DPS):
         H, a, h, b = _lengths(g)
 
-        def angle_for(s2: mpmath.mpf) -> mpmath.mpf:  # the q where |B - D|^2 = s2
-            c = (a * a + H * H - s2) / (2 * a * H)
-            return mpmath.mpf(0) if c >= 1 else +mpmath.pi if c <= -1 else mpmath.acos(c)
-
-        lo, hi = (h - b) ** 2, (h + b) ** 2
+        lo, hi = (h - b) ** 2, (h + b) ** 2  # |B - D|^2 at the two ends
         if hi < (H - a) ** 2 or lo > (H + a) ** 2:
             raise ReferenceUnreachableError(f'{g.name}: the driven rocker reaches no angle')
-        return angle_for(lo), angle_for(hi)
+        return clamped_acos((a * a + H * H - lo) / (2 * a * H)), clamped_acos((a * a + H * H - hi) / (2 * a * H))
 
 
 @dataclass(frozen=True)
@@ -134,13 +130,8 @@ def working_range(g: Geometry) -> DrivenRange:
     branch = 1 if abs(driven_pose_mp(g, q0, 1).theta) < 1e-12 else -1
     gap_m, top_m = driven_reach_mp(g)
     with mpmath.workdps(DPS):
-        gap = float(gap_m)
-        if mpmath.mpf(gap) < gap_m:
-            gap = math.nextafter(gap, math.inf)
         full = top_m == mpmath.pi
-        top = float(2 * mpmath.pi - gap_m if full else top_m)
-        if mpmath.mpf(top) > (2 * mpmath.pi - gap_m if full else top_m):
-            top = math.nextafter(top, -math.inf)
+        gap, top = inward(gap_m, math.inf), inward(2 * mpmath.pi - gap_m if full else top_m, -math.inf)
     if full and gap == 0.0:
         lo, hi, limited = -math.pi, math.pi, False
     elif gap == 0.0:

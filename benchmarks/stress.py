@@ -23,7 +23,8 @@ import mpmath
 import numpy as np
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
-from benchmarks.methods import linkage
+from benchmarks.methods import NotApplicableError, Solver, annex_solver, linkage
+from benchmarks.peers import pylinkage_solver
 from benchmarks.reference import (
     DPS,
     UNIT_ROUNDOFF,
@@ -32,6 +33,7 @@ from benchmarks.reference import (
     ReferenceUnreachableError,
     angle_error,
     condition,
+    inward,
     reach_mp,
     rocker_angles_mp,
     to_double_double,
@@ -52,15 +54,6 @@ class StressCase:
 
 # ---------------------------------------------------------------------------------------------- generators
 
-def _inward(x: mpmath.mpf, toward: float) -> float:
-    """float(x), moved one ulp toward ``toward`` if rounding crossed x (so a limit rounds to the reachable side)."""
-    with mpmath.workdps(DPS):
-        f = float(x)
-        if (toward < f and mpmath.mpf(f) > x) or (toward > f and mpmath.mpf(f) < x):
-            f = math.nextafter(f, toward)
-    return f
-
-
 def _reach_cases(family: str, g: Geometry, distances: list[float]) -> list[StressCase]:
     gap, top = reach_mp(g)
     out = []
@@ -68,10 +61,10 @@ def _reach_cases(family: str, g: Geometry, distances: list[float]) -> list[Stres
         for r in distances:
             if top < mpmath.pi:
                 for sign in (1, -1):
-                    t = _inward(sign * top * (1 - mpmath.mpf(r)), 0.0)
+                    t = inward(sign * top * (1 - mpmath.mpf(r)), 0.0)
                     out.append(StressCase(family, g, t, f'{"+" if sign > 0 else "-"}theta_max (1 - {r:g})'))
             if gap > 0:
-                t = _inward(gap * (1 + mpmath.mpf(r)), math.inf)
+                t = inward(gap * (1 + mpmath.mpf(r)), math.inf)
                 out.append(StressCase(family, g, t, f'theta_gap (1 + {r:g})'))
     return out
 
@@ -215,48 +208,21 @@ def subnormal_cases(_quick: bool) -> list[StressCase]:
 Scalar = Callable[[float], tuple[float, float]]
 
 
-def _annex_scalar(g: Geometry) -> Scalar | None:
-    from benchmarks.methods import NotApplicableError, annex_solver
-
+def _solver(build: Callable[[Geometry, tuple[float, float]], Solver], g: Geometry) -> Solver | None:
+    """A benchmark method on a stress geometry; None where it does not apply."""
     try:
-        s = annex_solver(g, (0.0, 0.0)).scalar
-    except NotApplicableError:
-        return None
-    return s
-
-
-def _pylinkage_scalar(g: Geometry) -> Scalar | None:
-    from benchmarks.methods import NotApplicableError
-    from benchmarks.peers import pylinkage_solver
-
-    try:
-        return pylinkage_solver(g, (0.0, 0.0)).scalar
+        return build(g, (0.0, 0.0))
     except NotApplicableError:
         return None
 
 
-def _shipped_scalar(g: Geometry) -> Scalar | None:
+def _call(fn: Scalar, theta: float) -> tuple[float, float] | Exception:
+    """fn(theta) as two floats, or the exception it raised."""
     try:
-        return linkage(g).rocker_angles  # type: ignore[return-value]
-    except ValueError:
-        return None
-
-
-def _shipped_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    gam, dlt = linkage(g).rocker_angles(th, on_invalid='nan')
-    return np.asarray(gam), np.asarray(dlt)
-
-
-def _annex_vector(g: Geometry, th: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-    from benchmarks.methods import NotApplicableError, annex_solver
-
-    try:
-        v = annex_solver(g, (0.0, 0.0)).vector
-    except NotApplicableError:
-        return None
-    assert v is not None
-    gam, dlt = v(th)
-    return np.asarray(gam), np.asarray(dlt)
+        gamma, delta = fn(theta)
+        return float(gamma), float(delta)
+    except (ValueError, ArithmeticError) as exc:
+        return exc
 
 
 @dataclass
@@ -292,8 +258,12 @@ def evaluate(cases: list[StressCase]) -> tuple[dict[str, dict[str, Tally]], list
     for (family, g), group in groups.items():
         fam = tallies.setdefault(family, {})
         th = np.array([c.theta for c in group])
-        vec_out = {'shipped-vector': _shipped_vector(g, th), 'annex-vector': _annex_vector(g, th)}
-        scalars = {'shipped': _shipped_scalar(g), 'annex': _annex_scalar(g), 'pylinkage': _pylinkage_scalar(g)}
+        link, annex, pylinkage = linkage(g), _solver(annex_solver, g), _solver(pylinkage_solver, g)
+        scalars: dict[str, Scalar | None] = {
+            'shipped': link.rocker_angles,  # type: ignore[dict-item]
+            'annex': annex and annex.scalar, 'pylinkage': pylinkage and pylinkage.scalar}
+        vec_out = {'shipped-vector': link.rocker_angles(th, on_invalid='nan'),
+                   'annex-vector': annex.vector(th) if annex and annex.vector else None}
         for i, c in enumerate(group):
             try:
                 gm, dm = rocker_angles_mp(g, c.theta)
@@ -303,15 +273,7 @@ def evaluate(cases: list[StressCase]) -> tuple[dict[str, dict[str, Tally]], list
             g_hi, g_lo = to_double_double(gm)
             d_hi, d_lo = to_double_double(dm)
             kg, kd = condition(g, c.theta)
-            outputs: dict[str, tuple[float, float] | Exception | None] = {}
-            for name, fn in scalars.items():
-                if fn is None:
-                    outputs[name] = None
-                    continue
-                try:
-                    outputs[name] = tuple(float(v) for v in fn(c.theta))  # type: ignore[assignment]
-                except (ValueError, ArithmeticError) as exc:
-                    outputs[name] = exc
+            outputs = {name: None if fn is None else _call(fn, c.theta) for name, fn in scalars.items()}
             for name, arrs in vec_out.items():
                 outputs[name] = None if arrs is None else (float(arrs[0][i]), float(arrs[1][i]))
             for name, out in outputs.items():
@@ -361,12 +323,9 @@ def _defect(c: StressCase, method: str, what: str, got: str, g_ref: float, d_ref
 def _singular_row(c: StressCase, scalars: dict[str, Scalar | None]) -> dict[str, object]:
     row: dict[str, object] = {'geometry': c.geometry.name, 'theta': c.theta}
     for name, fn in scalars.items():
-        if fn is None:
-            continue
-        try:
-            row[name] = [float(v) for v in fn(c.theta)]
-        except (ValueError, ArithmeticError) as exc:
-            row[name] = f'{type(exc).__name__}: {exc}'
+        if fn is not None:
+            out = _call(fn, c.theta)
+            row[name] = f'{type(out).__name__}: {out}' if isinstance(out, Exception) else list(out)
     return row
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import numpy.typing as npt
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
-from benchmarks.methods import Method, NotApplicableError, Solver, linkage
+from benchmarks.methods import Method, NotApplicableError, Solver, linkage, stable_constants
 from benchmarks.reference import Geometry, ReferenceArrays, angle_error, reference_arrays
 from benchmarks.timing import Case, interleaved, pilot, scalar_loop
 
@@ -30,9 +30,9 @@ class MethodResult:
     family: str
     dtype: str
     description: str
-    max_error_scalar: float | None = None
-    max_error_vector: float | None = None
-    per_geometry: dict[str, float | None] = field(default_factory=dict)
+    max_error_scalar_path: float | None = None
+    max_error_vector_path: float | None = None
+    max_error_per_geometry: dict[str, float | None] = field(default_factory=dict)
     nan_count: int = 0
     exception_count: int = 0
     not_applicable: list[str] = field(default_factory=list)
@@ -48,7 +48,7 @@ class MethodResult:
     @property
     def max_error(self) -> float | None:
         """Worst of the two paths (None if the method produced nothing)."""
-        vals = [v for v in (self.max_error_scalar, self.max_error_vector) if v is not None]
+        vals = [v for v in (self.max_error_scalar_path, self.max_error_vector_path) if v is not None]
         return max(vals) if vals else None
 
 
@@ -94,7 +94,7 @@ def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], 
                 solver = m.build(g, sweep_interval(g))
             except NotApplicableError as exc:
                 r.not_applicable.append(f'{g.name}: {exc}')
-                r.per_geometry[g.name] = None
+                r.max_error_per_geometry[g.name] = None
                 continue
             errs = []
             if solver.scalar is not None:
@@ -113,9 +113,9 @@ def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], 
                 r.nan_count += nans
                 worst_v.append(e)
                 errs.append(e)
-            r.per_geometry[g.name] = max(errs) if errs else None
-        r.max_error_scalar = max(worst_s) if worst_s else None
-        r.max_error_vector = max(worst_v) if worst_v else None
+            r.max_error_per_geometry[g.name] = max(errs) if errs else None
+        r.max_error_scalar_path = max(worst_s) if worst_s else None
+        r.max_error_vector_path = max(worst_v) if worst_v else None
         results.append(r)
     info = {
         'geometries': [
@@ -129,20 +129,18 @@ def accuracy(methods: list[Method], n_angles: int) -> tuple[list[MethodResult], 
 
 
 def floor_inputs(g: Geometry, theta: FloatArray) -> tuple[FloatArray, ...]:
-    """The arrays the stable form feeds to its unavoidable ufuncs, computed here once, outside any timing.
+    """The arrays the stable form feeds to its unavoidable ufuncs, from the core's constants, outside any timing.
 
     half = theta/2; prod = far * near (the factored Heron product, >= 0 inside the reach); (y, x) of the
     diagonal's direction phi; (root, x) of the triangle's angle alpha. Equal rockers: alpha serves both rockers.
     """
-    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
+    k = stable_constants(g)
     half = 0.5 * theta
     s, c = np.sin(half), np.cos(half)
-    w = 4.0 * ch * s * s
-    prod = np.maximum(((a + b) ** 2 - (1.0 - ch) ** 2) - w, 0.0) * np.maximum(((1.0 - ch) ** 2 - (a - b) ** 2) + w,
-                                                                               0.0)
-    y_phi, x_phi = 2.0 * ch * s * c, (1.0 - ch) + 2.0 * ch * s * s
-    x_alpha = (1.0 - ch) ** 2 + w + (a - b) * (a + b)
-    return half, prod, y_phi, x_phi, np.sqrt(prod), x_alpha
+    w = k.four_l1_l2 * s * s
+    prod = np.maximum(k.far - w, 0.0) * np.maximum(k.near + w, 0.0)
+    y_phi, x_phi = k.two_l2 * s * c, k.diff + k.two_l2 * s * s
+    return half, prod, y_phi, x_phi, np.sqrt(prod), k.cos_p + w
 
 
 def floor_ufuncs(inputs: tuple[FloatArray, ...]) -> object:
@@ -162,14 +160,8 @@ def stable_plain_scalar(g: Geometry) -> Callable[[float], tuple[float, float]]:
     No validation, no clamping, no NamedTuple: a lower bound for any scalar path that evaluates the stable form
     in CPython (sin, cos, sqrt and two or three atan2 of the half-angle diagonal and the factored Heron root).
     """
-    ch, a, b = g.coupler / g.frame, g.rocker_ab / g.frame, g.rocker_cd / g.frame
-    diff = 1.0 - ch
-    two_l2 = 2.0 * ch
-    far0 = (a + b - diff) * (a + b + diff)
-    near0 = (diff - (a - b)) * (diff + (a - b))
-    cos_p = diff * diff + (a - b) * (a + b)
-    cos_q = diff * diff - (a - b) * (a + b)
-    equal = a == b
+    k = stable_constants(g)
+    diff, two_l2, far0, near0, cos_p, cos_q, equal = k.diff, k.two_l2, k.far, k.near, k.cos_p, k.cos_q, k.equal_links
     sin, cos, sqrt, atan2 = math.sin, math.cos, math.sqrt, math.atan2
 
     def solve(theta: float) -> tuple[float, float]:
@@ -229,47 +221,35 @@ def timings(methods: list[Method], results: list[MethodResult], n_scalar: int, n
             by_name[m.name].n_vector = arr.size
     s_times = interleaved(scalar_cases, repeats)
     v_times = interleaved(vector_cases, repeats)
-    for name, (cpu, wall) in s_times.items():
-        if name in by_name:
-            by_name[name].seconds_per_solve_scalar = cpu
-            by_name[name].wall_seconds_per_solve_scalar = wall
-    for name, (cpu, wall) in v_times.items():
-        if name in by_name:
-            by_name[name].seconds_per_solve_vector = cpu
-            by_name[name].wall_seconds_per_solve_vector = wall
-    return {'floor': v_times['floor'][0], 'python_call': s_times['python_call'][0],
-            'stable_plain': s_times['stable_plain'][0], 'stable_plain_wall': s_times['stable_plain'][1],
-            'array_path_one': s_times['array_path_one'][0], 'array_path_one_wall': s_times['array_path_one'][1],
-            'floor_wall': v_times['floor'][1], 'python_call_wall': s_times['python_call'][1]}
+    for path, times in (('scalar', s_times), ('vector', v_times)):
+        for name, (cpu, wall) in times.items():
+            if name in by_name:
+                setattr(by_name[name], f'seconds_per_solve_{path}', cpu)
+                setattr(by_name[name], f'wall_seconds_per_solve_{path}', wall)
+    measured = {'floor_per_element': v_times['floor'], 'python_call_per_call': s_times['python_call'],
+                'stable_plain_scalar_per_call': s_times['stable_plain'],
+                'array_path_one_angle_per_call': s_times['array_path_one']}
+    return {**{k: cpu for k, (cpu, _) in measured.items()}, **{f'{k}_wall': wall for k, (_, wall) in measured.items()}}
+
+
+def dominates(a: tuple[float, float], b: tuple[float, float]) -> bool:
+    """(time, error) a is no slower and no less accurate than b, and strictly better in one of the two."""
+    return a[0] <= b[0] and a[1] <= b[1] and a != b
 
 
 def pareto_front(points: Sequence[tuple[str, float | None, float | None]]) -> set[str]:
-    """Names of the non-dominated (time, error) points; points with a None or non-finite value are excluded.
-
-    A point is dominated if another is no slower and no less accurate, and strictly better in one of the two.
-    """
-    valid = [(n, t, e) for n, t, e in points if t is not None and e is not None and math.isfinite(t)
-             and math.isfinite(e)]
-    front = set()
-    for n, t, e in valid:
-        dominated = any((t2 <= t and e2 <= e) and (t2 < t or e2 < e) for n2, t2, e2 in valid if n2 != n)
-        if not dominated:
-            front.add(n)
-    return front
+    """Names of the non-dominated (time, error) points; points with a None or non-finite value are excluded."""
+    valid = {n: (t, e) for n, t, e in points if t is not None and e is not None and math.isfinite(t)
+             and math.isfinite(e)}
+    return {n for n, p in valid.items() if not any(dominates(q, p) for m, q in valid.items() if m != n)}
 
 
 def dominators(results: list[MethodResult], name: str, vector: bool = True) -> list[str]:
     """Methods that dominate ``name`` (used to explain a shipped method off the front)."""
-    by = {r.name: r for r in results}
-    me = by[name]
-    t0 = me.seconds_per_solve_vector if vector else me.seconds_per_solve_scalar
-    e0 = me.max_error
-    out = []
-    for r in results:
+    def point(r: MethodResult) -> tuple[float, float] | None:
         t = r.seconds_per_solve_vector if vector else r.seconds_per_solve_scalar
-        e = r.max_error
-        if r.name == name or t is None or e is None or t0 is None or e0 is None:
-            continue
-        if t <= t0 and e <= e0 and (t < t0 or e < e0):
-            out.append(f'{r.name} ({t:.3g} s, {e:.3g} rad)')
-    return out
+        return None if t is None or r.max_error is None else (t, r.max_error)
+
+    me = point(next(r for r in results if r.name == name))
+    return [f'{r.name} ({p[0]:.3g} s, {p[1]:.3g} rad)' for r in results
+            if r.name != name and me is not None and (p := point(r)) is not None and dominates(p, me)]

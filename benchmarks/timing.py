@@ -2,8 +2,7 @@
 
 Each repeat round times every case once, in the same order, so a burst of load from another process hits all cases
 of that round alike; the reported figure is the median over rounds of the process's CPU time (wall time beside
-it). Sizes are adapted per case from a pilot call so that slow peers do not take minutes (the size used is
-reported with the figure).
+it). Also the CPU time of another process (from /proc) and the machine the figures were measured on.
 """
 
 from __future__ import annotations
@@ -70,15 +69,35 @@ def scalar_loop(fn: Callable[[float], object], thetas: list[float]) -> Callable[
     return run
 
 
+def percentile(values: list[float], q: float) -> float:
+    """The value at quantile q (0..1) of ``values``, nearest rank."""
+    ordered = sorted(values)
+    return ordered[min(len(ordered) - 1, round(q * (len(ordered) - 1)))]
+
+
+def round_trips_us(seconds: list[float]) -> dict[str, float]:
+    """Median and p99 of round trips given in seconds, in microseconds."""
+    return {'median_us': 1e6 * statistics.median(seconds), 'p99_us': 1e6 * percentile(seconds, 0.99)}
+
+
+def cpu_seconds(pid: int, thread: int | str | None = None) -> float | None:
+    """User + system CPU seconds so far of process ``pid`` (all its threads), or of one of its threads; None
+    without /proc or once it ended."""
+    path = f'/proc/{pid}/stat' if thread is None else f'/proc/{pid}/task/{thread}/stat'
+    try:
+        with open(path, encoding='ascii', errors='replace') as f:
+            fields = f.read().rsplit(')', 1)[1].split()
+    except OSError:
+        return None
+    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
+
+
 def machine_info() -> dict[str, object]:
     """What the figures were measured on: the interpreter, numpy, CPU, load, and BLAS-related variables."""
     cpu = platform.processor() or platform.machine()
     try:
         with open('/proc/cpuinfo', encoding='utf-8') as fh:
-            for line in fh:
-                if line.startswith('model name'):
-                    cpu = line.split(':', 1)[1].strip()
-                    break
+            cpu = next((line.split(':', 1)[1].strip() for line in fh if line.startswith('model name')), cpu)
     except OSError:
         pass
     return {
@@ -86,7 +105,7 @@ def machine_info() -> dict[str, object]:
         'numpy': np.__version__,
         'cpu': cpu,
         'cores': os.cpu_count(),
-        'load_average_1min': os.getloadavg()[0] if hasattr(os, 'getloadavg') else None,
+        'load_average_1min': os.getloadavg()[0],
         'env': {k: os.environ.get(k) for k in ('OPENBLAS_CORETYPE', 'OPENBLAS_L2_SIZE', 'OMP_NUM_THREADS')},
         'note': 'shared machine (2 cores, other work running); figures are medians of interleaved repeats '
                 'and only ratios measured in the same run are meaningful',

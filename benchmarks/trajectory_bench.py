@@ -1,29 +1,23 @@
-"""Trajectory conversion and replanning cost: ``python -m benchmarks.trajectory_bench [--quick]``.
+"""Trajectory conversion and replanning cost: ``python -m benchmarks.trajectory_bench [--quick]`` (JSON).
 
-Figures (printed as JSON; ``run(quick)`` returns them for benchmarks/run.py), CPU-time medians of interleaved rounds
-(benchmarks/timing.py), so machine load hits every case of a round alike:
-- conversion: ``to_driven`` on a 10,000-point antenna trajectory with positions, velocities and accelerations
-  (positions, velocities, accelerations and efforts out) on Turnantenna's default configuration, against the numpy
-  floor of the transcendental calls it needs, each once on the 10,000 values it is applied to: the position solve's
-  sin and cos of theta/2, one sqrt and two atan2 (``benchmarks.sweep.floor_ufuncs``), then sin(gamma + delta),
-  sin(delta - theta), sin(gamma + theta) (both rates, which the second derivative needs) and cos(gamma + delta),
-  cos(delta - theta) (the driven rocker's second derivative). Target: ratio <= 2.
-- replanning: one ``plan_motion`` call from a mid-motion state (ruckig), median per call in microseconds, beside a
-  sampled trajectory (``trajectory_points`` at 0.05 s) of the same plan; compare with the node's per-command
-  callback (benchmarks/node_bench.py, ~150 us).
-No figure here is asserted by any test.
+- conversion: ``to_driven`` on a 10,000-point antenna trajectory (positions, velocities, accelerations in; efforts
+  too out) against the numpy floor of the transcendental calls it needs, each once on the same 10,000 values: the
+  position solve's (``benchmarks.sweep.floor_ufuncs``), then sin(gamma + delta), sin(delta - theta),
+  sin(gamma + theta), cos(gamma + delta), cos(delta - theta) (the rates and second derivatives). CPU-time medians of
+  interleaved rounds. Target: ratio <= 2.
+- replanning: one ``plan_motion`` call (ruckig) from a mid-motion state, median microseconds, beside sampling that
+  plan every 0.05 s; compare with the node's per-command callback (``benchmarks.node_bench``, ~150 us).
 """
 
 from __future__ import annotations
 
-import argparse
-import json
 import statistics
 import time
 from typing import Any
 
 import numpy as np
 
+from benchmarks import options, print_json
 from benchmarks.cases import TURNANTENNA
 from benchmarks.sweep import floor_inputs, floor_ufuncs
 from benchmarks.timing import Case, interleaved
@@ -83,13 +77,5 @@ def run(quick: bool) -> dict[str, Any]:
     return {'conversion': conversion(7 if quick else 21), 'replanning': replanning(200 if quick else 2000)}
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0] if __doc__ else None)
-    parser.add_argument('--quick', action='store_true', help='fewer rounds')
-    args = parser.parse_args(argv)
-    print(json.dumps(run(args.quick), indent=2))
-    return 0
-
-
 if __name__ == '__main__':
-    raise SystemExit(main())
+    raise SystemExit(print_json(run(options(None, __doc__).quick)))

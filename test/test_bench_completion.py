@@ -15,6 +15,7 @@ from benchmarks import completion_peers as cp
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA
 from benchmarks.reference import Geometry, ReferenceUnreachableError, rates_mp, rocker_angles_mp
 from benchmarks.reference_driven import driven_pose_mp, working_range
+from benchmarks.report import completion_markdown
 
 
 def wrapped(x: mpmath.mpf) -> float:
@@ -82,9 +83,9 @@ def test_cost_and_report_render_on_a_tiny_run() -> None:
                                           'effort_n_m': cp.EFFORT, 'approach_messages': cp.APPROACH},
             'tolerance_rad': cp.TOLERANCE, 'fit_points': cp.FIT_POINTS, 'publishes': cp.PUBLISHES,
             'geometries': {TURNANTENNA.name: cp.geometry_errors(TURNANTENNA, max_mid=4)}, 'cost': cost}
-    text = cp.markdown(data)
+    text = completion_markdown(data)
     assert '| exact | positions, rates, load torque | mid-range |' in text
     assert '| cubic | positions only | 1e-12 rad from the limit |' in text
     assert 'publish positions only' in text
-    assert cp.markdown(None).startswith('Not measured')
-    assert 'boom' in cp.markdown({'error': 'boom'})
+    assert completion_markdown(None).startswith('Not measured')
+    assert 'boom' in completion_markdown({'error': 'boom'})

@@ -141,8 +141,8 @@ def test_pareto_front_and_dominators() -> None:
     pts = [('a', 1.0, 1e-3), ('b', 2.0, 1e-6), ('c', 3.0, 1e-6), ('d', 0.5, None), ('e', 2.0, 1e-9),
            ('f', 1.0, float('inf'))]
     assert pareto_front(pts) == {'a', 'e'}
-    results = [MethodResult('x', 'f', 'float64', '', max_error_vector=1e-6, seconds_per_solve_vector=2.0),
-               MethodResult('y', 'f', 'float64', '', max_error_vector=1e-9, seconds_per_solve_vector=1.0)]
+    results = [MethodResult('x', 'f', 'float64', '', max_error_vector_path=1e-6, seconds_per_solve_vector=2.0),
+               MethodResult('y', 'f', 'float64', '', max_error_vector_path=1e-9, seconds_per_solve_vector=1.0)]
     assert dominators(results, 'x')[0].startswith('y')
     assert dominators(results, 'y') == []
 
