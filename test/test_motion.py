@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
@@ -129,6 +129,9 @@ ROUNDING = 1e-15
        cycles=st.floats(0.1, 2.0), tol_exp=st.floats(-7.0, -3.0), delta=st.booleans())
 def test_refined_trajectories_stay_within_the_tolerance(kind: int, n: int, duration: float, cycles: float,
                                                          tol_exp: float, delta: bool) -> None:
+    # At least 4 points per cycle: sparser, the request's own interpolation overshoots the sine's 5% margin to
+    # [theta_min, theta_max], and refine rightly refuses it (tested below).
+    assume(n - 1 >= 4 * cycles)
     cfg = config_from_values({'trajectory_tolerance': 10.0 ** tol_exp, 'driven_rocker': 'delta' if delta else
                               'gamma', 'max_trajectory_points': 100000})
     d = to_driven(cfg, sine(cfg, n, duration, kind, cycles))
@@ -138,6 +141,15 @@ def test_refined_trajectories_stay_within_the_tolerance(kind: int, n: int, durat
     assert r.inserted == len(r.trajectory) - n
     # The request is unchanged: the original points are still there and the inserted ones lie on its path.
     assert np.isin(d.times, r.trajectory.times).all()
+
+
+def test_a_request_whose_own_path_leaves_the_range_is_refused() -> None:
+    # Two points at mid-range, two cycles of the sine apart, with the sine's velocities: the request's cubic
+    # between them swings beyond the tilt range although both points lie within it.
+    a = sine(CFG, 2, 1.0, kind=3, cycles=2.0)
+    with pytest.raises(UnreachableError, match=r'^the requested path leaves \[theta_min, theta_max\] = .* between '
+                       r'points 0 and 1 \(t = 0.0 .. 1.0 s\)$'):
+        refine(CFG, to_driven(CFG, a))
 
 
 def test_unrefined_trajectories_do_exceed_the_tolerance() -> None:
