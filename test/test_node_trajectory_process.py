@@ -113,6 +113,9 @@ class Rig:
             raise
         for r in recorders:
             r.close()
+        # Unmatched before the next run counts its own recorder's matches.
+        wait_for(lambda: self.antenna.get_subscription_count() == 1
+                 and self.node.actuation._trajectory_pub.get_subscription_count() == 0, what='the recorder gone')
         delta = ActuationCounters(**{k: v - before[k] for k, v in counters.as_dict().items()
                                      if not k.startswith('trajectories_rejected_')})
         delta.rejected = {p: counters.rejected[p] - before[f'trajectories_rejected_{p.value}']
