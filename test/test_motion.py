@@ -15,6 +15,7 @@ from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.motion.errors import LimitError, TrajectoryError
 from fourbar_ros.motion.limits import JointLimits, enforce_limits, point_magnitudes, worst_violation
 from fourbar_ros.motion.planner import (
+    END_SPAN,
     PLAN_SHRINK,
     JointMotionState,
     driven_angles,
@@ -281,37 +282,61 @@ def test_planner_bad_input() -> None:
         trajectory_points(CFG, LIMITS, plan, 0.0)
 
 
-def _replan_starts() -> list[tuple[JointMotionState, float]]:
-    """(start state, the running plan's target theta rad) along running plans: a dense grid, the phase boundaries
-    (and a few ns either side), the phase at maximum acceleration, and the end at rest."""
+def _replan_starts(grid: int, randoms: int) -> list[tuple[JointMotionState, float]]:
+    """(start state, the running plan's target theta rad) along running plans: ``grid`` evenly spaced, the phase
+    boundaries (a few ns either side, and 0.05 to 0.6 ms before: the replan's first phase is then shorter than
+    ``min_segment`` or a point spacing), the phase at maximum acceleration and the end at rest; then ``randoms``
+    states of seeded random plans between random angles at random times."""
     starts = []
     for q0, target in ((Q_MIN, CFG.theta_max), (Q_MAX, 0.0)):
         plan = plan_to_angle(CFG, LIMITS, JointMotionState(q0), target)
         switches = plan.switch_times()
-        times = np.concatenate([np.linspace(0.0, plan.duration, 301), switches, switches - 3e-9, switches + 3e-9,
-                                np.linspace(switches[0], switches[1], 23), [plan.duration]])
+        before = (switches[:, None] - 1e-3 * np.array([0.05, 0.15, 0.25, 0.35, 0.45, 0.6])[None, :]).ravel()
+        times = np.concatenate([np.linspace(0.0, plan.duration, grid), switches, switches - 3e-9, switches + 3e-9,
+                                before, np.linspace(switches[0], switches[1], 23), [plan.duration]])
         starts += [(plan.state_at(float(t)), target) for t in times]
+    rng = np.random.default_rng(7)
+    for theta0, target, share in zip(rng.uniform(CFG.theta_min, CFG.theta_max, randoms),
+                                     rng.uniform(CFG.theta_min, CFG.theta_max, randoms), rng.uniform(size=randoms),
+                                     strict=True):
+        plan = plan_to_angle(CFG, LIMITS, JointMotionState(float(driven_angles(CFG, np.array([theta0]))[0])), target)
+        starts.append((plan.state_at(share * plan.duration), float(target)))
     return starts
 
 
 @needs_ruckig
-def test_a_replan_from_any_state_of_a_running_plan_is_never_refused_for_its_limits() -> None:
-    # A jerk-limited plan starts at the state it is given and stays within the limits: its points (on the phase
-    # boundaries, so each segment lies on one cubic piece of the profile) must be too, wherever the replan starts:
-    # mid-phase, a few ns from a phase boundary, at maximum acceleration, at rest on the target itself.
-    starts = _replan_starts()
+@pytest.mark.parametrize(('rate', 'grid', 'randoms', 'targets'), [
+    (100.0, 301, 100, (CFG.theta_min, -0.05, 0.0, 0.03, CFG.theta_max)),
+    (1000.0, 11, 60, (CFG.theta_min, CFG.theta_max)),  # 10 times the points per plan: fewer plans
+], ids=['100Hz', '1kHz'])
+def test_a_replan_from_any_state_of_a_running_plan_is_never_refused_for_its_limits(
+        rate: float, grid: int, randoms: int, targets: tuple[float, ...]) -> None:
+    # A jerk-limited plan starts at the state it is given and stays within the limits: its points must be too,
+    # wherever the replan starts: mid-phase, a few ns or a fraction of a ms before a phase boundary (a first phase
+    # shorter than min_segment, whose boundary is not a point), at maximum acceleration, at rest on the target itself,
+    # at the default control rate and at 1 kHz (segments of about 1 ms, as short as a left-out phase is long).
+    starts = _replan_starts(grid, randoms)
     assert max(abs(s.acceleration) for s, _ in starts) >= PLAN_SHRINK * LIMITS.at_rocker(2) * (1 - 1e-9)
     refused = []
     for start, running_target in starts:
-        for theta in (CFG.theta_min, -0.05, 0.0, 0.03, CFG.theta_max, running_target):
+        for theta in (*targets, running_target):
             try:
                 plan = plan_to_angle(CFG, LIMITS, start, theta)
             except UnreachableError:
                 continue  # cannot stop within the range: refused before any point, rightly
             try:
-                points = trajectory_points(CFG, LIMITS, plan, 1.0 / CFG.control_rate)
+                points = trajectory_points(CFG, LIMITS, plan, 1.0 / rate)
             except LimitError as exc:
                 refused.append(f'{start} -> {theta!r}: {exc}')
                 continue
             assert points.positions[0] == start.position
+            # The phase boundaries inside a segment (not a point, 1 ns: the times on the wire) lie all in its first or
+            # all in its last END_SPAN, where they cannot move the quintic's jerk at its ends beyond the profile's.
+            t, sw = points.times, plan.switch_times()
+            i = np.searchsorted(t, sw)
+            off = np.minimum(np.abs(t[np.minimum(i, t.size - 1)] - sw), np.abs(t[i - 1] - sw)) > 1e-9
+            for k in np.unique(i[off]):
+                inside, h = sw[off & (i == k)], t[k] - t[k - 1]
+                assert (inside.max() - t[k - 1] <= END_SPAN * h + 1e-9
+                        or t[k] - inside.min() <= END_SPAN * h + 1e-9), (start, theta, inside, t[k - 1], t[k])
     assert not refused, f'{len(refused)} refused, e.g. {refused[:3]}'

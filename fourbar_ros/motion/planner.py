@@ -29,8 +29,8 @@ from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, o
 #: themselves; the motion is 1e-4 slower than time-optimal.
 PLAN_SHRINK = 1.0 - 1e-4
 
-__all__ = ['PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles', 'min_segment', 'plan_motion',
-           'plan_to_angle', 'setpoints', 'trajectory_points']
+__all__ = ['END_SPAN', 'PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles', 'min_segment',
+           'plan_motion', 'plan_to_angle', 'setpoints', 'trajectory_points']
 
 
 @dataclass(frozen=True)
@@ -150,25 +150,53 @@ def min_segment(limits: JointLimits, q_scale: float) -> float:
     half an ulp of the plan (ruckig's evaluation adds about as much), and the controller's quintic takes its jerk
     from them as 60 dp / h^3 (``splines.hermite_coefficients``): over 4 ulps of the largest |position| q_scale
     (rad), h^3 >= 240 ulp(q_scale) / (margin J) keeps that rounding within a quarter of the margin 1 - PLAN_SHRINK
-    left under the rocker's jerk limit J (about 0.6 ms with the defaults)."""
+    left under the rocker's jerk limit J (0.5 to 0.65 ms with the defaults)."""
     margin = (1.0 - PLAN_SHRINK) * limits.at_rocker(3)
     return float(np.cbrt(240.0 * math.ulp(q_scale) / margin))
 
 
-def _merged(grid: FloatArray, switches: FloatArray, gap: float, shortest: float) -> FloatArray:
-    """The grid (s, from 0 to the end) with the switch times added: a grid time within gap of a switch time gives
-    way to it, and no two times are within ``shortest`` (s, <= gap): a switch time that close to 0, to the end or
-    to the previous switch kept is left out (0 and the end stay). Each segment then lies on one cubic piece of the
-    profile unless a phase is shorter than ``shortest``; the limit check judges such a segment like any other."""
-    end = grid[-1]
-    kept: list[float] = []
-    for t in np.unique(switches):
-        if shortest < t < end - shortest and (not kept or t - kept[-1] > shortest):
-            kept.append(float(t))
-    sw = np.array(kept)
-    near = np.abs(grid[:, None] - sw[None, :]).min(axis=1, initial=np.inf) <= gap
+#: A segment may hold jerk changes (phase boundaries that are not points) when they all lie in its first or all in
+#: its last END_SPAN of its length: the quintic's jerk at each end is then an average, with weights >= 0 summing to 1,
+#: of the profile's jerk over the segment (the weights at s = 0 are 30 s^2 - 36 s + 9 per unit of s, those at s = 1 the
+#: same in 1 - s; both are >= 0 on [0, END_SPAN] and [1 - END_SPAN, 1]), so it stays within the limit the profile
+#: keeps. A segment with changes further inside can overshoot the jerk at its ends by up to 1.375 times the step.
+END_SPAN = (4.0 - math.sqrt(6.0)) / 10.0
+
+
+def _point_times(grid: FloatArray, switches: FloatArray, gap: float, shortest: float) -> FloatArray:
+    """The grid (s, from 0 to the end) with the switch times added, no two points within ``shortest`` (s, <= gap).
+
+    A switch time within ``shortest`` of the previous point kept (0 or a switch) is left out: that point then leads a
+    cluster, and the next point follows at least the cluster's extent / END_SPAN after it (grid times before are left
+    out, and a switch time there joins the cluster). The switch times within ``shortest`` of the end form the end's
+    cluster the same way, backwards; a cluster that would overlap it joins it. So every jerk change that is not a
+    point lies in the first or the last END_SPAN of its segment (only a plan that is one cluster from 0 to the end
+    cannot be cut so). Grid times within ``gap`` of a point that is not on the grid give way to it."""
+    end = float(grid[-1])
+    leads: list[list[float]] = [[0.0, 0.0]]  # [time of a point, extent of the cluster it leads] (s)
+    back = 0.0  # extent of the end's cluster (s)
+    for t in np.unique(switches).tolist():
+        if t >= end - shortest:
+            back = max(back, end - t)
+        elif t - leads[-1][0] <= max(shortest, leads[-1][1] / END_SPAN):
+            leads[-1][1] = t - leads[-1][0]
+        else:
+            leads.append([t, 0.0])
+    while len(leads) > 1 and leads[-1][0] + leads[-1][1] / END_SPAN > end - back / END_SPAN:
+        back = end - leads.pop()[0]
+    points = [t for t, _ in leads] + [end]
+    for bound in sorted([t + extent / END_SPAN for t, extent in leads if extent > 0.0]
+                        + ([end - back / END_SPAN] if back > 0.0 else [])):
+        if 0.0 < bound < end and min(abs(bound - p) for p in points) >= shortest:
+            points.append(bound)
+    zones = [(t, t + extent / END_SPAN) for t, extent in leads] + [(end - back / END_SPAN, end)]
+    inside = np.zeros(grid.size, dtype=bool)
+    for lo, hi in zones:
+        inside |= (grid > lo) & (grid < hi)
+    fixed = np.array(points)
+    near = np.abs(grid[:, None] - fixed[None, :]).min(axis=1) <= gap
     near[0] = near[-1] = False
-    return np.unique(np.concatenate([grid[~near], sw]))
+    return np.unique(np.concatenate([grid[~(near | inside)], fixed]))
 
 
 def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spacing: float) -> DrivenTrajectory:
@@ -177,13 +205,12 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     static effort at each pose; the antenna path beside them.
 
     Every point is checked against the limits (``worst_violation``): LimitError names the worst one, e.g. a pose
-    needing more torque than the motor or the reducer gives, or a start state already over a limit. Every phase
-    boundary at least ``min_segment`` (or spacing / 2, if less) from the others is a point: a segment across a
-    left-out boundary would not lie on one cubic piece, and the quintic through its ends overshoots the jerk there
-    by up to 1.375 times the jerk step (a phase of length x h at the start of a segment of length h moves the jerk
-    at its start by (10 x^3 - 18 x^2 + 9 x) times the step). A plan shorter than that (the drive already within
-    rounding of the target) becomes one segment of that length from the start state to the target at rest.
-    Raises TrajectoryError for a spacing that is not positive or that gives more than max_trajectory_points.
+    needing more torque than the motor or the reducer gives, or a start state already over a limit. No two points are
+    within ``min_segment`` (or spacing / 2, if less) of each other; a phase shorter than that leaves a boundary out,
+    and the segment holding it is made long enough that it lies in the segment's first or last END_SPAN
+    (``_point_times``), so the quintic's jerk at the points stays within the profile's. A plan shorter than that (the
+    drive already within rounding of the target) becomes one segment of that length from the start state to the target
+    at rest. Raises TrajectoryError for a spacing that is not positive or that gives more than max_trajectory_points.
     """
     if not (math.isfinite(spacing) and spacing > 0.0):
         raise TrajectoryError(f'point spacing {spacing!r} s must be finite and positive')
@@ -195,7 +222,7 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     if plan.duration < shortest:
         times = on_wire(np.array([0.0, shortest]))
     else:
-        times = on_wire(_merged(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing, shortest))
+        times = on_wire(_point_times(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing, shortest))
     q, q_dot, q_ddot = plan.sample(np.minimum(times, plan.duration))
     theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)
