@@ -21,6 +21,7 @@ import signal
 import subprocess
 import sys
 import textwrap
+import weakref
 from pathlib import Path
 from typing import Any
 
@@ -113,6 +114,30 @@ def test_a_noting_stop_only_sets_the_flag_and_wakes(sig: int) -> None:
         signal.raise_signal(sig)
         assert executor.finished and stop.requested and woken == [True, True]
     assert not stop.requested  # the next user starts afresh
+
+
+class _Dropped:
+    """An object whose weakref callback sends ``sig``: Python swallows the KeyboardInterrupt the handler raises
+    there (it only prints "Exception ignored in ..."), as it does in importlib's module-lock cleanup."""
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+@pytest.mark.parametrize('inner', [KeyboardInterrupt, None], ids=['raising', 'noting'])
+def test_a_stop_whose_interrupt_python_swallowed_is_kept_by_the_next_stop(
+        sig: int, inner: type[KeyboardInterrupt] | None) -> None:
+    with stop_on_signals() as outer:  # what commands.main holds around every command
+        dropped = _Dropped()
+        ref = weakref.ref(dropped, lambda _: signal.raise_signal(sig))
+        del dropped  # the callback runs here; its KeyboardInterrupt goes no further
+        assert ref() is None and outer.requested
+        if inner is None:
+            with stop_on_signals(raises=None) as stop:  # a command's own loop: sees the stop at once
+                assert stop.requested
+        else:
+            with pytest.raises(KeyboardInterrupt), stop_on_signals():  # raised on entry, not lost
+                pytest.fail('the block ran although a stop had come')
+        with pytest.raises(KeyboardInterrupt):  # the outer stop raises again after the inner one
+            signal.raise_signal(sig)
 
 
 SPINNER_SCRIPT = textwrap.dedent('''

@@ -13,6 +13,7 @@ arrives; the node's periodic republishing of the last pose also ends the echo.
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 import time
@@ -25,7 +26,7 @@ if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 pytest.importorskip('pytest_codeblocks', reason='the quick start is read from Markdown with pytest-codeblocks')
 from pytest_codeblocks import extract_from_file
-from ros_cli_support import TIMEOUT, Background, run  # psutil: with ros2cli
+from ros_cli_support import TIMEOUT, Background, run, wait_node  # psutil: with ros2cli
 from ros_support import DomainLease
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -101,6 +102,10 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
             if lines[-1].startswith('ros2 run '):
                 node = proc
                 proc.wait_output(lambda text: 'callbacks run on the' in text, 'the node to start')
+                # A reader types terminal 3 seconds later; `ros2 param set` finds the node through the ros2
+                # daemon's graph, which learns of it by discovery some time after it starts ("Node not found").
+                ns = re.search(r'__ns:=(\S+)', lines[-1])
+                wait_node(env, f'{ns.group(1) if ns else ""}/fourbar_node')
             else:
                 echo = proc
         assert node is not None and echo is not None, terminals

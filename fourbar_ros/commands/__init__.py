@@ -11,11 +11,13 @@ is not an error (check's failed limit, compare's difference) is a returned 1.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
 import pkgutil
 import re
 import sys
+import threading
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
@@ -74,11 +76,22 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _stop_held() -> contextlib.AbstractContextManager[object]:
+    """SIGINT and SIGTERM noted and raised as KeyboardInterrupt (status 130) from the command's start, before it
+    imports rclpy (``node.run.stop_on_signals``; in the main thread only, where Python runs signal handlers)."""
+    if threading.current_thread() is not threading.main_thread():
+        return contextlib.nullcontext()
+    from fourbar_ros.node.run import stop_on_signals
+
+    return stop_on_signals()
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `fourbar` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
     try:
-        return int(args._run(args))
+        with _stop_held():
+            return int(args._run(args))
     except FourBarError as exc:  # the one place an error becomes a message and a status
         print(f'{args._prog}: error: {exc}', file=sys.stderr)
         return exc.status if isinstance(exc, CommandError) else 2

@@ -109,15 +109,29 @@ STOP = Stop()
 @contextlib.contextmanager
 def stop_on_signals(raises: Callable[[], BaseException] | None = KeyboardInterrupt) -> Iterator[Stop]:
     """``STOP`` handles SIGINT and SIGTERM inside the block (raising ``raises()``, see the module docstring);
-    the previous handlers come back after it. For the ``fourbar`` commands, which may run in-process."""
+    the previous handlers come back after it. For the ``fourbar`` commands, which may run in-process.
+
+    Nested inside another (``commands.main`` holds one around every command), a stop that already came is kept:
+    it is raised at once (or, with ``raises=None``, seen by ``STOP.requested``). A KeyboardInterrupt raised from
+    the handler can be lost (Python only prints it when it lands in a weakref callback or ``__del__``, e.g.
+    importlib's module-lock cleanup while rclpy imports), so what the signal asked is not lost with it."""
     previous = {signum: signal.getsignal(signum) for signum in STOP_SIGNALS}
+    nested = previous[signal.SIGINT] is STOP
+    outer_raises, earlier = (STOP.raises, STOP.signal) if nested else (None, None)
     STOP.install(raises)
     try:
+        if earlier is not None:
+            STOP.signal = earlier
+            if raises is not None:
+                raise raises()
         yield STOP
     finally:
         for signum, handler in previous.items():
             signal.signal(signum, handler)
-        STOP.reset()
+        if nested:
+            STOP.raises = outer_raises
+        else:
+            STOP.reset()
 
 
 def spin_once(executor: Executor, timeout_sec: float) -> None:
