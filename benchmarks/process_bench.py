@@ -42,7 +42,7 @@ def make_bag(path: Path, n: int, storage: str, bad_every: int = 1000) -> Path:
     a NaN (the policy path too; 0: none)."""
     import numpy as np
 
-    from fourbar_ros.bags.joint_state_cdr import encode_float64s
+    from fourbar_ros.config.cdr import encode_float64s
     from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, recorded_qos
     from fourbar_ros.config.antenna_config import load_config
 

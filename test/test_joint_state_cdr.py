@@ -1,4 +1,4 @@
-"""Block CDR encoding (fourbar_ros.bags.joint_state_cdr) is byte for byte what rosbags' serializer writes."""
+"""Block CDR encoding (fourbar_ros.config.cdr) is byte for byte what rosbags' serializer writes."""
 
 from __future__ import annotations
 
@@ -11,14 +11,14 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fourbar_ros.bags.joint_state_cdr import (
+from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, jazzy_typestore
+from fourbar_ros.config.cdr import (
     decode_float64s,
     decode_joint_states,
     encode_float64s,
     encode_joint_states,
     joint_state_layout,
 )
-from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, jazzy_typestore
 
 STORE = jazzy_typestore()
 

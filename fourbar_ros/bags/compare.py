@@ -31,7 +31,7 @@ efforts with scale |value| (chain-rule products and the static torque, relative 
 points).
 
 Values equal as floats (same NaN or inf included) always match. Each topic is read ``BLOCK`` messages at a time
-from both bags at once (the fixed JointState layouts decoded on arrays, see joint_state_cdr), so memory does not
+from both bags at once (the fixed JointState layouts decoded on arrays, see config.cdr), so memory does not
 grow with the bags; a longer topic's extra messages are counted, not compared. The default of 16 ulps allows a 1-2 ulp
 difference in each of the up to four transcendental results (sin, cos, two atan2) that feed a value, with the
 factor <= 2 by which atan2 and the torque's sine ratio can pass a relative error on within the tilt range.
@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.bags.joint_state_cdr import decode_float64s, decode_joint_states
+from fourbar_ros.config.cdr import decode_float64s, decode_joint_states
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.interface import (
@@ -107,7 +107,7 @@ def topic_types_of(path: str | os.PathLike[str]) -> dict[str, str]:
 
 
 def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[bytes], start: int) -> TopicData:
-    """One block of messages as arrays: the block decoders of joint_state_cdr, else rosbags message by message."""
+    """One block of messages as arrays: the block decoders of config.cdr, else rosbags message by message."""
     store = jazzy_typestore()
 
     def full(j: int, raw: bytes) -> Any:

@@ -8,7 +8,7 @@ and writes ``joint_states`` (sensor_msgs/JointState: name = the joint names, pos
 velocity, effort with the torque at the driven rocker and 0.0 at the other, empty frame_id as the node
 sends) and ``input_torque`` (std_msgs/Float64, N m) next to the command topic (``/antenna_angle_cmd`` ->
 ``/joint_states``, ``/input_torque``), both at the command's log time, joint_states first.
-Blocks of ``BLOCK`` commands are read, solved, serialized (joint_state_cdr) and written at a time, so
+Blocks of ``BLOCK`` commands are read, solved, serialized (config.cdr) and written at a time, so
 memory does not grow with the bag; the output appears atomically (bags.storage.AtomicBagWriter).
 """
 
@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.bags.joint_state_cdr import decode_float64s, encode_float64s, encode_joint_states
+from fourbar_ros.config.cdr import decode_float64s, encode_float64s, encode_joint_states
 from fourbar_ros.bags.storage import (
     FLOAT64,
     JOINT_STATE,

@@ -1,6 +1,8 @@
-"""CDR bytes of many ``sensor_msgs/msg/JointState`` and ``std_msgs/msg/Float64`` messages at once (numpy, no ROS).
+"""CDR bytes of the interface's messages (numpy and stdlib, no ROS): one ``sensor_msgs/msg/JointState`` read
+field by field (``read_joint_state_head`` and ``read_joint_state_arrays``, the node's measured joint_states), and
+many JointStates and ``std_msgs/msg/Float64`` at once (``encode_joint_states`` and the block decoders, the bags).
 
-The node publishes JointStates whose frame_id and joint names never change between messages and whose
+For blocks: the node publishes JointStates whose frame_id and joint names never change between messages and whose
 position and effort always hold one value per joint; only the stamp, the floats and whether the velocity
 is present (``len(names)`` values or none) vary. So each message is one of two fixed byte layouts, and a
 block of messages is a numpy structured array over a repeated template: no per-message serializer.
@@ -15,6 +17,7 @@ bytes and the NUL.
 from __future__ import annotations
 
 import itertools
+import struct
 from collections.abc import Sequence
 from dataclasses import dataclass
 from functools import lru_cache
@@ -25,6 +28,83 @@ import numpy.typing as npt
 ENCAPSULATION = b'\x00\x01\x00\x00'  #: CDR, little endian, no options
 FloatArray = npt.NDArray[np.float64]
 _INT32_MAX = 2**31 - 1
+
+
+class MalformedCdr(ValueError):
+    """A payload that is not a little-endian CDR message of the expected type (truncated, inconsistent, big-endian)."""
+
+
+_UINT32 = struct.Struct('<I')
+_STAMP = struct.Struct('<iI')
+_HEAD_LEN = len(ENCAPSULATION)
+
+
+def _string(raw: bytes, at: int) -> tuple[str, int]:
+    """The CDR string at ``at`` (its uint32 length aligned to 4) and the offset after it."""
+    at += -(at - _HEAD_LEN) % 4
+    end = at + 4
+    if end > len(raw):
+        raise MalformedCdr(f'payload of {len(raw)} bytes ends inside a string length at byte {at}')
+    size = _UINT32.unpack_from(raw, at)[0]
+    stop = end + size
+    if size == 0 or stop > len(raw) or raw[stop - 1] != 0:
+        raise MalformedCdr(f'string of {size} bytes at byte {at} is not NUL-terminated within the payload')
+    try:
+        return raw[end:stop - 1].decode('utf-8'), stop
+    except UnicodeDecodeError as exc:
+        raise MalformedCdr(f'string at byte {at} is not UTF-8') from exc
+
+
+def _float64s(raw: bytes, at: int) -> tuple[tuple[float, ...], int]:
+    """The CDR float64 sequence at ``at`` (length aligned to 4, elements to 8 when any) and the offset after it."""
+    at += -(at - _HEAD_LEN) % 4
+    if at + 4 > len(raw):
+        raise MalformedCdr(f'payload of {len(raw)} bytes ends inside a sequence length at byte {at}')
+    count = _UINT32.unpack_from(raw, at)[0]
+    at += 4
+    if count == 0:
+        return (), at
+    at += -(at - _HEAD_LEN) % 8
+    end = at + 8 * count
+    if end > len(raw):
+        raise MalformedCdr(f'{count} float64 at byte {at} run past the payload of {len(raw)} bytes')
+    return struct.unpack_from(f'<{count}d', raw, at), end
+
+
+def read_joint_state_head(raw: bytes) -> tuple[int, int, str, list[str], int]:
+    """(stamp sec, stamp nanosec, frame_id, names, offset of the arrays) of a CDR ``sensor_msgs/msg/JointState``.
+
+    Raises MalformedCdr for anything but little-endian plain CDR with room for these fields; reads nothing past
+    the payload. ``read_joint_state_arrays(raw, offset)`` then reads the floats.
+    """
+    if len(raw) < _HEAD_LEN + 8 or raw[0] != 0 or raw[1] != 1:
+        raise MalformedCdr(f'not a little-endian CDR message (encapsulation {bytes(raw[:2]).hex()}, '
+                           f'{len(raw)} bytes)')
+    sec, nanosec = _STAMP.unpack_from(raw, _HEAD_LEN)
+    frame_id, at = _string(raw, _HEAD_LEN + 8)
+    at += -(at - _HEAD_LEN) % 4
+    if at + 4 > len(raw):
+        raise MalformedCdr(f'payload of {len(raw)} bytes ends inside the name count at byte {at}')
+    count = _UINT32.unpack_from(raw, at)[0]
+    at += 4
+    if 5 * count > len(raw) - at:  # each name takes at least its length and its NUL
+        raise MalformedCdr(f'{count} names at byte {at} cannot fit the payload of {len(raw)} bytes')
+    names = []
+    for _ in range(count):
+        name, at = _string(raw, at)
+        names.append(name)
+    return sec, nanosec, frame_id, names, at
+
+
+def read_joint_state_arrays(raw: bytes, at: int) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
+    """(position, velocity, effort) of a CDR JointState whose arrays start at ``at`` (``read_joint_state_head``).
+
+    Values bit for bit as sent. Raises MalformedCdr when they do not fit the payload.
+    """
+    position, at = _float64s(raw, at)
+    velocity, at = _float64s(raw, at)
+    effort, _ = _float64s(raw, at)
+    return position, velocity, effort
 
 
 class _Buf:
