@@ -42,9 +42,9 @@ def make_bag(path: Path, n: int, storage: str, bad_every: int = 1000) -> Path:
     a NaN (the policy path too; 0: none)."""
     import numpy as np
 
-    from fourbar_ros.config.cdr import encode_float64s
     from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, recorded_qos
     from fourbar_ros.config.antenna_config import load_config
+    from fourbar_ros.config.cdr import encode_float64s
 
     cfg = load_config(CONFIG)
     k = np.arange(n)

@@ -181,6 +181,20 @@ def test_bad_measurements_are_counted_and_publish_nothing(rig: Any) -> None:
     assert not [m for m in r.angle.messages if not math.isfinite(m.data)]
 
 
+def test_a_malformed_payload_is_counted_and_the_next_measurement_completed(rig: Any) -> None:
+    from rclpy.serialization import serialize_message
+    r = rig()
+    c = r.completion.counters
+    good = serialize_message(JointState(name=[DRIVEN], position=[0.3]))
+    r.measured.publish(good[:20])  # truncated before the name count
+    r.measured.publish(good[:1] + b'\x00' + good[2:])  # big-endian encapsulation
+    r.measure([DRIVEN], [0.3], sec=11)
+    wait_for(lambda: c.measurements_completed == 1 and len(r.completed()) == 1, what=f'the good one completed ({c})')
+    assert c.measurements_ignored_malformed == 2
+    assert r.completed()[0].header.stamp.sec == 11
+    assert r.status()[2]['measurements_ignored_malformed'] == '2'
+
+
 def test_a_nan_velocity_or_effort_is_not_measured(rig: Any) -> None:
     # joint_state_broadcaster's NaN for a state interface the joint lacks: positions and angle, no rate or no load.
     r = rig(mode='trajectory')

@@ -49,9 +49,9 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.config.cdr import decode_float64s, decode_joint_states
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.cdr import decode_float64s, decode_joint_states
 from fourbar_ros.config.interface import (
     ANTENNA_ANGLE,
     COMPARED_FIELDS,

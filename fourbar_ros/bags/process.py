@@ -25,7 +25,6 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from fourbar_ros.config.cdr import decode_float64s, encode_float64s, encode_joint_states
 from fourbar_ros.bags.storage import (
     FLOAT64,
     JOINT_STATE,
@@ -39,6 +38,7 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.cdr import decode_float64s, encode_float64s, encode_joint_states
 from fourbar_ros.config.interface import PER_COMMAND_OUTPUTS, sibling_topic
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.rules.outputs import outputs_block

@@ -30,7 +30,7 @@ FloatArray = npt.NDArray[np.float64]
 _INT32_MAX = 2**31 - 1
 
 
-class MalformedCdr(ValueError):
+class MalformedCdrError(ValueError):
     """A payload that is not a little-endian CDR message of the expected type (truncated, inconsistent, big-endian)."""
 
 
@@ -44,22 +44,22 @@ def _string(raw: bytes, at: int) -> tuple[str, int]:
     at += -(at - _HEAD_LEN) % 4
     end = at + 4
     if end > len(raw):
-        raise MalformedCdr(f'payload of {len(raw)} bytes ends inside a string length at byte {at}')
+        raise MalformedCdrError(f'payload of {len(raw)} bytes ends inside a string length at byte {at}')
     size = _UINT32.unpack_from(raw, at)[0]
     stop = end + size
     if size == 0 or stop > len(raw) or raw[stop - 1] != 0:
-        raise MalformedCdr(f'string of {size} bytes at byte {at} is not NUL-terminated within the payload')
+        raise MalformedCdrError(f'string of {size} bytes at byte {at} is not NUL-terminated within the payload')
     try:
         return raw[end:stop - 1].decode('utf-8'), stop
     except UnicodeDecodeError as exc:
-        raise MalformedCdr(f'string at byte {at} is not UTF-8') from exc
+        raise MalformedCdrError(f'string at byte {at} is not UTF-8') from exc
 
 
 def _float64s(raw: bytes, at: int) -> tuple[tuple[float, ...], int]:
     """The CDR float64 sequence at ``at`` (length aligned to 4, elements to 8 when any) and the offset after it."""
     at += -(at - _HEAD_LEN) % 4
     if at + 4 > len(raw):
-        raise MalformedCdr(f'payload of {len(raw)} bytes ends inside a sequence length at byte {at}')
+        raise MalformedCdrError(f'payload of {len(raw)} bytes ends inside a sequence length at byte {at}')
     count = _UINT32.unpack_from(raw, at)[0]
     at += 4
     if count == 0:
@@ -67,28 +67,28 @@ def _float64s(raw: bytes, at: int) -> tuple[tuple[float, ...], int]:
     at += -(at - _HEAD_LEN) % 8
     end = at + 8 * count
     if end > len(raw):
-        raise MalformedCdr(f'{count} float64 at byte {at} run past the payload of {len(raw)} bytes')
+        raise MalformedCdrError(f'{count} float64 at byte {at} run past the payload of {len(raw)} bytes')
     return struct.unpack_from(f'<{count}d', raw, at), end
 
 
 def read_joint_state_head(raw: bytes) -> tuple[int, int, str, list[str], int]:
     """(stamp sec, stamp nanosec, frame_id, names, offset of the arrays) of a CDR ``sensor_msgs/msg/JointState``.
 
-    Raises MalformedCdr for anything but little-endian plain CDR with room for these fields; reads nothing past
+    Raises MalformedCdrError for anything but little-endian plain CDR with room for these fields; reads nothing past
     the payload. ``read_joint_state_arrays(raw, offset)`` then reads the floats.
     """
     if len(raw) < _HEAD_LEN + 8 or raw[0] != 0 or raw[1] != 1:
-        raise MalformedCdr(f'not a little-endian CDR message (encapsulation {bytes(raw[:2]).hex()}, '
+        raise MalformedCdrError(f'not a little-endian CDR message (encapsulation {bytes(raw[:2]).hex()}, '
                            f'{len(raw)} bytes)')
     sec, nanosec = _STAMP.unpack_from(raw, _HEAD_LEN)
     frame_id, at = _string(raw, _HEAD_LEN + 8)
     at += -(at - _HEAD_LEN) % 4
     if at + 4 > len(raw):
-        raise MalformedCdr(f'payload of {len(raw)} bytes ends inside the name count at byte {at}')
+        raise MalformedCdrError(f'payload of {len(raw)} bytes ends inside the name count at byte {at}')
     count = _UINT32.unpack_from(raw, at)[0]
     at += 4
     if 5 * count > len(raw) - at:  # each name takes at least its length and its NUL
-        raise MalformedCdr(f'{count} names at byte {at} cannot fit the payload of {len(raw)} bytes')
+        raise MalformedCdrError(f'{count} names at byte {at} cannot fit the payload of {len(raw)} bytes')
     names = []
     for _ in range(count):
         name, at = _string(raw, at)
@@ -99,7 +99,7 @@ def read_joint_state_head(raw: bytes) -> tuple[int, int, str, list[str], int]:
 def read_joint_state_arrays(raw: bytes, at: int) -> tuple[tuple[float, ...], tuple[float, ...], tuple[float, ...]]:
     """(position, velocity, effort) of a CDR JointState whose arrays start at ``at`` (``read_joint_state_head``).
 
-    Values bit for bit as sent. Raises MalformedCdr when they do not fit the payload.
+    Values bit for bit as sent. Raises MalformedCdrError when they do not fit the payload.
     """
     position, at = _float64s(raw, at)
     velocity, at = _float64s(raw, at)

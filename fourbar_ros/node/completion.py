@@ -12,9 +12,12 @@ Interface (relative names; only in the modes ``trajectory`` and ``forward``):
 Each output is computed and published only while it has a subscriber (the node's own joint_states subscription is
 not counted). What is published: ``fourbar_ros.rules.completion``.
 
-No echo: the node's completed JointState has no driven joint, so it is skipped at the first check (counted as
-``measurements_own_skipped`` when its names are the completed ones). rclpy 7.1.6's message info carries no
-publisher gid to compare, so the names are the guard.
+Read raw: the subscription takes the CDR bytes and ``fourbar_ros.config.cdr`` reads the stamp and names first, the
+float arrays only for a measurement (no Python message is built per received message). A payload that is not a
+little-endian CDR JointState is counted (``measurements_ignored_malformed``) and logged in one throttled line.
+No echo: the node's completed JointState has no driven joint, so it is skipped at the first check, before its arrays
+are read (counted as ``measurements_own_skipped`` when its names are the completed ones). rclpy 7.1.6's message
+info carries no publisher gid to compare, so the names are the guard.
 A NaN velocity or effort is not measured (joint_state_broadcaster's NaN for a missing state interface): no rates,
 or no load torque, for that message. Bad measurements publish nothing, are counted and logged in one throttled
 line: a position NaN or inf, an infinite velocity or effort (refused), no driven
@@ -38,6 +41,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
 from fourbar_ros.config.interface import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.node.diagnostic_values import Level
@@ -54,6 +58,7 @@ class MeasurementCounters:
     measurements_refused_not_finite: int = 0
     measurements_ignored_no_driven_joint: int = 0
     measurements_ignored_mismatched_lengths: int = 0
+    measurements_ignored_malformed: int = 0  # payloads that are not a little-endian CDR JointState
     measurements_out_of_range: int = 0
     measurements_not_completed: int = 0  # the core could not complete it (a change point)
     measurements_own_skipped: int = 0  # completed JointStates (the node's own) on the same topic
@@ -79,7 +84,7 @@ class MeasuredCompletion:
         self._rate_pub = node.create_publisher(Float64, ANTENNA_RATE.name, qos(ANTENNA_RATE))
         self._load_pub = node.create_publisher(Float64, LOAD_TORQUE.name, qos(LOAD_TORQUE))
         self._sub = node.create_subscription(JointState, MEASURED_JOINT_STATES.name, self.on_measurement,
-                                             qos(MEASURED_JOINT_STATES))
+                                             qos(MEASURED_JOINT_STATES), raw=True)
         self._own = 1 if self._sub.topic_name == joint_pub.topic_name else 0  # our own subscription matches it
         self._driven, self._names = self.rule.driven_joint, self.rule.names
         self._msg = JointState()
@@ -96,21 +101,27 @@ class MeasuredCompletion:
         """The commanded antenna angle (rad), for the tracking error."""
         self._commanded = theta
 
-    def on_measurement(self, msg: JointState) -> None:
-        """Complete one measured JointState and publish what has a subscriber."""
-        names = msg.name
+    def on_measurement(self, raw: bytes) -> None:
+        """Complete one measured JointState (its CDR bytes) and publish what has a subscriber."""
         counters = self.counters
         try:
-            i = names.index(self._driven)
-        except ValueError:
-            if names == self._names:
-                counters.measurements_own_skipped += 1
-            else:
-                counters.measurements_ignored_no_driven_joint += 1
-                self._warn(f'joint_states without {self._driven} (names {names}): ignored',
-                           throttle_duration_sec=WARN_THROTTLE_S)
+            sec, nanosec, _, names, at = read_joint_state_head(raw)
+            try:
+                i = names.index(self._driven)
+            except ValueError:
+                if names == self._names:
+                    counters.measurements_own_skipped += 1
+                else:
+                    counters.measurements_ignored_no_driven_joint += 1
+                    self._warn(f'joint_states without {self._driven} (names {names}): ignored',
+                               throttle_duration_sec=WARN_THROTTLE_S)
+                return
+            position, velocity, effort = read_joint_state_arrays(raw, at)
+        except MalformedCdrError as exc:
+            counters.measurements_ignored_malformed += 1
+            self._warn(f'joint_states payload of {len(raw)} bytes is not a JointState ({exc}): ignored',
+                       throttle_duration_sec=WARN_THROTTLE_S)
             return
-        position, velocity, effort = msg.position, msg.velocity, msg.effort
         n = len(names)
         if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
             counters.measurements_ignored_mismatched_lengths += 1
@@ -118,11 +129,11 @@ class MeasuredCompletion:
                        f'{len(effort)} efforts: ignored', throttle_duration_sec=WARN_THROTTLE_S)
             return
         self._last_time = now = time.monotonic()
-        raw = (position[i], velocity[i] if velocity else None, effort[i] if effort else None)
-        values = measured(*raw)
+        given = (position[i], velocity[i] if velocity else None, effort[i] if effort else None)
+        values = measured(*given)
         if values is None:
             counters.measurements_refused_not_finite += 1
-            self._warn(f'measured {self._driven}: position {raw[0]!r}, velocity {raw[1]!r}, effort {raw[2]!r}: '
+            self._warn(f'measured {self._driven}: position {given[0]!r}, velocity {given[1]!r}, effort {given[2]!r}: '
                        'refused (a position not finite, or an infinite velocity or effort)',
                        throttle_duration_sec=WARN_THROTTLE_S)
             return
@@ -148,7 +159,8 @@ class MeasuredCompletion:
         self._range_error = None
         if joints:
             out = self._msg
-            out.header.stamp = msg.header.stamp
+            stamp = out.header.stamp
+            stamp.sec, stamp.nanosec = sec, nanosec
             out.position = done.positions
             out.velocity = done.velocities
             self._joint_pub.publish(out)
