@@ -186,11 +186,17 @@ class Target:
 class MeasuredTarget(Target):
     """A completion under test: the driven joint's JointState (position, velocity, effort, as
     joint_state_broadcaster publishes it) to ``<ns>/joint_states``, counting the replies without the driven joint
-    (the completed ones; the client's own measurement comes back too)."""
+    (the completed ones). The client's own measurement comes back too where the replies share its topic (the
+    node); for a relay replying elsewhere the client also listens to that topic, so the client takes and skips
+    the same messages for both and its own work weighs on neither side alone."""
 
     def __init__(self, client: Any, ns: str, driven: str, reply: str) -> None:
+        from sensor_msgs.msg import JointState
+
         self.driven = [driven]
         super().__init__(client, ns, reply)
+        if reply != 'joint_states':
+            self.echo = client.create_subscription(JointState, f'{ns}/joint_states', self.on_reply, DEPTH)
 
     def publisher(self, client: Any, ns: str) -> Any:
         from sensor_msgs.msg import JointState
