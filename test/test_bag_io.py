@@ -5,12 +5,14 @@ from __future__ import annotations
 
 import itertools
 import math
+import os
 import shutil
 import sqlite3
 import struct
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
 
 import pytest
 import yaml
@@ -402,6 +404,25 @@ def test_atomic_writer_leaves_nothing_on_ctrl_c(tmp_path: Path, storage: str) ->
         assert _listing(tmp_path) != []  # being written, under a hidden name
         assert not out.exists()
         raise KeyboardInterrupt
+    assert _listing(tmp_path) == []
+
+
+@pytest.mark.parametrize('call', ['mkdir', 'rename'])
+def test_atomic_writer_leaves_nothing_on_ctrl_c_just_after(call: str, tmp_path: Path,
+                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """A stop raised the moment the hidden directory exists (where a signal sent on seeing it lands), or the moment
+    the finished bag is renamed into place: nothing is left, as for a stop anywhere else."""
+    real = getattr(os, call)
+
+    def call_then_interrupt(*args: Any, **kw: Any) -> None:
+        real(*args, **kw)
+        raise KeyboardInterrupt
+
+    writer = AtomicBagWriter(tmp_path / 'out', 'mcap')
+    monkeypatch.setattr(os, call, call_then_interrupt)
+    with pytest.raises(KeyboardInterrupt), writer:
+        pass
+    monkeypatch.undo()
     assert _listing(tmp_path) == []
 
 

@@ -9,6 +9,7 @@ was on disk (waited for with a deadline, one flush interval after it was publish
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import sqlite3
@@ -106,6 +107,37 @@ def test_reindex_rebuilds_a_bag_directory_in_place(storage: str, tmp_path: Path)
     assert result.path == moved and result.messages == 40 and result.removed is None
     assert [m.data for _, m in read_messages(moved)['/antenna_angle_cmd']] == [i * 0.001 for i in range(40)]
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(['moved', work.name])  # nothing else left
+
+
+@pytest.mark.parametrize('renames_before_the_stop', [1, 2])
+def test_reindex_in_place_stopped_between_renames_leaves_one_bag(renames_before_the_stop: int, tmp_path: Path,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """A Ctrl-C right after the old bag is moved aside (1) or the new one moved in (2): one bag at the path, the old
+    one or the rebuilt one, and nothing of the rebuild beside it."""
+    out = tmp_path / 'rec'
+    _killed_writer(out, 'mcap', 40, 3)
+    [work] = partial_dirs(out)
+    moved = tmp_path / 'moved'
+    (work / 'rec').rename(moved)
+    before = sorted(p.name for p in moved.iterdir())
+    real_rename, calls = os.rename, []
+
+    def rename_then_interrupt(src: str | os.PathLike[str], dst: str | os.PathLike[str]) -> None:
+        real_rename(src, dst)
+        if moved in (Path(src), Path(dst)):  # the swap's renames, not the build's own
+            calls.append(dst)
+            if len(calls) == renames_before_the_stop:
+                raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, 'rename', rename_then_interrupt)
+    with pytest.raises(KeyboardInterrupt):
+        reindex(moved)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(['moved', work.name])
+    if renames_before_the_stop == 1:
+        assert sorted(p.name for p in moved.iterdir()) == before  # the old bag, as it was
+    else:
+        assert [m.data for _, m in read_messages(moved)['/antenna_angle_cmd']] == [i * 0.001 for i in range(40)]
 
 
 def test_reindex_errors_are_one_line_and_change_nothing(tmp_path: Path) -> None:

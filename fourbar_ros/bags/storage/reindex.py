@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 import os
+import secrets
 import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -137,17 +137,31 @@ def reindex(path: str | os.PathLike[str]) -> ReindexResult:
             _copy(file, storage, bag, result)
             if not result.counts:
                 raise BagError(f'{file}: no complete topic to recover ({result.dropped or "empty"})')
-    except BagError:
+        if in_place:
+            _replace_dir(target, build)
+    except BaseException as exc:
+        if in_place:  # a build complete just before the stop landed is not left beside the bag
+            shutil.rmtree(build, ignore_errors=True)
+        if isinstance(exc, Exception) and not isinstance(exc, BagError):
+            raise BagError(f'{file}: cannot recover ({one_line(exc)})') from exc
         raise
-    except Exception as exc:
-        raise BagError(f'{file}: cannot recover ({one_line(exc)})') from exc
-    if in_place:
-        old = Path(tempfile.mkdtemp(prefix=f'.{target.name}.', suffix='.original', dir=target.parent))
-        os.rename(target, old / target.name)
-        os.rename(build, target)
-        fsync_path(target.parent)
-        shutil.rmtree(old, ignore_errors=True)
-    elif work is not None:
+    if work is not None and not in_place:
         shutil.rmtree(work, ignore_errors=True)
         result.removed = work
     return result
+
+
+def _replace_dir(target: Path, new: Path) -> None:
+    """Put the directory ``new`` at ``target``'s place. Stopped half-way (a signal between the two renames), the
+    state on disk decides: ``target`` is put back as it was, or the swap is finished."""
+    old = target.parent / f'.{target.name}.{secrets.token_hex(8)}.original'
+    try:
+        os.rename(target, old)
+        os.rename(new, target)
+    except BaseException:
+        if not target.exists() and old.exists():
+            os.rename(old, target)
+        shutil.rmtree(old, ignore_errors=True)
+        raise
+    fsync_path(target.parent)
+    shutil.rmtree(old, ignore_errors=True)

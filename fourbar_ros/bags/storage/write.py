@@ -12,8 +12,8 @@ from __future__ import annotations
 import contextlib
 import itertools
 import os
+import secrets
 import shutil
-import tempfile
 from collections.abc import Sequence
 from pathlib import Path
 from types import TracebackType
@@ -85,20 +85,29 @@ class AtomicBagWriter:
             self.abort()
 
     def open(self) -> None:
-        """Create the temporary bag directory and open the storage."""
+        """Create the temporary bag directory and open the storage; on any exception, nothing is left."""
         try:
-            tmp = Path(tempfile.mkdtemp(prefix=f'.{self.path.name}.', suffix='.partial',
-                                        dir=self.path.parent))
-        except OSError as exc:
-            raise BagError(f'{self.path}: cannot write here ({one_line(exc)})') from exc
-        self._tmpdir = tmp
-        try:
+            tmp = self._make_work_dir()
             self._writer = Writer(tmp / self.path.name, version=METADATA_VERSION,
                                   storage_plugin=self.adapter.plugin)
             self._writer.open()
         except BaseException:
             self.abort()
             raise
+
+    def _make_work_dir(self) -> Path:
+        # The name is noted before the directory is made, so a stop landing right after mkdir (as a signal sent
+        # the moment the directory appears does) still finds it to remove; tempfile.mkdtemp names it only after.
+        while True:
+            tmp = self._tmpdir = self.path.parent / f'.{self.path.name}.{secrets.token_hex(8)}.partial'
+            try:
+                tmp.mkdir(mode=0o700)
+                return tmp
+            except FileExistsError:  # another's directory of that random name: not ours to remove; draw again
+                self._tmpdir = None
+            except OSError as exc:
+                self._tmpdir = None
+                raise BagError(f'{self.path}: cannot write here ({one_line(exc)})') from exc
 
     @property
     def work_dir(self) -> Path | None:
@@ -149,10 +158,10 @@ class AtomicBagWriter:
         """Close the storage, write metadata.yaml, fsync and rename the bag into place."""
         writer, tmp = self.writer, self._tmpdir
         assert tmp is not None
+        built = tmp / self.path.name
         try:
             writer.close()
             self._writer = None
-            built = tmp / self.path.name
             for f in built.iterdir():
                 fsync_path(f)
             fsync_path(built)
@@ -161,6 +170,8 @@ class AtomicBagWriter:
             os.rename(built, self.path)
             fsync_path(self.path.parent)
         except BaseException as exc:
+            if not built.exists() and self.path.is_dir():  # renamed into place just before a stop landed: undone
+                shutil.rmtree(self.path, ignore_errors=True)
             self.abort()
             if isinstance(exc, Exception) and not isinstance(exc, BagError):
                 raise BagError(f'{self.path}: could not write bag ({one_line(exc)})') from exc
