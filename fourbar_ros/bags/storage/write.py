@@ -155,7 +155,8 @@ class AtomicBagWriter:
         self.writer.set_custom_data(key, value)
 
     def commit(self) -> Path:
-        """Close the storage, write metadata.yaml, fsync and rename the bag into place."""
+        """Close the storage, write metadata.yaml, fsync and rename the bag into place (undone when a stop lands
+        right after the rename, so an interrupted writer never leaves ``path``)."""
         writer, tmp = self.writer, self._tmpdir
         assert tmp is not None
         built = tmp / self.path.name
