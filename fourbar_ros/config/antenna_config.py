@@ -85,6 +85,9 @@ class AntennaConfig:
     mode: str
     trajectory_controller: str
     forward_controller: str
+    controllers_file: str
+    effort_feedforward: bool
+    replan_tolerance: float
     measurement_timeout: float
     tracking_window: float
     gamma_joint: str
@@ -172,12 +175,16 @@ def check_value(spec: ParamSpec, value: object) -> ParamValue:
         if isinstance(value, bool) or not isinstance(value, int):
             raise ConfigError(f'{name}: expected an integer, got {_type_name(value)} {value!r}', (name,))
         return _in_range(spec, value, 0.0)
+    if spec.type is bool:
+        if not isinstance(value, bool):
+            raise ConfigError(f'{name}: expected a bool (true or false), got {_type_name(value)} {value!r}', (name,))
+        return value
     if spec.type is str:
         if not isinstance(value, str):
             raise ConfigError(f'{name}: expected a string, got {_type_name(value)} {value!r}', (name,))
         if spec.choices and value not in spec.choices:
             raise ConfigError(f"{name}: {value!r} is not one of {', '.join(spec.choices)}", (name,))
-        if not value.strip():
+        if not value.strip() and spec.default != '':
             raise ConfigError(f'{name}: must not be empty', (name,))
         return value
     raise ConfigError(f'{name}: unsupported parameter type {spec.type.__name__}')  # pragma: no cover

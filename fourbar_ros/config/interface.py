@@ -52,8 +52,12 @@ COMMAND = Topic('antenna_angle_cmd', FLOAT64, STREAM_DEPTH, Reliability.BEST_EFF
 JOINT_STATES = Topic('joint_states', JOINT_STATE, STREAM_DEPTH)
 #: The driven rocker's torque (N m), per command.
 INPUT_TORQUE = Topic('input_torque', FLOAT64, STREAM_DEPTH)
-#: Actuator modes: the measured driven joint in (joint_state_broadcaster's topic; the same name as the output).
-MEASURED_JOINT_STATES = Topic('joint_states', JOINT_STATE, STREAM_DEPTH)
+#: Actuator modes: the measured driven joint in. Relative, so it can be remapped; the launch file remaps it to
+#: BROADCASTER_JOINT_STATES (joint_state_broadcaster with ``use_local_topics: true``).
+MEASURED_JOINT_STATES = Topic('measured_joint_states', JOINT_STATE, STREAM_DEPTH)
+#: Where joint_state_broadcaster publishes the hardware's joints with ``use_local_topics: true`` (the shipped
+#: controllers YAML sets it), and where the simulated actuator publishes its measured joint.
+BROADCASTER_JOINT_STATES = Topic('joint_state_broadcaster/joint_states', JOINT_STATE, 10)
 #: Actuator modes: the antenna angle theta completed from the measured driven joint (rad).
 ANTENNA_ANGLE = Topic('antenna_angle', FLOAT64, STREAM_DEPTH)
 #: Actuator modes: its rate d theta/dt by the chain rule (rad/s), when the measurement has a velocity.

@@ -167,6 +167,17 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec('forward_controller', str, 'forward_position_controller', '',
               'Controller name (forward mode): driven-joint setpoints go to <this>/commands.', read_only=True),
+    ParamSpec('controllers_file', str, '', '',
+              'Actuator modes: the ros2_control controllers YAML the drive runs (the controller\'s joints, command '
+              'interfaces and options decide what it accepts); empty: the package\'s config/controllers.yaml.',
+              read_only=True),
+    ParamSpec('effort_feedforward', bool, False, '',
+              'Trajectory mode: send the static input torque as each point\'s effort (a feed-forward). The '
+              'controller must then have an effort command interface ([position, effort]); off: no effort field.',
+              read_only=True),
+    ParamSpec('replan_tolerance', float, 0.005, 'rad',
+              'Actuator modes: a command during a motion plans on from the motion being followed while the '
+              'measured driven joint is within this of it; otherwise from the measured state.', 0.0, 3.2),
     ParamSpec('measurement_timeout', float, 0.5, 's',
               'Actuator modes: no measured driven joint for this long makes the diagnostics WARN.', 0.001, 3600.0),
     ParamSpec('tracking_window', float, 5.0, 's',
