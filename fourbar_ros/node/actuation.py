@@ -113,8 +113,9 @@ class Actuation:
             if i < len(msg.position):
                 self.note_measured(float(msg.position[i]))
 
-    def note_measured(self, position: float) -> None:
-        """The measured driven-joint position (rad); non-finite values are ignored."""
+    def note_measured(self, position: float, velocity: float | None = None) -> None:
+        """The measured driven joint: position rad, velocity rad/s (None: not measured); a non-finite position is
+        ignored."""
         if position - position == 0.0:  # finite
             self.measured = position
 

@@ -1,0 +1,137 @@
+"""The ros2_control controllers YAML the drive runs, read for what decides which messages its controllers take.
+
+The same file is given to ``ros2_control_node --params-file`` and to fourbar_node (``controllers_file``), so the
+node checks its output against the controller's own settings. Each controller's section is read the way a ROS 2
+parameter file is (``rcl_yaml``: node name = controller name); a setting it leaves out takes the Jazzy default
+(``joint_trajectory_controller/src/joint_trajectory_controller_parameters.yaml`` and
+``forward_command_controller/src/*_parameters.yaml`` of ros2_controllers, jazzy branch). No ROS import.
+Tolerances and positions in rad, times in s.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from fourbar_ros.config.rcl_yaml import ConfigError, read_text, values_from_yaml
+from fourbar_ros.config.share import share_path
+
+__all__ = ['CONTROLLERS_FILE', 'ForwardControllerSettings', 'JointTolerances', 'TrajectoryControllerSettings',
+           'controllers_path', 'forward_controller', 'trajectory_controller']
+
+#: The package's controllers YAML, inside share/fourbar_ros.
+CONTROLLERS_FILE = 'config/controllers.yaml'
+
+#: Command interface sets joint_trajectory_controller accepts (``validate_jtc_parameters.hpp``,
+#: ``command_interface_type_combinations``), as sorted tuples.
+_JTC_COMBINATIONS = frozenset({('effort',), ('velocity',), ('position',), ('position', 'velocity'),
+                               ('acceleration', 'position', 'velocity'), ('effort', 'position')})
+
+
+@dataclass(frozen=True)
+class JointTolerances:
+    """One joint's ``constraints``: ``trajectory`` (rad from the reference while moving) and ``goal`` (rad from the
+    last point once its time has passed); 0 means not checked, as in the controller."""
+
+    trajectory: float = 0.0
+    goal: float = 0.0
+
+
+@dataclass(frozen=True)
+class TrajectoryControllerSettings:
+    """What of a joint_trajectory_controller's parameters decides what it accepts and how it follows."""
+
+    name: str
+    joints: tuple[str, ...]
+    command_interfaces: tuple[str, ...]
+    state_interfaces: tuple[str, ...]
+    allow_partial_joints_goal: bool = False
+    allow_nonzero_velocity_at_trajectory_end: bool = False
+    allow_integration_in_goal_trajectories: bool = False
+    interpolate_from_desired_state: bool = False
+    #: ``constraints.goal_time``: s allowed past the last point's time to get within the goal tolerance (0: forever)
+    goal_time: float = 0.0
+    tolerances: Mapping[str, JointTolerances] = field(default_factory=dict)
+
+    @property
+    def has_effort_command_interface(self) -> bool:
+        """True when the controller commands effort (then trajectory points may carry effort)."""
+        return 'effort' in self.command_interfaces
+
+    def tolerance(self, joint: str) -> JointTolerances:
+        """The joint's tolerances (zeros, i.e. not checked, when the file gives none)."""
+        return self.tolerances.get(joint, JointTolerances())
+
+
+@dataclass(frozen=True)
+class ForwardControllerSettings:
+    """A forward_command_controller (e.g. ``position_controllers/JointGroupPositionController``): its joints; each
+    ``Float64MultiArray`` command must hold one value per joint."""
+
+    name: str
+    joints: tuple[str, ...]
+
+
+def controllers_path(path: str) -> Path:
+    """The controllers YAML to read: ``path``, or the package's own when ``path`` is empty."""
+    return Path(path) if path else share_path(CONTROLLERS_FILE)
+
+
+def _section(path: str, controller: str) -> tuple[str, dict[str, object]]:
+    source = str(controllers_path(path))
+    try:
+        values = values_from_yaml(read_text(source), source, controller)
+    except ConfigError as exc:
+        raise ConfigError(f'controllers_file: {exc}', ('controllers_file',)) from None
+    return source, values
+
+
+def _strings(source: str, controller: str, values: Mapping[str, object], key: str, required: bool) -> tuple[str, ...]:
+    value = values.get(key, [])
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value) or (required and not value):
+        raise ConfigError(f'controllers_file: {source}: {controller}.{key} must be a non-empty list of strings, '
+                          f'got {value!r}', ('controllers_file',))
+    return tuple(value)
+
+
+def _typed(source: str, controller: str, values: Mapping[str, object], key: str, kind: type, default: object) -> object:
+    value = values.get(key, default)
+    if kind is float and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if not isinstance(value, kind) or (kind is not bool and isinstance(value, bool)):
+        raise ConfigError(f'controllers_file: {source}: {controller}.{key} must be a {kind.__name__}, got {value!r}',
+                          ('controllers_file',))
+    return value
+
+
+def trajectory_controller(path: str, controller: str) -> TrajectoryControllerSettings:
+    """The joint_trajectory_controller ``controller`` of the controllers YAML ``path`` (empty: the package's).
+
+    Raises ConfigError (one line) for an unreadable file, no section for ``controller``, or a value of the wrong
+    type or an interface combination the controller refuses at configuration."""
+    source, values = _section(path, controller)
+    joints = _strings(source, controller, values, 'joints', True)
+    commands = _strings(source, controller, values, 'command_interfaces', True)
+    if tuple(sorted(commands)) not in _JTC_COMBINATIONS or len(set(commands)) != len(commands):
+        raise ConfigError(f'controllers_file: {source}: {controller}.command_interfaces {list(commands)} is not a '
+                          'combination joint_trajectory_controller accepts (effort; velocity; position [velocity '
+                          '[acceleration]]; position, effort)', ('controllers_file',))
+    flags = {key: bool(_typed(source, controller, values, key, bool, False))
+             for key in ('allow_partial_joints_goal', 'allow_nonzero_velocity_at_trajectory_end',
+                         'allow_integration_in_goal_trajectories', 'interpolate_from_desired_state')}
+    goal_time = float(_typed(source, controller, values, 'constraints.goal_time', float, 0.0))  # type: ignore[arg-type]
+    tolerances = {j: JointTolerances(
+        float(_typed(source, controller, values, f'constraints.{j}.trajectory', float, 0.0)),  # type: ignore[arg-type]
+        float(_typed(source, controller, values, f'constraints.{j}.goal', float, 0.0)))  # type: ignore[arg-type]
+        for j in joints}
+    return TrajectoryControllerSettings(controller, joints, commands,
+                                        _strings(source, controller, values, 'state_interfaces', True),
+                                        goal_time=goal_time, tolerances=tolerances, **flags)
+
+
+def forward_controller(path: str, controller: str) -> ForwardControllerSettings:
+    """The forward_command_controller ``controller`` of the controllers YAML ``path`` (empty: the package's).
+    Raises ConfigError (one line) as ``trajectory_controller``."""
+    source, values = _section(path, controller)
+    return ForwardControllerSettings(controller, _strings(source, controller, values, 'joints', True))
