@@ -36,10 +36,12 @@ def antenna_trajectory(times: list[float], theta: list[float], theta_dot: list[f
 
 
 GOOD = [antenna_trajectory([0.0, 1.0, 2.0], [0.0, 0.02, 0.03], [0.0, 0.015, 0.0], 3),
-        antenna_trajectory([0.0, 0.5, 1.5, 3.0], [0.03, 0.05, 0.01, -0.02], None, 0)]  # stamp 0: the log time
+        antenna_trajectory([0.0, 0.5, 1.5, 3.0], [0.03, 0.05, 0.01, -0.02], None, 0)]  # stamp 0: on arrival
 BAD = [antenna_trajectory([0.0, 1.0], [0.0, math.nan], None, 4),  # not_finite
        antenna_trajectory([0.0, 1.0], [0.0, 0.01], None, 5, joint='elbow'),  # wrong_joint
-       antenna_trajectory([1.0, 1.0], [0.0, 0.01], None, 6)]  # time_not_increasing
+       antenna_trajectory([1.0, 1.0], [0.0, 0.01], None, 6),  # time_not_increasing
+       antenna_trajectory([0.0, 0.5], [0.0, 0.01], None, 1),  # ends_in_past: 1 s + 0.5 s, logged at 5 s
+       antenna_trajectory([0.0, 1.0], [0.0, 0.01], [0.0, 0.004], 9)]  # end_moving: 0.004 rad/s at the end
 
 
 def trajectory_bag(path: Path) -> Path:
@@ -53,19 +55,20 @@ def trajectory_bag(path: Path) -> Path:
 def test_a_trajectory_bag_is_converted_by_the_node_rule(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(['process', str(trajectory_bag(tmp_path / 'in')), str(tmp_path / 'out')]) == 0
     line = capsys.readouterr().err
-    assert '5 antenna trajectories -> 2 actuator trajectories' in line
-    assert 'refused: 1 wrong_joint, 1 not_finite, 1 time_not_increasing' in line
+    assert '7 antenna trajectories -> 2 actuator trajectories' in line
+    assert ('refused: 1 wrong_joint, 1 not_finite, 1 time_not_increasing, 1 end_moving, 1 ends_in_past'
+            in line)
     out = read_messages(tmp_path / 'out')
     assert list(out) == [OUT_TOPIC]
     sent = out[OUT_TOPIC]
-    assert [log for log, _ in sent] == [1 * 10**9, 5 * 10**9]
-    assert [(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in sent] == [(3, 7), (5, 0)]
+    assert [log for log, _ in sent] == [1 * 10**9, 7 * 10**9]
+    assert [(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in sent] == [(3, 7), (0, 0)]
     for (_, m), given in zip(sent, GOOD, strict=True):
         # The same rule on the same decoded message: the same operations, so the same floats.
         want = convert(CFG, given.joint_names, given.points).trajectory
         assert list(m.joint_names) == [CFG.driven_joint]
         assert [p.positions.tolist() for p in m.points] == [[p] for p in want.positions.tolist()]
-        assert [p.effort.tolist() for p in m.points] == [[e] for e in want.efforts.tolist()]
+        assert all(p.effort.size == 0 for p in m.points)  # no effort field: effort_feedforward is off
         vel = want.velocities
         assert [p.velocities.tolist() for p in m.points] == \
             ([[]] * len(want) if vel is None else [[v] for v in vel.tolist()])
@@ -97,7 +100,7 @@ def test_compare_covers_actuator_trajectories(tmp_path: Path, capsys: pytest.Cap
         conns = {c.topic: bag.add_topic(c.topic, c.msgtype) for c in reader.connections}
         for c, log, data in reader.messages():
             raw = bytes(data)
-            if log == 5 * 10**9:
+            if log == 7 * 10**9:
                 msg = STORE.deserialize_cdr(raw, c.msgtype)
                 msg.points[2].positions = msg.points[2].positions + 1e-6
                 raw = bytes(STORE.serialize_cdr(msg, c.msgtype))

@@ -10,6 +10,7 @@ for the module (the process boundary is not what is tested); each check waits fo
 
 from __future__ import annotations
 
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -27,12 +28,15 @@ from fourbar_ros.config.interface import ANTENNA_JOINT, ANTENNA_TRAJECTORY, traj
 from fourbar_ros.live.record import Recorder, discover
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.rules.actuation import ActuationCounters, TrajectoryProblem, duration_parts
+from fourbar_ros.rules.controller_contract import ContractRule
 
 pytestmark = pytest.mark.ros
 
 REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = default_config()
+#: Stamps count from here (system clock, s): hours ahead, so no trajectory ends in the past on arrival.
+START_SEC = int(time.time()) + 3600
 NS = '/trajectory_process'
 INPUT = f'{NS}/{ANTENNA_TRAJECTORY.name}'
 OUTPUT = f'{NS}/{trajectory_topic(CFG.trajectory_controller).name}'
@@ -46,14 +50,15 @@ def antenna_msg(times: list[float], theta: list[float], theta_dot: list[float] |
                                 time_from_start=Duration(sec=duration_parts(t)[0], nanosec=duration_parts(t)[1]))
            for i, (t, th) in enumerate(zip(times, theta, strict=True))]
     msg = JointTrajectory(joint_names=[ANTENNA_JOINT], points=pts)
-    msg.header.stamp = Time(sec=sec, nanosec=7)
+    if sec:
+        msg.header.stamp = Time(sec=START_SEC + sec, nanosec=7)
     return msg
 
 
 #: The whole tilt range in 10 ms: far over the motor's speed (refused under reject, retimed under retime).
 TOO_FAST = antenna_msg([0.0, 0.01], [CFG.theta_min, CFG.theta_max], sec=6)
 TRAJECTORIES = [
-    antenna_msg([0.5, 1.5, 2.5], [0.0, 0.01, 0.015], sec=1),  # positions only
+    antenna_msg([0.5, 1.5, 2.5], [0.0, 0.01, 0.015]),  # positions only, stamp 0
     antenna_msg([0.0, 1.0, 2.0, 3.0], [0.0, 0.01, 0.02, 0.025], [0.0, 0.01, 0.008, 0.0], sec=2),  # velocities
     antenna_msg([0.0, 1.0, 2.0], [0.0, 0.02, 0.03], [0.0, 0.015, 0.0], [0.0, 0.0, -0.01], sec=3),  # accelerations
     antenna_msg([0.0, 6.0], [CFG.theta_min, CFG.theta_max], sec=4),  # one segment far over trajectory_tolerance
@@ -117,9 +122,10 @@ class Rig:
         wait_for(lambda: self.antenna.get_subscription_count() == 1
                  and self.node.actuation._trajectory_pub.get_subscription_count() == 0, what='the recorder gone')
         delta = ActuationCounters(**{k: v - before[k] for k, v in counters.as_dict().items()
-                                     if not k.startswith('trajectories_rejected_')})
+                                     if not k.startswith(('trajectories_rejected_', 'contract_refused_'))})
         delta.rejected = {p: counters.rejected[p] - before[f'trajectories_rejected_{p.value}']
                           for p in TrajectoryProblem}
+        delta.refused = {r: counters.refused[r] - before[f'contract_refused_{r.value}'] for r in ContractRule}
         return delta
 
     def close(self) -> None:

@@ -4,8 +4,9 @@ For every ``trajectory_msgs/JointTrajectory`` of the antenna trajectory topic (`
 ``*/antenna_trajectory``) in bag order, the node's rule (``fourbar_ros.rules.actuation.convert``): a refused
 trajectory is counted by its problem (``problem_of``) and writes nothing; a converted one gives the driven joint's
 JointTrajectory on ``<trajectory_controller>/joint_trajectory`` next to the input topic, at the input's log time,
-with the input's header stamp (a zero stamp, which the node replaces by its arrival time, by the log time). The
-output appears atomically.
+with the input's header stamp (0: start on arrival), the log time standing for the node's clock at arrival. What
+the controller's contract would refuse is counted and not written, as the node does. The output appears
+atomically.
 """
 
 from __future__ import annotations
@@ -28,10 +29,18 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.controllers import TrajectoryControllerSettings
 from fourbar_ros.config.interface import ANTENNA_TRAJECTORY, JOINT_TRAJECTORY, sibling_topic, trajectory_topic
 from fourbar_ros.core.errors import FourBarError, one_line
-from fourbar_ros.motion.trajectory import DrivenTrajectory
-from fourbar_ros.rules.actuation import ActuationCounters, convert, point_values, problem_of
+from fourbar_ros.rules.actuation import (
+    ActuationCounters,
+    PointFields,
+    actuation_contract,
+    outgoing_refusal,
+    point_fields,
+    problem_of,
+    serve_antenna_trajectory,
+)
 
 
 @dataclass
@@ -60,18 +69,20 @@ def antenna_trajectory_topic(types: dict[str, str], topic: str | None) -> str | 
     return f'/{name}' if f'/{name}' in candidates else (candidates[0] if len(candidates) == 1 else None)
 
 
-def trajectory_cdr(store: Any, joint: str, traj: DrivenTrajectory, stamp_ns: int) -> bytes:
-    """The serialized JointTrajectory of a driven-joint trajectory starting at ``stamp_ns``, with the node's points
-    (``point_values``)."""
+def trajectory_cdr(store: Any, joint: str, points: list[PointFields], stamp_ns: int) -> bytes:
+    """The serialized JointTrajectory of the node's points (``point_fields``) for ``joint``, stamped ``stamp_ns``."""
     t = store.types
     point_type, duration_type = t['trajectory_msgs/msg/JointTrajectoryPoint'], t['builtin_interfaces/msg/Duration']
-    points = [point_type(positions=np.array(p, dtype=np.float64), velocities=np.array(v, dtype=np.float64),
-                         accelerations=np.array(a, dtype=np.float64), effort=np.array(e, dtype=np.float64),
-                         time_from_start=duration_type(sec=sec, nanosec=nanosec))
-              for p, v, a, e, (sec, nanosec) in point_values(traj)]
+    msg_points = [point_type(positions=np.array(p.positions, dtype=np.float64),
+                             velocities=np.array(p.velocities, dtype=np.float64),
+                             accelerations=np.array(p.accelerations, dtype=np.float64),
+                             effort=np.array(p.effort, dtype=np.float64),
+                             time_from_start=duration_type(sec=p.time_from_start.sec,
+                                                           nanosec=p.time_from_start.nanosec))
+                  for p in points]
     stamp = t['builtin_interfaces/msg/Time'](sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
     msg = t[JOINT_TRAJECTORY](header=t['std_msgs/msg/Header'](stamp=stamp, frame_id=''), joint_names=[joint],
-                              points=points)
+                              points=msg_points)
     return bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY))
 
 
@@ -84,6 +95,8 @@ def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[s
     stats = TrajectoryStats()
     counters = stats.counters
     store = jazzy_typestore()
+    contract = actuation_contract(cfg, 'trajectory')
+    assert isinstance(contract, TrajectoryControllerSettings)
     with open_bag(src_path) as reader:
         chosen = antenna_trajectory_topic(topic_types(reader), topic)
         if chosen is None:
@@ -96,13 +109,20 @@ def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[s
                 for _, log, data in reader.messages(connections=conns):
                     counters.trajectories_received += 1
                     msg: Any = store.deserialize_cdr(bytes(data), JOINT_TRAJECTORY)
+                    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
                     try:
-                        converted = convert(cfg, msg.joint_names, msg.points)
+                        converted = serve_antenna_trajectory(
+                            cfg, contract.allow_nonzero_velocity_at_trajectory_end, msg.joint_names, msg.points,
+                            stamp_ns, int(log))
                     except FourBarError as exc:
                         counters.rejected[problem_of(exc)] += 1
                         continue
-                    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec or int(log)
-                    bag.write(out, log, trajectory_cdr(store, cfg.driven_joint, converted.trajectory, stamp_ns))
+                    points = point_fields(converted.trajectory, cfg.effort_feedforward)
+                    refusal = outgoing_refusal(contract, cfg.driven_joint, points, stamp_ns, int(log))
+                    if refusal is not None:
+                        counters.refused[refusal.rule] += 1
+                        continue
+                    bag.write(out, log, trajectory_cdr(store, cfg.driven_joint, points, stamp_ns))
                     counters.trajectories_sent += 1
                     counters.trajectory_points_sent += len(converted.trajectory)
                     counters.trajectory_points_inserted += converted.inserted

@@ -30,7 +30,7 @@ from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, o
 PLAN_SHRINK = 1.0 - 1e-4
 
 __all__ = ['END_SPAN', 'PLAN_SHRINK', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles', 'min_segment',
-           'plan_motion', 'plan_to_angle', 'setpoints', 'trajectory_points']
+           'plan_motion', 'plan_to_angle', 'sample_grid', 'setpoints', 'trajectory_points']
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ def driven_angles(cfg: AntennaConfig, theta: FloatArray) -> FloatArray:
     return np.asarray(angles.gamma if cfg.driven is Driven.GAMMA else angles.delta)
 
 
-def _grid(duration: float, step: float) -> FloatArray:
+def sample_grid(duration: float, step: float) -> FloatArray:
     """0, step, 2 step, ... and the end (s); a grid time within step / 2 of the end gives way to the end."""
     if duration <= 0.0:
         return np.zeros(1)
@@ -222,7 +222,7 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     if plan.duration < shortest:
         times = on_wire(np.array([0.0, shortest]))
     else:
-        times = on_wire(_point_times(_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing, shortest))
+        times = on_wire(_point_times(sample_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing, shortest))
     q, q_dot, q_ddot = plan.sample(np.minimum(times, plan.duration))
     theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)
@@ -246,5 +246,5 @@ def setpoints(cfg: AntennaConfig, plan: Plan, rate: float | None = None) -> Setp
     if plan.duration * hz + 2 > cfg.max_trajectory_points:
         raise TrajectoryError(f'a {plan.duration:.6g} s motion at {hz!r} Hz exceeds '
                               f'max_trajectory_points = {cfg.max_trajectory_points} setpoints')
-    times = _grid(plan.duration, 1.0 / hz)
+    times = sample_grid(plan.duration, 1.0 / hz)
     return Setpoints(times, plan.sample(times)[0])

@@ -1,20 +1,11 @@
 """The actuator modes of fourbar_node: served commands and antenna trajectories become motion of the driven joint.
 
-trajectory mode
-  sub  antenna_trajectory                       trajectory_msgs/JointTrajectory  joint [antenna_joint]: theta rad,
-                                                optional velocities rad/s, accelerations rad/s^2
-  pub  <trajectory_controller>/joint_trajectory trajectory_msgs/JointTrajectory  joint [<driven joint>]: positions
-                                                rad, velocities rad/s, accelerations rad/s^2, effort N m (feed-forward)
-forward mode
-  pub  <forward_controller>/commands            std_msgs/Float64MultiArray       one position rad, every
-                                                1/control_rate s while a planned motion runs
-both
-  sub  joint_states                             sensor_msgs/JointState           the measured driven joint's
-                                                position: where a command's motion starts when none is running
-
-A served command (after the node's accept/clamp/reject policy) is planned from the state of the motion being
-followed at the current time (position, velocity, acceleration: no jump), else from the measured position at rest.
-What a message becomes is ``fourbar_ros.rules.actuation``; this module only adapts messages, clocks and timers.
+Topics per mode: docs/node.md. Served commands (after the node's accept/clamp/reject policy) are planned from where
+``rules.actuation.replan_start`` says (the motion being followed, or the measured state); antenna trajectories are
+served by ``rules.actuation.serve_antenna_trajectory``: trajectory mode sends the driven joint's trajectory, forward
+mode streams its spline as setpoints. Nothing leaves before the controller's contract accepts it
+(``rules.controller_contract``, with the controller's settings from ``controllers_file``). What a message becomes is
+``fourbar_ros.rules.actuation``; this module only adapts messages, clocks and timers.
 """
 
 from __future__ import annotations
@@ -31,20 +22,32 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import ANTENNA_TRAJECTORY, JOINT_STATES, Topic, forward_topic, trajectory_topic
+from fourbar_ros.config.controllers import ForwardControllerSettings, TrajectoryControllerSettings
+from fourbar_ros.config.interface import (
+    ANTENNA_TRAJECTORY,
+    MEASURED_JOINT_STATES,
+    Topic,
+    forward_topic,
+    trajectory_topic,
+)
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.motion.planner import JointMotionState, Setpoints
 from fourbar_ros.motion.trajectory import DrivenTrajectory
 from fourbar_ros.rules.actuation import (
     ActuationCounters,
     Motion,
-    convert,
+    PointFields,
+    outgoing_refusal,
     plan_command,
     planned_points,
     planned_setpoints,
-    point_values,
+    point_fields,
     problem_of,
+    replan_start,
+    serve_antenna_trajectory,
+    trajectory_setpoints,
 )
+from fourbar_ros.rules.controller_contract import check_forward_command
 
 WARN_THROTTLE_S = 1.0
 #: Setpoints kept in ``recent_setpoints`` (the last seconds of the stream at the default rate).
@@ -57,39 +60,41 @@ def _qos(topic: Topic) -> QoSProfile:
     return _qos_profile(depth=topic.depth, reliability=ReliabilityPolicy[topic.reliability.name])
 
 
-def trajectory_message(joint: str, traj: DrivenTrajectory, stamp_ns: int) -> JointTrajectory:
-    """The JointTrajectory of a driven-joint trajectory starting at ``stamp_ns`` (node clock)."""
-    points = [JointTrajectoryPoint(positions=p, velocities=v, accelerations=a, effort=e,
-                                   time_from_start=Duration(sec=sec, nanosec=nanosec))
-              for p, v, a, e, (sec, nanosec) in point_values(traj)]
-    msg = JointTrajectory(joint_names=[joint], points=points)
+def trajectory_message(joint: str, points: list[PointFields], stamp_ns: int) -> JointTrajectory:
+    """The JointTrajectory of ``point_fields`` for ``joint``, header stamp ``stamp_ns`` (0: start on arrival)."""
+    msg = JointTrajectory(joint_names=[joint], points=[
+        JointTrajectoryPoint(positions=p.positions, velocities=p.velocities, accelerations=p.accelerations,
+                             effort=p.effort, time_from_start=Duration(sec=p.time_from_start.sec,
+                                                                       nanosec=p.time_from_start.nanosec))
+        for p in points])
     msg.header.stamp = Time(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
     return msg
 
 
 class Actuation:
     """The trajectory or forward mode of a node (``cfg.mode``); ``config`` returns the node's running
-    configuration. ``subscribe_measured``: read the measured driven joint from joint_states here (a component that
-    already does can call ``note_measured`` instead)."""
+    configuration, ``contract`` the settings of the controller the mode sends to (``actuation_contract``).
+    ``subscribe_measured``: read the measured driven joint on measured_joint_states here (a component that already
+    does can call ``note_measured`` instead)."""
 
     def __init__(self, node: Node, config: Callable[[], AntennaConfig], warn: Callable[..., object],
+                 contract: TrajectoryControllerSettings | ForwardControllerSettings,
                  subscribe_measured: bool = True) -> None:
         cfg = config()
         self._config = config
         self._warn = warn
         self._clock: Any = node.get_clock()
         self.mode = cfg.mode
+        self.contract = contract
         self.counters = ActuationCounters()
         self.motion: Motion | None = None
-        self.measured: float | None = None
+        self.measured: JointMotionState | None = None
         self._setpoints: Setpoints | None = None
         #: (time on the node clock the setpoint stands for, ns; position rad) of the setpoints published
         self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
         if self.mode == 'trajectory':
             out = trajectory_topic(cfg.trajectory_controller)
             self._trajectory_pub = node.create_publisher(JointTrajectory, out.name, _qos(out))
-            node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name, self._on_antenna_trajectory,
-                                     _qos(ANTENNA_TRAJECTORY))
         elif self.mode == 'forward':
             out = forward_topic(cfg.forward_controller)
             self._setpoint_pub = node.create_publisher(Float64MultiArray, out.name, _qos(out))
@@ -97,8 +102,11 @@ class Actuation:
             node.create_timer(1.0 / cfg.control_rate, self._on_control_timer)
         else:
             raise ValueError(f'mode {self.mode!r} is not an actuator mode')
+        node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name, self._on_antenna_trajectory,
+                                 _qos(ANTENNA_TRAJECTORY))
         if subscribe_measured:
-            node.create_subscription(JointState, JOINT_STATES.name, self._on_measured, _qos(JOINT_STATES))
+            node.create_subscription(JointState, MEASURED_JOINT_STATES.name, self._on_measured,
+                                     _qos(MEASURED_JOINT_STATES))
 
     def _now_ns(self) -> int:
         ns: int = self._clock.now().nanoseconds
@@ -111,23 +119,20 @@ class Actuation:
         if joint in msg.name:
             i = list(msg.name).index(joint)
             if i < len(msg.position):
-                self.note_measured(float(msg.position[i]))
+                self.note_measured(float(msg.position[i]), float(msg.velocity[i]) if i < len(msg.velocity) else None)
 
     def note_measured(self, position: float, velocity: float | None = None) -> None:
-        """The measured driven joint: position rad, velocity rad/s (None: not measured); a non-finite position is
-        ignored."""
+        """The measured driven joint: position rad, velocity rad/s (None or NaN: not measured); a non-finite
+        position is ignored."""
         if position - position == 0.0:  # finite
-            self.measured = position
+            v = velocity if velocity is not None and velocity - velocity == 0.0 else 0.0
+            self.measured = JointMotionState(position, v)
 
     def start_state(self, now_ns: int) -> JointMotionState | None:
-        """Where a new motion starts: the running motion's state now, else the measured position at rest, else
-        the end of the last motion; None before any of them exists."""
-        motion = self.motion
-        if motion is not None and not motion.done(now_ns):
-            return motion.state_at(now_ns)
-        if self.measured is not None:
-            return JointMotionState(self.measured)
-        return None if motion is None else motion.state_at(now_ns)
+        """Where a new motion starts (``replan_start``); counts a motion left for the measured state."""
+        state, left = replan_start(self.motion, self.measured, now_ns, self._config().replan_tolerance)
+        self.counters.commands_replanned_from_measured += left
+        return state
 
     # ------------------------------------------------------------------ plain commands
 
@@ -139,7 +144,7 @@ class Actuation:
         if start is None:
             self.counters.commands_not_planned += 1
             self._warn(f'command theta = {theta!r} rad not planned: no measured {cfg.driven_joint} on '
-                       f'{JOINT_STATES.name} yet', throttle_duration_sec=WARN_THROTTLE_S)
+                       f'{MEASURED_JOINT_STATES.name} yet', throttle_duration_sec=WARN_THROTTLE_S)
             return
         try:
             plan = plan_command(cfg, start, theta)
@@ -150,18 +155,33 @@ class Actuation:
             self._warn(f'command theta = {theta!r} rad not planned: {one_line(exc)}',
                        throttle_duration_sec=WARN_THROTTLE_S)
             return
+        if points is not None and not self._send(cfg, points, now_ns):
+            self.counters.commands_not_planned += 1
+            return
         self.counters.commands_planned += 1
         self.motion = Motion(now_ns, plan=plan)
-        if points is not None:
-            self._send(cfg, points, now_ns)
-        else:
-            self._setpoints = stream
-            self._on_control_timer()  # the first setpoint now, not one period later
+        if stream is not None:
+            self._stream(stream)
 
-    def _send(self, cfg: AntennaConfig, traj: DrivenTrajectory, stamp_ns: int) -> None:
-        self._trajectory_pub.publish(trajectory_message(cfg.driven_joint, traj, stamp_ns))
+    def _send(self, cfg: AntennaConfig, traj: DrivenTrajectory, now_ns: int) -> bool:
+        """Send a trajectory starting on arrival (stamp 0) if the controller's contract takes it; False if not."""
+        assert isinstance(self.contract, TrajectoryControllerSettings)
+        points = point_fields(traj, cfg.effort_feedforward)
+        refusal = outgoing_refusal(self.contract, cfg.driven_joint, points, 0, now_ns)
+        if refusal is not None:
+            self.counters.refused[refusal.rule] += 1
+            self._warn(f'trajectory not sent: the controller would refuse it ({refusal.rule.value}): '
+                       f'{refusal.reason}', throttle_duration_sec=WARN_THROTTLE_S)
+            return False
+        self._trajectory_pub.publish(trajectory_message(cfg.driven_joint, points, 0))
         self.counters.trajectories_sent += 1
         self.counters.trajectory_points_sent += len(traj)
+        return True
+
+    def _stream(self, stream: Setpoints) -> None:
+        """Start a setpoint stream (forward mode): the first setpoint now, not one period later."""
+        self._setpoints = stream
+        self._on_control_timer()
 
     def _on_control_timer(self) -> None:
         stream, motion = self._setpoints, self.motion
@@ -173,7 +193,14 @@ class Actuation:
         if i == stream.times.size - 1:
             self._setpoints = None  # the last one goes out once; the controller holds it
         position = float(stream.positions[i])
-        self._setpoint_msg.data = [position]
+        data = [position]
+        assert isinstance(self.contract, ForwardControllerSettings)
+        refusal = check_forward_command(self.contract, data)
+        if refusal is not None:  # pragma: no cover - one joint by construction (actuation_contract)
+            self.counters.refused[refusal.rule] += 1
+            self._setpoints = None
+            return
+        self._setpoint_msg.data = data
         self._setpoint_pub.publish(self._setpoint_msg)
         self.recent_setpoints.append((motion.start_ns + round(float(stream.times[i]) * 1e9), position))
         self.counters.setpoints_published += 1
@@ -183,21 +210,38 @@ class Actuation:
     def _on_antenna_trajectory(self, msg: JointTrajectory) -> None:
         cfg = self._config()
         self.counters.trajectories_received += 1
+        now_ns = self._now_ns()
+        stamp = msg.header.stamp
+        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec  # 0: start on arrival
+        allow_moving_end = (isinstance(self.contract, TrajectoryControllerSettings)
+                            and self.contract.allow_nonzero_velocity_at_trajectory_end)
         try:
-            converted = convert(cfg, msg.joint_names, msg.points)
+            converted = serve_antenna_trajectory(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns)
+            stream = trajectory_setpoints(cfg, converted.trajectory) if self.mode == 'forward' else None
         except FourBarError as exc:
             problem = problem_of(exc)
             self.counters.rejected[problem] += 1
             self._warn(f'antenna trajectory refused ({problem.value}): {one_line(exc)}',
                        throttle_duration_sec=WARN_THROTTLE_S)
             return
-        stamp = msg.header.stamp
-        stamp_ns = stamp.sec * 1_000_000_000 + stamp.nanosec or self._now_ns()  # 0: start on arrival
         traj = converted.trajectory
+        if stream is None:
+            assert isinstance(self.contract, TrajectoryControllerSettings)
+            points = point_fields(traj, cfg.effort_feedforward)
+            refusal = outgoing_refusal(self.contract, cfg.driven_joint, points, stamp_ns, now_ns)
+            if refusal is not None:
+                self.counters.refused[refusal.rule] += 1
+                self._warn(f'antenna trajectory not sent: the controller would refuse it ({refusal.rule.value}): '
+                           f'{refusal.reason}', throttle_duration_sec=WARN_THROTTLE_S)
+                return
+            self._trajectory_pub.publish(trajectory_message(cfg.driven_joint, points, stamp_ns))
+            self.counters.trajectories_sent += 1
+            self.counters.trajectory_points_sent += len(traj)
         self.counters.trajectory_points_inserted += converted.inserted
         self.counters.trajectories_retimed += converted.retimed
-        self._send(cfg, traj, stamp_ns)
-        self.motion = Motion(stamp_ns, trajectory=traj)
+        self.motion = Motion(stamp_ns or now_ns, trajectory=traj)
+        if stream is not None:
+            self._stream(stream)
 
     # ------------------------------------------------------------------ diagnostics
 

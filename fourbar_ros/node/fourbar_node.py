@@ -73,6 +73,7 @@ from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.state_cache import StateCache
+from fourbar_ros.rules.actuation import actuation_contract
 from fourbar_ros.rules.outputs import JointStateRule
 from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
 
@@ -107,6 +108,7 @@ class FourBarNode(Node):
         self._debug: Callable[..., object] = logger.debug
         try:
             self._config = self._validated_overrides()
+            contract = None if self._config.mode == 'open_loop' else actuation_contract(self._config)
             constructor_overrides: list[Parameter] = kwargs.get('parameter_overrides') or []
             explicit = set(command_line_names) | {p.name for p in constructor_overrides}
             for path in params_files:
@@ -156,7 +158,8 @@ class FourBarNode(Node):
         self.actuation: Actuation | None = None
         self.completion: MeasuredCompletion | None = None
         if not self._publishes_pose:
-            self.actuation = Actuation(self, lambda: self._config, self._warn, subscribe_measured=False)
+            assert contract is not None
+            self.actuation = Actuation(self, lambda: self._config, self._warn, contract, subscribe_measured=False)
             self.completion = MeasuredCompletion(self, self._config, self._joint_pub, qos, self._warn,
                                                  on_measured=self.actuation.note_measured)
         if self._config.joint_state_rate > 0.0 and self._publishes_pose:

@@ -2,16 +2,21 @@
 recorded message). No ROS: messages are read through the attributes they share with rosbags' classes.
 
 - An antenna trajectory (a ``trajectory_msgs/JointTrajectory`` of the one joint ``ANTENNA_JOINT``: positions theta
-  rad, optional velocities and accelerations) becomes the driven joint's trajectory (``convert``): validated
+  rad, optional velocities and accelerations) becomes the driven joint's trajectory (``serve_antenna_trajectory``):
+  refused when it would end in the past or still moving (unless the controller allows a moving end), validated
   (``motion.trajectory``), converted by the chain rule, refined until the controller's interpolation stays within
   ``trajectory_tolerance`` of the requested path (``motion.refine``), and checked against every limit, rejected or
   retimed by ``limit_policy`` (``motion.limits``). Whatever is wrong gives one line and a ``TrajectoryProblem``.
 - A plain angle command (rad, after the node's accept/clamp/reject policy) becomes a jerk-limited plan from the
   current driven-joint state (``plan_command``), sampled as trajectory points 1/control_rate apart (trajectory
   mode, ``planned_points``) or as setpoints at control_rate (forward mode, ``planned_setpoints``), every point or
-  setpoint checked against the limits before it is returned.
-- ``Motion`` is what the drive is following (a plan or a sent trajectory from its start time): a new command
-  replans from its position, velocity and acceleration at the current time, so the motion has no jump.
+  setpoint checked against the limits before it is returned. Forward mode streams an antenna trajectory's
+  driven-joint spline the same way (``trajectory_setpoints``).
+- Every trajectory goes out as ``point_fields`` (no effort unless ``effort_feedforward``) and only after the
+  controller's contract (``rules.controller_contract``) accepts it (``outgoing_refusal``).
+- ``Motion`` is what the drive is following (a plan or a sent trajectory from its start time). A new command plans
+  on from the motion's state while the measured driven joint is within ``replan_tolerance`` of it, else from the
+  measured state (``replan_start``): the drive is never sent a step larger than that tolerance.
 """
 
 from __future__ import annotations
@@ -19,11 +24,17 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import Protocol
+from typing import NamedTuple, Protocol
 
 import numpy as np
 
-from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.antenna_config import AntennaConfig, ConfigError
+from fourbar_ros.config.controllers import (
+    ForwardControllerSettings,
+    TrajectoryControllerSettings,
+    forward_controller,
+    trajectory_controller,
+)
 from fourbar_ros.config.interface import ANTENNA_JOINT
 from fourbar_ros.core.errors import FourBarError, UnreachableError
 from fourbar_ros.motion.errors import (
@@ -42,15 +53,19 @@ from fourbar_ros.motion.planner import (
     Setpoints,
     driven_angles,
     plan_to_angle,
+    sample_grid,
     setpoints,
     trajectory_points,
 )
 from fourbar_ros.motion.refine import refine
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients
 from fourbar_ros.motion.trajectory import DrivenTrajectory, antenna_trajectory, to_driven
+from fourbar_ros.rules.controller_contract import ContractRule, Refusal, check_trajectory, duration_ns
 
-__all__ = ['ActuationCounters', 'Converted', 'Motion', 'PointLike', 'TrajectoryProblem', 'antenna_arrays', 'convert',
-           'duration_parts', 'plan_command', 'planned_points', 'planned_setpoints', 'point_values', 'problem_of']
+__all__ = ['ActuationCounters', 'Converted', 'DurationFields', 'EndMovingError', 'EndsInPastError', 'Motion',
+           'PointFields', 'PointLike', 'TrajectoryProblem', 'actuation_contract', 'antenna_arrays', 'convert',
+           'duration_parts', 'outgoing_refusal', 'plan_command', 'planned_points', 'planned_setpoints',
+           'point_fields', 'problem_of', 'replan_start', 'serve_antenna_trajectory', 'trajectory_setpoints']
 
 
 class DurationLike(Protocol):
@@ -85,14 +100,25 @@ class TrajectoryProblem(enum.Enum):
     TIME_NOT_INCREASING = 'time_not_increasing'
     OUT_OF_REACH = 'out_of_reach'
     OVER_LIMITS = 'over_limits'
+    END_MOVING = 'end_moving'  #: the last point's velocity is not 0 (the controller would refuse it)
+    ENDS_IN_PAST = 'ends_in_past'  #: stamped, and its last point's time is already past on arrival
     INVALID = 'invalid'  #: anything else: mismatched arrays, accelerations without velocities, ...
+
+
+class EndMovingError(TrajectoryError):
+    """An antenna trajectory whose last point still moves, for a controller that refuses a moving end."""
+
+
+class EndsInPastError(TrajectoryError):
+    """A stamped antenna trajectory whose last point's time has passed when it arrives."""
 
 
 _PROBLEMS: tuple[tuple[type[FourBarError], TrajectoryProblem], ...] = (
     (EmptyTrajectoryError, TrajectoryProblem.EMPTY), (TooManyPointsError, TrajectoryProblem.TOO_MANY_POINTS),
     (WrongJointError, TrajectoryProblem.WRONG_JOINT), (NotFiniteError, TrajectoryProblem.NOT_FINITE),
     (TimeNotIncreasingError, TrajectoryProblem.TIME_NOT_INCREASING), (UnreachableError, TrajectoryProblem.OUT_OF_REACH),
-    (LimitError, TrajectoryProblem.OVER_LIMITS))
+    (LimitError, TrajectoryProblem.OVER_LIMITS), (EndMovingError, TrajectoryProblem.END_MOVING),
+    (EndsInPastError, TrajectoryProblem.ENDS_IN_PAST))
 
 
 def problem_of(exc: FourBarError) -> TrajectoryProblem:
@@ -111,13 +137,18 @@ class ActuationCounters:
     trajectory_points_inserted: int = 0
     commands_planned: int = 0
     commands_not_planned: int = 0  # no start state yet, or the motion cannot stop within the range
+    commands_replanned_from_measured: int = 0  # the measured joint was off the motion by more than replan_tolerance
     setpoints_published: int = 0
     rejected: dict[TrajectoryProblem, int] = field(default_factory=lambda: dict.fromkeys(TrajectoryProblem, 0))
+    #: messages of this package's own making the controller's contract refused (never sent)
+    refused: dict[ContractRule, int] = field(default_factory=lambda: dict.fromkeys(ContractRule, 0))
 
     def as_dict(self) -> dict[str, int]:
-        """Counter name -> value, one ``trajectories_rejected_<problem>`` per problem."""
-        out = {k: v for k, v in asdict(self).items() if k != 'rejected'}
+        """Counter name -> value, one ``trajectories_rejected_<problem>`` per problem and one
+        ``contract_refused_<rule>`` per contract rule."""
+        out = {k: v for k, v in asdict(self).items() if k not in ('rejected', 'refused')}
         out.update({f'trajectories_rejected_{p.value}': n for p, n in self.rejected.items()})
+        out.update({f'contract_refused_{r.value}': n for r, n in self.refused.items()})
         return out
 
 
@@ -171,25 +202,85 @@ def convert(cfg: AntennaConfig, joint_names: Sequence[str], points: Sequence[Poi
     return Converted(out, refined.inserted, refined.bound, out is not refined.trajectory)
 
 
+def serve_antenna_trajectory(cfg: AntennaConfig, allow_moving_end: bool, joint_names: Sequence[str],
+                             points: Sequence[PointLike], stamp_ns: int, now_ns: int) -> Converted:
+    """``convert``, after the two refusals a controller would make of the result whatever the conversion does:
+    a stamped trajectory (``stamp_ns`` != 0) whose last point's time is before ``now_ns`` (EndsInPastError), and a
+    last velocity that is not 0 while ``allow_moving_end`` is false (EndMovingError; the chain rule keeps a zero
+    velocity zero). Stamps and times in ns on the receiver's clock."""
+    if points:
+        last = points[-1]
+        if stamp_ns != 0 and stamp_ns + duration_ns(last.time_from_start) < now_ns:
+            raise EndsInPastError(f'stamped to start at {stamp_ns * 1e-9:.9f} s, its last point is '
+                                  f'{(now_ns - stamp_ns - duration_ns(last.time_from_start)) * 1e-9:.6g} s past')
+        if not allow_moving_end and len(last.velocities) and last.velocities[0] != 0.0:
+            raise EndMovingError(f'the last point moves (theta_dot = {float(last.velocities[0])!r} rad/s): the '
+                                 'controller takes trajectories that end at rest '
+                                 '(allow_nonzero_velocity_at_trajectory_end is false)')
+    return convert(cfg, joint_names, points)
+
+
 def duration_parts(t: float) -> tuple[int, int]:
     """(sec, nanosec) of a time t >= 0 s, nanosec rounded and in [0, 1e9)."""
     ns = round(t * 1e9)
     return ns // 1_000_000_000, ns % 1_000_000_000
 
 
-#: One JointTrajectoryPoint's fields: positions rad, velocities rad/s, accelerations rad/s^2, effort N m, and
-#: time_from_start (sec, nanosec).
-PointValues = tuple[list[float], list[float], list[float], list[float], tuple[int, int]]
+class DurationFields(NamedTuple):
+    """A ``builtin_interfaces/Duration``'s fields."""
+
+    sec: int
+    nanosec: int
 
 
-def point_values(traj: DrivenTrajectory) -> list[PointValues]:
+class PointFields(NamedTuple):
+    """One JointTrajectoryPoint's fields: positions rad, velocities rad/s, accelerations rad/s^2, effort N m (each
+    one value, or empty), time_from_start."""
+
+    positions: list[float]
+    velocities: list[float]
+    accelerations: list[float]
+    effort: list[float]
+    time_from_start: DurationFields
+
+
+def point_fields(traj: DrivenTrajectory, effort: bool) -> list[PointFields]:
     """The points of the JointTrajectory sent for a driven-joint trajectory (the node live, ``fourbar process`` for a
-    bag): one joint; velocities and accelerations where given, else empty; the static torque as effort."""
+    bag): one joint; velocities and accelerations where given, else empty; the static torque as effort only when
+    ``effort`` (the feed-forward), else no effort field."""
     vel, acc = traj.velocities, traj.accelerations
-    return [([p], [] if vel is None else [float(vel[i])], [] if acc is None else [float(acc[i])], [e],
-             duration_parts(t))
-            for i, (t, p, e) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), traj.efforts.tolist(),
-                                              strict=True))]
+    efforts = traj.efforts.tolist()
+    return [PointFields([p], [] if vel is None else [float(vel[i])], [] if acc is None else [float(acc[i])],
+                        [efforts[i]] if effort else [], DurationFields(*duration_parts(t)))
+            for i, (t, p) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), strict=True))]
+
+
+def outgoing_refusal(contract: TrajectoryControllerSettings, joint: str, points: Sequence[PointFields], stamp_ns: int,
+                     now_ns: int) -> Refusal | None:
+    """What the trajectory controller would refuse of a trajectory this package sends (``joint``, ``points``,
+    header stamp ``stamp_ns``), arriving at ``now_ns``: None for nothing. A refused one is not sent."""
+    return check_trajectory(contract, [joint], points, stamp_ns, now_ns)
+
+
+def actuation_contract(cfg: AntennaConfig, mode: str | None = None,
+                       ) -> TrajectoryControllerSettings | ForwardControllerSettings:
+    """The settings of the controller that ``mode`` (default: the configured one; trajectory or forward) sends to,
+    from ``controllers_file``. Raises ConfigError (one line) when they cannot take what the node sends: the
+    controller's joints not the one driven joint, or ``effort_feedforward`` without an effort command interface."""
+    if (mode or cfg.mode) == 'trajectory':
+        contract: TrajectoryControllerSettings | ForwardControllerSettings = trajectory_controller(
+            cfg.controllers_file, cfg.trajectory_controller)
+    else:
+        contract = forward_controller(cfg.controllers_file, cfg.forward_controller)
+    if list(contract.joints) != [cfg.driven_joint]:
+        raise ConfigError(f'controllers_file: the controller {contract.name} has joints {list(contract.joints)}; the '
+                          f'node drives the one joint {cfg.driven_joint!r}', ('controllers_file',))
+    if (cfg.effort_feedforward and isinstance(contract, TrajectoryControllerSettings)
+            and not contract.has_effort_command_interface):
+        raise ConfigError(f'effort_feedforward: the controller {contract.name} has command_interfaces '
+                          f'{list(contract.command_interfaces)}, and it refuses points with effort unless one is '
+                          'effort: give it [position, effort]', ('effort_feedforward',))
+    return contract
 
 
 # --------------------------------------------------------------------------- plain commands
@@ -207,10 +298,31 @@ def planned_points(cfg: AntennaConfig, plan: Plan) -> DrivenTrajectory:
 
 
 def planned_setpoints(cfg: AntennaConfig, plan: Plan) -> Setpoints:
-    """The plan's positions at control_rate, checked before they are returned: each within the driven joint's range
-    over [theta_min, theta_max], and no step between two setpoints faster than the motor's speed limit (LimitError
-    naming the worst)."""
-    out = setpoints(cfg, plan)
+    """The plan's positions at control_rate, checked (``checked_setpoints``) before they are returned."""
+    return checked_setpoints(cfg, setpoints(cfg, plan))
+
+
+def trajectory_setpoints(cfg: AntennaConfig, traj: DrivenTrajectory) -> Setpoints:
+    """Forward mode's stream of a driven-joint trajectory: the spline joint_trajectory_controller would interpolate
+    through its points (``motion.splines``), sampled at control_rate from 0 to its last time included, checked
+    (``checked_setpoints``) before it is returned."""
+    hz = cfg.control_rate
+    times = sample_grid(float(traj.times[-1]), 1.0 / hz)
+    if times.size > cfg.max_trajectory_points:
+        raise TooManyPointsError(f'{times.size} setpoints at {hz!r} Hz exceed max_trajectory_points = '
+                                 f'{cfg.max_trajectory_points}')
+    if len(traj) == 1:
+        return checked_setpoints(cfg, Setpoints(times, np.full(times.size, float(traj.positions[0]))))
+    c = hermite_coefficients(traj.times, traj.positions, traj.velocities, traj.accelerations)
+    i = np.clip(np.searchsorted(traj.times, times, side='right') - 1, 0, len(traj) - 2)
+    h = traj.times[i + 1] - traj.times[i]
+    s = np.clip((times - traj.times[i]) / h, 0.0, 1.0)
+    return checked_setpoints(cfg, Setpoints(times, evaluate(c[i], s[:, None])[:, 0]))
+
+
+def checked_setpoints(cfg: AntennaConfig, out: Setpoints) -> Setpoints:
+    """``out`` if each setpoint is within the driven joint's range over [theta_min, theta_max] and no step between
+    two setpoints is faster than the motor's speed limit; else LimitError naming the worst."""
     lower, upper = np.sort(driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max])))
     p = out.positions
     outside = (p < lower) | (p > upper)
@@ -226,6 +338,24 @@ def planned_setpoints(cfg: AntennaConfig, plan: Plan) -> Setpoints:
             raise LimitError(f'setpoints {i} and {i + 1}: motor speed {float(speed[i]):.6g} rad/s exceeds its limit '
                              f'{limits.motor_speed:.6g} rad/s')
     return out
+
+
+def replan_start(motion: Motion | None, measured: JointMotionState | None, now_ns: int,
+                 tolerance: float) -> tuple[JointMotionState | None, bool]:
+    """Where a new command's motion starts, and whether the running motion was left for the measurement.
+
+    The running motion's state at ``now_ns`` while the measured driven position is within ``tolerance`` rad of it
+    (or nothing is measured yet); else the measured state (position rad, velocity rad/s, acceleration 0): a drive
+    held by its controller, or lagging, is not sent a step. With no motion running: the measured state, else the end
+    of the last motion; None before any of them exists."""
+    if motion is not None and not motion.done(now_ns):
+        state = motion.state_at(now_ns)
+        if measured is None or abs(measured.position - state.position) <= tolerance:
+            return state, False
+        return measured, True
+    if measured is not None:
+        return measured, False
+    return (None if motion is None else motion.state_at(now_ns)), False
 
 
 class Motion:
