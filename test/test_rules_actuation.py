@@ -24,7 +24,10 @@ from fourbar_ros.rules.actuation import (
     planned_points,
     planned_setpoints,
     problem_of,
+    replan_start,
+    trajectory_setpoints,
 )
+from fourbar_ros.rules.controller_contract import ContractRule
 
 CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
@@ -92,9 +95,10 @@ def test_retime_policy_slows_a_fast_trajectory_down_instead() -> None:
     assert (np.round(out.trajectory.times * 1e9) / 1e9 == out.trajectory.times).all()
 
 
-def test_counters_name_every_problem() -> None:
+def test_counters_name_every_problem_and_contract_rule() -> None:
     keys = ActuationCounters().as_dict()
     assert all(f'trajectories_rejected_{p.value}' in keys for p in TrajectoryProblem)
+    assert all(f'contract_refused_{r.value}' in keys for r in ContractRule)
 
 
 def test_planned_points_and_setpoints_are_within_the_limits_and_reach_the_target() -> None:
@@ -124,3 +128,39 @@ def test_a_replan_from_the_running_motion_starts_at_its_state() -> None:
     assert replan.state_at(0.0) == a  # ruckig starts at exactly the state it is given
     assert on_plan.done(start_ns + round(plan.duration * 1e9) + 1)
     assert on_points.state_at(start_ns + 10**12) == JointMotionState(float(on_points.trajectory.positions[-1]))
+
+
+def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_tolerance() -> None:
+    q = driven_angles(CFG, np.array([CFG.theta_min]))
+    plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
+    start_ns = 1_700_000_000_000_000_000
+    motion = Motion(start_ns, plan=plan)
+    now = start_ns + round(0.5 * plan.duration * 1e9)
+    model = motion.state_at(now)
+    tol = CFG.replan_tolerance
+    near = JointMotionState(model.position + 0.5 * tol, 0.001)
+    assert replan_start(motion, near, now, tol) == (model, False)
+    # Held at the start (a refused trajectory, or a hold after a tolerance violation): the measured state.
+    held = JointMotionState(float(q[0]))
+    assert replan_start(motion, held, now, tol) == (held, True)
+    assert replan_start(motion, None, now, tol) == (model, False)  # nothing measured: the motion
+    done = start_ns + round(plan.duration * 1e9) + 1
+    assert replan_start(motion, held, done, tol) == (held, False)  # no motion running: the measurement
+    assert replan_start(None, None, now, tol) == (None, False)
+    # The plan from the held state starts there: the drive is sent no step.
+    assert plan_command(CFG, held, 0.0).state_at(0.0) == held
+
+
+def test_forward_setpoints_of_a_trajectory_follow_the_controllers_spline() -> None:
+    out = convert(CFG, [ANTENNA_JOINT], pts([0.0, 1.0, 2.0], [0.0, 0.02, 0.03], [0.0, 0.015, 0.0])).trajectory
+    stream = trajectory_setpoints(CFG, out)
+    assert stream.times[0] == 0.0 and stream.times[-1] == out.times[-1]
+    assert np.allclose(np.diff(stream.times)[:-1], 1.0 / CFG.control_rate, rtol=0, atol=1e-12)
+    # At the points' own times the spline is the point (s = 0 of a segment: its first coefficient, exactly).
+    at_points = np.isin(stream.times, out.times)
+    assert at_points.sum() == len(out)
+    assert np.array_equal(stream.positions[at_points], out.positions)
+    # Between points: the Motion's scalar evaluation of the same spline, within rounding (~1e-15 rad).
+    motion = Motion(0, trajectory=out)
+    for t, p in zip(stream.times[::17], stream.positions[::17], strict=True):
+        assert p == pytest.approx(motion.state_at(round(t * 1e9)).position, abs=1e-13)

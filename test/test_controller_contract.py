@@ -1,0 +1,249 @@
+"""The controllers' contract (rules/controller_contract.py) and the settings it reads (config/controllers.py).
+
+Each rule of joint_trajectory_controller's validate_trajectory_msg (Jazzy) has a message that breaks it alone, in
+the controller's order of checks; the shipped controllers YAML is read with the controller's defaults; and what the
+actuator modes make of commands and antenna trajectories passes the contract the shipped YAML gives.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
+from fourbar_ros.config.controllers import (
+    ForwardControllerSettings,
+    JointTolerances,
+    TrajectoryControllerSettings,
+    forward_controller,
+    trajectory_controller,
+)
+from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.motion.planner import JointMotionState
+from fourbar_ros.rules.actuation import (
+    EndMovingError,
+    EndsInPastError,
+    actuation_contract,
+    duration_parts,
+    outgoing_refusal,
+    plan_command,
+    planned_points,
+    point_fields,
+    serve_antenna_trajectory,
+)
+from fourbar_ros.rules.controller_contract import (
+    FLOAT_EPSILON,
+    ContractRule,
+    check_forward_command,
+    check_trajectory,
+)
+
+REPO = Path(__file__).resolve().parent.parent
+CFG = default_config()
+JOINT = CFG.driven_joint
+JTC = trajectory_controller('', CFG.trajectory_controller)
+NOW = 1_000 * 10**9  # ns
+
+
+@dataclass
+class Dur:
+    sec: int
+    nanosec: int
+
+
+@dataclass
+class Pt:
+    positions: list[float]
+    velocities: list[float] = field(default_factory=list)
+    accelerations: list[float] = field(default_factory=list)
+    effort: list[float] = field(default_factory=list)
+    time_from_start: Dur = field(default_factory=lambda: Dur(0, 0))
+
+
+def pts(times: list[float], positions: list[float], **fields: list[list[float]]) -> list[Pt]:
+    return [Pt([p], time_from_start=Dur(*duration_parts(t)), **{k: v[i] for k, v in fields.items()})
+            for i, (t, p) in enumerate(zip(times, positions, strict=True))]
+
+
+GOOD = pts([0.0, 1.0], [0.8, 0.9], velocities=[[0.0], [0.0]])
+
+#: One message per rule, each breaking that rule alone: (joint_names, points, stamp ns).
+BREAKS: dict[ContractRule, tuple[list[str], list[Pt], int]] = {
+    ContractRule.PARTIAL_JOINTS: ([JOINT, 'other_joint'], GOOD, 0),
+    ContractRule.NO_POINTS: ([JOINT], [], 0),
+    ContractRule.FOREIGN_JOINT: (['elbow_joint'], GOOD, 0),
+    ContractRule.END_MOVING: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], velocities=[[0.0], [2.0 * FLOAT_EPSILON]]), 0),
+    ContractRule.ENDS_IN_PAST: ([JOINT], GOOD, NOW - 2 * 10**9),
+    ContractRule.TIME_NOT_INCREASING: ([JOINT], pts([0.0, 1.0, 1.0], [0.8, 0.9, 0.95]), 0),
+    ContractRule.FIELD_SIZE: ([JOINT], [*GOOD[:1], Pt([0.9, 1.0], time_from_start=Dur(1, 0))], 0),
+    ContractRule.EFFORT_FIELD: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], effort=[[0.1], [0.2]]), 0),
+}
+
+
+def test_the_shipped_yaml_gives_the_controllers_settings_with_jazzy_defaults() -> None:
+    assert JTC.joints == (JOINT,) and JTC.command_interfaces == ('position',)
+    assert not JTC.allow_partial_joints_goal and not JTC.allow_nonzero_velocity_at_trajectory_end
+    assert not JTC.allow_integration_in_goal_trajectories and not JTC.interpolate_from_desired_state
+    assert JTC.goal_time > 0.0 and JTC.tolerance(JOINT).trajectory > 0.0 and JTC.tolerance(JOINT).goal > 0.0
+    assert JTC.tolerance('not_a_joint') == JointTolerances(0.0, 0.0)  # the controller's default: not checked
+    assert forward_controller('', CFG.forward_controller) == ForwardControllerSettings(CFG.forward_controller, (JOINT,))
+
+
+def test_a_good_message_passes() -> None:
+    assert check_trajectory(JTC, [JOINT], GOOD, 0, NOW) is None
+    assert check_trajectory(JTC, [JOINT], GOOD, NOW - 10**9, NOW) is None  # ends exactly now: not in the past
+
+
+@pytest.mark.parametrize('rule', list(BREAKS), ids=lambda r: r.value)
+def test_each_rule_refuses_its_message(rule: ContractRule) -> None:
+    names, points, stamp = BREAKS[rule]
+    refusal = check_trajectory(JTC, names, points, stamp, NOW)
+    assert refusal is not None and refusal.rule is rule
+    assert '\n' not in refusal.reason and refusal.reason
+
+
+def test_no_joint_names_is_its_own_rule_when_partial_goals_are_allowed() -> None:
+    # Without allow_partial_joints_goal an empty name list already breaks the joint count (checked first).
+    assert check_trajectory(JTC, [], GOOD, 0, NOW).rule is ContractRule.PARTIAL_JOINTS  # type: ignore[union-attr]
+    partial = replace(JTC, allow_partial_joints_goal=True)
+    assert check_trajectory(partial, [], GOOD, 0, NOW).rule is ContractRule.NO_JOINT_NAMES  # type: ignore[union-attr]
+
+
+def test_the_options_admit_what_they_name() -> None:
+    names, moving, _ = BREAKS[ContractRule.END_MOVING]
+    assert check_trajectory(replace(JTC, allow_nonzero_velocity_at_trajectory_end=True), names, moving, 0, NOW) is None
+    names, effort, _ = BREAKS[ContractRule.EFFORT_FIELD]
+    assert check_trajectory(replace(JTC, command_interfaces=('position', 'effort')), names, effort, 0, NOW) is None
+    # A last velocity at float epsilon is still at rest for the controller (it compares with >).
+    at_eps = pts([0.0, 1.0], [0.8, 0.9], velocities=[[0.0], [FLOAT_EPSILON]])
+    assert check_trajectory(JTC, [JOINT], at_eps, 0, NOW) is None
+    # Integration in goals: a point may leave out positions, not every field.
+    integrating = replace(JTC, allow_integration_in_goal_trajectories=True)
+    velocities_only = [Pt([], [0.0]), Pt([], [0.0], time_from_start=Dur(1, 0))]
+    assert check_trajectory(integrating, [JOINT], velocities_only, 0, NOW) is None
+    assert check_trajectory(JTC, [JOINT], velocities_only, 0, NOW).rule is ContractRule.FIELD_SIZE  # type: ignore[union-attr]
+    empty = [Pt([]), Pt([], time_from_start=Dur(1, 0))]
+    assert check_trajectory(integrating, [JOINT], empty, 0, NOW).rule is ContractRule.FIELD_SIZE  # type: ignore[union-attr]
+
+
+def test_the_checks_run_in_the_controllers_order() -> None:
+    # Broken twice: the controller reports the check it makes first (point by point: time, sizes, effort).
+    both = pts([0.0, 1.0, 1.0], [0.8, 0.9, 0.95], effort=[[], [], [0.3]])
+    assert check_trajectory(JTC, [JOINT], both, 0, NOW).rule is ContractRule.TIME_NOT_INCREASING  # type: ignore[union-attr]
+    moving_foreign = pts([0.0, 1.0], [0.8, 0.9], velocities=[[0.0], [1.0]])
+    assert check_trajectory(JTC, ['elbow_joint'], moving_foreign, 0, NOW).rule is ContractRule.FOREIGN_JOINT  # type: ignore[union-attr]
+
+
+def test_times_compare_in_whole_nanoseconds() -> None:
+    # 1 ns apart is increasing; the same ns is not.
+    p = [Pt([0.8], time_from_start=Dur(0, 5)), Pt([0.9], time_from_start=Dur(0, 6))]
+    assert check_trajectory(JTC, [JOINT], p, 0, NOW) is None
+    p[1].time_from_start = Dur(0, 5)
+    assert check_trajectory(JTC, [JOINT], p, 0, NOW).rule is ContractRule.TIME_NOT_INCREASING  # type: ignore[union-attr]
+
+
+def test_the_forward_controller_takes_one_value_per_joint() -> None:
+    fwd = ForwardControllerSettings('fwd', (JOINT,))
+    assert check_forward_command(fwd, [0.8]) is None
+    for data in ([], [0.8, 0.9]):
+        assert check_forward_command(fwd, data).rule is ContractRule.COMMAND_SIZE  # type: ignore[union-attr]
+
+
+# --------------------------------------------------------------------------- reading the YAML
+
+def controllers_yaml(tmp_path: Path, body: str) -> str:
+    path = tmp_path / 'controllers.yaml'
+    path.write_text(body)
+    return str(path)
+
+
+def test_interface_combinations_the_controller_refuses_are_refused_at_load(tmp_path: Path) -> None:
+    for interfaces in ('[velocity, effort]', '[effort, velocity, position]', '[acceleration]', '[position, position]'):
+        path = controllers_yaml(tmp_path, f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n'
+                                          f'    command_interfaces: {interfaces}\n    state_interfaces: [position]\n')
+        with pytest.raises(ConfigError, match='command_interfaces'):
+            trajectory_controller(path, 'jtc')
+    path = controllers_yaml(tmp_path, f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n'
+                                      '    command_interfaces: [position, effort]\n    state_interfaces: [position]\n')
+    assert trajectory_controller(path, 'jtc').has_effort_command_interface
+
+
+def test_a_missing_section_or_a_wrong_type_is_one_line(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match='controllers_file') as missing:
+        trajectory_controller('', 'no_such_controller')
+    assert '\n' not in str(missing.value)
+    path = controllers_yaml(tmp_path, f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n    command_interfaces: '
+                                      '[position]\n    state_interfaces: [position]\n'
+                                      '    allow_partial_joints_goal: 1\n')
+    with pytest.raises(ConfigError, match='allow_partial_joints_goal must be a bool'):
+        trajectory_controller(path, 'jtc')
+
+
+def test_the_node_refuses_to_start_with_a_contract_it_cannot_meet(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match='effort_feedforward'):
+        actuation_contract(config_from_values({'mode': 'trajectory', 'effort_feedforward': True}))
+    other = controllers_yaml(tmp_path, 'joint_trajectory_controller:\n  ros__parameters:\n    joints: [a, b]\n'
+                                       '    command_interfaces: [position]\n    state_interfaces: [position]\n')
+    with pytest.raises(ConfigError, match='joints'):
+        actuation_contract(config_from_values({'mode': 'trajectory', 'controllers_file': other}))
+
+
+# --------------------------------------------------------------------------- what the node makes passes
+
+
+
+def effort_contract(tmp_path: Path) -> TrajectoryControllerSettings:
+    text = (REPO / 'config' / 'controllers.yaml').read_text()
+    assert text.count('      - position\n    state_interfaces:') == 1
+    path = controllers_yaml(tmp_path, text.replace('      - position\n    state_interfaces:',
+                                                   '      - position\n      - effort\n    state_interfaces:'))
+    cfg = config_from_values({'mode': 'trajectory', 'effort_feedforward': True, 'controllers_file': path})
+    contract = actuation_contract(cfg)
+    assert isinstance(contract, TrajectoryControllerSettings)
+    return contract
+
+
+@pytest.mark.parametrize('q0', [0.75, 0.85, 0.95])
+def test_planned_commands_pass_the_contract_with_and_without_effort(tmp_path: Path, q0: float) -> None:
+    plan = plan_command(CFG, JointMotionState(q0), 0.5 * (CFG.theta_min + CFG.theta_max))
+    traj = planned_points(CFG, plan)
+    plain = point_fields(traj, effort=False)
+    assert all(not p.effort for p in plain)
+    assert outgoing_refusal(JTC, JOINT, plain, 0, NOW) is None
+    with_effort = point_fields(traj, effort=True)
+    assert [p.effort[0] for p in with_effort] == traj.efforts.tolist()
+    assert outgoing_refusal(JTC, JOINT, with_effort, 0, NOW).rule is ContractRule.EFFORT_FIELD  # type: ignore[union-attr]
+    assert outgoing_refusal(effort_contract(tmp_path), JOINT, with_effort, 0, NOW) is None
+
+
+def antenna(times: list[float], theta: list[float], theta_dot: list[float]) -> list[Pt]:
+    return pts(times, theta, velocities=[[v] for v in theta_dot])
+
+
+def test_an_antenna_trajectory_ending_in_motion_is_refused_unless_the_controller_allows_it() -> None:
+    moving = antenna([0.0, 1.0, 2.0], [0.0, 0.01, 0.02], [0.0, 0.01, 0.004])
+    with pytest.raises(EndMovingError, match=r'theta_dot = 0\.004'):
+        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], moving, 0, NOW)
+    converted = serve_antenna_trajectory(CFG, True, [ANTENNA_JOINT], moving, 0, NOW)
+    last = point_fields(converted.trajectory, effort=False)[-1]
+    theta = np.array([0.02])
+    q1 = float(CFG.linkage.rates_at(theta, *CFG.linkage.rocker_angles(theta, CFG.branch)).dgamma_dtheta[0])
+    # The chain rule q' theta_dot: the same q' evaluated twice (array paths), within a few ulps.
+    assert math.isclose(last.velocities[0], 0.004 * q1, rel_tol=1e-14)
+    allowing = replace(JTC, allow_nonzero_velocity_at_trajectory_end=True)
+    assert outgoing_refusal(allowing, JOINT, point_fields(converted.trajectory, False), 0, NOW) is None
+    assert outgoing_refusal(JTC, JOINT, point_fields(converted.trajectory, False), 0, NOW).rule \
+        is ContractRule.END_MOVING  # type: ignore[union-attr]
+
+
+def test_an_antenna_trajectory_ending_in_the_past_is_refused_and_stamp_0_starts_on_arrival() -> None:
+    rest = antenna([0.0, 1.0, 2.0], [0.0, 0.01, 0.02], [0.0, 0.01, 0.0])
+    with pytest.raises(EndsInPastError):
+        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], rest, NOW - 3 * 10**9, NOW)
+    for stamp in (0, NOW - 2 * 10**9, NOW + 10**9):  # on arrival; ending exactly now; in the future
+        converted = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], rest, stamp, NOW)
+        assert outgoing_refusal(JTC, JOINT, point_fields(converted.trajectory, False), stamp, NOW) is None
