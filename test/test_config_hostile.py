@@ -3,9 +3,11 @@ bounded memory, by the loader and by `fourbar solve/check --params` (no ROS)."""
 
 from __future__ import annotations
 
+import inspect
 import json
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
@@ -144,6 +146,38 @@ def test_nesting_is_bounded() -> None:
     # Far deeper than Python's recursion limit: still one line, no RecursionError.
     with pytest.raises(ConfigError, match='nested more than'):
         parse('[' * 100_000)
+
+
+def _at_stack_depth(frames: int, call: Callable[[], object]) -> object:
+    return call() if frames <= 0 else _at_stack_depth(frames - 1, call)
+
+
+@pytest.mark.parametrize('loader', ['CSafeLoader', 'SafeLoader'])
+@pytest.mark.parametrize('opening', ['[', '{"a": ', '- ['])
+def test_deep_flow_nesting_is_refused_before_the_parser_whatever_the_stack(
+        loader: str, opening: str, monkeypatch: pytest.MonkeyPatch) -> None:
+    # The parser must not see it: a libyaml that scans a bracket run ahead fails on its own limit ("while increasing
+    # flow level"), and a deep caller stack must not change the message. Both loaders, a stack near its limit.
+    import yaml
+    if loader == 'SafeLoader':
+        monkeypatch.delattr(yaml, 'CSafeLoader', raising=False)
+    frames = sys.getrecursionlimit() - len(inspect.stack()) - 50
+    for text in (opening * 100_000, opening * (MAX_DEPTH + 1)):
+        with pytest.raises(ConfigError, match=f'nested more than {MAX_DEPTH} levels') as err:
+            _at_stack_depth(frames, lambda t=text: parse(t))  # type: ignore[misc]
+        assert '\n' not in str(err.value)
+
+
+@pytest.mark.parametrize('text', [
+    'a: b[c]\n',                                   # brackets inside plain scalars open nothing
+    'a: "' + '[' * 200 + '"\n',                     # nor inside quoted ones
+    "a: '" + "{''" * 200 + "'\n",
+    'a: x # ' + '[' * 200 + '\n',                   # nor in comments
+    'a: ' + '[' * (MAX_DEPTH - 1) + ']' * (MAX_DEPTH - 1) + '\n',  # with the mapping: MAX_DEPTH levels
+])
+def test_brackets_that_open_nothing_are_not_counted(text: str) -> None:
+    import yaml
+    assert parse(text) == yaml.safe_load(text)
 
 
 @pytest.mark.parametrize('text', ['a: 1\n---\nb: 2\n', '? [1, 2]\n: 3\n', 'a: [1\n'])

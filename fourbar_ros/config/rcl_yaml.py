@@ -121,6 +121,62 @@ def rcl_scalar(text: str, quoted: bool) -> bool | int | float | str:
 
 _NO_KEY = object()
 
+#: Characters that can open or close a flow collection, start a quoted scalar or a comment, or end a line.
+_FLOW_SYNTAX = re.compile(r"[\[\]{}'\"#\n]")
+
+
+def _flow_depth_problem(text: str, source: str) -> ConfigError | None:
+    """A ConfigError when flow collections (``[``, ``{``) nest deeper than MAX_DEPTH, found before the YAML parser
+    runs: a parser may scan a whole run of brackets ahead before it yields the first event (libyaml does, to find
+    possible simple keys), and fail on its own depth limit, or the caller's stack, with its own message.
+
+    A lexical scan: quoted scalars and comments are skipped; outside flow collections a bracket opens one only at
+    the start of a line's content or after ``: ``, ``- ``, ``? ``; inside one every bracket is an indicator."""
+    depth = 0
+    line = 1
+    pos = 0
+    for m in _FLOW_SYNTAX.finditer(text):
+        i = m.start()
+        if i < pos:  # inside a quoted scalar or comment already skipped
+            continue
+        c = m.group()
+        if c == '\n':
+            line += 1
+        elif c == '#':
+            if i == 0 or text[i - 1] in ' \t\n':
+                end = text.find('\n', i)
+                pos = len(text) if end < 0 else end
+        elif c in '\'"':
+            if depth == 0 and i > 0 and text[i - 1] not in ' \t\n[{,:-?':
+                continue  # a quote inside a plain scalar
+            j = i + 1
+            while True:
+                j = text.find(c, j)
+                if j < 0:
+                    return None  # unterminated: the parser reports it
+                if c == '"' and (j - i - 1 - len(text[i + 1:j].rstrip('\\'))) % 2:
+                    j += 1  # an escaped quote
+                    continue
+                if c == "'" and text.startswith("''", j):
+                    j += 2
+                    continue
+                break
+            line += text.count('\n', i, j)
+            pos = j + 1
+        elif c in '[{':
+            if depth == 0:
+                k = i - 1
+                while k >= 0 and text[k] in ' \t':
+                    k -= 1
+                if not (k < 0 or text[k] == '\n' or (text[k] in ':-?' and k + 1 < i)):
+                    continue  # part of a plain scalar
+            depth += 1
+            if depth > MAX_DEPTH:
+                return ConfigError(f'{source}: line {line}: nested more than {MAX_DEPTH} levels deep')
+        elif depth:  # ] or }
+            depth -= 1
+    return None
+
 
 def parse(text: str, source: str = '<string>') -> Any:
     """The YAML document as dicts, lists and rcl-typed scalars (None for an empty document).
@@ -129,6 +185,9 @@ def parse(text: str, source: str = '<string>') -> Any:
     an alias is refused where it appears, nothing is ever expanded, and nesting deeper than ``MAX_DEPTH``
     is refused, so the result is never larger than the text. Raises ``ConfigError`` (one line).
     """
+    too_deep = _flow_depth_problem(text, source)
+    if too_deep is not None:
+        raise too_deep
     import yaml  # PyYAML, only for its parser; imported here to keep `import fourbar_ros.config.antenna_config` light
 
     loader = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
