@@ -1,6 +1,7 @@
 """package.xml is something `rosdep install` can satisfy on ROS 2 Jazzy: every dependency key resolves (checked
-against the published rosdep key lists kept in test/data/rosdep/), and every third-party module the package or its
-tests import has its key."""
+against the published rosdep key lists kept in test/data/rosdep/, or the package's own rosdep source file
+rosdep/fourbar_ros.yaml for keys rosdistro lacks), and every third-party module the package or its tests import has
+its key."""
 
 from __future__ import annotations
 
@@ -12,6 +13,9 @@ import pytest
 
 REPO = Path(__file__).resolve().parent.parent
 KEYS_FILE = REPO / 'test' / 'data' / 'rosdep' / 'jazzy_noble_keys.txt'
+#: The package's own rosdep source file (keys rosdistro lacks), and the platforms it must serve (Jazzy's).
+OWN_SOURCE = REPO / 'rosdep' / 'fourbar_ros.yaml'
+PLATFORMS = ('ubuntu', 'debian')
 
 #: Top-level import name -> rosdep key. ROS packages import under their own name (rclpy, std_msgs, ...), which
 #: is their key; every other third-party module is listed here. None: no rosdep key exists (see NO_KEY).
@@ -23,6 +27,7 @@ IMPORT_KEYS: dict[str, str | None] = {
     'matplotlib': 'python3-matplotlib',
     'mcap': 'mcap-ros2-support',      # the pip package mcap comes with mcap-ros2-support; no key of its own
     'mcap_ros2': 'mcap-ros2-support',
+    'ruckig': 'python3-ruckig-pip',   # the package's own key (rosdep/fourbar_ros.yaml)
     'pytest': 'python3-pytest',
     'hypothesis': 'python3-hypothesis',
     'catkin_pkg': 'python3-catkin-pkg',
@@ -35,10 +40,6 @@ IMPORT_KEYS: dict[str, str | None] = {
 #: Modules without a rosdep key: tests that import them must skip where they are missing (the reference values
 #: they compute are also kept as data in the repository).
 NO_KEY = {name for name, key in IMPORT_KEYS.items() if key is None}
-#: Modules no rosdep key installs, imported only on first use by the feature needing them (which then fails with a
-#: one-line error naming the pip command): the rest of the installed package works without them. ruckig: the key
-#: `ruckig` is the released C++ library, built without its Python module (docs/motion.md).
-PIP_ONLY_LAZY = {'ruckig'}
 #: ROS packages (their import name is their key).
 ROS_PACKAGES = {
     'rclpy', 'rcl_interfaces', 'ament_index_python', 'builtin_interfaces', 'std_msgs', 'sensor_msgs',
@@ -52,6 +53,18 @@ LOCAL = {'fourbar_ros', 'benchmarks', 'ros_support', 'bag_support', 'mp_referenc
 
 def published_keys() -> set[str]:
     return {line.strip() for line in KEYS_FILE.read_text(encoding='utf-8').splitlines() if line.strip()}
+
+
+def own_keys() -> dict[str, object]:
+    import yaml
+
+    keys: dict[str, object] = yaml.safe_load(OWN_SOURCE.read_text(encoding='utf-8'))
+    return keys
+
+
+def resolvable_keys() -> set[str]:
+    """Keys rosdep resolves once the package's source file is registered: rosdistro's and the file's."""
+    return published_keys() | set(own_keys())
 
 
 def package() -> object:
@@ -81,17 +94,6 @@ def third_party_imports(paths: list[Path]) -> dict[str, list[str]]:
     return found
 
 
-def module_level_imports(path: Path) -> set[str]:
-    """Top-level names of the modules a file imports at module level (not inside a function)."""
-    names: set[str] = set()
-    for node in ast.parse(path.read_text(encoding='utf-8'), str(path)).body:
-        if isinstance(node, ast.Import):
-            names.update(alias.name.split('.')[0] for alias in node.names)
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names.add(node.module.split('.')[0])
-    return names
-
-
 def key_of(module: str) -> str | None:
     if module in ROS_PACKAGES:
         return module
@@ -110,7 +112,7 @@ def test_key_list_is_the_extracted_published_list() -> None:
 
 def test_every_dependency_key_resolves_for_jazzy() -> None:
     pkg = package()
-    keys = published_keys()
+    keys = resolvable_keys()
     groups = ('build_depends', 'buildtool_depends', 'build_export_depends', 'exec_depends', 'test_depends',
               'doc_depends')
     missing = sorted({d.name for g in groups for d in getattr(pkg, g) if d.name not in keys})
@@ -124,12 +126,6 @@ def test_every_runtime_import_has_an_exec_depend() -> None:
     assert {'rclpy', 'numpy'} <= set(imports)
     problems = []
     for module, files in sorted(imports.items()):
-        if module in PIP_ONLY_LAZY:
-            eager = [f for f in files if module in module_level_imports(REPO / f)]
-            if eager:
-                problems.append(f'{module} has no rosdep key: import it on first use only, not at module level in '
-                                f'{eager[0]}')
-            continue
         key = key_of(module)
         if key is None:
             problems.append(f'{module} (imported by {files[0]}) has no rosdep key: the installed package cannot use it')
@@ -154,3 +150,25 @@ def test_every_test_import_has_a_key_or_is_known_to_have_none() -> None:
 def test_modules_without_a_key_are_not_declared(module: str) -> None:
     text = (REPO / 'package.xml').read_text(encoding='utf-8')
     assert f'>python3-{module}<' not in text
+
+
+def test_the_own_source_file_defines_only_keys_rosdistro_lacks_each_a_pinned_pip_package() -> None:
+    keys = own_keys()
+    assert keys, 'rosdep/fourbar_ros.yaml defines no key'
+    assert not set(keys) & published_keys(), 'a key rosdistro defines must not be redefined'
+    constraints = (REPO / 'requirements' / 'constraints.txt').read_text(encoding='utf-8').splitlines()
+    for key, rule in keys.items():
+        assert isinstance(rule, dict) and set(PLATFORMS) <= set(rule), f'{key}: needs {PLATFORMS}'
+        for platform in PLATFORMS:
+            packages = rule[platform]['pip']['packages']  # type: ignore[index]
+            assert packages and all(p in constraints for p in packages), \
+                f'{key} on {platform}: {packages} must be pinned as in requirements/constraints.txt'
+    # The registration line the file's header gives names the file itself.
+    assert 'yaml file://$PWD/rosdep/fourbar_ros.yaml' in OWN_SOURCE.read_text(encoding='utf-8')
+
+
+def test_ruckig_resolves_through_the_own_key() -> None:
+    # rosdistro's `ruckig` is the C++ library; the Python module needs the pip key.
+    assert 'ruckig' in published_keys() and 'python3-ruckig-pip' not in published_keys()
+    assert 'python3-ruckig-pip' in {d.name for d in package().exec_depends}  # type: ignore[attr-defined]
+    assert key_of('ruckig') in own_keys()
