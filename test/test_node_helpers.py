@@ -11,7 +11,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values,
 from fourbar_ros.core.antenna import Driven, LinkageState
 from fourbar_ros.core.loads import com_height_rate, gravity_torque, load_torque, motor_torque, pose_solver, solve
 from fourbar_ros.core.transforms import antenna_joint_positions
-from fourbar_ros.node.diagnostic_values import Counters, Level, summarize
+from fourbar_ros.node.diagnostic_values import Counters, Level, SequenceGaps, summarize
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.state_cache import StateCache
 from fourbar_ros.rules.policy import Outcome, Policy, decide
@@ -241,3 +241,12 @@ def test_diagnostics_warn_on_poor_transmission() -> None:
     strict = config_from_values({'transmission_angle_min': math.radians(40.0)})
     s = summarize(strict, d, HI, state, Counters(), 1, 0)
     assert s.level is Level.WARN and 'transmission' in s.message
+
+
+def test_sequence_gaps_count_skipped_numbers_and_a_late_first_number() -> None:
+    gaps = SequenceGaps()
+    # A publisher numbers from 1: its first message numbered 4 means 1 to 3 never came.
+    assert [gaps.observe(n) for n in (4, 5, 7, 8)] == [3, 0, 1, 0]
+    # A second publisher interleaved (a new track, below every track's last number): counted from its start.
+    assert [gaps.observe(n) for n in (1, 9, 2)] == [0, 0, 0]
+    assert gaps.observe(1) == 0  # a restarted publisher starts again at 1

@@ -2,10 +2,11 @@
 
 - A burst far faster than the node takes commands, through the default QoS (reliable, keep-last 1000 on both
   sides): the queues drop the oldest, and ``commands_lost`` in /diagnostics counts every command that never
-  reached the callback (gaps in the publisher's sequence numbers), with a WARN status. Before the fix the
-  diagnostics stayed OK with no counter.
-- Raw payloads that are not a Float64 (empty, truncated, a bad header) from the command publisher: the
-  middleware drops them (they show as lost) and the next good commands from that publisher are served.
+  reached the callback (gaps in the publisher's sequence numbers), with a WARN status.
+- Raw payloads that are not a little-endian Float64 (truncated, a bad header) are taken raw, counted
+  (``commands_malformed``) and skipped; the next good commands from that publisher are served. An empty payload,
+  which the middleware never delivers, holds its publisher's later commands back until the publisher's keep-last
+  history has dropped it; then they all arrive, in order.
 """
 
 from __future__ import annotations
@@ -145,16 +146,17 @@ def payload_rigs(ros: RosSession) -> Iterator[dict[str, Rig]]:
             rig.close()
 
 
-@pytest.mark.parametrize('payload', [b'', b'\x00\x01\x00\x00', b'\x00\x01\x00\x00\x00\x00\x00',
-                                     b'\xff' * 12], ids=['empty', 'header_only', 'truncated', 'bad_header'])
+def malformed(values: dict[str, str]) -> int:
+    return int(values['commands_malformed'])
+
+
+@pytest.mark.parametrize('payload', [b'\x00\x01\x00\x00', b'\x00\x01\x00\x00\x00\x00\x00', b'\xff' * 12,
+                                     b'\x00\x00\x00\x00' + bytes(8)],
+                         ids=['header_only', 'truncated', 'bad_header', 'big_endian'])
 @pytest.mark.parametrize('executor', EXECUTORS)
-def test_malformed_payload_does_not_block_later_commands(ros: RosSession, payload_rigs: dict[str, Rig],
-                                                         payload: bytes, executor: str) -> None:
-    if executor not in payload_rigs:
-        while payload_rigs:
-            payload_rigs.popitem()[1].close()
-        payload_rigs[executor] = Rig(ros, f'/loss_raw_{executor}', executor)
-    rig = payload_rigs[executor]
+def test_malformed_payload_is_counted_and_later_commands_are_served(ros: RosSession, payload_rigs: dict[str, Rig],
+                                                                    payload: bytes, executor: str) -> None:
+    rig = rig_for(ros, payload_rigs, executor)
     _, before = rig.status()
     received0, lost0 = counts(before)
     rig.js.clear()
@@ -164,5 +166,71 @@ def test_malformed_payload_does_not_block_later_commands(ros: RosSession, payloa
     answers = rig.js.wait_count(3)
     assert [m.position[0] for m in answers] == [gamma(t) for t in (0.01, 0.02, 0.03)]
     _, values = rig.status(lambda s, v: counts(v)[0] - received0 >= 3)
-    # The middleware could not deserialize it and skipped it: it shows as one lost command.
-    assert counts(values) == (received0 + 3, lost0 + 1)
+    # The node takes the payload raw: it is counted as malformed, not lost, and it held nothing up.
+    assert counts(values) == (received0 + 3, lost0)
+    assert malformed(values) == malformed(before) + 1
+
+
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_an_empty_payload_holds_its_publisher_back_only_until_its_history_drops_it(
+        ros: RosSession, payload_rigs: dict[str, Rig], executor: str) -> None:
+    # Fast DDS never delivers an empty payload, and a reliable reader waits for it in order: the publisher's later
+    # commands arrive once its keep-last history (depth DEPTH here) no longer holds the empty one, all of them, in
+    # order; the skipped number counts as one lost command.
+    rig = rig_for(ros, payload_rigs, executor)
+    depth = 10
+    pub = ros.publisher(Float64, f'{rig.ns}/antenna_angle_cmd', depth)
+    try:
+        ros.wait_subscribers(pub)
+        _, before = rig.status()
+        received0, lost0 = counts(before)
+        rig.js.clear()
+        pub.publish(b'')
+        thetas = [0.001 * (k + 1) for k in range(depth + 2)]
+        for theta in thetas:
+            pub.publish(Float64(data=theta))
+        answers = rig.js.wait_count(len(thetas))
+        assert [m.position[0] for m in answers] == [gamma(t) for t in thetas]
+        _, values = rig.status(lambda s, v: counts(v)[0] - received0 >= len(thetas))
+        assert counts(values) == (received0 + len(thetas), lost0 + 1)
+    finally:
+        ros.node.destroy_publisher(pub)
+
+
+def rig_for(ros: RosSession, rigs: dict[str, Rig], executor: str) -> Rig:
+    """The module's node process for ``executor`` (one at a time: their statuses share a name)."""
+    if executor not in rigs:
+        while rigs:
+            rigs.popitem()[1].close()
+        rigs[executor] = Rig(ros, f'/loss_raw_{executor}', executor)
+    return rigs[executor]
+
+
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_a_scripts_first_command_is_served(ros: RosSession, executor: str) -> None:
+    # What a script does: a publisher, wait until it sees the node's subscription, publish one command. Discovery
+    # may match the publisher to the node before the node's subscription has matched the publisher; the reliable
+    # subscription then gets the sample resent. Each time a fresh node; the answer read from its diagnostics.
+    name = 'fourbar_node: antenna tilt linkage'
+    for k in range(3):
+        ns = f'/first_{executor}_{k}'
+        diag: Collector[Any] = ros.collect(DiagnosticArray, '/diagnostics', 10)
+        proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}',
+                            '-p', 'diagnostics_period:=0.1'], ros.env(**{EXECUTOR_ENV: executor}))
+        proc.start()
+        pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd', 10)
+        try:
+            ros.wait_subscribers(pub)
+            pub.publish(Float64(data=0.01))
+
+            def served(msg: DiagnosticArray) -> bool:  # the previous nodes are stopped: the statuses are this one's
+                return any(s.name == name and {kv.key: kv.value for kv in s.values}.get('commands_received') == '1'
+                           for s in msg.status)
+
+            msg = diag.wait_match(served)
+            values = next({kv.key: kv.value for kv in s.values} for s in msg.status if s.name == name)
+            assert values['commands_lost'] == '0' and values['commands_accepted'] == '1'
+        finally:
+            ros.uncollect(diag)
+            ros.node.destroy_publisher(pub)
+            assert proc.stop(signal.SIGTERM) == 0 and 'Traceback' not in proc.stderr, proc.stderr

@@ -35,6 +35,17 @@ class MalformedCdrError(ValueError):
 
 
 _UINT32 = struct.Struct('<I')
+_FLOAT64_LE = struct.Struct('<d')
+
+
+def read_float64(raw: bytes) -> float:
+    """The value of a little-endian CDR ``std_msgs/msg/Float64`` (the 4-byte encapsulation, then the double; any
+    alignment padding after it is ignored). Raises MalformedCdrError for anything shorter or another encoding."""
+    if len(raw) < 12 or raw[:4] != ENCAPSULATION:
+        raise MalformedCdrError(f'{len(raw)} bytes starting {raw[:4].hex() or "(none)"}: not a little-endian CDR '
+                                'Float64 (12 bytes, 00010000 first)')
+    value: float = _FLOAT64_LE.unpack_from(raw, 4)[0]
+    return value
 _STAMP = struct.Struct('<iI')
 _HEAD_LEN = len(ENCAPSULATION)
 

@@ -43,11 +43,11 @@ class Topic:
     reliability: Reliability = Reliability.RELIABLE
 
 
-#: Antenna angle commands in (rad). Best effort: it matches reliable and best-effort publishers alike, and one
-#: payload the middleware cannot take (an empty one) cannot stall the commands that follow it from that publisher,
-#: as it does on a reliable subscription (Fast DDS keeps waiting for it). Lost commands are counted either way
-#: (``commands_lost``); on one host best effort loses no more than reliable keep-last, whose queues drop the oldest.
-COMMAND = Topic('antenna_angle_cmd', FLOAT64, STREAM_DEPTH, Reliability.BEST_EFFORT)
+#: Antenna angle commands in (rad). Reliable: a sample a publisher sends before the node's subscription has matched
+#: it is resent once the match completes (a script that publishes one command as soon as it sees the subscription
+#: loses nothing). The node takes the payload raw and decodes it itself, so a payload that is not a Float64 (an
+#: empty one) is counted and skipped instead of stalling the reliable stream from its publisher.
+COMMAND = Topic('antenna_angle_cmd', FLOAT64, STREAM_DEPTH)
 #: Joint positions (rad), velocities (rad/s) and efforts (N m), per command and republished at joint_state_rate.
 JOINT_STATES = Topic('joint_states', JOINT_STATE, STREAM_DEPTH)
 #: The driven rocker's torque (N m), per command.

@@ -52,6 +52,7 @@ class Counters:
     parameter_changes_accepted: int = 0
     parameter_changes_rejected: int = 0  # every refusal: rclpy's (undeclared, type, range, read-only) and ours
     commands_lost: int = 0  # published to us but never taken: gaps in the publishers' sequence numbers
+    commands_malformed: int = 0  # payloads that are not a little-endian CDR Float64 (skipped)
 
     def record(self, outcome: Outcome) -> None:
         """Count one command by its outcome."""
@@ -79,9 +80,9 @@ class SequenceGaps:
     message info); a number that skips ahead means the messages between were never taken: dropped by a
     full keep-last queue on either side, or undeserializable. The message info does not say which publisher
     sent a message, so numbers are matched to *tracks*: each goes to the track whose last number is the
-    largest below it, or starts a new track (a new or restarted publisher; the first message of a track counts
-    no loss). With one publisher this is exact; with several interleaved ones it is exact while none loses
-    messages, and an estimate otherwise. At most ``max_tracks`` tracks are kept (least recently used dropped).
+    largest below it, or starts a new track (a new or restarted publisher, whose first number above 1 counts the
+    ones before it as lost). With one publisher this is exact; with several interleaved ones it is exact while none
+    loses messages, and an estimate otherwise. At most ``max_tracks`` tracks are kept (least recently used dropped).
     """
 
     def __init__(self, max_tracks: int = 16) -> None:
@@ -99,7 +100,7 @@ class SequenceGaps:
             if len(lasts) >= self._max_tracks:
                 del lasts[0]
             lasts.append(seq)
-            return 0
+            return seq - 1  # a publisher numbers from 1: a first number above 1 means earlier ones never came
         lost = seq - lasts[best] - 1
         del lasts[best]
         lasts.append(seq)

@@ -13,7 +13,7 @@ Interface (relative names, so namespaces and remapping apply):
   pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
   pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
                                                      every marker_period s, only when subscribed and changed
-QoS (fourbar_ros.config.interface): keep-last 1000 for the command (best effort) and the per-command outputs (reliable),
+QoS (fourbar_ros.config.interface): reliable keep-last 1000 for the command (taken raw) and the per-command outputs,
 reliable keep-last 10 for markers and diagnostics; commands the queues drop are counted (commands_lost).
 Each can be overridden with ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
 Markers are not per command (drawing them costs more than the rest of a command): a timer publishes them
@@ -50,6 +50,7 @@ from fourbar_ros.config.antenna_config import (
     declared_values,
     unknown_in_node_sections,
 )
+from fourbar_ros.config.cdr import MalformedCdrError, read_float64
 from fourbar_ros.config.interface import (
     COMMAND,
     DIAGNOSTICS,
@@ -148,7 +149,7 @@ class FourBarNode(Node):
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.name, qos(DIAGNOSTICS))
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
         self._command_sub = self.create_subscription(Float64, COMMAND.name, MessageInfoCallback(self._on_command),
-                                                     qos(COMMAND), qos_overriding_options=qos_options)
+                                                     qos(COMMAND), qos_overriding_options=qos_options, raw=True)
         self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
         self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
         # Actuator modes: served commands become motion (node/actuation.py); joint_states carries the measured
@@ -275,13 +276,18 @@ class FourBarNode(Node):
 
     # ------------------------------------------------------------------ commands
 
-    def _on_command(self, msg: Float64, info: dict[str, Any]) -> None:
+    def _on_command(self, raw: bytes, info: dict[str, Any]) -> None:
         # Latency-critical path first (check, solve, publish joint_states); bookkeeping after.
-        command = msg.data
         counters = self.counters
         seq = info['publication_sequence_number']
         if seq is not None:  # the rmw's per-publisher number: a gap is a command we never took
             counters.commands_lost += self.gaps.observe(seq)
+        try:
+            command = read_float64(raw)
+        except MalformedCdrError as exc:
+            counters.commands_malformed += 1
+            self._warn(f'{COMMAND.name}: payload skipped: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
+            return
         self._last_command = command
         if self._theta_min <= command <= self._theta_max:  # accepted as is (NaN and inf fail here)
             theta = command
