@@ -170,8 +170,9 @@ class Replayer:
 
     def prepare_timed(self, executor: Executor, timeout_s: float) -> tuple[list[str], list[str]]:
         """Before a timed replay: make sure every node subscribed to the command topic has discovered this
-        replayer's publishers (the handshake of ``fetch_parameters``). A best-effort subscription (the node's)
-        drops whatever arrives before it has matched the publisher, and nothing is resent.
+        replayer's publishers (the handshake of ``fetch_parameters``). fourbar_node's reliable subscription gets
+        what it missed resent, but a best-effort one (another node's) drops whatever arrives before it has matched
+        the publisher.
 
         Returns (subscribers without parameter services, which may miss the first and last commands; subscribers
         whose ``use_sim_time`` is false, which ignore ``/clock``).
@@ -196,13 +197,12 @@ class Replayer:
         """Return once every subscriber has received every command published so far; call before this node's
         context goes away.
 
-        A reliable publisher can wait for acknowledgements, but the node's best-effort subscription sends none:
-        a timed replay that closed its context right after the last publish lost the commands still in flight to
-        a node whose receiving threads lagged (under load: the node took 299 of 300; the last, published 2 ms
-        before the close, never came; commands already received but not yet taken survive the close). So ask
-        each subscriber node (``prepare_timed``/``prepare_lockstep`` found them) for a parameter: the request
-        leaves this participant after the commands, for the same node, which receives them in order; its
-        answer proves the commands before it arrived.
+        A reliable publisher waits for the reliable subscriptions' acknowledgements (fourbar_node's); a
+        best-effort subscription sends none, and a replay that closed its context right after the last publish
+        would lose the commands still in flight to it. So also ask each subscriber node
+        (``prepare_timed``/``prepare_lockstep`` found them) for a parameter: the request leaves this participant
+        after the commands, for the same node, which receives them in order; its answer proves the commands
+        before it arrived.
         """
         if self.publisher.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
             self.publisher.wait_for_all_acked(Duration(seconds=timeout_s))
