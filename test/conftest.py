@@ -5,10 +5,10 @@ Property tests draw the same examples on every run (derandomize), so CI cannot p
 HYPOTHESIS_PROFILE=explore to search with fresh random examples locally.
 
 ``--ulp-jitter`` (or FOURBAR_ULP_JITTER=1) runs the session as if on another CPU: numpy's transcendental ufuncs
-move their results by one ulp on a fixed share of the elements (see ulp_jitter.py; the share is
-``--ulp-jitter-share`` or FOURBAR_ULP_JITTER_SHARE, default 0.25; ``--ulp-jitter-seed`` or
-FOURBAR_ULP_JITTER_SEED picks another set of elements). Only this process is affected, not the
-processes a test starts.
+(and with ``--ulp-jitter-math`` the math module's functions) move their results by one ulp (see ulp_jitter.py;
+``--ulp-jitter-share``, default 1: every element; ``--ulp-jitter-seed``: another choice; ``--ulp-jitter-direction``
+hash, up or down; or the FOURBAR_ULP_JITTER_* variables). Only this process is affected, not the processes a test
+starts.
 
 ``stress`` marks the statistical repeats (a stop case 20 times, soaks, long bursts): a run leaves them out unless
 its ``-m`` expression names the marker (``make test-stress`` is ``-m stress``); every case also runs once without it.
@@ -59,12 +59,22 @@ def pytest_addoption(parser: pytest.Parser) -> None:
                     'FOURBAR_ULP_JITTER_SHARE')
     group.addoption('--ulp-jitter-seed', type=int, default=int(os.environ.get('FOURBAR_ULP_JITTER_SEED', '0')),
                     help='another deterministic choice of the moved elements; also FOURBAR_ULP_JITTER_SEED')
+    group.addoption('--ulp-jitter-math', action='store_true',
+                    default=os.environ.get('FOURBAR_ULP_JITTER_MATH', '') not in ('', '0'),
+                    help='move the math module\'s results too (the scalar paths); also FOURBAR_ULP_JITTER_MATH=1')
+    group.addoption('--ulp-jitter-direction', choices=ulp_jitter.DIRECTIONS,
+                    default=os.environ.get('FOURBAR_ULP_JITTER_DIRECTION', 'hash'),
+                    help='each moved result up or down by a hash, or all up, or all down; also '
+                    'FOURBAR_ULP_JITTER_DIRECTION')
 
 
 def pytest_configure(config: pytest.Config) -> None:
     if config.getoption('--ulp-jitter'):
         _undo_jitter.append(ulp_jitter.install(config.getoption('--ulp-jitter-share'),
-                                               config.getoption('--ulp-jitter-seed')))
+                                               config.getoption('--ulp-jitter-seed'),
+                                               direction=config.getoption('--ulp-jitter-direction'),
+                                               math_names=tuple(ulp_jitter.MATH_FUNCS)
+                                               if config.getoption('--ulp-jitter-math') else ()))
 
 
 def pytest_unconfigure(config: pytest.Config) -> None:
@@ -75,7 +85,9 @@ def pytest_unconfigure(config: pytest.Config) -> None:
 def pytest_report_header(config: pytest.Config) -> str | None:
     if config.getoption('--ulp-jitter'):
         return (f'ulp jitter: on (share {config.getoption("--ulp-jitter-share")}, seed '
-                f'{config.getoption("--ulp-jitter-seed")}): numpy transcendentals moved by one ulp')
+                f'{config.getoption("--ulp-jitter-seed")}, direction {config.getoption("--ulp-jitter-direction")}): '
+                f'numpy{" and math" if config.getoption("--ulp-jitter-math") else ""} transcendentals moved by '
+                'one ulp')
     return None
 
 

@@ -7,6 +7,7 @@ import math
 
 import numpy as np
 import pytest
+import ulp_jitter
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -340,3 +341,18 @@ def test_a_replan_from_any_state_of_a_running_plan_is_never_refused_for_its_limi
                 assert (inside.max() - t[k - 1] <= END_SPAN * h + 1e-9
                         or t[k] - inside.min() <= END_SPAN * h + 1e-9), (start, theta, inside, t[k - 1], t[k])
     assert not refused, f'{len(refused)} refused, e.g. {refused[:3]}'
+
+
+@pytest.mark.parametrize('direction', ulp_jitter.DIRECTIONS)
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_a_motion_to_either_end_of_the_range_is_never_refused_for_rounding(seed: int, direction: str) -> None:
+    # As on another CPU (every transcendental result of numpy and math one ulp off, by seed and direction): the
+    # range's ends and the target are one evaluation, and ruckig's extrema may pass an end by its own rounding.
+    cfg = default_config()
+    limits = JointLimits.from_config(cfg)
+    with ulp_jitter.jittered(1.0, seed, direction=direction, math_names=tuple(ulp_jitter.MATH_FUNCS)):
+        ends = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max]))
+        for start in np.linspace(float(ends.min()), float(ends.max()), 7):
+            for theta in (cfg.theta_min, cfg.theta_max):
+                plan = plan_to_angle(cfg, limits, JointMotionState(float(start)), theta)
+                assert plan.duration >= 0.0

@@ -24,6 +24,10 @@ from fourbar_ros.motion.errors import LimitError, TrajectoryError
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, on_wire, static_efforts
 
+#: How far (in ulps of the range's larger end) ruckig's position extrema may pass an end of the driven joint's range
+#: that the motion only reaches: its rounding of a profile that ends exactly there.
+RANGE_ULPS = 16
+
 #: ruckig is given the limits times this: its own rounding (seen at ~1e-13 relative) and that of the controller's
 #: jerk at a point (positions over h^3: ``min_segment``) then leave every sampled point within the limits
 #: themselves; the motion is 1e-4 slower than time-optimal.
@@ -120,11 +124,17 @@ def plan_to_angle(cfg: AntennaConfig, limits: JointLimits, start: JointMotionSta
     if not cfg.theta_min <= theta <= cfg.theta_max:
         raise UnreachableError(f'theta = {theta!r} rad is outside [theta_min, theta_max] = '
                                f'[{cfg.theta_min!r}, {cfg.theta_max!r}] rad')
-    q = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max, theta]))
-    plan = plan_motion(start, float(q[2]), limits)
+    # One evaluation per angle: the range's ends and the target come from the same solve of the same value, so a
+    # command at theta_min or theta_max has the range's own end as its target.
+    ends = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max]))
+    q_target = float(ends[0] if theta == cfg.theta_min else ends[1] if theta == cfg.theta_max
+                     else driven_angles(cfg, np.array([theta]))[0])
+    plan = plan_motion(start, q_target, limits)
     lo, hi = plan.position_range()
-    q_lo, q_hi = sorted((float(q[0]), float(q[1])))
-    if lo < q_lo or hi > q_hi:
+    q_lo, q_hi = sorted((float(ends[0]), float(ends[1])))
+    # ruckig's extrema of a motion that ends at an end of the range are that end to its own rounding: a few ulps.
+    slack = RANGE_ULPS * math.ulp(max(abs(q_lo), abs(q_hi)))
+    if lo < q_lo - slack or hi > q_hi + slack:
         raise UnreachableError(
             f'the motion to theta = {theta!r} rad passes the driven joint through [{lo!r}, {hi!r}] rad, beyond '
             f'its range [{q_lo!r}, {q_hi!r}] rad for [theta_min, theta_max]: it cannot stop in time')
