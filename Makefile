@@ -25,9 +25,14 @@ test: lint
 test-stress: setup
 	$(BIN)/python -m pytest -m stress
 
-# The pure (non-ROS) tests as if on another CPU: numpy's transcendentals moved by one ulp (test/ulp_jitter.py).
+# The pure (non-ROS) tests as if on another CPU (test/ulp_jitter.py): every transcendental result of numpy moved by
+# one ulp, up or down by a hash (two seeds), then all up, then all down.
+JITTER_RUNS ?= --ulp-jitter-seed=0 --ulp-jitter-seed=1 --ulp-jitter-direction=up --ulp-jitter-direction=down
 test-jitter: setup
-	$(BIN)/python -m pytest $(PARALLEL) -m 'not ros' --ulp-jitter
+	@set -e; for run in $(JITTER_RUNS); do \
+	  echo "test-jitter: $$run"; \
+	  $(BIN)/python -m pytest $(PARALLEL) -m 'not ros' --ulp-jitter $$run; \
+	done
 
 bench-deps: setup
 	$(BIN)/python -m pip install --quiet -c requirements/constraints.txt -r requirements/bench.txt

@@ -4,7 +4,10 @@ from __future__ import annotations
 
 import ast
 import math
+import sys
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -17,14 +20,21 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture
-def plain_numpy() -> None:
-    """Undo a session-wide --ulp-jitter for this test, so 'unmoved' is numpy's own result."""
-    wrapped = {n: getattr(np, n) for n in ulp_jitter.UFUNCS if isinstance(getattr(np, n), ulp_jitter.JitteredUfunc)}
-    for name, func in wrapped.items():
-        setattr(np, name, func.ufunc)
+def plain_numpy() -> Iterator[None]:
+    """Undo a session-wide --ulp-jitter (and --ulp-jitter-math) for this test, so 'unmoved' is the library's own
+    result: numpy's ufuncs, the math module's functions and the package's aliases of them."""
+    places: list[tuple[Any, str, Any]] = [(np, n, getattr(np, n)) for n in ulp_jitter.UFUNCS]
+    places += [(math, n, getattr(math, n)) for n in ulp_jitter.MATH_FUNCS]
+    places += [(m, a, v) for name, m in list(sys.modules.items()) if name.startswith('fourbar_ros') and m is not None
+               for a, v in list(vars(m).items()) if isinstance(v, ulp_jitter.JitteredMath)]
+    for module, name, func in places:
+        if isinstance(func, ulp_jitter.JitteredUfunc):
+            setattr(module, name, func.ufunc)
+        elif isinstance(func, ulp_jitter.JitteredMath):
+            setattr(module, name, func.func)
     yield
-    for name, func in wrapped.items():
-        setattr(np, name, func)
+    for module, name, func in places:
+        setattr(module, name, func)
 
 
 @pytest.mark.parametrize('share', [0.06, 0.25, 1.0])
@@ -114,3 +124,29 @@ def test_assert_close_ulps_passes_and_fails() -> None:
         assert_close_ulps([np.nan, 1.0], [1.0, 1.0], 4)
     with pytest.raises(AssertionError, match='infinities differ'):
         assert_close_ulps([np.inf], [-np.inf], 4)
+
+
+@pytest.mark.parametrize('direction', ['up', 'down'])
+def test_a_direction_moves_every_element_that_way(plain_numpy: None, direction: str) -> None:
+    x = np.linspace(0.01, 3.0, 2001)
+    plain = np.sin(x)
+    with ulp_jitter.jittered(1.0, direction=direction):
+        moved = np.sin(x)
+    changed = moved != plain
+    assert changed.mean() > 0.99  # every element but the flat extreme, if sampled
+    assert np.all((moved[changed] > plain[changed]) == (direction == 'up'))
+
+
+def test_math_functions_and_the_packages_aliases_of_them_move_too(plain_numpy: None) -> None:
+    from fourbar_ros.core import dyad
+
+    x = [0.1 + 0.01 * k for k in range(300)]
+    plain = [(math.sin(v), math.atan2(v, 0.7), dyad._sin(v)) for v in x]
+    with ulp_jitter.jittered(1.0, seed=3, math_names=tuple(ulp_jitter.MATH_FUNCS)):
+        moved = [(math.sin(v), math.atan2(v, 0.7), dyad._sin(v)) for v in x]
+        again = [(math.sin(v), math.atan2(v, 0.7), dyad._sin(v)) for v in x]
+        assert math.sin(0.0) == 0.0 and math.cos(1e-300) == 1.0 and math.atan2(1e-300, 1.0) == 1e-300
+    assert moved == again  # deterministic
+    for (s0, a0, _), (s1, a1, d1) in zip(plain, moved, strict=True):
+        assert abs(s1 - s0) == math.ulp(s0) and abs(a1 - a0) == math.ulp(a0) and d1 == s1
+    assert [(math.sin(v), math.atan2(v, 0.7), dyad._sin(v)) for v in x] == plain  # restored
