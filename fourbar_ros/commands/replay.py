@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
-from fourbar_ros.config.interface import INPUT_TORQUE, sibling_topic
+from fourbar_ros.config.interface import INPUT_TORQUE, STREAM_DEPTH, sibling_topic
 
 HELP = ('replay a command bag into a running fourbar_node: recorded timing (--rate) '
         'or lock-step with its answers (--as-fast-as-node-keeps-up)')
@@ -44,7 +44,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='lock-step: seconds to wait for each answer (default: 5)')
     parser.add_argument('--window', type=int, default=1, metavar='N',
                         help='lock-step: let up to N answers be outstanding (pipelining; default 1: strict '
-                        'lock-step; keep N below the node\'s queue depth, 1000)')
+                        f'lock-step; keep N below the node\'s queue depth, {STREAM_DEPTH})')
     parser.add_argument('--no-progress', action='store_true', help='no progress bar (it is off when '
                         'stderr is not a terminal)')
 
@@ -76,8 +76,8 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError('--clock works with timed replay (--rate), not --as-fast-as-node-keeps-up')
         if not (math.isfinite(args.clock) and args.clock > 0):
             raise CommandError(f'--clock must be a positive rate in Hz, got {args.clock}')
-    if not 1 <= args.window <= 1000:
-        raise CommandError(f'--window must be in 1..1000, got {args.window}')
+    if not 1 <= args.window <= STREAM_DEPTH:
+        raise CommandError(f'--window must be in 1..{STREAM_DEPTH}, got {args.window}')
     stream = read_commands(args.bag, args.bag_topic)  # BagError: one line, status 2 (main)
     answers_from_file: Predictor | None = None
     if args.params is not None:

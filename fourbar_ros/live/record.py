@@ -22,11 +22,12 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 
 from fourbar_ros.bags.storage import AtomicBagWriter, BagError, jazzy_typestore, time_from_ns
+from fourbar_ros.config.interface import STREAM_DEPTH
 from fourbar_ros.live.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
 from fourbar_ros.live.node_params import handshake
 
-#: History depth of the recording subscriptions: how far the recorder may fall behind a burst.
-RECORD_DEPTH = 1000
+#: History depth of the recording subscriptions: how far the recorder may fall behind a burst (the node's own).
+RECORD_DEPTH = STREAM_DEPTH
 #: Seconds between flushes of the bag being recorded (what a SIGKILL may lose, plus one spin).
 DEFAULT_FLUSH_INTERVAL = 1.0
 

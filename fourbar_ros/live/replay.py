@@ -36,6 +36,7 @@ from rosbags.interfaces import QosDurability, QosReliability
 from std_msgs.msg import Float64
 
 from fourbar_ros.bags.storage import CommandStream
+from fourbar_ros.config.interface import STREAM_DEPTH
 from fourbar_ros.live.graph import (
     ReplayError,
     make_qos,
@@ -48,8 +49,8 @@ from fourbar_ros.live.node_params import LIMIT_PARAMETERS, Predictor, fetch_para
 from fourbar_ros.live.progress import Progress
 from fourbar_ros.node.run import spin_once
 
-#: History depth of the replay publisher (timed mode may run ahead of a slow node by this much).
-PUBLISH_DEPTH = 1000
+#: History depth of the replay publisher (timed mode may run ahead of a slow node by this much): the node's own.
+PUBLISH_DEPTH = STREAM_DEPTH
 #: Rate (Hz) of /clock in timed replay with a clock, as ``ros2 bag play --clock`` publishes by default.
 DEFAULT_CLOCK_HZ = 40.0
 
@@ -266,7 +267,7 @@ class Replayer:
 
         ``window=1`` is strict lock-step: each answered command waits (at most ``deadline_s``) for
         its answer before the next command goes out. A larger window pipelines; it stays lossless
-        while ``window`` is below the node's command queue depth (1000 for fourbar_node).
+        while ``window`` is below the node's command queue depth (``STREAM_DEPTH`` for fourbar_node).
         """
         if self.subscription is None:
             raise ReplayError('lock-step replay needs an answer topic')

@@ -16,7 +16,6 @@ from typing import Any
 
 from builtin_interfaces.msg import Duration, Time
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -26,13 +25,13 @@ from fourbar_ros.config.controllers import ForwardControllerSettings, Trajectory
 from fourbar_ros.config.interface import (
     ANTENNA_TRAJECTORY,
     MEASURED_JOINT_STATES,
-    Topic,
     forward_topic,
     trajectory_topic,
 )
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.motion.planner import JointMotionState, Setpoints
 from fourbar_ros.motion.trajectory import DrivenTrajectory
+from fourbar_ros.node.qos import qos
 from fourbar_ros.rules.actuation import (
     ActuationCounters,
     Motion,
@@ -52,13 +51,6 @@ from fourbar_ros.rules.controller_contract import check_forward_command
 WARN_THROTTLE_S = 1.0
 #: Setpoints kept in ``recent_setpoints`` (the last seconds of the stream at the default rate).
 RECENT_SETPOINTS = 1000
-
-_qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
-
-
-def _qos(topic: Topic) -> QoSProfile:
-    return _qos_profile(depth=topic.depth, reliability=ReliabilityPolicy[topic.reliability.name])
-
 
 def trajectory_message(joint: str, points: list[PointFields], stamp_ns: int) -> JointTrajectory:
     """The JointTrajectory of ``point_fields`` for ``joint``, header stamp ``stamp_ns`` (0: start on arrival)."""
@@ -94,19 +86,19 @@ class Actuation:
         self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
         if self.mode == 'trajectory':
             out = trajectory_topic(cfg.trajectory_controller)
-            self._trajectory_pub = node.create_publisher(JointTrajectory, out.name, _qos(out))
+            self._trajectory_pub = node.create_publisher(JointTrajectory, out.name, qos(out))
         elif self.mode == 'forward':
             out = forward_topic(cfg.forward_controller)
-            self._setpoint_pub = node.create_publisher(Float64MultiArray, out.name, _qos(out))
+            self._setpoint_pub = node.create_publisher(Float64MultiArray, out.name, qos(out))
             self._setpoint_msg = Float64MultiArray()
             node.create_timer(1.0 / cfg.control_rate, self._on_control_timer)
         else:
             raise ValueError(f'mode {self.mode!r} is not an actuator mode')
         node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name, self._on_antenna_trajectory,
-                                 _qos(ANTENNA_TRAJECTORY))
+                                 qos(ANTENNA_TRAJECTORY))
         if subscribe_measured:
             node.create_subscription(JointState, MEASURED_JOINT_STATES.name, self._on_measured,
-                                     _qos(MEASURED_JOINT_STATES))
+                                     qos(MEASURED_JOINT_STATES))
 
     def _now_ns(self) -> int:
         ns: int = self._clock.now().nanoseconds

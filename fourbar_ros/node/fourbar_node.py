@@ -37,7 +37,6 @@ from rclpy.exceptions import ParameterNotDeclaredException
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -58,7 +57,6 @@ from fourbar_ros.config.interface import (
     JOINT_STATES,
     MARKERS,
     NODE_NAME,
-    Topic,
 )
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
 from fourbar_ros.core.antenna import LinkageState
@@ -73,18 +71,11 @@ from fourbar_ros.node.executor import (
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
 from fourbar_ros.node.param_descriptors import declarations
+from fourbar_ros.node.qos import qos
 from fourbar_ros.node.state_cache import StateCache
 from fourbar_ros.rules.actuation import actuation_contract
 from fourbar_ros.rules.outputs import JointStateRule
 from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
-
-_qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
-
-
-def qos(topic: Topic) -> QoSProfile:
-    """The rclpy profile of one of the node's topics (keep-last depth, reliability; see config.interface)."""
-    return _qos_profile(depth=topic.depth, reliability=ReliabilityPolicy[topic.reliability.name])
-
 
 WARN_THROTTLE_S = 1.0
 #: Steady-clock delay (s) after which a node on sim time without /clock says so.

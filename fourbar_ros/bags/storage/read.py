@@ -21,7 +21,7 @@ from rosbags.rosbag2 import Reader
 
 from fourbar_ros.bags.storage.adapters import adapter_of_file
 from fourbar_ros.bags.storage.common import COMMAND_TOPIC, BagError, jazzy_typestore
-from fourbar_ros.config.interface import FLOAT64
+from fourbar_ros.config.interface import COMMAND, FLOAT64
 from fourbar_ros.core.errors import one_line
 
 
@@ -68,7 +68,7 @@ def pick_command_topic(path: Path, types: dict[str, str], topic: str | None) -> 
         chosen = COMMAND_TOPIC
     else:
         # A recording of a namespaced node (/NS/antenna_angle_cmd) is accepted when unambiguous.
-        candidates = [t for t in types if t.rsplit('/', 1)[-1] == 'antenna_angle_cmd']
+        candidates = [t for t in types if t.rsplit('/', 1)[-1] == COMMAND.name]
         if len(candidates) != 1:
             raise BagError(f'{path}: no command topic {COMMAND_TOPIC} ({_describe_topics(types)})')
         chosen = candidates[0]
