@@ -1,5 +1,5 @@
-"""`fourbar process` on a bag of measured joint states: the completed outputs written next to the measured topic at
-the measurements' log times and stamps, through the completion rule's block path (exactly its floats); bad
+"""`fourbar process` on a bag of measured joint states: the complete joint_states and the other outputs written in
+the measured topic's namespace at the measurements' log times and stamps, through the completion rule's block path (exactly its floats); bad
 measurements skipped and counted; `fourbar compare` covering the new outputs (and ignoring them when told). No ROS
 middleware (bags written with rosbags' serializer)."""
 
@@ -35,14 +35,15 @@ def joint_state(names: list[str], position: list[float], velocity: list[float], 
 GOOD = [(0.2 + 0.02 * i, [0.1 * i] if i % 3 else [], [0.01 * i] if i % 2 else []) for i in range(12)]
 
 
-def measured_bag(path: Path, topic: str = '/joint_states') -> Path:
+def measured_bag(path: Path, topic: str = '/measured_joint_states') -> Path:
     with AtomicBagWriter(path) as bag:
         conn = bag.add_topic(topic, JS)
         sec = 0
         for q, v, e in GOOD:
             sec += 1
             bag.write(conn, sec * 10**9, joint_state([DRIVEN], [q], v, e, sec))
-        for names, p, v, e in ([['elbow'], [0.3], [], []], [RULE.names, [0.3, 0.4], [], []],  # no driven joint
+        for names, p, v, e in ([['elbow'], [0.3], [], []],  # no driven joint
+                               [RULE.names, [0.3, 0.4, 0.5], [], []],  # the node's own complete state
                                [[DRIVEN], [0.3], [0.1, 0.2], []],  # mismatched lengths
                                [[DRIVEN], [math.nan], [], []], [[DRIVEN], [0.3], [math.inf], []],  # not finite
                                [[DRIVEN], [3.0], [], []]):  # out of the rocker's range
@@ -65,8 +66,9 @@ def test_a_measured_bag_is_completed_by_the_block_rule(tmp_path: Path, capsys: p
     assert [log for log, _ in js] == [(i + 1) * 10**9 for i in range(12)]
     assert [(m.header.stamp.sec, m.header.stamp.nanosec) for _, m in js] == [(i + 1, 5) for i in range(12)]
     for k, (_, m) in enumerate(js):
-        assert list(m.name) == RULE.names and len(m.effort) == 0
-        assert m.position.tolist() == block.positions[k].tolist()
+        assert list(m.name) == RULE.names == [DRIVEN, CFG.delta_joint, CFG.coupler_joint]
+        assert m.position.tolist() == block.positions[k].tolist() and m.position[0] == q[k]
+        assert m.effort.tolist() == ([] if math.isnan(effort[k]) else [effort[k], 0.0, 0.0])
         assert m.velocity.tolist() == ([] if math.isnan(q_dot[k]) else block.velocities[k].tolist())
     assert [m.data for _, m in out['/antenna_angle']] == block.theta.tolist()
     assert [m.data for _, m in out['/antenna_rate']] == block.theta_rate[np.isfinite(q_dot)].tolist()
@@ -79,7 +81,7 @@ def test_a_nan_velocity_or_effort_is_not_measured(tmp_path: Path, capsys: pytest
     sent = [(0.30, nan, 0.02), (0.31, 0.1, nan), (0.32, nan, nan), (0.33, 0.2, 0.03), (0.34, inf, 0.0),
             (0.35, 0.0, -inf)]
     with AtomicBagWriter(tmp_path / 'measured') as bag:
-        conn = bag.add_topic('/joint_states', JS)
+        conn = bag.add_topic('/joint_state_broadcaster/joint_states', JS)  # joint_state_broadcaster's local topic
         for k, (q, v, e) in enumerate(sent):
             bag.write(conn, (k + 1) * 10**9, joint_state([DRIVEN, 'other'], [q, 1.0], [v, 0.0], [e, 0.0], k + 1))
     assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out')]) == 0
@@ -120,7 +122,7 @@ def test_compare_covers_the_completion_outputs(tmp_path: Path, capsys: pytest.Ca
 
 
 def test_a_namespaced_measured_topic_and_a_bag_without_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    src = measured_bag(tmp_path / 'measured', '/robot/joint_states')
+    src = measured_bag(tmp_path / 'measured', '/robot/joint_state_broadcaster/joint_states')
     assert main(['process', str(src), str(tmp_path / 'out')]) == 0
     assert set(read_messages(tmp_path / 'out')) == {'/robot/joint_states', '/robot/antenna_angle',
                                                     '/robot/antenna_rate', '/robot/load_torque'}
@@ -130,3 +132,12 @@ def test_a_namespaced_measured_topic_and_a_bag_without_one(tmp_path: Path, capsy
     assert main(['process', str(tmp_path / 'other'), str(tmp_path / 'out2')]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert not (tmp_path / 'out2').exists()
+
+
+def test_a_measured_topic_where_the_completed_states_go_is_refused(tmp_path: Path,
+                                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    # A measured topic named joint_states would be overwritten by the complete ones: one line, nothing written.
+    with AtomicBagWriter(tmp_path / 'measured') as bag:
+        bag.write(bag.add_topic('/joint_states', JS), 1, joint_state([DRIVEN], [0.3], [], [], 1))
+    assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out'), '--topic', '/joint_states']) == 2
+    assert 'measured_joint_states' in capsys.readouterr().err and not (tmp_path / 'out').exists()

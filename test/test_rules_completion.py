@@ -13,6 +13,7 @@ import math
 
 import numpy as np
 import pytest
+import ulp_jitter
 from ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps, completion_scales
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values
@@ -20,7 +21,14 @@ from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.completion import complete
 from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
-from fourbar_ros.rules.completion import CompletionRule, complete_block, completed_names, measured
+from fourbar_ros.rules.completion import (
+    CompletionRule,
+    complete_block,
+    completed_names,
+    joint_state_names,
+    measured,
+    turn_starts,
+)
 
 #: Geometries (frame, rocker AB, coupler, rocker CD in m; tilt range in rad) with either branch mapping.
 GEOMETRIES = [
@@ -65,7 +73,8 @@ def test_completing_the_forward_pose_gives_back_its_theta(cfg: AntennaConfig) ->
         # n ulps of 1 + |q| + |theta dq/dtheta|, carried by dtheta/dq.
         scale = math.pi + abs(theta) + abs(q / dq) + (1 + abs(q) + abs(theta * dq)) / abs(dq)
         assert_close_ulps(done.theta, theta, 2 * CHAIN_ULPS, scale, f'theta at {theta}')
-        assert abs(done.positions[0] - other) < 1e-9  # the same assembly (the other branch is ~0.8 rad away)
+        assert done.positions[0] == q and done.efforts == [p.input_torque, 0.0, 0.0]  # the measurement's own
+        assert abs(done.positions[1] - other) < 1e-9  # the same assembly (the other branch is ~0.8 rad away)
         assert done.load_torque is not None
         assert done.load_torque == pytest.approx(cfg.load_torque, rel=1e-9)  # power balance: the load comes back
 
@@ -88,7 +97,8 @@ def test_per_message_and_block_paths_agree(cfg: AntennaConfig) -> None:
     ok = block.valid
     assert ok.sum() > 0.9 * q.size
     assert np.array_equal(block.theta[ok], exact.theta[ok])  # the block is the core's array path, as is
-    theta, other = block.theta[ok], block.positions[ok, 0]
+    theta, other = block.theta[ok], block.positions[ok, 1]
+    assert np.array_equal(block.positions[ok, 0], q[ok]) and (block.efforts[ok] == [effort, 0.0, 0.0]).all()
     qs = q[ok]
     theta_scale, other_scale, x_scale, rate_scale, other_rate_scale, load_scale = completion_scales(
         cfg.linkage, cfg.driven, qs, theta, other)
@@ -97,17 +107,19 @@ def test_per_message_and_block_paths_agree(cfg: AntennaConfig) -> None:
     for i, (qi, ti) in enumerate(zip(qs.tolist(), theta.tolist(), strict=True)):
         one = rule.one(qi, q_dot, effort)
         assert_close_ulps(one.theta, ti, n, theta_scale[i], f'theta at q={qi!r}')
-        assert_close_ulps(one.positions[0], other[i], n, other_scale[i], f'other at q={qi!r}')
-        assert_close_ulps(one.positions[1], block.positions[ok][i, 1], n, x_scale[i], f'coupler at q={qi!r}')
+        assert one.positions[0] == qi and one.efforts == [effort, 0.0, 0.0]
+        assert_close_ulps(one.positions[1], other[i], n, other_scale[i], f'other at q={qi!r}')
+        assert_close_ulps(one.positions[2], block.positions[ok][i, 2], n, x_scale[i], f'coupler at q={qi!r}')
         if bool(one.velocities) == bool(np.isnan(block.theta_rate[ok][i])):
             # the dead-point test (the lever's sine within the core's tolerance) decided differently by the
             # paths' ulps: only where the lever's sine is that tolerance, at the very end of the rocker's range
             assert abs(abs(qi) - top) <= 4 * EPS * top, qi
         elif one.velocities:
             assert_close_ulps(one.theta_rate, block.theta_rate[ok][i], n, q_dot * rate_scale[i], f'rate at {qi!r}')
-            assert_close_ulps(one.velocities[0], block.velocities[ok][i, 0], n, q_dot * other_rate_scale[i],
+            assert one.velocities[0] == q_dot == block.velocities[ok][i, 0]
+            assert_close_ulps(one.velocities[1], block.velocities[ok][i, 1], n, q_dot * other_rate_scale[i],
                               f'other rate at q={qi!r}')
-            assert_close_ulps(one.velocities[1], block.velocities[ok][i, 1], n,
+            assert_close_ulps(one.velocities[2], block.velocities[ok][i, 2], n,
                               q_dot * (1 + rate_scale[i] + other_rate_scale[i]), f'coupler rate at q={qi!r}')
         else:  # the dead point: unbounded in both paths
             assert np.isnan(block.velocities[ok][i]).all(), qi
@@ -132,7 +144,7 @@ def test_nothing_unbounded_is_published_at_the_ends_of_the_ranges() -> None:
             done = rule.one(q, 0.1, 0.01)
             values = [done.theta, *done.positions, *done.velocities, done.theta_rate or 0.0, done.load_torque or 0.0]
             assert all(math.isfinite(v) for v in values), (cfg, q, done)
-            assert len(done.velocities) in (0, 2) and (done.theta_rate is None) == (not done.velocities)
+            assert len(done.velocities) in (0, 3) and (done.theta_rate is None) == (not done.velocities)
 
 
 def test_what_is_not_given_is_not_computed_and_names() -> None:
@@ -140,7 +152,9 @@ def test_what_is_not_given_is_not_computed_and_names() -> None:
     rule = CompletionRule(cfg)
     done = rule.one(0.5)
     assert done.velocities == [] and done.theta_rate is None and done.load_torque is None
-    assert rule.names == list(completed_names(cfg)) == [cfg.delta_joint, cfg.coupler_joint]
+    assert done.positions[0] == 0.5 and done.efforts == []
+    assert list(completed_names(cfg)) == [cfg.delta_joint, cfg.coupler_joint]
+    assert rule.names == list(joint_state_names(cfg)) == [cfg.gamma_joint, cfg.delta_joint, cfg.coupler_joint]
     block = complete_block(cfg, np.array([0.5, 0.6]), np.full(2, np.nan), np.array([np.nan, 0.01]))
     assert np.isnan(block.velocities).all() and np.isnan(block.theta_rate).all()
     assert np.isnan(block.load_torque[0]) and np.isfinite(block.load_torque[1])
@@ -181,3 +195,39 @@ def test_branch_of_the_measured_rocker_is_explicit() -> None:
     for cfg in CONFIGS:
         assert CompletionRule(cfg).branch in (Branch.UPPER, Branch.LOWER)
     assert EPS > 0
+
+
+@pytest.mark.parametrize('cfg', CONFIGS, ids=lambda c: f'{c.frame_length}-{c.driven.value}-{c.branch.name}')
+def test_every_reachable_angle_lies_well_inside_its_published_turn(cfg: AntennaConfig) -> None:
+    # Over the driven rocker's whole reach (both signs, up to its ends), each published passive angle keeps far
+    # more than rounding (1e-6 rad) from the edges of its turn: no ulp of any CPU can move it by 2 pi. The
+    # configured range's angles are those of the open-loop pose (its turn: the URDF's limits hold them).
+    rule = CompletionRule(cfg)
+    q = rocker_angles(cfg)
+    block = complete_block(cfg, q, np.full(q.size, np.nan), np.full(q.size, np.nan), rule)
+    for j, start in enumerate(turn_starts(cfg), start=1):
+        v = block.positions[block.valid, j]
+        assert ((v - start > 1e-6) & (start + 2 * math.pi - v > 1e-6)).all(), (j, start, v.min(), v.max())
+    for theta in np.linspace(cfg.theta_min, cfg.theta_max, 7).tolist():
+        p = pose(cfg, theta)
+        q_i, other = (p.gamma, p.delta) if cfg.driven is Driven.GAMMA else (p.delta, p.gamma)
+        done = rule.one(q_i)
+        assert abs(done.positions[1] - other) < 1e-9 and abs(done.positions[2] - (p.gamma + theta)) < 1e-9
+
+
+@pytest.mark.parametrize('direction', ulp_jitter.DIRECTIONS)
+@pytest.mark.parametrize('seed', [0, 1])
+def test_both_paths_publish_the_same_turn_as_on_another_cpu(seed: int, direction: str) -> None:
+    # The angle that once sat on a turn's edge (the coupler joint of this lower-branch geometry at q = 1.6375...
+    # rad, published 2.1598 rad by one path and -4.1234 rad by the other when one ulp moved): with numpy's and
+    # the math module's results moved by one ulp, per message and per block, every CONFIG, the same turn.
+    with ulp_jitter.jittered(1.0, seed, direction=direction, math_names=tuple(ulp_jitter.MATH_FUNCS)):
+        for cfg in CONFIGS:
+            rule = CompletionRule(cfg)
+            q = rocker_angles(cfg)
+            if cfg.frame_length == 0.5 and cfg.driven is Driven.GAMMA and cfg.branch is Branch.LOWER:
+                q = np.append(q, 1.6375124752051218)
+            block = complete_block(cfg, q, np.full(q.size, np.nan), np.full(q.size, np.nan), rule)
+            for i in np.flatnonzero(block.valid).tolist():
+                one = rule.one(float(q[i]))
+                assert np.abs(np.array(one.positions) - block.positions[i]).max() < 1e-6, (cfg, q[i])

@@ -1,6 +1,8 @@
-"""sim_actuator over the real middleware: JointTrajectory and Float64MultiArray in, measured joint_states out
-(following within the lag and the limits, effort from the statics, encoder counts and offset visible), bad
-messages counted and ignored, and the console script stopping with status 0 on SIGINT and SIGTERM.
+"""sim_actuator over the real middleware: JointTrajectory and Float64MultiArray in, the measured joint on
+joint_state_broadcaster/joint_states out (following within the lag and the limits, effort from the statics, encoder
+counts and offset visible), what the controllers refuse refused and counted with the running trajectory going on, a
+new trajectory started from the measured state, a hold on a tolerance violation, and the console script stopping
+with status 0 on SIGINT and SIGTERM.
 
 Timing is never asserted: each check is a property every message must have (monotonic, within limits, behind
 the reference) or a state the drive converges to, waited for with a deadline.
@@ -26,10 +28,12 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import SIM_PARAMETERS_BY_NAME
 from fourbar_ros.node.sim_actuator import SimActuator
 from fourbar_ros.node.sim_actuator_model import STEP_S, effort_at
+from fourbar_ros.rules.controller_contract import ContractRule
 
 pytestmark = pytest.mark.ros
 
@@ -57,7 +61,7 @@ class Rig:
                                 parameter_overrides=[Parameter(k, value=v) for k, v in overrides.items()],
                                 cli_args=['--ros-args', '--params-file', str(YAML)])
         ros.add_node(self.node)
-        self.states: Collector[JointState] = ros.collect(JointState, f'{self.ns}/joint_states')
+        self.states: Collector[JointState] = ros.collect(JointState, f'{self.ns}/{BROADCASTER_JOINT_STATES.name}')
         self.traj_pub = ros.publisher(JointTrajectory, f'{self.ns}/joint_trajectory_controller/joint_trajectory', 10)
         self.fwd_pub = ros.publisher(Float64MultiArray, f'{self.ns}/forward_position_controller/commands', 10)
         ros.wait_publishers(self.states)
@@ -110,12 +114,12 @@ def test_a_trajectory_is_followed_behind_the_reference_and_effort_is_the_statics
     r = rig()
     start = r.node.get_clock().now().nanoseconds + 300_000_000  # stamped 0.3 s ahead: it waits for its start
     target = Q0 + 0.05
-    msg = JointTrajectory(joint_names=['some_other_joint', JOINT])
+    msg = JointTrajectory(joint_names=[JOINT])
     msg.header.stamp = Time(sec=start // 10**9, nanosec=start % 10**9)
-    msg.points = [point(Q0 + 0.02, 0.4, 0.05, 0.0, 2, 1), point(target, 1.0, 0.0, 0.0, 2, 1)]
+    msg.points = [point(Q0 + 0.02, 0.4, 0.05, 0.0), point(target, 1.0, 0.0, 0.0)]
     first = len(r.states)
     r.traj_pub.publish(msg)
-    wait_for(lambda: r.node.counters.trajectories_accepted == 1, what='the trajectory accepted')
+    wait_for(lambda: r.node.follower.counters.accepted == 1, what='the trajectory accepted')
     end = r.settle_at(target, first)
     msgs = r.states.messages[first:r.states.messages.index(end) + 1]
     assert stamp_s(msgs[-1]) > start * 1e-9 + 1.0  # converged only after the trajectory's end (it lags)
@@ -133,7 +137,7 @@ def test_a_trajectory_is_followed_behind_the_reference_and_effort_is_the_statics
         # statics call on it.
         assert e == effort_at(CFG, x)
         prev = m
-    assert r.node.counters.trajectories_rejected == 0
+    assert sum(r.node.follower.counters.refused.values()) == 0 and r.node.follower.counters.tolerance_holds == 0
 
 
 def test_a_forward_command_is_followed_at_the_speed_limit(rig: Any) -> None:
@@ -172,32 +176,52 @@ def test_encoder_counts_and_offset_show_in_the_measurement(rig: Any) -> None:
         assert abs(n - round(n)) <= 1e-9, m.position[0]
 
 
-@pytest.mark.parametrize('bad', [
-    JointTrajectory(joint_names=['not_ours'], points=[point(0.9, 1.0)]),
-    JointTrajectory(joint_names=[JOINT], points=[point(math.nan, 1.0)]),
-    JointTrajectory(joint_names=[JOINT], points=[point(0.9, 1.0), point(0.95, 0.5)]),
-    JointTrajectory(joint_names=[JOINT, 'b'], points=[point(0.9, 1.0)]),
-], ids=['wrong joint', 'nan', 'time not increasing', 'mismatched arrays'])
-def test_bad_trajectories_are_counted_and_change_nothing(rig: Any, bad: JointTrajectory) -> None:
+def stamped(msg: JointTrajectory, stamp_ns: int) -> JointTrajectory:
+    msg.header.stamp = Time(sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9)
+    return msg
+
+
+#: What joint_trajectory_controller refuses (each as the contract's rule), and a NaN the sim refuses too.
+BAD = {
+    ContractRule.FOREIGN_JOINT: JointTrajectory(joint_names=['not_ours'], points=[point(0.9, 1.0)]),
+    ContractRule.TIME_NOT_INCREASING: JointTrajectory(joint_names=[JOINT], points=[point(0.9, 1.0), point(0.95, 0.5)]),
+    ContractRule.PARTIAL_JOINTS: JointTrajectory(joint_names=[JOINT, 'b'], points=[point(0.9, 1.0)]),
+    ContractRule.NO_POINTS: JointTrajectory(joint_names=[JOINT], points=[]),
+    ContractRule.EFFORT_FIELD: JointTrajectory(joint_names=[JOINT], points=[JointTrajectoryPoint(
+        positions=[Q0 + 0.01], effort=[0.5], time_from_start=Duration(sec=1))]),
+    ContractRule.END_MOVING: JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.01, 1.0, 0.004)]),
+    ContractRule.ENDS_IN_PAST: stamped(JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.01, 1.0)]), 10**9),
+    None: JointTrajectory(joint_names=[JOINT], points=[point(math.nan, 1.0)]),
+}
+
+
+@pytest.mark.parametrize('rule', list(BAD), ids=lambda r: 'not_finite' if r is None else r.value)
+def test_what_the_controller_refuses_is_counted_and_the_running_trajectory_goes_on(rig: Any,
+                                                                                   rule: ContractRule | None) -> None:
     r = rig()
-    before = r.node.reference(0.0)
-    r.traj_pub.publish(bad)
-    wait_for(lambda: r.node.counters.trajectories_rejected == 1, what='the trajectory rejected')
-    assert r.node.reference(1e9) == before and r.node.counters.trajectories_accepted == 0
-    seen = len(r.states)
-    r.states.wait_count(seen + 2)  # still publishing
-    assert all(math.isfinite(m.position[0]) for m in r.states.messages)
+    # A slow trajectory running, then the refused message: the drive still reaches the running one's end.
+    target = Q0 + 0.02
+    r.traj_pub.publish(JointTrajectory(joint_names=[JOINT], points=[point(target, 1.0)]))
+    wait_for(lambda: r.node.follower.counters.accepted == 1, what='the trajectory accepted')
+    first = len(r.states)
+    r.traj_pub.publish(BAD[rule])
+    counters = r.node.follower.counters
+    wait_for(lambda: (counters.refused_not_finite if rule is None else counters.refused[rule]) == 1,
+             what='the trajectory refused')
+    r.settle_at(target, first)
+    assert counters.accepted == 1 and all(math.isfinite(m.position[0]) for m in r.states.messages)
 
 
 @pytest.mark.parametrize('data', [[], [0.9, 0.9], [math.nan], [math.inf]], ids=['empty', 'two', 'nan', 'inf'])
 def test_bad_forward_commands_are_counted_and_change_nothing(rig: Any, data: list[float]) -> None:
     r = rig()
-    before = r.node.reference(0.0)
+    first = len(r.states)
     r.forward(data)
     wait_for(lambda: r.node.counters.commands_rejected == 1, what='the command rejected')
-    assert r.node.reference(0.0) == before and r.node.counters.commands_accepted == 0
+    assert r.node.counters.commands_accepted == 0
     seen = len(r.states)
     r.states.wait_count(seen + 2)
+    assert all(m.position[0] == Q0 for m in r.states.messages[first:])  # it did not move
 
 
 def test_bad_parameter_is_one_line_and_status_2(ros: RosSession) -> None:
@@ -217,7 +241,7 @@ def _command() -> list[str]:
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 def test_console_script_serves_and_stops_with_status_0(ros: RosSession, sig: int) -> None:
     ns = f'/sim_proc_{next(_ns)}'
-    states: Collector[JointState] = ros.collect(JointState, f'{ns}/joint_states')
+    states: Collector[JointState] = ros.collect(JointState, f'{ns}/{BROADCASTER_JOINT_STATES.name}')
     try:
         with NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'], ros.env(),
                          command=_command()) as proc:
@@ -228,3 +252,29 @@ def test_console_script_serves_and_stops_with_status_0(ros: RosSession, sig: int
         assert list(states.messages[0].name) == [JOINT]
     finally:
         ros.uncollect(states)
+
+
+def test_a_new_trajectory_starts_from_the_measured_state_not_the_last_reference(rig: Any) -> None:
+    r = rig()
+    far = min(Q0 + 0.2, LIMIT.upper)
+    r.forward([far])  # the reference jumps to far; the drive follows at its speed limit
+    r.states.wait_match(lambda m: m.position[0] > Q0 + 0.02)
+    r.traj_pub.publish(JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.05, 3.0)]))
+    wait_for(lambda: r.node.follower._trajectory is not None, what='the trajectory started')
+    initial = r.node.follower._trajectory.initial
+    # It starts where the drive was measured at its first update (a position the sim published), moving; not at
+    # the forward command's reference.
+    assert any(m.position[0] == initial.position for m in r.states.messages)
+    assert abs(far - initial.position) > 0.05 and initial.velocity is not None and initial.velocity > 0.0
+
+
+def test_a_drive_that_cannot_follow_is_held_where_it_is(rig: Any) -> None:
+    # A drive 100 times slower than the trajectory: it falls behind by more than the trajectory tolerance, and
+    # the controller holds the measured position (the drive stops there).
+    r = rig(max_velocity=VMAX / 100.0)
+    r.traj_pub.publish(JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.1, 1.5)]))
+    wait_for(lambda: r.node.follower.counters.tolerance_holds == 1, what='the hold')
+    held = r.node.follower.reference(0.0, 0.0, 0.0).position  # a hold ignores time and the measured state
+    first = len(r.states)
+    r.settle_at(held, first)
+    assert held < Q0 + 0.02 and r.node.follower.holding_reason is not None

@@ -9,6 +9,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pytest
 
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.controllers import trajectory_controller
 from fourbar_ros.node.sim_actuator_model import (
     STEP_S,
     DriveLimits,
@@ -17,11 +19,13 @@ from fourbar_ros.node.sim_actuator_model import (
     Setpoint,
     Trajectory,
     TrajectoryError,
+    TrajectoryFollower,
     Waypoint,
     braking_speed,
     segment,
     waypoints,
 )
+from fourbar_ros.rules.controller_contract import ContractRule
 
 EPS = float(np.finfo(np.float64).eps)
 
@@ -38,6 +42,7 @@ class Point:
     velocities: list[float] = field(default_factory=list)
     accelerations: list[float] = field(default_factory=list)
     time_from_start: Duration = field(default_factory=Duration)
+    effort: list[float] = field(default_factory=list)
 
 
 def at(t: float) -> Duration:
@@ -130,9 +135,9 @@ def test_waypoints_bound_the_point_count() -> None:
 # ----------------------------------------------------------------------------- sampling
 
 def test_trajectory_sampling_in_time() -> None:
-    initial = Setpoint(1.0, 0.0, 0.0)
+    initial = Waypoint(0.0, 1.0, None, None)  # no velocity state interface: the first segment is linear
     traj = Trajectory(10.0, initial, (Waypoint(1.0, 2.0, None, None), Waypoint(3.0, 0.0, None, None)))
-    assert traj.sample(9.0) == initial  # before its start: the state it started from
+    assert traj.sample(9.0) == Setpoint(1.0, 0.0, 0.0)  # before its start: the state it started from
     assert traj.sample(10.5) == Setpoint(1.5, 1.0, 0.0)  # from the initial state to the first point
     assert traj.sample(11.0).position == 2.0
     assert traj.sample(12.0) == Setpoint(1.0, -1.0, 0.0)
@@ -141,19 +146,92 @@ def test_trajectory_sampling_in_time() -> None:
     assert traj.end == 13.0
 
 
-def test_trajectory_first_segment_is_quintic_from_a_moving_state() -> None:
-    """From a moving initial state to a point with velocity and acceleration: position, velocity and acceleration
-    are continuous at the start (no jump when a new trajectory replaces one in progress)."""
-    initial = Setpoint(0.3, 0.2, -0.1)
+def test_trajectory_first_segment_is_cubic_from_a_measured_moving_state() -> None:
+    """From the measured state (position and velocity: the controller reads no acceleration) to a point with
+    velocity and acceleration: cubic, as the controller's (both ends have velocities, not both accelerations);
+    position and velocity continuous at the start."""
+    initial = Waypoint(0.0, 0.3, 0.2, None)
     traj = Trajectory(0.0, initial, (Waypoint(2.0, 0.5, 0.0, 0.0),))
     s = traj.sample(0.0)
-    assert s == pytest.approx(initial, abs=8 * EPS)
+    assert (s.position, s.velocity) == pytest.approx((0.3, 0.2), abs=8 * EPS)
+    assert s == segment(initial, Waypoint(2.0, 0.5, 0.0, None), 2.0, 0.0)  # the cubic: acceleration ignored
     assert traj.sample(2.0) == Setpoint(0.5, 0.0, 0.0)
 
 
-def test_empty_trajectory_holds_the_initial_position() -> None:
-    traj = Trajectory(0.0, Setpoint(0.7, 0.3, 0.1), ())
-    assert traj.sample(5.0) == Setpoint(0.7, 0.0, 0.0)
+# ----------------------------------------------------------------------------- the trajectory controller
+
+JTC = trajectory_controller('', default_config().trajectory_controller)
+J = default_config().driven_joint
+TOL = JTC.tolerance(J)
+
+
+def follower(position: float = 0.8) -> TrajectoryFollower:
+    return TrajectoryFollower(JTC, J, position)
+
+
+def rest(times: list[float], positions: list[float]) -> list[Point]:
+    return [Point([p], [0.0], time_from_start=at(t)) for t, p in zip(times, positions, strict=True)]
+
+
+#: What the controller refuses, one message per contract rule: (joint_names, points, stamp ns); arrival at 10 s.
+REFUSED: dict[ContractRule, tuple[list[str], list[Point], int]] = {
+    ContractRule.PARTIAL_JOINTS: ([J, 'b'], [Point([0.8, 0.0], time_from_start=at(1.0))], 0),
+    ContractRule.NO_POINTS: ([J], [], 0),
+    ContractRule.FOREIGN_JOINT: (['not_ours'], rest([1.0], [0.8]), 0),
+    ContractRule.END_MOVING: ([J], [Point([0.8], [0.01], time_from_start=at(1.0))], 0),
+    ContractRule.ENDS_IN_PAST: ([J], rest([1.0], [0.8]), 8 * 10**9),
+    ContractRule.TIME_NOT_INCREASING: ([J], rest([1.0, 1.0], [0.8, 0.9]), 0),
+    ContractRule.FIELD_SIZE: ([J], [Point([0.8, 0.9], time_from_start=at(1.0))], 0),
+    ContractRule.EFFORT_FIELD: ([J], [Point([0.8], effort=[0.1], time_from_start=at(1.0))], 0),
+}
+
+
+@pytest.mark.parametrize('rule', list(REFUSED), ids=lambda r: r.value)
+def test_the_follower_refuses_what_the_controller_refuses_and_goes_on(rule: ContractRule) -> None:
+    f = follower()
+    assert f.receive([J], rest([0.0, 2.0], [0.8, 0.9]), 0, 10 * 10**9) is None
+    running = f.reference(10.0, 0.8, 0.0)
+    names, points, stamp = REFUSED[rule]
+    refusal = f.receive(names, points, stamp, 10 * 10**9)
+    assert refusal is not None and refusal.rule is rule and f.counters.refused[rule] == 1
+    # The running trajectory goes on: the same reference as without the refused message.
+    assert f.reference(11.0, 0.85, 0.0) == Trajectory(10.0, Waypoint(0.0, 0.8, 0.0, None),
+                                                       tuple(waypoints([J], J, rest([0.0, 2.0], [0.8, 0.9])))
+                                                       ).sample(11.0)
+    assert (running.position, running.velocity) == (0.8, 0.0)
+
+
+def test_a_trajectory_starts_at_its_first_update_from_the_measured_state() -> None:
+    f = follower(position=0.8)
+    f.hold(0.9)  # a forward command: the last commanded reference is 0.9
+    assert f.receive([J], rest([1.0], [0.85]), 0, 5 * 10**9) is None
+    # The first update after arrival (at 5.2 s): the drive measured at 0.83 moving at 0.01 rad/s, not at 0.9.
+    r0 = f.reference(5.2, 0.83, 0.01)
+    assert (r0.position, r0.velocity) == pytest.approx((0.83, 0.01), abs=4 * EPS)
+    assert f.reference(6.2, 0.85, 0.0) == Setpoint(0.85, 0.0, 0.0)  # its start is that update (stamp 0)
+
+
+def test_the_follower_holds_on_a_trajectory_tolerance_violation() -> None:
+    f = follower(position=0.8)
+    assert f.receive([J], rest([0.0, 1.0], [0.8, 0.9]), 0, 0) is None
+    assert f.reference(0.0, 0.8, 0.0).position == 0.8
+    mid = f.reference(0.5, 0.81, 0.0)  # 0.04 rad behind at mid-way (the cubic is at 0.85 there): within
+    assert mid.position == pytest.approx(0.85, abs=1e-12)
+    stuck = 0.85 - TOL.trajectory - 1e-3
+    held = f.reference(0.5, stuck, 0.0)
+    assert f.counters.tolerance_holds == 1 and held == Setpoint(stuck, 0.0, 0.0)
+    assert f.reference(5.0, stuck, 0.0) == Setpoint(stuck, 0.0, 0.0) and f.holding_reason is not None
+
+
+def test_the_follower_holds_after_goal_time_outside_the_goal_tolerance() -> None:
+    f = follower(position=0.8)
+    assert f.receive([J], rest([0.0, 0.1], [0.8, 0.81]), 0, 0) is None
+    f.reference(0.0, 0.8, 0.0)
+    off = 0.81 - 2 * TOL.goal  # outside the goal tolerance, inside the path tolerance
+    assert f.reference(0.1 + 0.5 * JTC.goal_time, off, 0.0) == Setpoint(0.81, 0.0, 0.0)  # still within goal_time
+    assert f.counters.goal_time_holds == 0
+    assert f.reference(0.1 + 1.5 * JTC.goal_time, off, 0.0) == Setpoint(off, 0.0, 0.0)
+    assert f.counters.goal_time_holds == 1 and f.counters.tolerance_holds == 0
 
 
 # ----------------------------------------------------------------------------- drive

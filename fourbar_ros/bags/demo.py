@@ -23,6 +23,7 @@ import numpy.typing as npt
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.interface import (
     ANTENNA_ANGLE,
+    BROADCASTER_JOINT_STATES,
     COMMAND,
     DIAGNOSTICS,
     INPUT_TORQUE,
@@ -52,7 +53,8 @@ class DemoTopics:
     """The recorded topics' names."""
 
     command: str
-    joint_states: str
+    measured: str  #: the simulated actuator's measured driven joint (joint_state_broadcaster's local topic)
+    joint_states: str  #: the node's complete joint states
     antenna_angle: str
     input_torque: str
     trajectory: str
@@ -60,13 +62,14 @@ class DemoTopics:
 
     def all(self) -> tuple[str, ...]:
         """Every name, in recording order."""
-        return (self.command, self.joint_states, self.antenna_angle, self.input_torque, self.trajectory,
-                self.diagnostics)
+        return (self.command, self.measured, self.joint_states, self.antenna_angle, self.input_torque,
+                self.trajectory, self.diagnostics)
 
 
 def demo_topics(trajectory_controller: str) -> DemoTopics:
     """The recorded topics in the root namespace, where the demo runs its nodes."""
-    return DemoTopics(f'/{COMMAND.name}', f'/{JOINT_STATES.name}', f'/{ANTENNA_ANGLE.name}', f'/{INPUT_TORQUE.name}',
+    return DemoTopics(f'/{COMMAND.name}', f'/{BROADCASTER_JOINT_STATES.name}', f'/{JOINT_STATES.name}',
+                      f'/{ANTENNA_ANGLE.name}', f'/{INPUT_TORQUE.name}',
                       f'/{trajectory_topic(trajectory_controller).name}', DIAGNOSTICS.name)
 
 
@@ -92,8 +95,9 @@ class Measured:
 
 @dataclass(frozen=True)
 class Completed:
-    """fourbar_node's completed joint_states: the other rocker and the coupler joint, positions (rad) and velocities
-    (rad/s; NaN where a message has none), with the measurement stamps (ns) they carry."""
+    """fourbar_node's complete joint_states, the joints it completes: the other rocker and the coupler joint,
+    positions (rad) and velocities (rad/s; NaN where a message has none), with the measurement stamps (ns) they
+    carry."""
 
     stamp_ns: IntArray
     other: FloatArray
@@ -196,16 +200,10 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
     rejected = sum(n for outcome, n in answered.outcomes.items() if outcome.rejected)
     driven = cfg.driven_joint
     other_name, coupler_name = completed_names(cfg)
-    measured_rows: list[tuple[int, Any]] = []
-    completed_rows: list[tuple[int, Any]] = []
-    for row in messages.get(topics.joint_states, []):
-        names = list(row[1].name)
-        if names == [driven]:
-            measured_rows.append(row)
-        elif other_name in names:
-            completed_rows.append(row)
+    measured_rows = [row for row in messages.get(topics.measured, []) if driven in row[1].name]
+    completed_rows = [row for row in messages.get(topics.joint_states, []) if other_name in row[1].name]
     if not measured_rows:
-        raise DemoError(f'no measured {driven!r} recorded on {topics.joint_states}')
+        raise DemoError(f'no measured {driven!r} recorded on {topics.measured}')
 
     def field(rows: Sequence[tuple[int, Any]], name: str, attr: str) -> FloatArray:
         return np.array([_column(getattr(m, attr), list(m.name).index(name)) for _, m in rows], dtype=np.float64)

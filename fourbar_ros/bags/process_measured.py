@@ -1,12 +1,13 @@
 """The completion fourbar_node publishes in its actuator modes, for a bag of measured joint states (no rclpy).
 
-For every ``sensor_msgs/JointState`` of the measured topic (``/joint_states``, else the one ``*/joint_states``) in
-bag order, the node's rules for a measurement (``fourbar_ros.rules.completion``, on blocks): JointStates without the
-driven joint (a completed state, or another joint's) and with mismatched array lengths are skipped, refused ones
+For every ``sensor_msgs/JointState`` of the measured topic (``measured_topic``: ``/measured_joint_states`` or
+joint_state_broadcaster's ``/joint_state_broadcaster/joint_states``, else the one such topic in a namespace) in bag
+order, the node's rules for a measurement (``fourbar_ros.rules.completion``, on blocks): the node's own complete
+JointStates and JointStates without the driven joint or with mismatched array lengths are skipped, refused ones
 (``measured``: a position NaN or inf, an infinite velocity or effort; a NaN velocity or effort is not measured)
-skipped, angles the driven rocker cannot take publish nothing; the others give ``joint_states`` (the passive
-joints, the measurement's header stamp), ``antenna_angle``, ``antenna_rate`` (with a measured velocity) and
-``load_torque`` (with a measured effort), next to the measured topic and at its log time, in that order. Every output
+skipped, angles the driven rocker cannot take publish nothing; the others give the complete ``joint_states`` (the
+measurement's header stamp), ``antenna_angle``, ``antenna_rate`` (with a measured velocity) and ``load_torque``
+(with a measured effort), in the measured topic's namespace and at its log time, in that order. Every output
 is written (a recording has every subscriber). Blocks of ``BLOCK`` measurements at a time; the output appears
 atomically.
 """
@@ -34,7 +35,12 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import JOINT_STATES, MEASURED_JOINT_STATES, PER_MEASUREMENT_OUTPUTS, sibling_topic
+from fourbar_ros.config.interface import (
+    BROADCASTER_JOINT_STATES,
+    JOINT_STATES,
+    MEASURED_JOINT_STATES,
+    PER_MEASUREMENT_OUTPUTS,
+)
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.rules.completion import CompletionRule, complete_block, measured
 
@@ -49,7 +55,7 @@ class MeasuredStats:
     measurements: int = 0
     completed: int = 0
     refused_not_finite: int = 0
-    ignored: int = 0  # no driven joint (completed states included) or mismatched lengths
+    ignored: int = 0  # no driven joint, the node's own complete states, or mismatched lengths
     out_of_range: int = 0
     seconds: float = 0.0
 
@@ -59,14 +65,30 @@ class MeasuredStats:
                 f'of range, {self.refused_not_finite} not finite, {self.ignored} ignored) in {self.seconds:.2f} s')
 
 
+#: The names the measured joint states go by: the node's input, and joint_state_broadcaster's local topic.
+MEASURED_NAMES = (MEASURED_JOINT_STATES.name, BROADCASTER_JOINT_STATES.name)
+
+
 def measured_topic(path: Path, types: dict[str, str], topic: str | None) -> str | None:
-    """The measured JointState topic of a bag: ``topic``, else ``/joint_states``, else the one ``*/joint_states``;
-    None if there is none."""
+    """The measured JointState topic of a bag: ``topic``, else ``/measured_joint_states`` or
+    ``/joint_state_broadcaster/joint_states``, else the one JointState topic ending in either; None if none."""
     if topic is not None:
         return topic if types.get(topic) == JOINT_STATE else None
-    name = MEASURED_JOINT_STATES.name
-    candidates = [t for t, ty in types.items() if ty == JOINT_STATE and t.rsplit('/', 1)[-1] == name]
-    return f'/{name}' if f'/{name}' in candidates else (candidates[0] if len(candidates) == 1 else None)
+    for name in MEASURED_NAMES:
+        if types.get(f'/{name}') == JOINT_STATE:
+            return f'/{name}'
+    ends = tuple(f'/{n}' for n in MEASURED_NAMES)
+    candidates = [t for t, ty in types.items() if ty == JOINT_STATE and t.endswith(ends)]
+    return candidates[0] if len(candidates) == 1 else None
+
+
+def output_namespace(topic: str) -> str:
+    """The namespace the node's outputs go to for a measured ``topic`` ('' for the root): the topic without its
+    measured name when it ends in one, else the topic's own namespace."""
+    for name in MEASURED_NAMES:
+        if topic.endswith(f'/{name}'):
+            return topic[:-len(name) - 1]
+    return topic.rsplit('/', 1)[0]
 
 
 class _Block:
@@ -92,8 +114,11 @@ def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str
         if chosen is None:
             raise BagError(f'{src_path}: no measured {JOINT_STATE} topic {topic or "/" + MEASURED_JOINT_STATES.name}')
         conns = [c for c in reader.connections if c.topic == chosen]
-        names = [sibling_topic(chosen, t.name) for t in PER_MEASUREMENT_OUTPUTS]
-        names[0] = chosen  # the completed joints go where the measured ones are (a sibling of itself)
+        ns = output_namespace(chosen)
+        names = [f'{ns}/{t.name}' for t in PER_MEASUREMENT_OUTPUTS]
+        if chosen in names:
+            raise BagError(f'{src_path}: the measured topic {chosen} is where the completed joint states go; '
+                           'record the measured joint states on measured_joint_states')
         with AtomicBagWriter(dst, storage or storage_of(reader)) as bag:
             qos = [recorded_qos()]
             outs = [bag.add_topic(name, JOINT_STATE if t is JOINT_STATES else FLOAT64, qos)
@@ -138,7 +163,7 @@ def _joint_state(store: Any, raw: bytes) -> Any:
 def _measurement(rule: CompletionRule, msg: Any, stats: MeasuredStats) -> tuple[float, float, float] | None:
     """(q, q_dot, effort) of the driven joint, NaN where absent; None for a message the node skips (counted)."""
     names = list(msg.name)
-    if rule.driven_joint not in names:
+    if names == rule.names or rule.driven_joint not in names:  # the node's own output, or another joint's
         stats.ignored += 1
         return None
     i, n = names.index(rule.driven_joint), len(names)
@@ -172,9 +197,10 @@ def _write(bag: AtomicBagWriter, outs: list[Any], cfg: AntennaConfig, rule: Comp
         log = pending.log[k]
         sec, nanosec = pending.stamp[k]
         has_rate = bool(np.isfinite(done.velocities[k]).all())
+        has_effort = bool(np.isfinite(done.efforts[k]).all())
         js = js_type(header=header_type(stamp=time_type(sec=sec, nanosec=nanosec), frame_id=''), name=rule.names,
                      position=done.positions[k].copy(), velocity=done.velocities[k].copy() if has_rate else empty,
-                     effort=empty)
+                     effort=done.efforts[k].copy() if has_effort else empty)
         write(js_conn, log, bytes(store.serialize_cdr(js, JOINT_STATE)))
         write(angle_conn, log, bytes(store.serialize_cdr(f64_type(data=float(done.theta[k])), FLOAT64)))
         for conn, value in ((rate_conn, done.theta_rate[k]), (load_conn, done.load_torque[k])):

@@ -16,7 +16,14 @@ import time
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
-from fourbar_ros.config.interface import DEFAULT_STORAGE, DIAGNOSTICS, STORAGES, STREAM_DEPTH
+from fourbar_ros.config.interface import (
+    BROADCASTER_JOINT_STATES,
+    DEFAULT_STORAGE,
+    DIAGNOSTICS,
+    MEASURED_JOINT_STATES,
+    STORAGES,
+    STREAM_DEPTH,
+)
 from fourbar_ros.live.node_process import FREE_DOMAIN_IDS
 
 HELP = ('the main job: start fourbar_node (trajectory mode) with a parameter file and the simulated actuator, '
@@ -173,7 +180,8 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     if commands.size == 0:
         raise CommandError(f'{args.bag}: the node serves none of its {len(stream)} commands', status=2)
     # The drive starts at rest at the first served command; its limits are the motor's through the reducer.
-    node = NodeProcess(node_args(args.params, '-p', 'mode:=trajectory', '-p', 'joint_state_rate:=0.0'), env,
+    node = NodeProcess(node_args(args.params, '-p', 'mode:=trajectory', '-p', 'joint_state_rate:=0.0',
+                                 '-r', f'{MEASURED_JOINT_STATES.name}:={BROADCASTER_JOINT_STATES.name}'), env,
                        log_path=args.out / 'node.log')
     sim = NodeProcess(node_args(args.params, '-p', f'initial_theta:={float(commands[0])!r}',
                                 '-p', f'max_velocity:={cfg.motor_speed_limit / cfg.reducer_ratio!r}',
@@ -208,8 +216,9 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         def on_antenna(msg: Float64) -> None:
             antenna.append(msg.data)
         ros.create_subscription(Float64, topics.antenna_angle, on_antenna, STREAM_DEPTH)
-        # joint_states has two publishers, the simulated actuator (measured) and the node (completed): both first.
-        spin_until(executor, lambda: failed() is not None or ros.count_publishers(topics.joint_states) >= 2,
+        # The simulated actuator's measured joint and the node's complete joint states: both publishers first.
+        spin_until(executor, lambda: failed() is not None or (ros.count_publishers(topics.measured) >= 1
+                                                             and ros.count_publishers(topics.joint_states) >= 1),
                    args.timeout)
         plans = discover(ros, executor, topics.all(), args.timeout, stop=lambda: failed() is not None)
         if (dead := failed()) is not None:

@@ -1,30 +1,21 @@
 """The actuator modes' completion: the measured driven joint in, the whole linkage out (fourbar_node composes it).
 
-Interface (relative names; only in the modes ``trajectory`` and ``forward``):
-  sub  joint_states   sensor_msgs/JointState  the measured driven joint (``driven_joint``), as joint_state_broadcaster
-                                              publishes it; position rad, velocity rad/s and effort N m optional
-  pub  joint_states   sensor_msgs/JointState  the passive joints [other rocker, coupler joint]: position rad,
-                                              velocity rad/s by the chain rule (when measured), effort empty;
-                                              stamped with the measurement's stamp
-  pub  antenna_angle  std_msgs/Float64        theta, rad
-  pub  antenna_rate   std_msgs/Float64        d theta/dt, rad/s (when the velocity is measured)
-  pub  load_torque    std_msgs/Float64        N m about theta, + in the sense of increasing theta (when the effort is)
-Each output is computed and published only while it has a subscriber (the node's own joint_states subscription is
-not counted). What is published: ``fourbar_ros.rules.completion``.
+Reads ``measured_joint_states`` (the driven joint, as joint_state_broadcaster publishes it; remappable) and for
+every measurement publishes one complete ``joint_states`` (every joint of the linkage at the measurement's stamp),
+``antenna_angle``, ``antenna_rate`` (with a measured velocity) and ``load_torque`` (with a measured effort): what
+they hold is ``fourbar_ros.rules.completion``; topics and types: docs/node.md. Each output is computed and published
+only while it has a subscriber (the node's own subscription, if remapped onto joint_states, is not counted).
 
 Read raw: the subscription takes the CDR bytes and ``fourbar_ros.config.cdr`` reads the stamp and names first, the
-float arrays only for a measurement (no Python message is built per received message). A payload that is not a
-little-endian CDR JointState is counted (``measurements_ignored_malformed``) and logged in one throttled line.
-No echo: the node's completed JointState has no driven joint, so it is skipped at the first check, before its arrays
-are read (counted as ``measurements_own_skipped`` when its names are the completed ones). rclpy 7.1.6's message
-info carries no publisher gid to compare, so the names are the guard.
-A NaN velocity or effort is not measured (joint_state_broadcaster's NaN for a missing state interface): no rates,
-or no load torque, for that message. Bad measurements publish nothing, are counted and logged in one throttled
-line: a position NaN or inf, an infinite velocity or effort (refused), no driven
-joint or mismatched array lengths (ignored), an angle the driven rocker cannot take (out of range: diagnostics
-ERROR naming the value and the range until a good measurement arrives). No measurement for ``measurement_timeout``
-s: WARN. ``set_commanded(theta)`` (rad) gives the commanded antenna angle; diagnostics then report commanded minus
-measured theta, now and the worst over ``tracking_window`` s.
+float arrays only for a measurement. Skipped without reading the arrays: the node's own complete JointState (its
+names exactly; if ``measured_joint_states`` is remapped onto ``joint_states``), counted as
+``measurements_own_skipped``; one without the driven joint (``measurements_ignored_no_driven_joint``, one throttled
+line). A payload that is not a little-endian CDR JointState is counted (``measurements_ignored_malformed``). Bad
+measurements publish nothing, are counted and logged in one throttled line: a position NaN or inf, an infinite
+velocity or effort (refused), mismatched array lengths (ignored), an angle the driven rocker cannot take (out of
+range: diagnostics ERROR naming the value and the range until a good measurement arrives). No measurement for
+``measurement_timeout`` s: WARN. ``set_commanded(theta)`` (rad) gives the commanded antenna angle; diagnostics then
+report commanded minus measured theta, now and the worst over ``tracking_window`` s.
 """
 
 from __future__ import annotations
@@ -68,9 +59,11 @@ class MeasuredCompletion:
     """Subscription, publishers, counters and diagnostic values of the completion."""
 
     def __init__(self, node: Node, cfg: AntennaConfig, joint_pub: Any, qos: Callable[[Topic], QoSProfile],
-                 warn: Callable[..., object], on_measured: Callable[[float], None] | None = None) -> None:
+                 warn: Callable[..., object],
+                 on_measured: Callable[[float, float | None], None] | None = None) -> None:
         """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic; ``warn``: a logger;
-        ``on_measured``: called with each measured driven-joint angle (rad) that is finite and within reach."""
+        ``on_measured``: called with each measured driven joint that is finite and within reach: position rad,
+        velocity rad/s (None: not measured)."""
         self._on_measured = on_measured
         self.rule = CompletionRule(cfg)
         self.counters = MeasurementCounters()
@@ -106,26 +99,27 @@ class MeasuredCompletion:
         counters = self.counters
         try:
             sec, nanosec, _, names, at = read_joint_state_head(raw)
+            if names == self._names:  # the node's own complete JointState (measured_joint_states remapped onto it)
+                counters.measurements_own_skipped += 1
+                return
             try:
                 i = names.index(self._driven)
             except ValueError:
-                if names == self._names:
-                    counters.measurements_own_skipped += 1
-                else:
-                    counters.measurements_ignored_no_driven_joint += 1
-                    self._warn(f'joint_states without {self._driven} (names {names}): ignored',
-                               throttle_duration_sec=WARN_THROTTLE_S)
+                counters.measurements_ignored_no_driven_joint += 1
+                self._warn(f'{MEASURED_JOINT_STATES.name} without {self._driven} (names {names}): ignored',
+                           throttle_duration_sec=WARN_THROTTLE_S)
                 return
             position, velocity, effort = read_joint_state_arrays(raw, at)
         except MalformedCdrError as exc:
             counters.measurements_ignored_malformed += 1
-            self._warn(f'joint_states payload of {len(raw)} bytes is not a JointState ({exc}): ignored',
+            self._warn(f'{MEASURED_JOINT_STATES.name} payload of {len(raw)} bytes is not a JointState ({exc}): ignored',
                        throttle_duration_sec=WARN_THROTTLE_S)
             return
         n = len(names)
         if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
             counters.measurements_ignored_mismatched_lengths += 1
-            self._warn(f'joint_states with {n} names but {len(position)} positions, {len(velocity)} velocities, '
+            self._warn(f'{MEASURED_JOINT_STATES.name} with {n} names but {len(position)} positions, '
+                       f'{len(velocity)} velocities, '
                        f'{len(effort)} efforts: ignored', throttle_duration_sec=WARN_THROTTLE_S)
             return
         self._last_time = now = time.monotonic()
@@ -145,12 +139,12 @@ class MeasuredCompletion:
             self._error(self._range_error, throttle_duration_sec=WARN_THROTTLE_S)
             return
         if self._on_measured is not None:
-            self._on_measured(q)
+            self._on_measured(q, q_dot)
         joints = self._joint_pub.get_subscription_count() > self._own
         rate = self._rate_pub.get_subscription_count() > 0
         load = self._load_pub.get_subscription_count() > 0
         try:
-            done = rule.one(q, q_dot if joints or rate else None, tau if load else None)
+            done = rule.one(q, q_dot if joints or rate else None, tau if load or joints else None)
         except FourBarError as exc:
             counters.measurements_not_completed += 1
             self._error(f'cannot complete {self._driven} = {q!r} rad: {one_line(exc)}',
@@ -163,6 +157,7 @@ class MeasuredCompletion:
             stamp.sec, stamp.nanosec = sec, nanosec
             out.position = done.positions
             out.velocity = done.velocities
+            out.effort = done.efforts
             self._joint_pub.publish(out)
         number = self._float
         if self._angle_pub.get_subscription_count() > 0:
@@ -201,6 +196,6 @@ class MeasuredCompletion:
         if self._range_error is not None:
             return Level.ERROR, self._range_error, values
         if since > self._timeout:
-            return (Level.WARN, f'no measurement of {self._driven} on joint_states for {since:.3g} s '
+            return (Level.WARN, f'no measurement of {self._driven} on {MEASURED_JOINT_STATES.name} for {since:.3g} s '
                     f'(measurement_timeout {self._timeout:g} s)', values)
         return Level.OK, 'ok', values

@@ -2,15 +2,18 @@
 joint_trajectory_controller, its forward_command_controller and its joint_state_broadcaster.
 
 Interface (relative names, so namespaces and remapping apply; ``<joint>`` is the ``joint`` parameter):
-  sub  <trajectory_controller>/joint_trajectory  trajectory_msgs/JointTrajectory   followed from its start (header
-                                                 stamp, or on arrival when 0), as joint_trajectory_controller does
-  sub  <forward_controller>/commands             std_msgs/Float64MultiArray        one position (rad) to go to
-  pub  joint_states                              sensor_msgs/JointState            every 1/publish_rate s: name
+  sub  <trajectory_controller>/joint_trajectory  trajectory_msgs/JointTrajectory   what joint_trajectory_controller
+                                                 accepts (the controllers YAML ``controllers_file``), followed as
+                                                 it follows it (``sim_actuator_model.TrajectoryFollower``)
+  sub  <forward_controller>/commands             std_msgs/Float64MultiArray        one position (rad) per joint of
+                                                 the forward controller
+  pub  joint_state_broadcaster/joint_states      sensor_msgs/JointState            every 1/publish_rate s: name
                                                  [<joint>], measured position (rad), velocity (rad/s), effort (N m:
-                                                 the torque the linkage needs at the true pose, plus noise)
-The latest command wins, whichever controller it came for. A bad message (joint missing, mismatched arrays, NaN,
-times not increasing, too many points, not one value) is counted, logged in one throttled line and ignored.
-The behaviour is in ``fourbar_ros.node.sim_actuator_model``; this module only adapts messages and time.
+                                                 the torque the linkage needs at the true pose, plus noise), as
+                                                 joint_state_broadcaster publishes with ``use_local_topics: true``
+The latest accepted command wins, whichever controller it came for. A refused message (the controller's contract,
+or a value that is not finite, or a forward command of the wrong size) is counted, logged in one throttled line and
+changes nothing. What it cannot imitate: ``sim_actuator_model``'s docstring.
 """
 
 from __future__ import annotations
@@ -27,34 +30,24 @@ from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, declared_values
-from fourbar_ros.config.interface import JOINT_STATES
+from fourbar_ros.config.controllers import forward_controller, trajectory_controller
+from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, forward_topic, trajectory_topic
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
-from fourbar_ros.node.sim_actuator_model import (
-    DriveLimits,
-    Encoder,
-    LagActuator,
-    Setpoint,
-    Trajectory,
-    TrajectoryError,
-    effort_at,
-    waypoints,
-)
+from fourbar_ros.node.qos import qos
+from fourbar_ros.node.sim_actuator_model import DriveLimits, Encoder, LagActuator, TrajectoryFollower, effort_at
+from fourbar_ros.rules.controller_contract import check_forward_command
 
-#: Keep-last depth of the command subscriptions and of joint_states (joint_state_broadcaster's is 10).
-DEPTH = 10
 WARN_THROTTLE_S = 1.0
 
 
 @dataclass
 class SimCounters:
-    """What the node did, for tests and diagnostics."""
+    """What the node did besides following trajectories (``TrajectoryFollower.counters``), for tests."""
 
-    trajectories_accepted: int = 0
-    trajectories_rejected: int = 0
     commands_accepted: int = 0
     commands_rejected: int = 0
     joint_states_published: int = 0
@@ -72,6 +65,8 @@ class SimActuator(Node):
         try:
             self.config = config_from_values(declared_values(startup))
             self.settings = sim_settings(startup, self.config)
+            jtc = trajectory_controller(self.config.controllers_file, self.config.trajectory_controller)
+            self._forward = forward_controller(self.config.controllers_file, self.config.forward_controller)
         except ConfigError:
             destroy_node(self)
             raise
@@ -84,50 +79,36 @@ class SimActuator(Node):
         self.encoder = Encoder(s.encoder_counts_per_rev, cfg.reducer_ratio, s.position_offset, s.position_noise,
                                s.velocity_noise, s.effort_noise, s.noise_seed)
         self.counters = SimCounters()
+        self.follower = TrajectoryFollower(jtc, s.joint, self.drive.position)
         self._clock: Any = self.get_clock()
-        self._hold = Setpoint(self.drive.position, 0.0, 0.0)  # the forward command (or the start), held
-        self._trajectory: Trajectory | None = None
         self._last_tick_ns: int | None = None
+        self._last_measured = (self.drive.position, 0.0)
         self._msg = JointState()
         self._msg.name = [s.joint]
-        self._pub = self.create_publisher(JointState, JOINT_STATES.name, DEPTH)
-        self.create_subscription(JointTrajectory, f'{self.config.trajectory_controller}/joint_trajectory',
-                                 self._on_trajectory, DEPTH)
-        self.create_subscription(Float64MultiArray, f'{self.config.forward_controller}/commands', self._on_forward,
-                                 DEPTH)
+        self._pub = self.create_publisher(JointState, BROADCASTER_JOINT_STATES.name, qos(BROADCASTER_JOINT_STATES))
+        jt, fw = trajectory_topic(cfg.trajectory_controller), forward_topic(cfg.forward_controller)
+        self.create_subscription(JointTrajectory, jt.name, self._on_trajectory, qos(jt))
+        self.create_subscription(Float64MultiArray, fw.name, self._on_forward, qos(fw))
         self.create_timer(1.0 / s.publish_rate, self._on_tick)
 
-    def _now(self) -> float:
-        return float(self._clock.now().nanoseconds) * 1e-9
-
-    def reference(self, now: float) -> Setpoint:
-        """The position reference at ``now`` (s, node clock): the running trajectory's sample, else the hold."""
-        return self._trajectory.sample(now) if self._trajectory is not None else self._hold
-
     def _refuse(self, kind: str, why: str) -> None:
-        self._warn(f'{kind} ignored: {why}', throttle_duration_sec=WARN_THROTTLE_S)
+        self._warn(f'{kind} refused: {why}', throttle_duration_sec=WARN_THROTTLE_S)
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
-        try:
-            points = waypoints(msg.joint_names, self.settings.joint, msg.points)
-        except TrajectoryError as exc:
-            self.counters.trajectories_rejected += 1
-            self._refuse('trajectory', str(exc))
-            return
-        now = self._now()
-        stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-        self._trajectory = Trajectory(stamp if stamp > 0.0 else now, self.reference(now), tuple(points))
-        self.counters.trajectories_accepted += 1
+        stamp = msg.header.stamp
+        refusal = self.follower.receive(msg.joint_names, msg.points, stamp.sec * 1_000_000_000 + stamp.nanosec,
+                                        self._clock.now().nanoseconds)
+        if refusal is not None:
+            self._refuse(f'trajectory ({refusal.rule.value})', refusal.reason)
 
     def _on_forward(self, msg: Float64MultiArray) -> None:
-        data = msg.data
-        if len(data) != 1 or not math.isfinite(data[0]):
+        data = list(msg.data)
+        refusal = check_forward_command(self._forward, data)
+        if refusal is not None or not all(math.isfinite(v) for v in data):
             self.counters.commands_rejected += 1
-            self._refuse('forward command', f'expected one finite position for {self.settings.joint!r}, '
-                                            f'got {list(data)[:4]}{" ..." if len(data) > 4 else ""}')
+            self._refuse('forward command', refusal.reason if refusal is not None else f'not finite: {data}')
             return
-        self._hold = Setpoint(float(data[0]), 0.0, 0.0)
-        self._trajectory = None
+        self.follower.hold(float(data[0]))
         self.counters.commands_accepted += 1
 
     def _on_tick(self) -> None:
@@ -136,7 +117,12 @@ class SimActuator(Node):
         last, self._last_tick_ns = self._last_tick_ns, ns
         dt = 0.0 if last is None or ns < last else (ns - last) * 1e-9  # a clock jumping back restarts the steps
         drive = self.drive
-        drive.advance(dt, self.reference(ns * 1e-9).position)
+        reason = self.follower.holding_reason
+        # The controller's update reads the state the hardware reported last, then commands the drive.
+        reference = self.follower.reference(ns * 1e-9, *self._last_measured)
+        if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
+            self._warn(self.follower.holding_reason, throttle_duration_sec=WARN_THROTTLE_S)
+        drive.advance(dt, reference.position)
         try:
             effort = effort_at(self.config, drive.position)
         except FourBarError as exc:  # the drive stays in the tilt range's rocker range: a core bug if here
@@ -146,9 +132,9 @@ class SimActuator(Node):
         if not all(math.isfinite(v) for v in measured):
             self.counters.joint_states_skipped += 1
             return
+        self._last_measured = (measured[0], measured[1])
         msg = self._msg
         msg.header.stamp = now.to_msg()
         msg.position, msg.velocity, msg.effort = [measured[0]], [measured[1]], [measured[2]]
         self._pub.publish(msg)
         self.counters.joint_states_published += 1
-

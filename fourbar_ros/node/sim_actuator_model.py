@@ -1,12 +1,21 @@
-"""The simulated actuator's behaviour, without ROS: trajectory sampling, limits, lag, encoder.
+"""The simulated actuator's behaviour, without ROS: the trajectory controller, the drive, the encoder.
 
 It stands in for ros2_control's hardware plus its controllers on machines without them:
 
-- ``Trajectory`` follows a ``trajectory_msgs/JointTrajectory`` as ``joint_trajectory_controller`` (Jazzy,
-  spline interpolation) does: sampled in time from its start, from the last commanded state to the first point
-  and then point to point; each segment is a quintic when both of its ends give position, velocity and
-  acceleration, a cubic when both give position and velocity, linear otherwise; after the last point it holds
-  that point's position.
+- ``TrajectoryFollower`` is joint_trajectory_controller (Jazzy, ``interpolation_method: splines``, topic
+  interface) for the one driven joint: it refuses exactly what ``fourbar_ros.rules.controller_contract`` refuses
+  (the controller's own ``validate_trajectory_msg``, with its settings from the controllers YAML), and a refused
+  message leaves the running trajectory in place. An accepted one replaces it and starts at the first update after
+  its arrival (a zero stamp: at that update) from the state measured there (position, and velocity when the
+  controller has a velocity state interface), as with ``interpolate_from_desired_state`` false; before the first
+  point it interpolates from that state, then point to point (``segment``: quintic when both ends give position,
+  velocity and acceleration, cubic with velocities on both ends, linear otherwise), then holds the last point. It
+  holds the measured position when the measured position is off the reference by more than the joint's
+  ``trajectory`` tolerance before the last point, or by more than its ``goal`` tolerance ``goal_time`` s after it.
+  What it does not imitate: the action interface and its goal results, PID or other closed-loop adapters,
+  ``cmd_timeout``, speed scaling, joint angle wrap-around, ``interpolate_from_desired_state`` true, deceleration on
+  cancel, partial goals of several joints (it has one), and the controller manager's update timing (here a timer
+  of the node's; ``update`` is called at ``publish_rate``).
 - ``LagActuator`` is the drive: a first-order lag (time constant ``tau``, s) towards the reference, its speed
   limited to ``max_velocity`` (rad/s) and its speed change to ``max_acceleration`` (rad/s^2); it also never
   asks for more speed than it can brake from before the reference, so a reference that stands still or moves
@@ -22,14 +31,16 @@ from __future__ import annotations
 import bisect
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.controllers import TrajectoryControllerSettings
 from fourbar_ros.core.loads import pose
 from fourbar_ros.rules.actuation import PointLike
+from fourbar_ros.rules.controller_contract import ContractRule, Refusal, TrajectoryPointLike, check_trajectory
 
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
@@ -73,12 +84,10 @@ def _column(values: Sequence[float], index: int, width: int, field: str, k: int,
 
 def waypoints(joint_names: Sequence[str], joint: str, points: Sequence[PointLike],
               max_points: int = MAX_TRAJECTORY_POINTS) -> list[Waypoint]:
-    """The driven joint's waypoints of a JointTrajectory, checked as joint_trajectory_controller checks them.
+    """The driven joint's waypoints of a JointTrajectory the contract accepted (``TrajectoryFollower.receive``).
 
-    Other joints may be present (a partial goal for the others is theirs to judge). Raises ``TrajectoryError``
-    for: our joint missing or named twice, more than ``max_points`` points, an array whose length is not the
-    number of joint names (velocities and accelerations may be empty), a non-finite value, or times that do
-    not strictly increase (the first may be 0). An empty list of points is valid: the controller then holds.
+    Stricter than the controller where the simulation needs it: raises ``TrajectoryError`` for a non-finite value,
+    more than ``max_points`` points (memory stays bounded), or ``joint`` missing or named twice.
     """
     count = sum(1 for name in joint_names if name == joint)
     if count != 1:
@@ -128,33 +137,120 @@ def segment(start: Waypoint | Setpoint, end: Waypoint, duration: float, s: float
 
 @dataclass(frozen=True)
 class Trajectory:
-    """A trajectory started at ``start`` (s, on the node's clock) from the reference ``initial`` (the last commanded
-    state when it arrived) through ``points`` (times from ``start``)."""
+    """A trajectory started at ``start`` (s, on the node's clock) from ``initial`` (the state measured at its first
+    update: a Waypoint at time 0 whose velocity is None without a velocity state interface) through ``points``
+    (times from ``start``)."""
 
     start: float
-    initial: Setpoint
+    initial: Waypoint
     points: tuple[Waypoint, ...]
 
     def sample(self, now: float) -> Setpoint:
-        """The reference at time ``now`` (s): ``initial`` before the start, the last point's position after
+        """The reference at time ``now`` (s): the initial state before the start, the last point's position after
         the end (velocity and acceleration 0), the interpolating segment between."""
-        if not self.points:
-            return Setpoint(self.initial.position, 0.0, 0.0)
         t = now - self.start
         if t < 0.0:
-            return self.initial
+            return Setpoint(self.initial.position, 0.0, 0.0)
         last = self.points[-1]
         if t >= last.time:
             return Setpoint(last.position, 0.0, 0.0)
         k = bisect.bisect_right(self.points, t, key=lambda p: p.time)  # first point after t
-        before: Waypoint | Setpoint = self.initial if k == 0 else self.points[k - 1]
+        before = self.initial if k == 0 else self.points[k - 1]
         t0 = 0.0 if k == 0 else self.points[k - 1].time
         return segment(before, self.points[k], self.points[k].time - t0, t - t0)
 
     @property
     def end(self) -> float:
         """Time (s, node clock) of the last point."""
-        return self.start + (self.points[-1].time if self.points else 0.0)
+        return self.start + self.points[-1].time
+
+
+@dataclass
+class FollowerCounters:
+    """What the trajectory follower did."""
+
+    accepted: int = 0
+    refused: dict[ContractRule, int] = field(default_factory=lambda: dict.fromkeys(ContractRule, 0))
+    refused_not_finite: int = 0  #: stricter than the controller, which takes NaN as given
+    tolerance_holds: int = 0  #: held after a trajectory-tolerance violation
+    goal_time_holds: int = 0  #: held after goal_time past the last point outside the goal tolerance
+
+    def as_dict(self) -> dict[str, int]:
+        """Counter name -> value, one ``trajectories_refused_<rule>`` per contract rule."""
+        out = {'trajectories_accepted': self.accepted, 'trajectories_refused_not_finite': self.refused_not_finite,
+               'tolerance_holds': self.tolerance_holds, 'goal_time_holds': self.goal_time_holds}
+        out.update({f'trajectories_refused_{r.value}': n for r, n in self.refused.items()})
+        return out
+
+
+class TrajectoryFollower:
+    """joint_trajectory_controller for the joint ``joint`` with ``settings`` (module docstring). ``reference(now,
+    position, velocity)`` is its update: the position reference (rad) at ``now`` (s) given the measured state."""
+
+    def __init__(self, settings: TrajectoryControllerSettings, joint: str, position: float) -> None:
+        self.settings = settings
+        self.joint = joint
+        self.counters = FollowerCounters()
+        self._hold = Setpoint(position, 0.0, 0.0)
+        self._trajectory: Trajectory | None = None
+        self._pending: tuple[int, tuple[Waypoint, ...]] | None = None  # (stamp ns, points) until its first update
+        tol = settings.tolerance(joint)
+        self._path_tolerance, self._goal_tolerance = tol.trajectory, tol.goal
+        self._velocity_state = 'velocity' in settings.state_interfaces
+        self.holding_reason: str | None = None
+
+    def receive(self, joint_names: Sequence[str], points: Sequence[TrajectoryPointLike], stamp_ns: int,
+                now_ns: int) -> Refusal | None:
+        """Take a JointTrajectory (stamp and arrival time in ns on this clock); None when accepted, else why it is
+        refused (the running trajectory then goes on)."""
+        refusal = check_trajectory(self.settings, joint_names, points, stamp_ns, now_ns)
+        if refusal is not None:
+            self.counters.refused[refusal.rule] += 1
+            return refusal
+        try:
+            taken = waypoints(joint_names, self.joint, points)
+        except TrajectoryError as exc:
+            self.counters.refused_not_finite += 1
+            return Refusal(ContractRule.FIELD_SIZE, str(exc))
+        self._pending = (stamp_ns, tuple(taken))
+        self.counters.accepted += 1
+        return None
+
+    def hold(self, position: float) -> None:
+        """Stop following and hold ``position`` (rad): a forward command, or a hold of the controller's own."""
+        self._hold = Setpoint(position, 0.0, 0.0)
+        self._trajectory = self._pending = None
+
+    def reference(self, now: float, position: float, velocity: float) -> Setpoint:
+        """The controller's update at ``now`` (s) with the measured position (rad) and velocity (rad/s)."""
+        if self._pending is not None:  # its first update: it starts here, from the state measured here
+            stamp_ns, points = self._pending
+            self._pending = None
+            start = stamp_ns * 1e-9 if stamp_ns else now
+            initial = Waypoint(0.0, position, velocity if self._velocity_state else None, None)
+            self._trajectory = Trajectory(start, initial, points)
+            self.holding_reason = None
+            self._check(now, position, first=True)
+        elif self._trajectory is not None:
+            self._check(now, position, first=False)
+        return self._trajectory.sample(now) if self._trajectory is not None else self._hold
+
+    def _check(self, now: float, position: float, first: bool) -> None:
+        traj = self._trajectory
+        assert traj is not None
+        error = abs(position - traj.sample(now).position)
+        before_last = now < traj.end
+        if (before_last or first) and 0.0 < self._path_tolerance < error:
+            self.counters.tolerance_holds += 1
+            self.holding_reason = (f'{self.joint} is {error:.3g} rad off the trajectory (tolerance '
+                                   f'{self._path_tolerance:g} rad): holding position')
+            self.hold(position)
+        elif (not before_last and 0.0 < self._goal_tolerance < error and self.settings.goal_time > 0.0
+              and now - traj.end > self.settings.goal_time):
+            self.counters.goal_time_holds += 1
+            self.holding_reason = (f'{self.joint} is {error:.3g} rad from the goal {self.settings.goal_time:g} s '
+                                   f'after the last point (goal tolerance {self._goal_tolerance:g} rad): holding')
+            self.hold(position)
 
 
 @dataclass(frozen=True)

@@ -5,10 +5,13 @@ From the measured driven rocker q (rad), and where given its velocity q_dot (rad
 in the sense of increasing q), through the core's exact inverse (``core.completion.complete``, on the branch of
 ``from_rocker`` that matches the configured one, ``AntennaConfig.measured_branch``):
 
-- ``joint_states``: names [the other rocker's joint, the coupler joint], positions [other rocker, gamma + theta]
-  rad (each the turn nearest the open-loop pose at mid-range, so they lie within the URDF's limits), velocities
-  rad/s by the chain rule (empty without q_dot, or at the driven rocker's dead point where they are
-  unbounded), efforts empty (the passive joints carry no actuator effort). The driven joint is the measurement's.
+- ``joint_states``: one JointState of every joint, names [the driven joint, the other rocker's joint, the coupler
+  joint]: positions [q, other rocker, gamma + theta] rad; velocities [q_dot, then the chain rule's] rad/s (empty
+  without q_dot, or at the driven rocker's dead point where they are unbounded); efforts [the measured effort,
+  0.0, 0.0] N m (empty without one: the passive joints carry no actuator effort). The passive angles are published
+  in one fixed turn per joint (``CompletionRule.turn_starts``): the turn of the open-loop pose at mid-range (so they
+  lie within the URDF's limits), starting in the middle of the widest arc no reachable value of that joint enters,
+  so no rounding of a reachable pose can move a published angle by 2 pi.
 - ``antenna_angle``: theta (rad); ``antenna_rate``: theta_dot (rad/s) where q_dot is given and bounded.
 - ``load_torque``: effort * dq/dtheta (N m about theta, + in the sense of increasing theta; power balance, no
   reducer losses since the effort is measured at the rocker) where the effort is given and bounded (not at the
@@ -39,7 +42,8 @@ from fourbar_ros.core.errors import DeadPointError, SingularPositionError
 from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
 
-__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'complete_block', 'completed_names', 'measured']
+__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'complete_block', 'completed_names', 'joint_state_names',
+           'measured', 'turn_starts']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -70,10 +74,56 @@ class Completed(NamedTuple):
     """One measurement completed: what the node publishes (see the module docstring)."""
 
     theta: float  #: antenna angle, rad
-    positions: list[float]  #: [other rocker, coupler joint], rad
-    velocities: list[float]  #: [other rocker, coupler joint] rad/s, or empty
+    positions: list[float]  #: [driven, other rocker, coupler joint], rad
+    velocities: list[float]  #: [driven, other rocker, coupler joint] rad/s, or empty
+    efforts: list[float]  #: [driven (measured), 0.0, 0.0] N m, or empty
     theta_rate: float | None  #: rad/s
     load_torque: float | None  #: N m about theta
+
+
+def joint_state_names(cfg: AntennaConfig) -> tuple[str, str, str]:
+    """JointState names of a completed measurement: the driven rocker, the other rocker, the coupler joint."""
+    return (cfg.driven_joint, *completed_names(cfg))
+
+
+#: Samples of each interval of the driven rocker's reach for ``turn_starts``.
+_TURN_SAMPLES = 4097
+
+
+def turn_starts(cfg: AntennaConfig) -> tuple[float, float]:
+    """Where the published turn of [other rocker, coupler joint] starts (rad): each published angle v is
+    v - 2 pi floor((v - start) / 2 pi), in [start, start + 2 pi).
+
+    The start is the middle of the widest arc of the circle that no reachable value of that joint enters (the
+    driven rocker sampled over its whole reach, ``_TURN_SAMPLES`` angles per interval, the arc narrowed by the
+    largest step between neighbouring samples), taken in the turn that holds the open-loop pose at mid-range. So
+    a reachable pose's angle is never near a turn's edge, where one ulp could move it by 2 pi."""
+    link, driven, branch = cfg.linkage, cfg.driven, cfg.measured_branch
+    mid = pose(cfg, 0.5 * (cfg.theta_min + cfg.theta_max))
+    anchor = ((mid.delta if driven is Driven.GAMMA else mid.gamma), mid.gamma + 0.5 * (cfg.theta_min + cfg.theta_max))
+    reach = link.rocker_reach(driven)
+    pieces = [np.linspace(reach.theta_gap, reach.theta_max, _TURN_SAMPLES)]
+    if reach.theta_max < math.pi:  # two intervals, [gap, max] and [-max, -gap]
+        pieces.append(-pieces[0])
+    starts = []
+    for j in range(2):
+        values, step = [], 0.0
+        for q in pieces:
+            c = complete(link, q, driven, branch, on_invalid='nan')
+            v = np.asarray(c.other if j == 0 else c.coupler_joint, dtype=np.float64)
+            v = v[np.isfinite(v)]
+            if v.size > 1:
+                step = max(step, float(np.max(np.abs(np.diff(np.unwrap(v))))))
+            values.append(np.mod(v, _TWO_PI))
+        ring = np.sort(np.concatenate(values))
+        gaps = np.diff(np.append(ring, ring[0] + _TWO_PI))
+        k = int(np.argmax(gaps))
+        if gaps[k] - 2.0 * step <= 0.0:  # the joint takes every angle: no edge can be kept away from it
+            starts.append(anchor[j] - math.pi)
+            continue
+        edge = float(ring[k] + 0.5 * gaps[k])
+        starts.append(anchor[j] - (anchor[j] - edge) % _TWO_PI)  # in (anchor - 2 pi, anchor]
+    return starts[0], starts[1]
 
 
 class CompletionRule:
@@ -85,12 +135,9 @@ class CompletionRule:
         self.branch = cfg.measured_branch
         self.reach = cfg.linkage.rocker_reach(cfg.driven)
         self.driven_joint = cfg.driven_joint
-        self.names = list(completed_names(cfg))
-        mid = pose(cfg, 0.5 * (cfg.theta_min + cfg.theta_max))
-        gamma_driven = cfg.driven is Driven.GAMMA
-        #: The forward solve's [other rocker, coupler joint] at mid-range: from_rocker wraps angles to [-pi, pi],
-        #: the published ones are taken the turn nearest these (as the open-loop pose and the URDF limits have them).
-        self.reference = ((mid.delta if gamma_driven else mid.gamma), mid.gamma + 0.5 * (cfg.theta_min + cfg.theta_max))
+        self.names = list(joint_state_names(cfg))
+        #: [other rocker, coupler joint]: where each published turn starts (``turn_starts``)
+        self.turn_starts = turn_starts(cfg)
 
     def in_reach(self, q: float) -> bool:
         """Can the driven rocker take q (rad, finite)?"""
@@ -120,14 +167,16 @@ class CompletionRule:
                     raise
                 effort = None
         theta = float(c.theta)
-        ref_other, ref_coupler = self.reference
+        start_other, start_coupler = self.turn_starts
         other, coupler = float(c.other), float(c.coupler_joint)
-        positions = [other - _TWO_PI * round((other - ref_other) / _TWO_PI),
-                     coupler - _TWO_PI * round((coupler - ref_coupler) / _TWO_PI)]
-        if c.theta_rate is None:
-            return Completed(theta, positions, [], None, None if c.load_torque is None else float(c.load_torque))
-        return Completed(theta, positions, [float(c.other_rate), float(c.coupler_joint_rate)],  # type: ignore[arg-type]
-                         float(c.theta_rate), None if c.load_torque is None else float(c.load_torque))
+        positions = [q, other - _TWO_PI * math.floor((other - start_other) / _TWO_PI),
+                     coupler - _TWO_PI * math.floor((coupler - start_coupler) / _TWO_PI)]
+        efforts = [] if effort is None else [effort, 0.0, 0.0]
+        load = None if c.load_torque is None else float(c.load_torque)
+        if c.theta_rate is None or q_dot is None:
+            return Completed(theta, positions, [], efforts, None, load)
+        return Completed(theta, positions, [q_dot, float(c.other_rate), float(c.coupler_joint_rate)],  # type: ignore[arg-type]
+                         efforts, float(c.theta_rate), load)
 
 
 class CompletedBlock(NamedTuple):
@@ -135,8 +184,9 @@ class CompletedBlock(NamedTuple):
 
     valid: npt.NDArray[np.bool_]  #: bool: finite and within the rocker's reach (published at all)
     theta: FloatArray  #: rad
-    positions: FloatArray  #: (n, 2): other rocker, coupler joint, rad
-    velocities: FloatArray  #: (n, 2) rad/s; NaN rows: no velocities published
+    positions: FloatArray  #: (n, 3): driven, other rocker, coupler joint, rad
+    velocities: FloatArray  #: (n, 3) rad/s; NaN rows: no velocities published
+    efforts: FloatArray  #: (n, 3) N m: measured, 0, 0; NaN rows: no efforts published
     theta_rate: FloatArray  #: rad/s, NaN: not published
     load_torque: FloatArray  #: N m, NaN: not published
 
@@ -155,13 +205,19 @@ def complete_block(cfg: AntennaConfig, q: FloatArray, q_dot: FloatArray, effort:
     theta = np.asarray(c.theta, dtype=np.float64)
     nan = np.full(q.shape, np.nan)
     if c.theta_rate is None:
-        velocities, theta_rate = np.full((q.size, 2), np.nan), nan
+        velocities, theta_rate = np.full((q.size, 3), np.nan), nan
     else:
-        velocities = np.column_stack([c.other_rate, c.coupler_joint_rate]).astype(np.float64)  # type: ignore[list-item]
+        velocities = np.column_stack([q_dot, c.other_rate, c.coupler_joint_rate]).astype(np.float64)  # type: ignore[list-item]
         velocities[~np.isfinite(velocities).all(axis=1)] = np.nan
         theta_rate = np.asarray(c.theta_rate, dtype=np.float64)
     load = nan if c.load_torque is None else np.asarray(c.load_torque, dtype=np.float64)
-    positions = np.column_stack([c.other, c.coupler_joint]).astype(np.float64)
-    reference = np.array(rule.reference)
-    positions -= _TWO_PI * np.round((positions - reference) / _TWO_PI)  # the turn nearest the reference (one)
-    return CompletedBlock(np.isfinite(theta), theta, positions, velocities, theta_rate, load)
+    passive = np.column_stack([c.other, c.coupler_joint]).astype(np.float64)
+    starts = np.array(rule.turn_starts)
+    passive -= _TWO_PI * np.floor((passive - starts) / _TWO_PI)  # the published turn of each joint
+    valid = np.isfinite(theta)
+    zeros = np.zeros(q.size)
+    efforts = np.column_stack([effort, zeros, zeros])
+    efforts[~np.isfinite(effort) | ~valid] = np.nan
+    positions = np.column_stack([q, passive])
+    positions[~valid] = np.nan
+    return CompletedBlock(valid, theta, positions, velocities, efforts, theta_rate, load)
