@@ -1,15 +1,24 @@
 """fourbar_node with its parameter file, and optionally robot_state_publisher (the URDF generated from the same
-file), RViz and the simulated actuator (for users without the drive's hardware and ros2_control).
+file), RViz, the simulated actuator (for users without the drive's hardware) or the drive's ros2_control bringup.
 
     ros2 launch fourbar_ros fourbar.launch.py [params_file:=FILE] [namespace:=NS] [use_sim_time:=true]
-        [robot_state_publisher:=true|false] [rviz:=true|false] [sim_actuator:=true|false]
-        [mode:=open_loop|trajectory|forward]
+        [robot_state_publisher:=true|false] [rviz:=true|false] [mode:=open_loop|trajectory|forward]
+        [sim_actuator:=true|false]
+        [use_ros2_control:=true|false] [hardware_plugin:=PLUGIN] [controllers_file:=FILE] [effort_feedforward:=true]
 
 mode (fourbar_node's parameter, default: the parameter file's, else open_loop): trajectory or forward send the
-motion to the drive's controllers; with sim_actuator:=true the simulated actuator follows it.
+motion to the drive's controllers. In an actuator mode the node reads the measured driven joint where
+joint_state_broadcaster publishes it (measured_joint_states remapped to joint_state_broadcaster/joint_states).
+sim_actuator:=true: the simulated actuator stands in for the controllers and the hardware. use_ros2_control:=true
+(trajectory mode unless mode says forward): ros2_control_node with controllers_file (also the node's, so the node
+sends what that controller accepts), the description from robot_state_publisher's topic, spawners for
+joint_state_broadcaster and the mode's controller, and hardware_plugin in the URDF's <ros2_control> tag (default
+mock_components/GenericSystem, a mock that echoes commands: announced at startup). effort_feedforward:=true adds the
+effort command interface to the URDF and sets the node's parameter; the controllers file must then give
+joint_trajectory_controller command_interfaces [position, effort].
 
-robot_state_publisher and RViz start only where they are installed; otherwise one log line says so and the
-node runs alone. Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
+robot_state_publisher, RViz and ros2_control start only where they are installed; otherwise one log line says so
+(ros2_control's bringup then does not start). Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
 """
 
 from __future__ import annotations
@@ -22,11 +31,15 @@ import tempfile
 from pathlib import Path
 
 from launch import LaunchContext, LaunchDescription
+from dataclasses import replace
+
 from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
-from fourbar_ros.config.interface import NODE_NAME
+from fourbar_ros.config.controllers import CONTROLLERS_FILE
+from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, MARKERS, MEASURED_JOINT_STATES, NODE_NAME
+from fourbar_ros.config.robot_model import DEFAULT_HARDWARE_PLUGIN as MOCK_PLUGIN  # ros2_control's mock
 from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
 
 #: This file lives in share/fourbar_ros/launch (installed) or launch/ (source tree); config/ and rviz/ are beside.
@@ -62,7 +75,7 @@ def _rviz_config(template: Path, frame_id: str, namespace: str) -> str:
     text = template.read_text(encoding='utf-8')
     text = text.replace('Fixed Frame: fourbar_base', f'Fixed Frame: {frame_id}')
     text = text.replace('Value: /robot_description', f'Value: {prefix}/robot_description')
-    text = text.replace('Value: /linkage_markers', f'Value: {prefix}/linkage_markers')
+    text = text.replace(f'Value: /{MARKERS.name}', f'Value: {prefix}/{MARKERS.name}')
     fd, path = tempfile.mkstemp(prefix='fourbar_', suffix='.rviz')
     with os.fdopen(fd, 'w', encoding='utf-8') as f:
         f.write(text)
@@ -71,28 +84,49 @@ def _rviz_config(template: Path, frame_id: str, namespace: str) -> str:
 
 
 def _setup(context: LaunchContext) -> list[object]:
-    from fourbar_ros.config.robot_model import robot_description_for
+    from fourbar_ros.config.robot_model import robot_description, robot_description_for
 
-    params_file = LaunchConfiguration('params_file').perform(context)
-    namespace = _namespace(LaunchConfiguration('namespace').perform(context))
-    use_sim_time = _true(LaunchConfiguration('use_sim_time').perform(context))
-    want_rsp = _true(LaunchConfiguration('robot_state_publisher').perform(context))
-    want_rviz = _true(LaunchConfiguration('rviz').perform(context))
-    want_sim = _true(LaunchConfiguration('sim_actuator').perform(context))
-    mode = LaunchConfiguration('mode').perform(context)
+    def arg(name: str) -> str:
+        return LaunchConfiguration(name).perform(context)
+
+    params_file = arg('params_file')
+    namespace = _namespace(arg('namespace'))
+    use_sim_time = _true(arg('use_sim_time'))
+    want_rsp = _true(arg('robot_state_publisher'))
+    want_rviz = _true(arg('rviz'))
+    want_sim = _true(arg('sim_actuator'))
+    want_control = _true(arg('use_ros2_control'))
+    effort = _true(arg('effort_feedforward'))
+    plugin = arg('hardware_plugin')
+    controllers = arg('controllers_file')
     ros_namespace = '' if namespace == '/' else namespace
-    node_overrides: dict[str, object] = {'use_sim_time': use_sim_time, **({'mode': mode} if mode else {})}
+    cfg, urdf = robot_description_for(params_file, NODE_NAME, namespace, hardware_plugin=plugin)
+    mode = arg('mode') or cfg.mode
+    if want_control and want_sim:
+        raise RuntimeError('fourbar.launch.py: sim_actuator:=true and use_ros2_control:=true both drive the joint; '
+                           'choose one')
+    if want_control and mode == 'open_loop':
+        if arg('mode'):
+            raise RuntimeError('fourbar.launch.py: use_ros2_control:=true needs mode:=trajectory or mode:=forward')
+        mode = 'trajectory'
+    if effort:
+        cfg = replace(cfg, effort_feedforward=True)
+        urdf = robot_description(cfg, hardware_plugin=plugin)
+    actuated = mode != 'open_loop'
+    node_overrides: dict[str, object] = {'use_sim_time': use_sim_time, 'mode': mode}
+    if actuated:
+        node_overrides.update({'controllers_file': controllers, 'effort_feedforward': effort})
     actions: list[object] = [
         Node(package='fourbar_ros', executable='fourbar_node', name=NODE_NAME, namespace=ros_namespace,
-             parameters=[params_file, node_overrides], output='screen', emulate_tty=False),
+             parameters=[params_file, node_overrides], output='screen', emulate_tty=False,
+             remappings=[(MEASURED_JOINT_STATES.name, BROADCASTER_JOINT_STATES.name)] if actuated else []),
     ]
-    if want_rsp or want_rviz or want_sim:
-        cfg, urdf = robot_description_for(params_file, NODE_NAME, namespace)
     if want_sim:  # the linkage fourbar_node reads; its own parameters from a sim_actuator section of the file
         actions.append(Node(package='fourbar_ros', executable='fourbar_sim_actuator', name=SIM_NODE_NAME,
                             namespace=ros_namespace, output='screen', emulate_tty=False,
-                            parameters=[params_file, cfg.as_values(), {'use_sim_time': use_sim_time}]))
-    if want_rsp:
+                            parameters=[params_file, {**cfg.as_values(), 'controllers_file': controllers},
+                                        {'use_sim_time': use_sim_time}]))
+    if want_rsp or want_control:
         if _installed_executable('robot_state_publisher', 'robot_state_publisher'):
             actions.append(Node(package='robot_state_publisher', executable='robot_state_publisher',
                                 namespace=ros_namespace, output='screen',
@@ -100,6 +134,8 @@ def _setup(context: LaunchContext) -> list[object]:
         else:
             actions.append(LogInfo(msg='fourbar.launch.py: robot_state_publisher is not installed; not starting it '
                                        '(no robot model in TF; install ros-jazzy-robot-state-publisher)'))
+    if want_control:
+        actions += _ros2_control(cfg, mode, ros_namespace, controllers, plugin, use_sim_time)
     if want_rviz:
         if _installed_executable('rviz2', 'rviz2'):
             config = _rviz_config(SHARE / 'rviz' / 'fourbar.rviz', cfg.frame_id, namespace)
@@ -108,6 +144,34 @@ def _setup(context: LaunchContext) -> list[object]:
         else:
             actions.append(LogInfo(msg='fourbar.launch.py: rviz2 is not installed; not starting RViz '
                                        '(install ros-jazzy-rviz2)'))
+    return actions
+
+
+def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, plugin: str,
+                  use_sim_time: bool) -> list[object]:
+    """ros2_control_node with ``controllers`` (the description from robot_state_publisher's topic) and the
+    spawners of joint_state_broadcaster and the mode's controller, as the ros2_control_demos jazzy bringups do."""
+    from fourbar_ros.config.antenna_config import AntennaConfig
+
+    assert isinstance(cfg, AntennaConfig)
+    actions: list[object] = []
+    if plugin == MOCK_PLUGIN:
+        actions.append(LogInfo(msg=f'fourbar.launch.py: hardware_plugin is {MOCK_PLUGIN}, a mock: it echoes the '
+                                   'commands as states and moves no motor (hardware_plugin:=YOUR/Plugin for the '
+                                   'drive)'))
+    if not (_installed_executable('controller_manager', 'ros2_control_node')
+            and _installed_executable('controller_manager', 'spawner')):
+        actions.append(LogInfo(msg='fourbar.launch.py: ros2_control is not installed; not starting the controller '
+                                   'manager or its controllers (install ros-jazzy-ros2-control and '
+                                   'ros-jazzy-ros2-controllers)'))
+        return actions
+    controller = cfg.trajectory_controller if mode == 'trajectory' else cfg.forward_controller
+    actions.append(Node(package='controller_manager', executable='ros2_control_node', namespace=ros_namespace,
+                        output='screen', parameters=[controllers, {'use_sim_time': use_sim_time}],
+                        remappings=[('~/robot_description', 'robot_description')]))
+    for name in ('joint_state_broadcaster', controller):
+        actions.append(Node(package='controller_manager', executable='spawner', namespace=ros_namespace,
+                            output='screen', arguments=[name, '--controller-manager', 'controller_manager']))
     return actions
 
 
@@ -129,6 +193,17 @@ def generate_launch_description() -> LaunchDescription:
                                           'drive\'s ros2_control hardware and controllers'),
         DeclareLaunchArgument('mode', default_value='',
                               description='fourbar_node\'s mode: open_loop, trajectory or forward (default: the '
-                                          'parameter file\'s, else open_loop)'),
+                                          'parameter file\'s, else open_loop; trajectory with use_ros2_control)'),
+        DeclareLaunchArgument('use_ros2_control', default_value='false',
+                              description='start ros2_control_node, joint_state_broadcaster and the mode\'s '
+                                          'controller for the drive (where ros2_control is installed)'),
+        DeclareLaunchArgument('hardware_plugin', default_value=MOCK_PLUGIN,
+                              description='the hardware plugin of the URDF\'s <ros2_control> block (the default is '
+                                          'a mock that moves no motor)'),
+        DeclareLaunchArgument('controllers_file', default_value=str(SHARE / CONTROLLERS_FILE),
+                              description='the ros2_control controllers YAML (also fourbar_node\'s controllers_file)'),
+        DeclareLaunchArgument('effort_feedforward', default_value='false',
+                              description='trajectory points carry the static torque as effort (the controller '
+                                          'needs command_interfaces [position, effort])'),
         OpaqueFunction(function=_setup),
     ])

@@ -123,12 +123,15 @@ TYPES = {
          'use_urdf_to_filter'},
     'joint_trajectory_controller/JointTrajectoryController':
         {'joints', 'command_joints', 'command_interfaces', 'state_interfaces', 'allow_partial_joints_goal',
-         'open_loop_control', 'allow_integration_in_goal_trajectories', 'action_monitor_rate',
+         'interpolate_from_desired_state', 'allow_integration_in_goal_trajectories', 'action_monitor_rate',
          'interpolation_method', 'allow_nonzero_velocity_at_trajectory_end', 'cmd_timeout', 'gains', 'constraints',
          'set_last_command_interface_value_as_state_on_activation'},
     'position_controllers/JointGroupPositionController': {'joints'},
 }
 INTERFACES = {'position', 'velocity', 'acceleration', 'effort'}
+#: Keys the file must not set: ``open_loop_control`` is deprecated since joint_trajectory_controller 4.22, and
+#: ``constraints.stopped_velocity_tolerance`` has no effect with a position-only command interface.
+DEPRECATED = {'open_loop_control'}
 
 
 def controllers() -> dict[str, Any]:
@@ -172,12 +175,24 @@ def test_controllers_drive_the_urdf_joint_through_its_interfaces() -> None:
     assert set(jtc['command_interfaces']) <= commands & INTERFACES
     assert set(jtc['state_interfaces']) <= states & INTERFACES
     assert jtc['state_interfaces'][0] == 'position'  # the controller needs the position state first
-    assert type(jtc['allow_partial_joints_goal']) is bool and type(jtc['open_loop_control']) is bool
+    for key in ('allow_partial_joints_goal', 'allow_nonzero_velocity_at_trajectory_end',
+                'interpolate_from_desired_state'):
+        assert jtc[key] is False, key  # one joint; trajectories end at rest; start from the measured state
+    assert not set(jtc) & DEPRECATED
     assert jtc['interpolation_method'] in ('splines', 'none')
     constraints = jtc['constraints']
-    for key in ('stopped_velocity_tolerance', 'goal_time'):
-        assert type(constraints[key]) is float and constraints[key] >= 0.0, key
+    assert type(constraints['goal_time']) is float and constraints['goal_time'] >= 0.0
     tolerances = constraints[cfg.driven_joint]
     assert set(tolerances) <= {'trajectory', 'goal'}
     assert all(type(v) is float and math.isfinite(v) and v >= 0.0 for v in tolerances.values())
-    assert set(constraints) == {'stopped_velocity_tolerance', 'goal_time', cfg.driven_joint}
+    assert set(constraints) == {'goal_time', cfg.driven_joint}  # stopped_velocity_tolerance: no effect here
+    # joint_state_broadcaster publishes on its local topic, where fourbar_node's measured_joint_states is remapped.
+    assert jsb['use_local_topics'] is True
+
+
+def test_effort_feedforward_adds_the_effort_command_interface() -> None:
+    cfg = config_from_values({'effort_feedforward': True})
+    (joint,) = block(robot_description(cfg)).findall('joint')
+    assert [c.attrib['name'] for c in joint.findall('command_interface')] == ['position', 'effort']
+    (plain,) = block(robot_description(default_config())).findall('joint')
+    assert [c.attrib['name'] for c in plain.findall('command_interface')] == ['position']

@@ -149,7 +149,8 @@ def _joint(name: str, kind: str, parent: str, child: str, xyz: str, rpy: str = '
 
 def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
                        hardware_plugin: str = DEFAULT_HARDWARE_PLUGIN) -> list[str]:
-    """The ``<ros2_control>`` lines of the driven joint (limits ``limit``), its hardware named ``hardware_id``."""
+    """The ``<ros2_control>`` lines of the driven joint (limits ``limit``), its hardware named ``hardware_id``: a
+    position command interface, and an effort one with ``effort_feedforward``."""
     joint = cfg.driven_joint
     return [
         f'  <ros2_control name={quoteattr(cfg.hardware_id)} type="system">',
@@ -160,6 +161,8 @@ def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
         f'        <param name="min">{_num(limit.lower)}</param>',
         f'        <param name="max">{_num(limit.upper)}</param>',
         '      </command_interface>',
+        *(['      <command_interface name="effort"/>  <!-- effort_feedforward: [position, effort] -->']
+          if cfg.effort_feedforward else []),
         '      <state_interface name="position">',
         f'        <param name="initial_value">{_num(driven_angle(cfg))}</param>',
         '      </state_interface>',

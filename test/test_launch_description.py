@@ -1,0 +1,184 @@
+"""launch/fourbar.launch.py evaluated in-process: the nodes it starts for each combination of arguments, their
+packages, executables, parameters, remappings and the spawners' arguments, the mock hardware announced, and the
+combinations it refuses. Where ros2_control or robot_state_publisher is not installed (here), the launch file's
+check for them is replaced, so what it would start with them is checked too; that the processes run is
+test/test_launch.py's (through ``ros2 launch``).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+from collections.abc import Callable
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import pytest
+import yaml
+from colcon_support import launch_missing
+
+if (_why := launch_missing()) is not None:
+    pytest.skip(_why, allow_module_level=True)
+
+from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.utilities import perform_substitutions
+from launch_ros.actions import Node
+from launch_ros.parameter_descriptions import ParameterFile
+
+from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME
+from launch import LaunchContext
+
+REPO = Path(__file__).resolve().parent.parent
+LAUNCH_FILE = REPO / 'launch' / 'fourbar.launch.py'
+CONTROLLERS = REPO / 'config' / 'controllers.yaml'
+
+
+def load_launch_file() -> ModuleType:
+    spec = importlib.util.spec_from_file_location('fourbar_launch', LAUNCH_FILE)
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+class Started:
+    """What the launch file starts for some arguments: its Node actions as plain values, and its log lines."""
+
+    def __init__(self, installed: Callable[[str, str], bool], **arguments: str) -> None:
+        module = load_launch_file()
+        module._installed_executable = installed
+        description = module.generate_launch_description()
+        self.context = LaunchContext()
+        for entity in description.entities:
+            if isinstance(entity, DeclareLaunchArgument):
+                default = entity.default_value
+                self.context.launch_configurations[entity.name] = (
+                    perform_substitutions(self.context, default) if default else '')
+        self.context.launch_configurations.update(arguments)
+        (setup,) = [e for e in description.entities if isinstance(e, OpaqueFunction)]
+        actions = setup.execute(self.context) or []
+        self.nodes = [a for a in actions if isinstance(a, Node)]
+        self.logs = [self.text(a.msg) for a in actions if isinstance(a, LogInfo)]
+
+    def text(self, subs: Any) -> str:
+        return subs if isinstance(subs, str) else perform_substitutions(self.context, list(subs))
+
+    def value(self, v: Any) -> Any:
+        """A parameter value as the node receives it (launch_ros passes a string as YAML text)."""
+        if isinstance(v, (tuple, list)) and v and not isinstance(v[0], (bool, int, float, str)):
+            return yaml.safe_load(self.text(v))
+        return v
+
+    def node(self, package: str, executable: str) -> list[Node]:
+        return [n for n in self.nodes if n.node_package == package and n.node_executable == executable]
+
+    def one(self, package: str, executable: str) -> Node:
+        (found,) = self.node(package, executable)
+        return found
+
+    def remappings(self, node: Node) -> list[tuple[str, str]]:
+        return [(self.text(a), self.text(b)) for a, b in node._Node__remappings or []]
+
+    def parameters(self, node: Node) -> tuple[list[str], dict[str, Any]]:
+        """(parameter files, the merged dict entries)."""
+        files, values = [], {}
+        for p in node._Node__parameters or []:
+            if isinstance(p, ParameterFile):
+                files.append(self.text(p.param_file))
+            else:
+                values.update({self.text(k): self.value(v) for k, v in p.items()})
+        return files, values
+
+    def arguments(self, node: Node) -> list[str]:
+        return [self.text(a) for a in node._Node__arguments or []]
+
+
+def everything(package: str, executable: str) -> bool:
+    return True
+
+
+def nothing_but_ours(package: str, executable: str) -> bool:
+    return package == 'fourbar_ros'
+
+
+MEASURED_REMAP = (MEASURED_JOINT_STATES.name, BROADCASTER_JOINT_STATES.name)
+
+
+def test_open_loop_by_default_with_no_remapping() -> None:
+    s = Started(everything)
+    node = s.one('fourbar_ros', 'fourbar_node')
+    files, values = s.parameters(node)
+    assert files == [str(REPO / 'config' / 'antenna.yaml')] and values['mode'] == 'open_loop'
+    assert s.remappings(node) == [] and 'controllers_file' not in values
+    assert s.node('controller_manager', 'ros2_control_node') == []
+    assert s.node('fourbar_ros', 'fourbar_sim_actuator') == []
+    assert len(s.node('robot_state_publisher', 'robot_state_publisher')) == 1
+
+
+def test_the_simulated_actuator_and_the_node_meet_on_the_broadcasters_topic() -> None:
+    s = Started(everything, sim_actuator='true', mode='trajectory')
+    node, sim = s.one('fourbar_ros', 'fourbar_node'), s.one('fourbar_ros', 'fourbar_sim_actuator')
+    assert s.remappings(node) == [MEASURED_REMAP]
+    assert s.remappings(sim) == []  # it publishes there itself
+    _, node_values = s.parameters(node)
+    _, sim_values = s.parameters(sim)
+    assert node_values['mode'] == 'trajectory' and node_values['controllers_file'] == sim_values['controllers_file']
+    assert node_values['effort_feedforward'] is False
+
+
+def test_the_ros2_control_bringup() -> None:
+    s = Started(everything, use_ros2_control='true', namespace='tilt')
+    node = s.one('fourbar_ros', 'fourbar_node')
+    assert s.parameters(node)[1]['mode'] == 'trajectory'  # the default actuator mode with ros2_control
+    assert s.remappings(node) == [MEASURED_REMAP]
+    assert s.parameters(node)[1]['controllers_file'] == str(CONTROLLERS)
+    manager = s.one('controller_manager', 'ros2_control_node')
+    files, values = s.parameters(manager)
+    assert files == [str(CONTROLLERS)] and values == {'use_sim_time': False}
+    # The description from robot_state_publisher's topic (the manager has no robot_description parameter on Jazzy).
+    assert s.remappings(manager) == [('~/robot_description', 'robot_description')]
+    rsp = s.one('robot_state_publisher', 'robot_state_publisher')
+    urdf = s.parameters(rsp)[1]['robot_description']
+    assert '<plugin>mock_components/GenericSystem</plugin>' in urdf and '<command_interface name="effort"' not in urdf
+    spawned = [s.arguments(n) for n in s.node('controller_manager', 'spawner')]
+    assert spawned == [['joint_state_broadcaster', '--controller-manager', 'controller_manager'],
+                       ['joint_trajectory_controller', '--controller-manager', 'controller_manager']]
+    assert any('a mock' in line and 'moves no motor' in line for line in s.logs)
+
+
+def test_forward_mode_spawns_the_forward_controller_and_a_real_plugin_is_not_called_a_mock() -> None:
+    s = Started(everything, use_ros2_control='true', mode='forward', hardware_plugin='acme/TiltDrive')
+    spawned = [s.arguments(n)[0] for n in s.node('controller_manager', 'spawner')]
+    assert spawned == ['joint_state_broadcaster', 'forward_position_controller']
+    urdf = s.parameters(s.one('robot_state_publisher', 'robot_state_publisher'))[1]['robot_description']
+    assert '<plugin>acme/TiltDrive</plugin>' in urdf
+    assert not any('mock' in line for line in s.logs)
+
+
+def test_effort_feedforward_reaches_the_node_and_the_urdf() -> None:
+    s = Started(everything, use_ros2_control='true', effort_feedforward='true')
+    assert s.parameters(s.one('fourbar_ros', 'fourbar_node'))[1]['effort_feedforward'] is True
+    urdf = s.parameters(s.one('robot_state_publisher', 'robot_state_publisher'))[1]['robot_description']
+    assert '<command_interface name="effort"/>' in urdf
+
+
+def test_without_ros2_control_installed_one_line_says_so() -> None:
+    s = Started(nothing_but_ours, use_ros2_control='true')
+    assert s.node('controller_manager', 'ros2_control_node') == [] and s.node('controller_manager', 'spawner') == []
+    assert any('ros2_control is not installed' in line and 'ros-jazzy-ros2-control' in line for line in s.logs)
+    assert len(s.nodes) == 1  # the node alone (no robot_state_publisher either)
+
+
+@pytest.mark.parametrize('arguments', [{'use_ros2_control': 'true', 'sim_actuator': 'true'},
+                                       {'use_ros2_control': 'true', 'mode': 'open_loop'}],
+                         ids=['sim and ros2_control', 'open_loop with ros2_control'])
+def test_combinations_that_cannot_work_are_refused_in_one_line(arguments: dict[str, str]) -> None:
+    with pytest.raises(RuntimeError) as err:
+        Started(everything, **arguments)
+    assert '\n' not in str(err.value) and str(err.value).startswith('fourbar.launch.py: ')
+
+
+def test_the_node_name_is_the_interfaces() -> None:
+    s = Started(everything)
+    node = s.one('fourbar_ros', 'fourbar_node')
+    assert s.text(node._Node__node_name) == NODE_NAME
