@@ -4,8 +4,10 @@ The reducer ratio N is constant, so motor speed, acceleration and jerk are N tim
 limits are constant limits in rocker space (limit / N). Torque: the motor needs input_torque / (N * efficiency)
 (``fourbar_ros.core.loads.motor_torque``), and the reducer's output carries the input torque itself (its rated
 torque). The checked motion is the controller's: at every point, the velocity, acceleration and jerk of its
-interpolating segments on both sides of the point (for linear segments the velocity only: their acceleration is a
-step the controller cannot follow smoothly, so send velocities to bound it), and the point's effort.
+interpolating segments as a whole, not only at the points: the largest speed, acceleration and jerk of the
+polynomial the controller follows over each segment, found in closed form (``splines.segment_extremes``); for
+linear segments the speed only (their acceleration is a step at each point the controller cannot follow smoothly:
+send velocities to bound it); and each point's effort.
 
 Retiming plays the same path k >= 1 times slower: the order-n time derivatives scale by 1/k^n, the segment
 polynomials in s and so the path (and its interpolation error) are unchanged, and the static torque is unchanged:
@@ -24,10 +26,10 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.loads import motor_torque
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import LimitError
-from fourbar_ros.motion.splines import derivatives_at, hermite_coefficients
+from fourbar_ros.motion.splines import derivatives_at, hermite_coefficients, segment_extremes
 from fourbar_ros.motion.trajectory import DrivenTrajectory, SplineKind
 
-__all__ = ['JointLimits', 'LimitPolicy', 'Violation', 'enforce_limits', 'worst_violation']
+__all__ = ['JointLimits', 'LimitPolicy', 'Violation', 'enforce_limits', 'segment_magnitudes', 'worst_violation']
 
 LimitPolicy = Literal['reject', 'retime']
 
@@ -65,8 +67,8 @@ class JointLimits:
 
 @dataclass(frozen=True)
 class Violation:
-    """The worst point over a limit: its index, time (s), the quantity, its value and limit (motor side for the
-    motor's quantities), and the ratio value / limit (> 1)."""
+    """The worst place over a limit: the point (torque) or the segment starting at that point (motion), its time
+    (s), the quantity, its value and limit (motor side for the motor's quantities), and the ratio value / limit."""
 
     index: int
     time: float
@@ -74,6 +76,7 @@ class Violation:
     unit: str
     value: float
     limit: float
+    where: str = 'point'  #: 'point', or 'segment from point' for motion between points
 
     @property
     def ratio(self) -> float:
@@ -81,8 +84,8 @@ class Violation:
 
     def describe(self) -> str:
         """One line: which point, what, by how much."""
-        return (f'point {self.index} (t = {self.time:.6g} s): {self.quantity} {self.value:.6g} {self.unit} exceeds '
-                f'its limit {self.limit:.6g} {self.unit} by {self.value - self.limit:.3g} {self.unit} '
+        return (f'{self.where} {self.index} (t = {self.time:.6g} s): {self.quantity} {self.value:.6g} {self.unit} '
+                f'exceeds its limit {self.limit:.6g} {self.unit} by {self.value - self.limit:.3g} {self.unit} '
                 f'({100.0 * (self.ratio - 1.0):.3g}%)')
 
 
@@ -110,11 +113,12 @@ def point_magnitudes(traj: DrivenTrajectory) -> dict[int, FloatArray]:
 _QUANTITIES = {1: ('motor speed', 'rad/s'), 2: ('motor acceleration', 'rad/s^2'), 3: ('motor jerk', 'rad/s^3')}
 
 
-def _worst(traj: DrivenTrajectory, quantity: str, unit: str, values: FloatArray, limit: float) -> Violation | None:
+def _worst(traj: DrivenTrajectory, quantity: str, unit: str, values: FloatArray, limit: float,
+           where: str = 'point') -> Violation | None:
     i = int(np.argmax(values))
     if not values[i] > limit:
         return None
-    return Violation(i, float(traj.times[i]), quantity, unit, float(values[i]), limit)
+    return Violation(i, float(traj.times[i]), quantity, unit, float(values[i]), limit, where)
 
 
 def torque_violation(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConfig) -> Violation | None:
@@ -125,11 +129,23 @@ def torque_violation(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaCo
     return max((v for v in found if v is not None), key=lambda v: v.ratio, default=None)
 
 
+def segment_magnitudes(traj: DrivenTrajectory) -> dict[int, FloatArray]:
+    """Derivative order (1 velocity, 2 acceleration, 3 jerk) -> the largest |rocker quantity| over each segment the
+    controller interpolates (closed form; orders the trajectory's kind does not bound are left out). A trajectory
+    of one point has no segment: the values it carries."""
+    if len(traj) == 1:
+        return point_magnitudes(traj)
+    orders = (1,) if traj.kind is SplineKind.LINEAR else (1, 2, 3)
+    coefficients = hermite_coefficients(traj.times, traj.positions, traj.velocities, traj.accelerations)
+    return {k: segment_extremes(traj.times, coefficients, k) for k in orders}
+
+
 def motion_violations(traj: DrivenTrajectory, limits: JointLimits) -> list[tuple[int, Violation]]:
-    """(derivative order, the worst point over the motor's limit on it) for each order over its limit."""
+    """(derivative order, the worst segment over the motor's limit on it) for each order over its limit."""
     out = []
-    for order, values in point_magnitudes(traj).items():
-        v = _worst(traj, *_QUANTITIES[order], limits.ratio * values, limits.motor(order))
+    for order, values in segment_magnitudes(traj).items():
+        v = _worst(traj, *_QUANTITIES[order], limits.ratio * values, limits.motor(order),
+                   'point' if len(traj) == 1 else 'segment from point')
         if v is not None:
             out.append((order, v))
     return out
@@ -161,5 +177,7 @@ def enforce_limits(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConf
         left = motion_violations(out, limits)
         if not left:
             return out
-        k *= max(v.ratio ** (1.0 / order) for order, v in left) * (1.0 + _RETIME_NUDGE * 2.0 ** attempt)
+        # Times go on the wire in whole ns, which moves a segment's dp/h by up to 0.5 ns / h: add that much too.
+        wire = 0.5e-9 / float(np.min(np.diff(out.times))) if len(out) > 1 else 0.0
+        k *= max(v.ratio ** (1.0 / order) for order, v in left) * (1.0 + _RETIME_NUDGE * 2.0 ** attempt + 2.0 * wire)
     raise LimitError(f'retiming by {k:.6g} left {left[0][1].describe()}')  # pragma: no cover - rounding only

@@ -12,7 +12,7 @@ import numpy as np
 
 from fourbar_ros.core.numeric import FloatArray
 
-__all__ = ['derivative_bound', 'derivatives_at', 'evaluate', 'hermite_coefficients']
+__all__ = ['derivative_bound', 'derivatives_at', 'evaluate', 'hermite_coefficients', 'segment_extremes']
 
 
 def hermite_coefficients(times: FloatArray, p: FloatArray, v: FloatArray | None = None,
@@ -66,3 +66,57 @@ def derivatives_at(times: FloatArray, coefficients: FloatArray, order: int) -> t
     scale = h ** order
     ends = evaluate(coefficients, np.array([[0.0, 1.0]]), order)
     return ends[:, 0] / scale, ends[:, 1] / scale
+
+
+def _real_roots_in_unit(c: FloatArray) -> FloatArray:
+    """Per row, the real roots in [0, 1] of the polynomial with power-basis coefficients ``c`` (lowest first, degree
+    at most 3), as candidates (NaN where a row has fewer): closed form for degrees 1 and 2, the eigenvalues of the
+    companion matrix for 3. Where a leading coefficient is 0 (or tiny against the others, so the roots it adds lie
+    far out) the lower degree's roots are candidates too: a candidate too many costs an evaluation, one too few
+    would miss an extreme."""
+    n, m = c.shape
+    found: list[FloatArray] = []
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+        if m >= 2:  # the linear part's root: c0 + c1 s = 0
+            found.append((-c[:, 0] / c[:, 1])[:, None])
+        if m >= 3:  # the quadratic's: c0 + c1 s + c2 s^2 = 0
+            a, b, c0 = c[:, 2], c[:, 1], c[:, 0]
+            disc = np.sqrt(np.maximum(b * b - 4.0 * a * c0, 0.0))
+            q = -0.5 * (b + np.copysign(disc, b))  # the stable form: no cancellation
+            found.append(np.column_stack([q / a, c0 / q]))
+        if m >= 4:  # the cubic's: companion matrix of the monic polynomial
+            lead = c[:, 3]
+            ok = lead != 0.0
+            roots = np.full((n, 3), np.nan)
+            if ok.any():
+                monic = c[ok, :3] / lead[ok, None]
+                companion = np.zeros((int(ok.sum()), 3, 3))
+                companion[:, 1, 0] = companion[:, 2, 1] = 1.0
+                companion[:, :, 2] = -monic
+                eig = np.linalg.eigvals(companion)
+                real = np.abs(eig.imag) <= 1e-9 * (1.0 + np.abs(eig.real))
+                roots[ok] = np.where(real, eig.real, np.nan)
+            found.append(roots)
+    out = np.concatenate(found, axis=1) if found else np.empty((n, 0))
+    return np.where((out >= 0.0) & (out <= 1.0), out, np.nan)
+
+
+def segment_extremes(times: FloatArray, coefficients: FloatArray, order: int) -> FloatArray:
+    """Per segment, the largest |order-th time derivative| over the whole segment (s in [0, 1]), in units of p per
+    s^order: the derivative's values at both ends and at the real roots in (0, 1) of the next derivative, found in
+    closed form (``_real_roots_in_unit``; the next derivative of a quintic's velocity is a cubic), not by sampling.
+    A polynomial of degree below ``order`` gives 0 (a linear segment has no acceleration between its points)."""
+    c = coefficients
+    for _ in range(order):
+        c = c[:, 1:] * np.arange(1, c.shape[1], dtype=np.float64)
+    h = np.diff(times)
+    if c.shape[1] == 0:
+        return np.zeros(h.size)
+    ends = np.abs(evaluate(c, np.array([[0.0, 1.0]]))).max(axis=1)
+    if c.shape[1] >= 2:
+        slope = c[:, 1:] * np.arange(1, c.shape[1], dtype=np.float64)
+        s = _real_roots_in_unit(slope)
+        inside = np.abs(evaluate(c, np.nan_to_num(s, nan=0.0)))
+        ends = np.maximum(ends, np.where(np.isnan(s), 0.0, inside).max(axis=1, initial=0.0))
+    extremes: FloatArray = ends / h ** order
+    return extremes
