@@ -23,7 +23,7 @@ from std_msgs.msg import Float64, Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.config.interface import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, driven_angles
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
@@ -59,8 +59,9 @@ def as_driven(msg: JointTrajectory) -> DrivenTrajectory:
         rows = [getattr(p, name) for p in pts]
         return np.array([r[0] for r in rows]) if all(len(r) == 1 for r in rows) else None
 
-    return DrivenTrajectory(t, col('positions'), col('velocities'), col('accelerations'), col('effort'),
-                            AntennaTrajectory(t, np.zeros_like(t)))
+    effort = col('effort')
+    return DrivenTrajectory(t, col('positions'), col('velocities'), col('accelerations'),
+                            np.zeros_like(t) if effort is None else effort, AntennaTrajectory(t, np.zeros_like(t)))
 
 
 def stamp_ns(stamp: Time) -> int:
@@ -70,15 +71,19 @@ def stamp_ns(stamp: Time) -> int:
 class Pair:
     """A FourBarNode in ``mode`` and a SimActuator in one namespace, with the client's endpoints."""
 
-    def __init__(self, ros: RosSession, mode: str) -> None:
-        self.ros, self.ns = ros, f'/actuation_{mode}'
+    def __init__(self, ros: RosSession, mode: str, suffix: str = '', sim: tuple[Parameter, ...] = (),
+                 overrides: tuple[Parameter, ...] = ()) -> None:
+        self.ros, self.ns = ros, f'/actuation_{mode}{suffix}'
         self.mark = 0
-        self.sim = SimActuator(context=ros.context, namespace=self.ns)
+        self.sim = SimActuator(context=ros.context, namespace=self.ns, parameter_overrides=list(sim))
         self.node = FourBarNode(context=ros.context, namespace=self.ns,
-                                parameter_overrides=[Parameter('mode', value=mode)])
+                                parameter_overrides=[Parameter('mode', value=mode), *overrides],
+                                cli_args=['--ros-args', '-r', f'{MEASURED_JOINT_STATES.name}:='
+                                                              f'{BROADCASTER_JOINT_STATES.name}'])
         ros.add_node(self.sim)
         ros.add_node(self.node)
-        self.measured: Collector[JointState] = ros.collect(JointState, f'{self.ns}/joint_states')
+        self.measured: Collector[JointState] = ros.collect(JointState, f'{self.ns}/{BROADCASTER_JOINT_STATES.name}')
+        self.complete: Collector[JointState] = ros.collect(JointState, f'{self.ns}/{JOINT_STATES.name}')
         self.trajectories: Collector[JointTrajectory] = ros.collect(
             JointTrajectory, f'{self.ns}/joint_trajectory_controller/joint_trajectory', 10)
         self.setpoints: Collector[Float64MultiArray] = ros.collect(
@@ -107,7 +112,7 @@ class Pair:
                                         start=self.mark)
 
     def close(self) -> None:
-        for c in (self.measured, self.trajectories, self.setpoints):
+        for c in (self.measured, self.complete, self.trajectories, self.setpoints):
             self.ros.uncollect(c)
         self.ros.node.destroy_publisher(self.cmd)
         self.ros.node.destroy_publisher(self.antenna)
@@ -121,14 +126,24 @@ def ros() -> Iterator[RosSession]:
         yield session
 
 
+#: The traj fixture's replan_tolerance: far above the simulated drive's lag (its speed times its 0.05 s time
+#: constant, 3e-3 rad, plus a measurement's age), so a command mid-motion always plans on from the motion.
+WIDE_REPLAN = 0.05
+
+
 @pytest.fixture(scope='module')
 def traj(ros: RosSession) -> Iterator[Pair]:
-    pair = Pair(ros, 'trajectory')
+    pair = Pair(ros, 'trajectory', overrides=(Parameter('replan_tolerance', value=WIDE_REPLAN),))
     yield pair
-    # Every point the node sent in this module, whatever the test: within every limit.
+    # Every trajectory the node sent in this module, whatever the test: what the controller accepts (checked by
+    # the contract, and by the strict simulated actuator, which refused none), no effort field, stamp 0, and the
+    # interpolated motion within every limit (segment extremes, not only the points).
     for msg in pair.trajectories.messages:
-        assert msg.joint_names == [JOINT]
+        assert msg.joint_names == [JOINT] and all(len(p.effort) == 0 for p in msg.points)
+        assert stamp_ns(msg.header.stamp) == 0
         assert worst_violation(as_driven(msg), LIMITS, CFG) is None
+    assert sum(pair.sim.follower.counters.refused.values()) == 0
+    assert sum(pair.actuation.counters.refused.values()) == 0
     pair.close()
 
 
@@ -154,12 +169,13 @@ def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     before = len(traj.trajectories)
     traj.command(CFG.theta_max)  # a motion of seconds ...
     first = traj.trajectories.wait_count(before + 1)[-1]
+    first_start = traj.actuation.motion.start_ns  # stamp 0 on the wire: the node's start of the motion
     traj.command(CFG.theta_min)  # ... interrupted by a command the other way
     second = traj.trajectories.wait_count(before + 2)[-1]
     a, b = as_driven(first), as_driven(second)
-    at = stamp_ns(second.header.stamp)
-    assert at > stamp_ns(first.header.stamp)
-    state = Motion(stamp_ns(first.header.stamp), trajectory=a).state_at(at)
+    at = traj.actuation.motion.start_ns
+    assert at > first_start and traj.actuation.counters.commands_replanned_from_measured == 0
+    state = Motion(first_start, trajectory=a).state_at(at)
     assert state.velocity > 0.0  # it was moving when replanned
     # The new motion starts at the running plan's state at its stamp: the quintic segments sent for the first plan
     # reproduce its cubic pieces (phase boundaries are points), so the two agree to rounding (~1e-15 relative);
@@ -255,3 +271,69 @@ def test_a_command_in_forward_mode_streams_setpoints_within_limits_without_jumps
     lo, hi = sorted(driven_angles(CFG, np.array([CFG.theta_min, CFG.theta_max])))
     assert ((lo <= q) & (q <= hi)).all()
     assert q[-1] == pytest.approx(q_of(-0.04), abs=1e-12)
+
+
+def test_the_node_publishes_one_complete_joint_state_per_measurement(traj: Pair) -> None:
+    # Every joint at the measurement's stamp: the driven one as measured, the others completed; efforts [measured,
+    # 0, 0]. One complete message per measurement (matched by stamp), none without a measurement.
+    start = len(traj.complete)
+    traj.complete.wait_count(start + 5)
+    measured = {stamp_ns(m.header.stamp): m for m in traj.measured.messages}
+    names = [JOINT, CFG.delta_joint, CFG.coupler_joint]
+    seen = set()
+    for m in traj.complete.messages[start:]:
+        assert list(m.name) == names
+        k = stamp_ns(m.header.stamp)
+        src = measured.get(k) or traj.measured.wait_match(lambda x, k=k: stamp_ns(x.header.stamp) == k)
+        assert m.position[0] == src.position[0] and m.velocity[0] == src.velocity[0]
+        assert list(m.effort) == [src.effort[0], 0.0, 0.0]
+        assert k not in seen
+        seen.add(k)
+
+
+def test_antenna_trajectories_ending_moving_or_in_the_past_are_refused_and_counted(traj: Pair) -> None:
+    counters = traj.actuation.counters
+    sent = counters.trajectories_sent
+    moving = antenna_msg([0.0, 1.0, 2.0], [0.0, 0.01, 0.02], [0.0, 0.01, 0.004])
+    past = antenna_msg([0.0, 1.0], [0.0, 0.01], stamp_ns=traj.node.get_clock().now().nanoseconds - 5 * 10**9)
+    for msg, problem in ((moving, TrajectoryProblem.END_MOVING), (past, TrajectoryProblem.ENDS_IN_PAST)):
+        was = counters.rejected[problem]
+        traj.antenna.publish(msg)
+        wait_for(lambda p=problem, w=was: counters.rejected[p] == w + 1, what=f'{problem.value} counted')
+    assert counters.trajectories_sent == sent
+
+
+@pytest.fixture(scope='module')
+def held(ros: RosSession) -> Iterator[Pair]:
+    """A trajectory-mode node whose simulated drive is 50 times too slow: the controller holds it on its path
+    tolerance (the default replan_tolerance)."""
+    pair = Pair(ros, 'trajectory', '_held', sim=(Parameter('max_velocity', value=LIMITS.at_rocker(1) / 50.0),))
+    yield pair
+    pair.close()
+
+
+def test_a_command_after_the_drive_was_held_plans_from_the_measured_state(held: Pair) -> None:
+    before = len(held.trajectories)
+    held.command(CFG.theta_max)
+    held.trajectories.wait_count(before + 1)
+    wait_for(lambda: held.sim.follower.counters.tolerance_holds >= 1, what='the controller holding the drive')
+    held.measured.wait_count(len(held.measured) + 2)  # a measurement of the held drive
+    held.command(CFG.theta_min)
+    second = as_driven(held.trajectories.wait_count(before + 2)[-1])
+    assert held.actuation.counters.commands_replanned_from_measured == 1
+    # The plan starts where the drive was measured (the node's last measurement), not where its model of the first
+    # motion is (seconds into it, far along): the controller gets no step.
+    assert second.positions[0] == held.actuation.measured.position
+    model = held.actuation.motion  # the second motion now; the first one's model is far from the drive
+    assert model is not None and abs(second.positions[0] - q_of(CFG.theta_max)) > 0.01
+
+
+def test_forward_mode_streams_an_antenna_trajectory(fwd: Pair) -> None:
+    fwd.command(0.0)
+    fwd.settle_at(0.0)
+    published = fwd.actuation.counters.setpoints_published
+    fwd.mark = len(fwd.measured)
+    fwd.antenna.publish(antenna_msg([0.0, 1.0, 2.0], [0.0, 0.01, 0.015], [0.0, 0.01, 0.0]))
+    fwd.settle_at(0.015)
+    assert fwd.actuation.counters.setpoints_published > published + 100  # 2 s at control_rate
+    assert fwd.actuation.counters.trajectories_received >= 1
