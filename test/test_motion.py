@@ -23,6 +23,7 @@ from fourbar_ros.motion.limits import (
 )
 from fourbar_ros.motion.planner import (
     END_SPAN,
+    PLAN_SHRINK,
     PLAN_SHRINKS,
     JointMotionState,
     driven_angles,
@@ -34,6 +35,7 @@ from fourbar_ros.motion.planner import (
 from fourbar_ros.motion.refine import deviation_bounds, refine
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients, segment_extremes
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, antenna_trajectory, on_wire, to_driven
+from fourbar_ros.rules.actuation import replan_start
 
 CFG = default_config()
 DELTA_CFG = config_from_values({'driven_rocker': 'delta'})
@@ -436,3 +438,46 @@ def test_a_converted_antenna_trajectory_is_held_between_its_points() -> None:
     retimed = enforce_limits(refine(CFG, driven).trajectory, LIMITS, CFG, 'retime')
     for order, m in segment_magnitudes(retimed).items():
         assert float(np.max(LIMITS.ratio * m)) <= LIMITS.motor(order), order
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.sampled_from([0.01, 0.001]))
+def test_a_plan_from_a_measured_state_is_never_refused_for_its_interpolation(
+        where: float, speed: float, spacing: float) -> None:
+    # A replan from the measured state (``replan_start``: position and velocity, acceleration 0): the controller's
+    # quintics through the profile must stay within the limits between the points too (a segment over them is split
+    # at its phase boundaries).
+    cfg = default_config()
+    ends = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max]))
+    lo, hi = float(ends.min()), float(ends.max())
+    measured = JointMotionState(lo + (hi - lo) * where, speed * LIMITS.at_rocker(1))  # up to the drive's limit
+    start, _ = replan_start(None, measured, 0, cfg.replan_tolerance, PLAN_SHRINK * LIMITS.at_rocker(1))
+    for theta in (cfg.theta_min, 0.5 * (cfg.theta_min + cfg.theta_max), cfg.theta_max):
+        assert start is not None
+        try:
+            plan = plan_to_angle(cfg, LIMITS, start, theta)
+        except UnreachableError:
+            continue  # it cannot stop within the range from this state: refused before any point is made
+        out = trajectory_points(cfg, LIMITS, plan, spacing)
+        for order, m in segment_magnitudes(out).items():
+            assert float(np.max(LIMITS.ratio * m)) <= LIMITS.motor(order), (order, start, theta)
+
+
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_a_chain_of_replans_every_control_period_is_never_refused(seed: int) -> None:
+    # As the node replans when commands come faster than motions end (the demo's sweep: every 26.4 ms): each plan
+    # from the running one's state at the next command; every one sampled and checked, between its points too.
+    cfg = default_config()
+    rng = np.random.default_rng(seed)
+    ends = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max]))
+    state = JointMotionState(float(ends.mean()))
+    for _ in range(300):
+        theta = float(rng.uniform(cfg.theta_min, cfg.theta_max))
+        try:
+            plan = plan_to_angle(cfg, LIMITS, state, theta)
+        except UnreachableError:
+            continue
+        out = trajectory_points(cfg, LIMITS, plan, 0.01)
+        for order, m in segment_magnitudes(out).items():
+            assert float(np.max(LIMITS.ratio * m)) <= LIMITS.motor(order), order
+        state = plan.state_at(float(rng.uniform(0.005, 0.05)))

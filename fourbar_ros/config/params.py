@@ -175,7 +175,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Trajectory mode: send the static input torque as each point\'s effort (a feed-forward). The '
               'controller must then have an effort command interface ([position, effort]); off: no effort field.',
               read_only=True),
-    ParamSpec('replan_tolerance', float, 0.005, 'rad',
+    ParamSpec('replan_tolerance', float, 0.02, 'rad',
               'Actuator modes: a command during a motion plans on from the motion being followed while the '
               'measured driven joint is within this of it; otherwise from the measured state.', 0.0, 3.2),
     ParamSpec('measurement_timeout', float, 0.5, 's',

@@ -21,12 +21,17 @@ from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import LimitError, TrajectoryError
-from fourbar_ros.motion.limits import JointLimits, worst_violation
+from fourbar_ros.motion.limits import JointLimits, segment_magnitudes, worst_violation
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, on_wire, static_efforts
 
 #: How far (in ulps of the range's larger end) ruckig's position extrema may pass an end of the driven joint's range
 #: that the motion only reaches: its rounding of a profile that ends exactly there.
 RANGE_ULPS = 16
+
+#: The shortest piece (s) a segment is split into at a phase boundary when its interpolation passes a limit: the
+#: controller's quintic takes its jerk from positions over h^3, so a shorter one would turn the positions' rounding
+#: (ulps of ~1 rad) into a sizeable share of the jerk margin (at 0.1 ms: 0.7% of the default rocker limit).
+SWITCH_FLOOR = 1e-4
 
 #: ruckig is given the limits times this: its own rounding (seen at ~1e-13 relative) and that of the controller's
 #: jerk at a point (positions over h^3: ``min_segment``) then leave every sampled point within the limits
@@ -221,10 +226,11 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     velocities, accelerations (quintic segments for the controller, each on one cubic piece of the profile) and the
     static effort at each pose; the antenna path beside them.
 
-    Every point is checked against the limits (``worst_violation``): LimitError names the worst one, e.g. a pose
-    needing more torque than the motor or the reducer gives, or a start state already over a limit. No two points are
-    within ``min_segment`` (or spacing / 2, if less) of each other; a phase shorter than that leaves a boundary out,
-    and the segment holding it is made long enough that it lies in the segment's first or last END_SPAN
+    Every point and segment is checked against the limits (``worst_violation``, the interpolated motion between the
+    points included; a segment over them is first split at its phase boundaries): LimitError names the worst one,
+    e.g. a pose needing more torque than the motor or the reducer gives, or a start state already over a limit. No
+    two points are within ``min_segment`` (or spacing / 2, if less) of each other; a phase shorter than that leaves a
+    boundary out, and the segment holding it is made long enough that it lies in the segment's first or last END_SPAN
     (``_point_times``), so the quintic's jerk at the points stays within the profile's. A plan shorter than that (the
     drive already within rounding of the target) becomes one segment of that length from the start state to the target
     at rest. Raises TrajectoryError for a spacing that is not positive or that gives more than max_trajectory_points.
@@ -240,6 +246,29 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
         times = on_wire(np.array([0.0, shortest]))
     else:
         times = on_wire(_point_times(sample_grid(plan.duration, spacing), plan.switch_times(), 0.5 * spacing, shortest))
+    out = _sampled(cfg, plan, times)
+    over = worst_violation(out, limits, cfg)
+    if over is not None and over.where != 'point':
+        # A segment holding a phase boundary (left out for being within ``shortest`` of a point) can pass a limit
+        # between its points; split it at its boundaries at least SWITCH_FLOOR from its points: the pieces then
+        # follow single cubic pieces of the profile, which the quintics reproduce.
+        bad = np.zeros(len(out) - 1, dtype=bool)
+        for order, m in segment_magnitudes(out).items():
+            bad |= limits.ratio * m > limits.motor(order)
+        switches = on_wire(plan.switch_times())
+        i = np.clip(np.searchsorted(times, switches, side='right') - 1, 0, len(times) - 2)
+        keep = bad[i] & (switches - times[i] >= SWITCH_FLOOR) & (times[i + 1] - switches >= SWITCH_FLOOR)
+        if keep.any():
+            times = np.unique(np.concatenate([times, switches[keep]]))
+            out = _sampled(cfg, plan, times)
+            over = worst_violation(out, limits, cfg)
+    if over is not None:
+        raise LimitError(over.describe())
+    return out
+
+
+def _sampled(cfg: AntennaConfig, plan: Plan, times: FloatArray) -> DrivenTrajectory:
+    """The plan's states at ``times`` (s, on the wire) with the static effort at each pose and the antenna path."""
     q, q_dot, q_ddot = plan.sample(np.minimum(times, plan.duration))
     theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)
@@ -248,11 +277,7 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
     g1 = np.asarray(rates.dgamma_dtheta)
     q1 = g1 if cfg.driven is Driven.GAMMA else np.asarray(rates.ddelta_dtheta)
     efforts = static_efforts(cfg, theta, gamma, g1, q1)
-    out = DrivenTrajectory(times, q, q_dot, q_ddot, efforts, AntennaTrajectory(times, theta))
-    over = worst_violation(out, limits, cfg)
-    if over is not None:
-        raise LimitError(over.describe())
-    return out
+    return DrivenTrajectory(times, q, q_dot, q_ddot, efforts, AntennaTrajectory(times, theta))
 
 
 def setpoints(cfg: AntennaConfig, plan: Plan, rate: float | None = None) -> Setpoints:

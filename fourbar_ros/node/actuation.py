@@ -29,7 +29,7 @@ from fourbar_ros.config.interface import (
     trajectory_topic,
 )
 from fourbar_ros.core.errors import FourBarError, one_line
-from fourbar_ros.motion.planner import JointMotionState, Setpoints
+from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Setpoints
 from fourbar_ros.motion.trajectory import DrivenTrajectory
 from fourbar_ros.node.qos import qos
 from fourbar_ros.rules.actuation import (
@@ -122,7 +122,9 @@ class Actuation:
 
     def start_state(self, now_ns: int) -> JointMotionState | None:
         """Where a new motion starts (``replan_start``); counts a motion left for the measured state."""
-        state, left = replan_start(self.motion, self.measured, now_ns, self._config().replan_tolerance)
+        cfg = self._config()
+        speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reducer_ratio
+        state, left = replan_start(self.motion, self.measured, now_ns, cfg.replan_tolerance, speed)
         self.counters.commands_replanned_from_measured += left
         return state
 

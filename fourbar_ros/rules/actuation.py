@@ -22,6 +22,7 @@ recorded message). No ROS: messages are read through the attributes they share w
 from __future__ import annotations
 
 import enum
+import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from typing import NamedTuple, Protocol
@@ -340,14 +341,18 @@ def checked_setpoints(cfg: AntennaConfig, out: Setpoints) -> Setpoints:
     return out
 
 
-def replan_start(motion: Motion | None, measured: JointMotionState | None, now_ns: int,
-                 tolerance: float) -> tuple[JointMotionState | None, bool]:
+def replan_start(motion: Motion | None, measured: JointMotionState | None, now_ns: int, tolerance: float,
+                 speed_limit: float = math.inf) -> tuple[JointMotionState | None, bool]:
     """Where a new command's motion starts, and whether the running motion was left for the measurement.
 
     The running motion's state at ``now_ns`` while the measured driven position is within ``tolerance`` rad of it
-    (or nothing is measured yet); else the measured state (position rad, velocity rad/s, acceleration 0): a drive
-    held by its controller, or lagging, is not sent a step. With no motion running: the measured state, else the end
-    of the last motion; None before any of them exists."""
+    (or nothing is measured yet); else the measured state (position rad, velocity rad/s within +-``speed_limit``,
+    acceleration 0): a drive held by its controller, or lagging, is not sent a step. With no motion running: the
+    measured state, else the end of the last motion; None before any of them exists. (A measured speed at or past
+    the limit, as a saturated drive or encoder noise gives, is planned from the limit: a plan may not start over
+    it.)"""
+    if measured is not None and abs(measured.velocity) > speed_limit:
+        measured = JointMotionState(measured.position, math.copysign(speed_limit, measured.velocity))
     if motion is not None and not motion.done(now_ns):
         state = motion.state_at(now_ns)
         if measured is None or abs(measured.position - state.position) <= tolerance:
