@@ -19,6 +19,7 @@ from ros_support import DomainLease, wait_for
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES
 from fourbar_ros.live.node_process import domain_in_use
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -65,7 +66,9 @@ def test_demo_runs_to_the_end_on_the_exported_domain(lease: DomainLease, tmp_pat
     printed = float(re.findall(r'tracking final (\S+) rad', lines['tracking'])[0])
     assert printed == pytest.approx(final, rel=5e-3, abs=1e-300)  # printed to 3 significant digits
     limit = cfg.motor_speed_limit / cfg.reducer_ratio
-    measured = [m for _, m in recorded['/joint_states'] if list(m.name) == [cfg.driven_joint]]
+    measured = [m for _, m in recorded[f'/{BROADCASTER_JOINT_STATES.name}'] if list(m.name) == [cfg.driven_joint]]
+    complete = [m for _, m in recorded['/joint_states']]
+    assert complete and all(list(m.name) == [cfg.driven_joint, cfg.delta_joint, cfg.coupler_joint] for m in complete)
     assert measured and max(abs(m.velocity[0]) for m in measured) <= limit  # no measured speed over the limit
     points = [p for _, m in recorded[f'/{cfg.trajectory_controller}/joint_trajectory'] for p in m.points]
     assert points and max(abs(p.velocities[0]) for p in points) <= limit  # no planned point over the limit

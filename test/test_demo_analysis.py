@@ -58,6 +58,7 @@ def _recording(cfg: AntennaConfig, lag: float = 0.0, bad_coupler: float = 0.0) -
     topics = demo_topics(cfg.trajectory_controller)
     a, b = -0.05, 0.05
     commands = [(T0, Msg(data=a)), (T0 + 1000 * MS, Msg(data=b))]
+    measured: list[tuple[int, Any]] = []
     joint_states: list[tuple[int, Any]] = []
     angles: list[tuple[int, Any]] = []
     branch = rocker_branch(cfg)
@@ -68,13 +69,13 @@ def _recording(cfg: AntennaConfig, lag: float = 0.0, bad_coupler: float = 0.0) -
         theta = a + (b - a) * s - (lag if k == 200 else 0.0)
         q = _driven(cfg, theta)
         q_rate = 0.01 if 0.0 < s < 1.0 else 0.0
-        joint_states.append((stamp + MS, Msg(header=_header(stamp), name=[cfg.driven_joint], position=[q],
-                                            velocity=[q_rate], effort=[2.0 + s])))
+        measured.append((stamp + MS, Msg(header=_header(stamp), name=[cfg.driven_joint], position=[q],
+                                         velocity=[q_rate], effort=[2.0 + s])))
         c = complete(cfg.linkage, q, cfg.driven, branch, q_rate=q_rate)
         joint_states.append((stamp + 2 * MS, Msg(
-            header=_header(stamp), name=[other, coupler],
-            position=[float(c.other), float(c.coupler_joint) + (bad_coupler if k == 100 else 0.0)],
-            velocity=[float(c.other_rate), float(c.coupler_joint_rate)], effort=[])))
+            header=_header(stamp), name=[cfg.driven_joint, other, coupler],
+            position=[q, float(c.other), float(c.coupler_joint) + (bad_coupler if k == 100 else 0.0)],
+            velocity=[q_rate, float(c.other_rate), float(c.coupler_joint_rate)], effort=[2.0 + s, 0.0, 0.0])))
         angles.append((stamp + 2 * MS, Msg(data=float(c.theta))))
 
     def point(t: float, q: float, v: float) -> Msg:
@@ -83,7 +84,8 @@ def _recording(cfg: AntennaConfig, lag: float = 0.0, bad_coupler: float = 0.0) -
                points=[point(0.0, 0.70, 0.0), point(0.5, 0.71, 0.02), point(1.5, 0.72, 0.0)])
     second = Msg(header=_header(T0 + 1010 * MS), joint_names=[cfg.driven_joint],
                 points=[point(0.0, 0.72, -0.03), point(0.5, 0.73, 0.0)])
-    return {topics.command: commands, topics.joint_states: joint_states, topics.antenna_angle: angles,
+    return {topics.command: commands, topics.measured: measured, topics.joint_states: joint_states,
+            topics.antenna_angle: angles,
             topics.input_torque: [(T0 + 2 * MS, Msg(data=3.0)), (T0 + 1002 * MS, Msg(data=-4.0))],
             topics.trajectory: [(T0 + 10 * MS, first), (T0 + 1010 * MS, second)],
             topics.diagnostics: [(T0 + 500 * MS, Msg(status=[]))]}
@@ -116,13 +118,14 @@ def test_antenna_angle_no_measurement_gives_keeps_its_arrival(cfg: AntennaConfig
 
 
 def test_antenna_angle_of_a_measurement_the_recording_missed_at_rest(cfg: AntennaConfig) -> None:
-    # The recording matched the actuator's joint_states after the node's antenna_angle: the first measurement is
-    # missing but its completion is there. The antenna sits still until 0.5 s, so the next 50 measurements give
+    # The recording matched the actuator's measured joint after the node's antenna_angle: the first measurement is
+    # missing (and its complete joint_states), but its antenna_angle is there. The antenna sits still until 0.5 s, so the next 50 measurements give
     # the same value: that one is left out (received before any of them was stamped), and every later message is
     # found, the one where the value first changes too.
     messages = _recording(cfg)
     topics = demo_topics(cfg.trajectory_controller)
-    messages[topics.joint_states] = messages[topics.joint_states][2:]
+    messages[topics.measured] = messages[topics.measured][1:]
+    messages[topics.joint_states] = messages[topics.joint_states][1:]
     rec = recording(messages, topics, cfg)
     assert rec.antenna_matched == rec.antenna.t.size == 200
     assert rec.antenna.t.tolist() == rec.measured.position.t.tolist()
@@ -158,10 +161,10 @@ def test_unpaired_completions_are_counted(cfg: AntennaConfig) -> None:
 
     def without_measurements(first: int, last: int) -> dict[str, list[tuple[int, Any]]]:
         messages = _recording(cfg)
-        messages[topics.joint_states] = [
-            r for r in messages[topics.joint_states]
-            if r[1].name != [cfg.driven_joint] or not T0 + first * 10 * MS <= r[1].header.stamp.sec * 10**9
-            + r[1].header.stamp.nanosec <= T0 + last * 10 * MS]
+        messages[topics.measured] = [
+            r for r in messages[topics.measured]
+            if not T0 + first * 10 * MS <= r[1].header.stamp.sec * 10**9 + r[1].header.stamp.nanosec
+            <= T0 + last * 10 * MS]
         return messages
     s = summarize(recording(without_measurements(50, 59), topics, cfg), cfg)
     assert (s.completed_paired, s.completed_unpaired) == (191, 10)

@@ -1,8 +1,9 @@
-"""fourbar_node's completion over the real middleware (actuator modes): the simulated actuator's measured driven joint
-in, the passive joints, antenna angle and rate and load torque out, equal to the completion rule's values (the
-rule is the core's exact solution, test_rules_completion); no echo of its own output on joint_states; each kind of
-bad measurement counted; ERROR for an angle out of range; WARN without measurements; the tracking error; and no
-commanded pose on joint_states in the actuator modes.
+"""fourbar_node's completion over the real middleware (actuator modes): the measured driven joint in on
+measured_joint_states (the simulated actuator's, remapped to where it publishes, or the test's), one complete
+JointState of every joint, antenna angle and rate and load torque out, equal to the completion rule's values (the
+rule is the core's exact solution, test_rules_completion); with measured_joint_states remapped onto joint_states,
+its own output skipped; each kind of bad measurement counted; ERROR for an angle out of range; WARN without
+measurements; the tracking error; and no commanded pose on joint_states in the actuator modes.
 
 Nodes run in-process (the process boundary is not what is tested): each test's nodes in their own namespace.
 """
@@ -24,6 +25,7 @@ from std_msgs.msg import Float64
 from ulp_bounds import CHAIN_ULPS, assert_close_ulps, completion_scales
 
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.node.diagnostic_values import Level
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
@@ -39,32 +41,28 @@ DRIVEN = CFG.driven_joint
 _ns = itertools.count()
 
 
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession() as session:
-        yield session
-
-
 class Rig:
     """fourbar_node in an actuator mode in its own namespace, with collectors of its outputs and a publisher of
     measurements (standing in for joint_state_broadcaster)."""
 
-    def __init__(self, ros: RosSession, mode: str = 'trajectory', **overrides: Any) -> None:
+    def __init__(self, ros: RosSession, mode: str = 'trajectory', measured_on: str = MEASURED_JOINT_STATES.name,
+                 **overrides: Any) -> None:
         self.ros = ros
         self.ns = f'/completion_test_{next(_ns)}'
         params = [Parameter('mode', value=mode), Parameter('joint_state_rate', value=0.0),
                   *(Parameter(k, value=v) for k, v in overrides.items())]
         self.node = FourBarNode(context=ros.context, namespace=self.ns, parameter_overrides=params,
-                                cli_args=['--ros-args', '--params-file', str(YAML)])
+                                cli_args=['--ros-args', '--params-file', str(YAML),
+                                          '-r', f'{MEASURED_JOINT_STATES.name}:={measured_on}'])
         ros.add_node(self.node)
         self.states: Collector[JointState] = ros.collect(JointState, f'{self.ns}/joint_states')
         self.angle: Collector[Float64] = ros.collect(Float64, f'{self.ns}/antenna_angle')
         self.rate: Collector[Float64] = ros.collect(Float64, f'{self.ns}/antenna_rate')
         self.load: Collector[Float64] = ros.collect(Float64, f'{self.ns}/load_torque')
-        self.measured = ros.publisher(JointState, f'{self.ns}/joint_states')
+        self.measured = ros.publisher(JointState, f'{self.ns}/{measured_on}')
         for c in (self.states, self.angle, self.rate, self.load):
             ros.wait_publishers(c)
-        ros.wait_subscribers(self.measured, 2)  # the node's and the collector's
+        ros.wait_subscribers(self.measured, 1 + (measured_on == JOINT_STATES.name))  # the node (and the collector)
         self.sims: list[SimActuator] = []
 
     @property
@@ -108,7 +106,8 @@ def rig(ros: RosSession) -> Iterator[Any]:
 
 
 def test_the_simulated_actuator_is_completed_exactly_and_stamped_with_its_measurement(rig: Any) -> None:
-    r = rig(mode='forward')
+    r = rig(mode='forward', measured_on=BROADCASTER_JOINT_STATES.name)
+    measured_in: Collector[JointState] = r.ros.collect(JointState, f'{r.ns}/{BROADCASTER_JOINT_STATES.name}')
     sim = SimActuator(context=r.ros.context, namespace=r.ns, cli_args=['--ros-args', '--params-file', str(YAML)],
                       parameter_overrides=[Parameter('publish_rate', value=200.0),
                                            Parameter('velocity_noise', value=0.0)])
@@ -118,16 +117,18 @@ def test_the_simulated_actuator_is_completed_exactly_and_stamped_with_its_measur
     r.ros.wait_subscribers(commands)
     commands.publish(Float64(data=CFG.theta_max))  # the drive moves to the end of the range (and near its reach)
     wait_for(lambda: len(r.completed()) >= 40, what='40 completed joint states')
-    measured = [m for m in r.states.messages if list(m.name) == [DRIVEN]]
+    measured = [m for m in measured_in.messages if list(m.name) == [DRIVEN]]
     by_stamp = {(m.header.stamp.sec, m.header.stamp.nanosec): m for m in measured}
     checked = 0
     for out in r.completed():
-        assert list(out.name) == RULE.names and len(out.effort) == 0
+        assert list(out.name) == RULE.names == [DRIVEN, CFG.delta_joint, CFG.coupler_joint]
         source = by_stamp.get((out.header.stamp.sec, out.header.stamp.nanosec))
-        assert source is not None, 'every completed state carries a measurement\'s stamp'
-        expected = RULE.one(source.position[0], source.velocity[0], None)
+        if source is None:  # measured before the test's collector matched the simulated actuator
+            continue
+        expected = RULE.one(source.position[0], source.velocity[0], source.effort[0])
         assert list(out.position) == expected.positions  # the same floats: the node runs the rule
         assert list(out.velocity) == expected.velocities
+        assert list(out.effort) == expected.efforts == [source.effort[0], 0.0, 0.0]
         checked += 1
     assert checked >= 40
     thetas = {RULE.one(m.position[0]).theta for m in measured}
@@ -136,10 +137,12 @@ def test_the_simulated_actuator_is_completed_exactly_and_stamped_with_its_measur
     # The load the measured effort implies is the configured one (the sim's effort is the statics' torque).
     assert r.load.messages and all(x.data == pytest.approx(CFG.load_torque, rel=1e-9) for x in r.load.messages)
     r.ros.node.destroy_publisher(commands)
+    r.ros.uncollect(measured_in)
 
 
 def test_no_echo_and_no_commanded_pose_on_joint_states(rig: Any) -> None:
-    r = rig()
+    # measured_joint_states remapped onto joint_states, where the node publishes: it skips its own messages.
+    r = rig(measured_on=JOINT_STATES.name)
     commands = r.ros.publisher(Float64, f'{r.ns}/antenna_angle_cmd', 10)
     r.ros.wait_subscribers(commands)
     commands.publish(Float64(data=0.05))  # served (the command path), but not published as a pose here
@@ -254,7 +257,7 @@ def test_the_live_completion_equals_process_of_the_same_measured_bag(rig: Any, t
     wait_for(lambda: counters.measurements_completed == 30 and len(r.completed()) == 30, what='30 completed')
     bag = tmp_path / 'measured'
     with AtomicBagWriter(bag) as writer:
-        conn = writer.add_topic('/joint_states', 'sensor_msgs/msg/JointState')
+        conn = writer.add_topic(f'/{MEASURED_JOINT_STATES.name}', 'sensor_msgs/msg/JointState')
         for msg in measured:
             writer.write(conn, msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec, serialize_message(msg))
     assert main(['process', str(bag), str(tmp_path / 'out'), '--params', str(YAML)]) == 0
@@ -273,15 +276,18 @@ def test_the_live_completion_equals_process_of_the_same_measured_bag(rig: Any, t
     theta = np.array([RULE.one(float(x)).theta for x in q])
     a_pos, b_pos = np.array([list(m.position) for m in live]), np.array([m.position for m in offline])
     theta_s, other_s, x_s, rate_s, other_rate_s, load_s = completion_scales(CFG.linkage, CFG.driven, q, theta,
-                                                                            a_pos[:, 0])
+                                                                            a_pos[:, 1])
     n = 2 * CHAIN_ULPS  # per-message (libm) against block (numpy) path, each within CHAIN_ULPS of the scale
-    assert_close_ulps(b_pos[:, 0], a_pos[:, 0], n, other_s, 'other rocker')
-    assert_close_ulps(b_pos[:, 1], a_pos[:, 1], n, x_s, 'coupler joint')
+    assert np.array_equal(b_pos[:, 0], a_pos[:, 0]) and np.array_equal(a_pos[:, 0], q)  # the measurement itself
+    assert_close_ulps(b_pos[:, 1], a_pos[:, 1], n, other_s, 'other rocker')
+    assert_close_ulps(b_pos[:, 2], a_pos[:, 2], n, x_s, 'coupler joint')
     q_dot = np.array([m.velocity[0] for m in measured])
     for i, (a, b) in enumerate(zip(live, offline, strict=True)):
         assert len(a.velocity) == len(b.velocity)
         if len(a.velocity):
-            assert_close_ulps(b.velocity[0], a.velocity[0], n, abs(q_dot[i]) * other_rate_s[i], f'velocity {i}')
+            assert b.velocity[0] == a.velocity[0] == q_dot[i]
+            assert_close_ulps(b.velocity[1], a.velocity[1], n, abs(q_dot[i]) * other_rate_s[i], f'velocity {i}')
+        assert list(a.effort) == list(b.effort) == [measured[i].effort[0], 0.0, 0.0]
     angles = [m.data for _, m in out['/antenna_angle']]
     assert_close_ulps(np.array(angles), theta, n, theta_s, 'antenna angle')
     live_rate, live_load = [m.data for m in r.rate.messages], [m.data for m in r.load.messages]
