@@ -107,11 +107,10 @@ def test_sim_actuator_argument_starts_the_simulated_drive(install: CliEnv) -> No
         text = echo.stdout[echo.stdout.index('header:'):]
         doc = yaml.safe_load(text.split('\n---')[0])
         cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
-        # The first message on joint_states is the drive's measurement or the node's completion of one (trajectory
-        # mode): either exists only because the drive publishes.
+        # joint_states holds the node's complete state, one per measurement of the drive (trajectory mode): it
+        # exists only because the drive publishes where the launch file remapped the node's measured_joint_states.
         other = cfg.delta_joint if cfg.driven_joint == cfg.gamma_joint else cfg.gamma_joint
-        assert (doc['name'] == [cfg.driven_joint] and len(doc['effort']) == 1) or \
-            doc['name'] == [other, cfg.coupler_joint], doc
+        assert doc['name'] == [cfg.driven_joint, other, cfg.coupler_joint] and len(doc['effort']) == 3, doc
         status = launch.interrupt(group=True)
         assert status == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
         assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
