@@ -1,7 +1,7 @@
 """`fourbar process` on a bag of measured joint states: the complete joint_states and the other outputs written in
-the measured topic's namespace at the measurements' log times and stamps, through the completion rule's block path (exactly its floats); bad
-measurements skipped and counted; `fourbar compare` covering the new outputs (and ignoring them when told). No ROS
-middleware (bags written with rosbags' serializer)."""
+the measured topic's namespace at the measurements' log times and stamps, through the completion rule's block path
+(exactly its floats); bad measurements skipped and counted; `fourbar compare` covering the new outputs (and
+ignoring them when told). No ROS middleware (bags written with rosbags' serializer)."""
 
 from __future__ import annotations
 

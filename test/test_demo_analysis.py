@@ -119,9 +119,9 @@ def test_antenna_angle_no_measurement_gives_keeps_its_arrival(cfg: AntennaConfig
 
 def test_antenna_angle_of_a_measurement_the_recording_missed_at_rest(cfg: AntennaConfig) -> None:
     # The recording matched the actuator's measured joint after the node's antenna_angle: the first measurement is
-    # missing (and its complete joint_states), but its antenna_angle is there. The antenna sits still until 0.5 s, so the next 50 measurements give
-    # the same value: that one is left out (received before any of them was stamped), and every later message is
-    # found, the one where the value first changes too.
+    # missing (and its complete joint_states), but its antenna_angle is there. The antenna sits still until 0.5 s,
+    # so the next 50 measurements give the same value: that one is left out (received before any of them was
+    # stamped), and every later message is found, the one where the value first changes too.
     messages = _recording(cfg)
     topics = demo_topics(cfg.trajectory_controller)
     messages[topics.measured] = messages[topics.measured][1:]
