@@ -203,3 +203,47 @@ def test_live_node_recording_equals_processed_bag(bag_name: str, policy: str, ro
     process_bag(bag, tmp_path / 'other_policy', other)
     if n != len(served(stream.values, other)) or policy == 'clamp':
         assert not compare_bags(live, tmp_path / 'other_policy', cfg, ignore=['stamps', 'velocities']).equal
+
+
+def _three_joint_bag(path: Path, cfg: AntennaConfig, theta: float, effort_change: float,
+                     torque_change: float) -> Path:
+    """The node's own 3-joint joint_states and input_torque at one pose, with the effort and torque moved."""
+    from fourbar_ros.core.loads import pose
+
+    store = jazzy_typestore()
+    t = store.types
+    p = pose(cfg, theta)
+    tau = p.input_torque
+    msg = t['sensor_msgs/msg/JointState'](
+        header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=1, nanosec=0), frame_id=''),
+        name=list(cfg.joint_names), position=np.array([p.gamma, p.delta, p.gamma + theta]),
+        velocity=np.array([], dtype=np.float64), effort=np.array([tau + effort_change, 0.0, 0.0]))
+    with AtomicBagWriter(path) as bag:
+        js = bag.add_topic('/joint_states', 'sensor_msgs/msg/JointState')
+        it = bag.add_topic('/input_torque', 'std_msgs/msg/Float64')
+        bag.write(js, 10**9, bytes(store.serialize_cdr(msg, 'sensor_msgs/msg/JointState')))
+        bag.write(it, 10**9, bytes(store.serialize_cdr(t['std_msgs/msg/Float64'](data=tau + torque_change),
+                                                      'std_msgs/msg/Float64')))
+    return path
+
+
+def test_the_torque_tolerance_follows_its_condition_in_the_nodes_own_bags(tmp_path: Path) -> None:
+    # A poorly conditioned pose (near the driven rocker's dead point: |cot r| large, the torque ~1/sin r) in the
+    # node's 3-joint JointState: a change of the effort and of input_torque just inside the condition-scaled
+    # tolerance passes, just outside it is reported (by joint name, whatever the joint count).
+    from fourbar_ros.bags.compare import DEFAULT_ULPS, torque_condition
+    from fourbar_ros.core.loads import pose
+
+    cfg = config_from_values({'theta_min': -0.1, 'theta_max': 0.335})  # the dead point: 0.337 rad
+    theta = 0.335
+    p = pose(cfg, theta)
+    cond = float(torque_condition(cfg, np.array([[p.gamma, p.delta]]))[0])
+    assert cond > 100.0  # poorly conditioned: the tolerance is far above 16 ulps of the torque itself
+    allowed = DEFAULT_ULPS * float(np.spacing(abs(p.input_torque) * cond))
+    a = _three_joint_bag(tmp_path / 'a', cfg, theta, 0.0, 0.0)
+    inside = _three_joint_bag(tmp_path / 'in', cfg, theta, 0.9 * allowed, 0.9 * allowed)
+    outside = _three_joint_bag(tmp_path / 'out', cfg, theta, 1.5 * allowed, 1.5 * allowed)
+    assert compare_bags(a, inside, cfg).equal
+    result = compare_bags(a, outside, cfg)
+    whats = {d.what for d in result.differences}
+    assert not result.equal and {'effort[0]', 'data'} <= whats, whats

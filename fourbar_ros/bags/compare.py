@@ -62,7 +62,6 @@ from fourbar_ros.config.interface import (
 )
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import one_line
-from fourbar_ros.rules.outputs import driven_index
 from fourbar_ros.rules.velocity import VelocityState, anchors
 
 FloatArray = npt.NDArray[np.float64]
@@ -339,13 +338,26 @@ class Comparer:
         if 'efforts' not in self.ignore:
             self.floats(topic, 'effort', a.efforts, b.efforts, self.effort_scale(a), offset)
 
+    def rockers(self, a: TopicData) -> tuple[FloatArray, int] | None:
+        """The [gamma, delta] positions (rad) of a JointState block, found by the configured joint names, and the
+        driven joint's column; None when the block's messages do not all name both rockers (alike)."""
+        if a.positions is None or not a.names or any(n != a.names[0] for n in a.names):
+            return None
+        names = list(a.names[0])
+        cfg = self.cfg
+        if cfg.gamma_joint not in names or cfg.delta_joint not in names:
+            return None
+        rows = a.positions[:, [names.index(cfg.gamma_joint), names.index(cfg.delta_joint)]]
+        return rows, names.index(cfg.driven_joint)
+
     def effort_scale(self, a: TopicData) -> FloatArray:
-        """Scale of each effort: the torque's condition at the driven rocker, |value| at the other."""
+        """Scale of each effort: the torque's condition at the driven rocker, |value| at the other joints."""
         assert a.efforts is not None and a.positions is not None
         scale = np.abs(a.efforts)
-        if a.positions.shape[1] == 2:
-            d = driven_index(self.cfg)
-            scale[:, d] = scale[:, d] * torque_condition(self.cfg, a.positions)
+        found = self.rockers(a)
+        if found is not None:
+            rows, d = found
+            scale[:, d] = scale[:, d] * torque_condition(self.cfg, rows)
         return scale
 
     def trajectories(self, topic: str, a: TopicData, b: TopicData, offset: int) -> None:
@@ -387,9 +399,9 @@ class Comparer:
         if topic.rsplit('/', 1)[-1] in self.ignore:  # input_torque, antenna_angle, antenna_rate, load_torque
             return
         scale = position_scale(a.data) if topic.rsplit('/', 1)[-1] == ANTENNA_ANGLE.name else np.abs(a.data)
-        if joints is not None and joints.positions is not None and len(joints) == len(a) \
-                and joints.positions.shape[1] == 2:
-            scale = scale * torque_condition(self.cfg, joints.positions)
+        found = self.rockers(joints) if joints is not None and len(joints) == len(a) else None
+        if found is not None:
+            scale = scale * torque_condition(self.cfg, found[0])
         self.floats(topic, 'data', a.data, b.data, scale, offset)
 
 
