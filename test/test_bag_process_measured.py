@@ -56,7 +56,7 @@ def test_a_measured_bag_is_completed_by_the_block_rule(tmp_path: Path, capsys: p
     src = measured_bag(tmp_path / 'measured')
     assert main(['process', str(src), str(tmp_path / 'out')]) == 0
     line = capsys.readouterr().err
-    assert '18 measured joint states -> 12 completed (1 out of range, 2 not finite, 3 ignored)' in line
+    assert '18 measured joint states -> 12 completed (1 out of range, 2 not finite, 3 ignored, 0 malformed)' in line
     out = read_messages(tmp_path / 'out')
     q = np.array([g[0] for g in GOOD])
     q_dot = np.array([g[1][0] if g[1] else math.nan for g in GOOD])
@@ -85,7 +85,8 @@ def test_a_nan_velocity_or_effort_is_not_measured(tmp_path: Path, capsys: pytest
         for k, (q, v, e) in enumerate(sent):
             bag.write(conn, (k + 1) * 10**9, joint_state([DRIVEN, 'other'], [q, 1.0], [v, 0.0], [e, 0.0], k + 1))
     assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out')]) == 0
-    assert '6 measured joint states -> 4 completed (0 out of range, 2 not finite, 0 ignored)' in capsys.readouterr().err
+    assert '6 measured joint states -> 4 completed (0 out of range, 2 not finite, 0 ignored, 0 malformed)' in \
+        capsys.readouterr().err
     out = read_messages(tmp_path / 'out')
     good = sent[:4]
     block = complete_block(CFG, np.array([g[0] for g in good]), np.array([g[1] for g in good]),
@@ -141,3 +142,19 @@ def test_a_measured_topic_where_the_completed_states_go_is_refused(tmp_path: Pat
         bag.write(bag.add_topic('/joint_states', JS), 1, joint_state([DRIVEN], [0.3], [], [], 1))
     assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out'), '--topic', '/joint_states']) == 2
     assert 'measured_joint_states' in capsys.readouterr().err and not (tmp_path / 'out').exists()
+
+
+def test_malformed_payloads_are_counted_as_the_node_counts_them(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    # The node's decoder and rules: a truncated payload and a big-endian one are counted and skipped, the
+    # measurement after them completed (the node goes on the same way), instead of the whole bag refused.
+    good = joint_state([DRIVEN], [0.3], [], [], 1)
+    with AtomicBagWriter(tmp_path / 'measured') as bag:
+        conn = bag.add_topic('/measured_joint_states', JS)
+        bag.write(conn, 1, good[:20])
+        bag.write(conn, 2, good[:1] + b'\x00' + good[2:])
+        bag.write(conn, 3, good)
+    assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out')]) == 0
+    assert '3 measured joint states -> 1 completed (0 out of range, 0 not finite, 0 ignored, 2 malformed)' in \
+        capsys.readouterr().err
+    assert len(read_messages(tmp_path / 'out')['/joint_states']) == 1

@@ -35,6 +35,7 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
 from fourbar_ros.config.interface import (
     BROADCASTER_JOINT_STATES,
     JOINT_STATES,
@@ -42,7 +43,7 @@ from fourbar_ros.config.interface import (
     PER_MEASUREMENT_OUTPUTS,
 )
 from fourbar_ros.core.errors import one_line
-from fourbar_ros.rules.completion import CompletionRule, complete_block, measured
+from fourbar_ros.rules.completion import CompletionRule, Skipped, complete_block, driven_index, driven_measurement
 
 #: Measurements per block.
 BLOCK = 65536
@@ -56,13 +57,24 @@ class MeasuredStats:
     completed: int = 0
     refused_not_finite: int = 0
     ignored: int = 0  # no driven joint, the node's own complete states, or mismatched lengths
+    malformed: int = 0  # payloads that are not a little-endian CDR JointState, as the node counts them
     out_of_range: int = 0
     seconds: float = 0.0
+
+    def skip(self, why: Skipped) -> None:
+        """Count a measurement the node would not complete, under the node's classes."""
+        if why is Skipped.NOT_FINITE:
+            self.refused_not_finite += 1
+        elif why is Skipped.MALFORMED:
+            self.malformed += 1
+        else:
+            self.ignored += 1
 
     def summary(self) -> str:
         """One line for the user."""
         return (f'{self.measurements} measured joint states -> {self.completed} completed ({self.out_of_range} out '
-                f'of range, {self.refused_not_finite} not finite, {self.ignored} ignored) in {self.seconds:.2f} s')
+                f'of range, {self.refused_not_finite} not finite, {self.ignored} ignored, {self.malformed} '
+                f'malformed) in {self.seconds:.2f} s')
 
 
 #: The names the measured joint states go by: the node's input, and joint_state_broadcaster's local topic.
@@ -108,7 +120,6 @@ def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str
     src_path = Path(src)
     stats = MeasuredStats()
     rule = CompletionRule(cfg)
-    store = jazzy_typestore()
     with open_bag(src_path) as reader:
         chosen = measured_topic(src_path, topic_types(reader), topic)
         if chosen is None:
@@ -127,11 +138,13 @@ def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str
             try:
                 for _, log, data in reader.messages(connections=conns):
                     stats.measurements += 1
-                    msg = _joint_state(store, bytes(data))
-                    values = _measurement(rule, msg, stats)
-                    if values is not None:
+                    taken = _measurement(rule, bytes(data))
+                    if isinstance(taken, Skipped):
+                        stats.skip(taken)
+                    else:
+                        stamp, values = taken
                         pending.log.append(log)
-                        pending.stamp.append((int(msg.header.stamp.sec), int(msg.header.stamp.nanosec)))
+                        pending.stamp.append(stamp)
                         pending.values.append(values)
                     if len(pending.log) == block:
                         _write(bag, outs, cfg, rule, pending, stats)
@@ -148,36 +161,22 @@ def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str
     return stats
 
 
-def _joint_state(store: Any, raw: bytes) -> Any:
-    """A JointState from CDR bytes, trailing bytes allowed: rmw_serialize (rclpy's serialize_message, and so
-    recordings made through it) may leave up to 8 bytes after a JointState with an empty sequence, which rosbags'
-    deserialize_cdr refuses."""
-    if len(raw) < 4 or raw[:2] not in (b'\x00\x00', b'\x00\x01'):
-        raise BagError('not a CDR message')
-    msgdef = store.get_msgdef(JOINT_STATE)
-    func = msgdef.deserialize_cdr_le if raw[1] else msgdef.deserialize_cdr_be
-    msg, _ = func(raw[4:], 0, msgdef.cls, store)
-    return msg
-
-
-def _measurement(rule: CompletionRule, msg: Any, stats: MeasuredStats) -> tuple[float, float, float] | None:
-    """(q, q_dot, effort) of the driven joint, NaN where absent; None for a message the node skips (counted)."""
-    names = list(msg.name)
-    if names == rule.names or rule.driven_joint not in names:  # the node's own output, or another joint's
-        stats.ignored += 1
-        return None
-    i, n = names.index(rule.driven_joint), len(names)
-    position, velocity, effort = msg.position, msg.velocity, msg.effort
-    if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
-        stats.ignored += 1
-        return None
-    values = measured(float(position[i]), float(velocity[i]) if len(velocity) else None,
-                      float(effort[i]) if len(effort) else None)
-    if values is None:
-        stats.refused_not_finite += 1
-        return None
+def _measurement(rule: CompletionRule, raw: bytes) -> tuple[tuple[int, int], tuple[float, float, float]] | Skipped:
+    """((stamp sec, nanosec), (q, q_dot, effort) NaN where not measured) of one recorded measurement, read with the
+    node's decoder and accepted by the node's rules (``rules.completion``), or why the node would skip it."""
+    try:
+        sec, nanosec, _, names, at = read_joint_state_head(raw)
+        i = driven_index(names, rule.names, rule.driven_joint)
+        if isinstance(i, Skipped):
+            return i
+        position, velocity, effort = read_joint_state_arrays(raw, at)
+    except MalformedCdrError:
+        return Skipped.MALFORMED
+    values = driven_measurement(i, len(names), position, velocity, effort)
+    if isinstance(values, Skipped):
+        return values
     q, q_dot, tau = values
-    return q, math.nan if q_dot is None else q_dot, math.nan if tau is None else tau
+    return (sec, nanosec), (q, math.nan if q_dot is None else q_dot, math.nan if tau is None else tau)
 
 
 def _write(bag: AtomicBagWriter, outs: list[Any], cfg: AntennaConfig, rule: CompletionRule, pending: _Block,

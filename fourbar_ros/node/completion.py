@@ -36,7 +36,7 @@ from fourbar_ros.config.cdr import MalformedCdrError, read_joint_state_arrays, r
 from fourbar_ros.config.interface import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.node.diagnostic_values import Level
-from fourbar_ros.rules.completion import CompletionRule, measured
+from fourbar_ros.rules.completion import CompletionRule, Skipped, driven_index, driven_measurement
 
 WARN_THROTTLE_S = 1.0
 
@@ -99,37 +99,23 @@ class MeasuredCompletion:
         counters = self.counters
         try:
             sec, nanosec, _, names, at = read_joint_state_head(raw)
-            if names == self._names:  # the node's own complete JointState (measured_joint_states remapped onto it)
-                counters.measurements_own_skipped += 1
-                return
-            try:
-                i = names.index(self._driven)
-            except ValueError:
-                counters.measurements_ignored_no_driven_joint += 1
-                self._warn(f'{MEASURED_JOINT_STATES.name} without {self._driven} (names {names}): ignored',
-                           throttle_duration_sec=WARN_THROTTLE_S)
+            i = driven_index(names, self._names, self._driven)
+            if isinstance(i, Skipped):
+                self._skip(i, f'{MEASURED_JOINT_STATES.name} without {self._driven} (names {names}): ignored')
                 return
             position, velocity, effort = read_joint_state_arrays(raw, at)
         except MalformedCdrError as exc:
-            counters.measurements_ignored_malformed += 1
-            self._warn(f'{MEASURED_JOINT_STATES.name} payload of {len(raw)} bytes is not a JointState ({exc}): ignored',
-                       throttle_duration_sec=WARN_THROTTLE_S)
+            self._skip(Skipped.MALFORMED, f'{MEASURED_JOINT_STATES.name} payload of {len(raw)} bytes is not a '
+                                          f'JointState ({exc}): ignored')
             return
-        n = len(names)
-        if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
-            counters.measurements_ignored_mismatched_lengths += 1
-            self._warn(f'{MEASURED_JOINT_STATES.name} with {n} names but {len(position)} positions, '
-                       f'{len(velocity)} velocities, '
-                       f'{len(effort)} efforts: ignored', throttle_duration_sec=WARN_THROTTLE_S)
-            return
-        self._last_time = now = time.monotonic()
-        given = (position[i], velocity[i] if velocity else None, effort[i] if effort else None)
-        values = measured(*given)
-        if values is None:
-            counters.measurements_refused_not_finite += 1
-            self._warn(f'measured {self._driven}: position {given[0]!r}, velocity {given[1]!r}, effort {given[2]!r}: '
-                       'refused (a position not finite, or an infinite velocity or effort)',
-                       throttle_duration_sec=WARN_THROTTLE_S)
+        values = driven_measurement(i, len(names), position, velocity, effort)
+        if values is not Skipped.MISMATCHED_LENGTHS:  # a measurement came, if a bad one
+            self._last_time = now = time.monotonic()
+        if isinstance(values, Skipped):
+            self._skip(values, f'{MEASURED_JOINT_STATES.name} of {self._driven}: {len(names)} names, '
+                               f'{len(position)} positions, {len(velocity)} velocities, {len(effort)} efforts; '
+                               f'{self._driven} at {position[i] if i < len(position) else None!r}: '
+                               f'{values.name.lower().replace("_", " ")}')
             return
         q, q_dot, tau = values
         rule = self.rule
@@ -176,6 +162,13 @@ class MeasuredCompletion:
             tracking.append((now, abs(self._commanded - done.theta)))
             while tracking[0][0] < now - self._window:
                 tracking.popleft()
+
+    def _skip(self, why: Skipped, line: str) -> None:
+        """Count a measurement that is not completed under its key; log one throttled line (not for own ones)."""
+        key = f'measurements_{why.value}'
+        setattr(self.counters, key, getattr(self.counters, key) + 1)
+        if why is not Skipped.OWN:
+            self._warn(line, throttle_duration_sec=WARN_THROTTLE_S)
 
     def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
         """(level, message, key/value pairs) of the completion: ERROR while the last measurement was out of

@@ -29,7 +29,9 @@ transcendentals against libm), held together by test/test_rules_completion.py.
 
 from __future__ import annotations
 
+import enum
 import math
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -42,8 +44,8 @@ from fourbar_ros.core.errors import DeadPointError, SingularPositionError
 from fourbar_ros.core.loads import pose
 from fourbar_ros.core.numeric import FloatArray
 
-__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'complete_block', 'completed_names', 'joint_state_names',
-           'measured', 'turn_starts']
+__all__ = ['Completed', 'CompletedBlock', 'CompletionRule', 'Skipped', 'complete_block', 'completed_names',
+           'driven_index', 'driven_measurement', 'joint_state_names', 'measured', 'turn_starts']
 
 _TWO_PI = 2.0 * math.pi
 
@@ -68,6 +70,39 @@ def measured(q: float, q_dot: float | None, effort: float | None) -> tuple[float
             return None
         effort = None
     return q, q_dot, effort
+
+
+class Skipped(enum.Enum):
+    """Why a JointState on the measured topic is not completed; the value names its counter
+    (``measurements_<value>``)."""
+
+    OWN = 'own_skipped'  #: the node's own complete JointState (the measured topic remapped onto joint_states)
+    NO_DRIVEN_JOINT = 'ignored_no_driven_joint'
+    MALFORMED = 'ignored_malformed'  #: not a little-endian CDR JointState
+    MISMATCHED_LENGTHS = 'ignored_mismatched_lengths'
+    NOT_FINITE = 'refused_not_finite'  #: a position NaN or inf, an infinite velocity or effort (``measured``)
+
+
+def driven_index(names: list[str], own: list[str], driven_joint: str) -> int | Skipped:
+    """Where the driven joint is among a JointState's ``names``, or why it is skipped: the node's own names
+    (``own``, exactly), or no driven joint. Read before the arrays: nothing else is needed to decide."""
+    if names == own:
+        return Skipped.OWN
+    try:
+        return names.index(driven_joint)
+    except ValueError:
+        return Skipped.NO_DRIVEN_JOINT
+
+
+def driven_measurement(i: int, n: int, position: Sequence[float], velocity: Sequence[float],
+                       effort: Sequence[float]) -> tuple[float, float | None, float | None] | Skipped:
+    """The driven joint's (position rad, velocity rad/s, effort N m; None: not measured) at index ``i`` of a JointState
+    of ``n`` names, or why it is skipped: arrays of another length (velocity and effort may be empty), or refused by
+    ``measured``."""
+    if len(position) != n or len(velocity) not in (0, n) or len(effort) not in (0, n):
+        return Skipped.MISMATCHED_LENGTHS
+    values = measured(position[i], velocity[i] if velocity else None, effort[i] if effort else None)
+    return Skipped.NOT_FINITE if values is None else values
 
 
 class Completed(NamedTuple):
