@@ -38,7 +38,14 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
-from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, MARKERS, MEASURED_JOINT_STATES, NODE_NAME
+from fourbar_ros.config.interface import (
+    BROADCASTER_JOINT_STATES,
+    MARKERS,
+    MEASURED_JOINT_STATES,
+    NODE_EXECUTABLE,
+    NODE_NAME,
+    SIM_EXECUTABLE,
+)
 from fourbar_ros.config.robot_model import DEFAULT_HARDWARE_PLUGIN as MOCK_PLUGIN  # ros2_control's mock
 from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
 
@@ -117,12 +124,12 @@ def _setup(context: LaunchContext) -> list[object]:
     if actuated:
         node_overrides.update({'controllers_file': controllers, 'effort_feedforward': effort})
     actions: list[object] = [
-        Node(package='fourbar_ros', executable='fourbar_node', name=NODE_NAME, namespace=ros_namespace,
+        Node(package='fourbar_ros', executable=NODE_EXECUTABLE, name=NODE_NAME, namespace=ros_namespace,
              parameters=[params_file, node_overrides], output='screen', emulate_tty=False,
              remappings=[(MEASURED_JOINT_STATES.name, BROADCASTER_JOINT_STATES.name)] if actuated else []),
     ]
     if want_sim:  # the linkage fourbar_node reads; its own parameters from a sim_actuator section of the file
-        actions.append(Node(package='fourbar_ros', executable='fourbar_sim_actuator', name=SIM_NODE_NAME,
+        actions.append(Node(package='fourbar_ros', executable=SIM_EXECUTABLE, name=SIM_NODE_NAME,
                             namespace=ros_namespace, output='screen', emulate_tty=False,
                             parameters=[params_file, {**cfg.as_values(), 'controllers_file': controllers},
                                         {'use_sim_time': use_sim_time}]))

@@ -16,6 +16,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.config.interface import NODE_EXECUTABLE, SIM_EXECUTABLE
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -34,7 +35,9 @@ def test_package_xml_validates_with_catkin_pkg() -> None:
 
 def test_setup_declares_the_console_script_and_ros_install_dir() -> None:
     setup_py = (REPO / 'setup.py').read_text(encoding='utf-8')
-    assert "'fourbar_node = fourbar_ros.node:main'" in setup_py
+    # The executables the launch file, the process helpers and the commands name (config.interface).
+    assert f"'{NODE_EXECUTABLE} = fourbar_ros.node:main'" in setup_py
+    assert f"'{SIM_EXECUTABLE} = fourbar_ros.node:sim_actuator_main'" in setup_py
     cfg = (REPO / 'setup.cfg').read_text(encoding='utf-8')
     assert 'install_scripts=$base/lib/fourbar_ros' in cfg and 'script_dir=$base/lib/fourbar_ros' in cfg
 

@@ -21,6 +21,7 @@ from fourbar_ros.config.interface import (
     DEFAULT_STORAGE,
     DIAGNOSTICS,
     MEASURED_JOINT_STATES,
+    NODE_EXECUTABLE,
     STORAGES,
     STREAM_DEPTH,
 )
@@ -189,7 +190,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
                       env, command=sim_actuator_command(), log_path=args.out / 'sim_actuator.log')
     stack = contextlib.ExitStack()
     stack.enter_context(stop_on_signals())
-    stack.callback(_stop_process, node, 'fourbar_node')  # on every path, last
+    stack.callback(_stop_process, node, NODE_EXECUTABLE)  # on every path, last
     stack.callback(_stop_process, sim, 'the simulated actuator')
     context: Context | None = None
     ros: Node | None = None
@@ -198,7 +199,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     diagnostics: list[dict[str, str]] = []
     antenna: list[float] = []
 
-    names = {'fourbar_node': node, 'the simulated actuator': sim}
+    names = {NODE_EXECUTABLE: node, 'the simulated actuator': sim}
 
     def failed() -> str | None:
         return next((name for name, p in names.items() if not p.running()), None)

@@ -12,6 +12,9 @@ from dataclasses import dataclass
 
 #: The node's default name (launch file, parameter-file sections, ``fourbar urdf --node-name``).
 NODE_NAME = 'fourbar_node'
+#: The executables (setup.py's console scripts; ``ros2 run fourbar_ros <name>``): the node, the simulated actuator.
+NODE_EXECUTABLE = 'fourbar_node'
+SIM_EXECUTABLE = 'fourbar_sim_actuator'
 
 FLOAT64 = 'std_msgs/msg/Float64'
 JOINT_STATE = 'sensor_msgs/msg/JointState'

@@ -18,6 +18,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO
 
+from fourbar_ros.config.interface import NODE_EXECUTABLE, SIM_EXECUTABLE
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.node.run import STOP
 
@@ -127,12 +128,12 @@ def _console_command(script: str, program: str) -> list[str]:
 
 def node_command() -> list[str]:
     """How to start ``fourbar_node`` (the default command of ``NodeProcess``)."""
-    return _console_command('fourbar_node', NODE_MAIN)
+    return _console_command(NODE_EXECUTABLE, NODE_MAIN)
 
 
 def sim_actuator_command() -> list[str]:
     """How to start the simulated actuator, ``fourbar_sim_actuator`` (``NodeProcess(command=...)``)."""
-    return _console_command('fourbar_sim_actuator', SIM_ACTUATOR_MAIN)
+    return _console_command(SIM_EXECUTABLE, SIM_ACTUATOR_MAIN)
 
 
 def node_args(params: Path | None, *ros_args: str) -> list[str]:

@@ -29,6 +29,7 @@ import sys
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn
 
+from fourbar_ros.config.interface import NODE_EXECUTABLE, SIM_EXECUTABLE
 from fourbar_ros.core.errors import one_line
 
 if TYPE_CHECKING:
@@ -194,7 +195,7 @@ def node_options(argv: Sequence[str]) -> argparse.Namespace:
     """The options of ``fourbar_node`` outside its ``--ros-args`` sections (``argv[0]`` is the program)."""
     from fourbar_ros.node.executor import DEFAULT_EXECUTOR, EXECUTOR_ENV, EXECUTORS
 
-    parser = _OptionParser(prog='fourbar_node', description='The antenna tilt four-bar node.',
+    parser = _OptionParser(prog=NODE_EXECUTABLE, description='The antenna tilt four-bar node.',
                            epilog='ROS arguments follow --ros-args, e.g. --ros-args --params-file config/antenna.yaml')
     parser.add_argument('--executor', choices=EXECUTORS, default=None,
                         help=f'rclpy executor that runs the callbacks (default: ${EXECUTOR_ENV}, else '
@@ -284,7 +285,7 @@ def main(args: list[str] | None = None) -> int:
         STOP.raises = None
         print(f'fourbar_node: error: {exc}', file=sys.stderr)
         return 2
-    return serve_node('fourbar_node',
+    return serve_node(NODE_EXECUTABLE,
                       lambda: FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv)),
                       argv, kind, (ConfigError, InvalidParameterTypeException, InvalidParameterValueException))
 
@@ -298,7 +299,7 @@ def sim_actuator_main(args: list[str] | None = None) -> int:
     from fourbar_ros.node.sim_actuator import SimActuator
 
     argv = sys.argv if args is None else args
-    return serve_node('fourbar_sim_actuator', SimActuator, argv, executor_kind(), (ConfigError,))
+    return serve_node(SIM_EXECUTABLE, SimActuator, argv, executor_kind(), (ConfigError,))
 
 
 if __name__ == '__main__':
