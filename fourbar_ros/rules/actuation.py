@@ -25,7 +25,7 @@ import enum
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
-from typing import NamedTuple, Protocol
+from typing import NamedTuple
 
 import numpy as np
 
@@ -61,34 +61,12 @@ from fourbar_ros.motion.planner import (
 from fourbar_ros.motion.refine import refine
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients
 from fourbar_ros.motion.trajectory import DrivenTrajectory, antenna_trajectory, to_driven
-from fourbar_ros.rules.controller_contract import ContractRule, Refusal, check_trajectory, duration_ns
+from fourbar_ros.rules.controller_contract import ContractRule, PointLike, Refusal, check_trajectory, duration_ns
 
 __all__ = ['ActuationCounters', 'Converted', 'DurationFields', 'EndMovingError', 'EndsInPastError', 'Motion',
            'PointFields', 'PointLike', 'TrajectoryProblem', 'actuation_contract', 'antenna_arrays', 'convert',
            'duration_parts', 'outgoing_refusal', 'plan_command', 'planned_points', 'planned_setpoints',
            'point_fields', 'problem_of', 'replan_start', 'serve_antenna_trajectory', 'trajectory_setpoints']
-
-
-class DurationLike(Protocol):
-    """``builtin_interfaces/Duration``."""
-
-    @property
-    def sec(self) -> int: ...
-    @property
-    def nanosec(self) -> int: ...
-
-
-class PointLike(Protocol):
-    """``trajectory_msgs/JointTrajectoryPoint``: what is read of it."""
-
-    @property
-    def positions(self) -> Sequence[float]: ...
-    @property
-    def velocities(self) -> Sequence[float]: ...
-    @property
-    def accelerations(self) -> Sequence[float]: ...
-    @property
-    def time_from_start(self) -> DurationLike: ...
 
 
 class TrajectoryProblem(enum.Enum):

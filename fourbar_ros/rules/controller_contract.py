@@ -21,7 +21,8 @@ import numpy as np
 
 from fourbar_ros.config.controllers import ForwardControllerSettings, TrajectoryControllerSettings
 
-__all__ = ['FLOAT_EPSILON', 'ContractRule', 'Refusal', 'check_forward_command', 'check_trajectory', 'duration_ns']
+__all__ = ['FLOAT_EPSILON', 'ContractRule', 'DurationLike', 'PointLike', 'Refusal', 'TrajectoryPointLike',
+           'check_forward_command', 'check_trajectory', 'duration_ns']
 
 #: The controller's bound on a last point's |velocity| (rad/s) when a trajectory must end at rest:
 #: ``std::numeric_limits<float>::epsilon()``.
@@ -37,8 +38,8 @@ class DurationLike(Protocol):
     def nanosec(self) -> int: ...
 
 
-class TrajectoryPointLike(Protocol):
-    """``trajectory_msgs/JointTrajectoryPoint``: every field the controller reads."""
+class PointLike(Protocol):
+    """``trajectory_msgs/JointTrajectoryPoint``: its motion fields."""
 
     @property
     def positions(self) -> Sequence[float]: ...
@@ -47,9 +48,14 @@ class TrajectoryPointLike(Protocol):
     @property
     def accelerations(self) -> Sequence[float]: ...
     @property
-    def effort(self) -> Sequence[float]: ...
-    @property
     def time_from_start(self) -> DurationLike: ...
+
+
+class TrajectoryPointLike(PointLike, Protocol):
+    """``trajectory_msgs/JointTrajectoryPoint``: every field the controller reads."""
+
+    @property
+    def effort(self) -> Sequence[float]: ...
 
 
 class ContractRule(enum.Enum):
