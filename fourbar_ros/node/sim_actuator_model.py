@@ -39,7 +39,13 @@ import numpy as np
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.controllers import TrajectoryControllerSettings
 from fourbar_ros.core.loads import pose
-from fourbar_ros.rules.controller_contract import ContractRule, PointLike, Refusal, TrajectoryPointLike, check_trajectory
+from fourbar_ros.rules.controller_contract import (
+    ContractRule,
+    PointLike,
+    Refusal,
+    TrajectoryPointLike,
+    check_trajectory,
+)
 
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
