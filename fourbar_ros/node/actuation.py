@@ -149,7 +149,7 @@ class Actuation:
             self._warn(f'command theta = {theta!r} rad not planned: {one_line(exc)}',
                        throttle_duration_sec=WARN_THROTTLE_S)
             return
-        if points is not None and not self._send(cfg, points, now_ns):
+        if points is not None and not self._send(cfg, points, 0, now_ns, 'trajectory'):
             self.counters.commands_not_planned += 1
             return
         self.counters.commands_planned += 1
@@ -157,17 +157,18 @@ class Actuation:
         if stream is not None:
             self._stream(stream)
 
-    def _send(self, cfg: AntennaConfig, traj: DrivenTrajectory, now_ns: int) -> bool:
-        """Send a trajectory starting on arrival (stamp 0) if the controller's contract takes it; False if not."""
+    def _send(self, cfg: AntennaConfig, traj: DrivenTrajectory, stamp_ns: int, now_ns: int, what: str) -> bool:
+        """Send a trajectory stamped ``stamp_ns`` (0: start on arrival) if the controller's contract takes it; else
+        count the refusal, log one line naming ``what``, and return False."""
         assert isinstance(self.contract, TrajectoryControllerSettings)
         points = point_fields(traj, cfg.effort_feedforward)
-        refusal = outgoing_refusal(self.contract, cfg.driven_joint, points, 0, now_ns)
+        refusal = outgoing_refusal(self.contract, cfg.driven_joint, points, stamp_ns, now_ns)
         if refusal is not None:
             self.counters.refused[refusal.rule] += 1
-            self._warn(f'trajectory not sent: the controller would refuse it ({refusal.rule.value}): '
-                       f'{refusal.reason}', throttle_duration_sec=WARN_THROTTLE_S)
+            self._warn(f'{what} not sent: the controller would refuse it ({refusal.rule.value}): {refusal.reason}',
+                       throttle_duration_sec=WARN_THROTTLE_S)
             return False
-        self._trajectory_pub.publish(trajectory_message(cfg.driven_joint, points, 0))
+        self._trajectory_pub.publish(trajectory_message(cfg.driven_joint, points, stamp_ns))
         self.counters.trajectories_sent += 1
         self.counters.trajectory_points_sent += len(traj)
         return True
@@ -219,18 +220,8 @@ class Actuation:
                        throttle_duration_sec=WARN_THROTTLE_S)
             return
         traj = converted.trajectory
-        if stream is None:
-            assert isinstance(self.contract, TrajectoryControllerSettings)
-            points = point_fields(traj, cfg.effort_feedforward)
-            refusal = outgoing_refusal(self.contract, cfg.driven_joint, points, stamp_ns, now_ns)
-            if refusal is not None:
-                self.counters.refused[refusal.rule] += 1
-                self._warn(f'antenna trajectory not sent: the controller would refuse it ({refusal.rule.value}): '
-                           f'{refusal.reason}', throttle_duration_sec=WARN_THROTTLE_S)
-                return
-            self._trajectory_pub.publish(trajectory_message(cfg.driven_joint, points, stamp_ns))
-            self.counters.trajectories_sent += 1
-            self.counters.trajectory_points_sent += len(traj)
+        if stream is None and not self._send(cfg, traj, stamp_ns, now_ns, 'antenna trajectory'):
+            return
         self.counters.trajectory_points_inserted += converted.inserted
         self.counters.trajectories_retimed += converted.retimed
         self.motion = Motion(stamp_ns or now_ns, trajectory=traj)
