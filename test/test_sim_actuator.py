@@ -181,12 +181,16 @@ def stamped(msg: JointTrajectory, stamp_ns: int) -> JointTrajectory:
     return msg
 
 
-#: What joint_trajectory_controller refuses (each as the contract's rule), and a NaN the sim refuses too.
+#: What joint_trajectory_controller refuses (each as the contract's rule), and a NaN the sim refuses too. With the
+#: shipped controllers YAML (allow_partial_joints_goal false) empty joint names break the joint count first, so the
+#: NO_JOINT_NAMES rule is reached only with partial goals allowed (test_controller_contract).
 BAD = {
     ContractRule.FOREIGN_JOINT: JointTrajectory(joint_names=['not_ours'], points=[point(0.9, 1.0)]),
     ContractRule.TIME_NOT_INCREASING: JointTrajectory(joint_names=[JOINT], points=[point(0.9, 1.0), point(0.95, 0.5)]),
     ContractRule.PARTIAL_JOINTS: JointTrajectory(joint_names=[JOINT, 'b'], points=[point(0.9, 1.0)]),
     ContractRule.NO_POINTS: JointTrajectory(joint_names=[JOINT], points=[]),
+    ContractRule.FIELD_SIZE: JointTrajectory(joint_names=[JOINT], points=[JointTrajectoryPoint(
+        positions=[Q0 + 0.01, 0.0], time_from_start=Duration(sec=1))]),
     ContractRule.EFFORT_FIELD: JointTrajectory(joint_names=[JOINT], points=[JointTrajectoryPoint(
         positions=[Q0 + 0.01], effort=[0.5], time_from_start=Duration(sec=1))]),
     ContractRule.END_MOVING: JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.01, 1.0, 0.004)]),
