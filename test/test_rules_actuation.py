@@ -164,3 +164,28 @@ def test_forward_setpoints_of_a_trajectory_follow_the_controllers_spline() -> No
     motion = Motion(0, trajectory=out)
     for t, p in zip(stream.times[::17], stream.positions[::17], strict=True):
         assert p == pytest.approx(motion.state_at(round(t * 1e9)).position, abs=1e-13)
+
+
+def test_setpoint_streams_are_held_to_every_limit_by_their_divided_differences() -> None:
+    from fourbar_ros.motion.errors import LimitError
+    from fourbar_ros.motion.planner import Setpoints
+    from fourbar_ros.rules.actuation import checked_setpoints
+
+    q = driven_angles(CFG, np.array([CFG.theta_min, CFG.theta_max]))
+    plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
+    stream = planned_setpoints(CFG, plan)  # samples of a jerk-limited profile: within every limit
+    assert checked_setpoints(CFG, stream) is stream
+    # A step of acceleration at the limit's speed: speed within, acceleration over.
+    h = 1.0 / CFG.control_rate
+    t = np.arange(20) * h
+    v = 0.9 * LIMITS.at_rocker(1)
+    p = float(q[0]) + np.where(t < 0.1, 0.0, v * (t - 0.1))
+    with pytest.raises(LimitError, match='motor acceleration'):
+        checked_setpoints(CFG, Setpoints(t, p))
+    # A parabola at 0.9 of the acceleration limit whose acceleration switches sign: jerk over, the rest within.
+    a = 0.9 * LIMITS.at_rocker(2)
+    s = np.arange(40) * h
+    late = s - 0.2
+    p2 = float(q[0]) + np.where(s < 0.2, 0.5 * a * s * s, 0.5 * a * 0.04 + a * 0.2 * late - 0.5 * a * late ** 2)
+    with pytest.raises(LimitError, match='motor jerk'):
+        checked_setpoints(CFG, Setpoints(s, p2))

@@ -82,7 +82,7 @@ class SimActuator(Node):
         self.follower = TrajectoryFollower(jtc, s.joint, self.drive.position)
         self._clock: Any = self.get_clock()
         self._last_tick_ns: int | None = None
-        self._last_measured = (self.drive.position, 0.0)
+        self._reference = self.drive.position  # the position command the drive follows until the next update
         self._msg = JointState()
         self._msg.name = [s.joint]
         self._pub = self.create_publisher(JointState, BROADCASTER_JOINT_STATES.name, qos(BROADCASTER_JOINT_STATES))
@@ -117,12 +117,7 @@ class SimActuator(Node):
         last, self._last_tick_ns = self._last_tick_ns, ns
         dt = 0.0 if last is None or ns < last else (ns - last) * 1e-9  # a clock jumping back restarts the steps
         drive = self.drive
-        reason = self.follower.holding_reason
-        # The controller's update reads the state the hardware reported last, then commands the drive.
-        reference = self.follower.reference(ns * 1e-9, *self._last_measured)
-        if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
-            self._warn(self.follower.holding_reason, throttle_duration_sec=WARN_THROTTLE_S)
-        drive.advance(dt, reference.position)
+        drive.advance(dt, self._reference)  # the position command of the last update, held over the interval
         try:
             effort = effort_at(self.config, drive.position)
         except FourBarError as exc:  # the drive stays in the tilt range's rocker range: a core bug if here
@@ -132,9 +127,13 @@ class SimActuator(Node):
         if not all(math.isfinite(v) for v in measured):
             self.counters.joint_states_skipped += 1
             return
-        self._last_measured = (measured[0], measured[1])
         msg = self._msg
         msg.header.stamp = now.to_msg()
         msg.position, msg.velocity, msg.effort = [measured[0]], [measured[1]], [measured[2]]
         self._pub.publish(msg)
         self.counters.joint_states_published += 1
+        # The controller's update: the state just read, then the command for the next interval.
+        reason = self.follower.holding_reason
+        self._reference = self.follower.reference(ns * 1e-9, measured[0], measured[1]).position
+        if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
+            self._warn(self.follower.holding_reason, throttle_duration_sec=WARN_THROTTLE_S)

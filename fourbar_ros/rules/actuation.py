@@ -60,7 +60,7 @@ from fourbar_ros.motion.planner import (
 )
 from fourbar_ros.motion.refine import refine
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients
-from fourbar_ros.motion.trajectory import DrivenTrajectory, antenna_trajectory, to_driven
+from fourbar_ros.motion.trajectory import DrivenTrajectory, SplineKind, antenna_trajectory, to_driven
 from fourbar_ros.rules.controller_contract import ContractRule, PointLike, Refusal, check_trajectory, duration_ns
 
 __all__ = ['ActuationCounters', 'Converted', 'DurationFields', 'EndMovingError', 'EndsInPastError', 'Motion',
@@ -296,12 +296,18 @@ def trajectory_setpoints(cfg: AntennaConfig, traj: DrivenTrajectory) -> Setpoint
     i = np.clip(np.searchsorted(traj.times, times, side='right') - 1, 0, len(traj) - 2)
     h = traj.times[i + 1] - traj.times[i]
     s = np.clip((times - traj.times[i]) / h, 0.0, 1.0)
-    return checked_setpoints(cfg, Setpoints(times, evaluate(c[i], s[:, None])[:, 0]))
+    # What the spline bounds: linear segments their speed, cubic ones their acceleration too (it may step at a
+    # point, where the jerk is unbounded), quintic ones the jerk as well.
+    orders = {SplineKind.LINEAR: 1, SplineKind.CUBIC: 2, SplineKind.QUINTIC: 3}[traj.kind]
+    return checked_setpoints(cfg, Setpoints(times, evaluate(c[i], s[:, None])[:, 0]), orders)
 
 
-def checked_setpoints(cfg: AntennaConfig, out: Setpoints) -> Setpoints:
-    """``out`` if each setpoint is within the driven joint's range over [theta_min, theta_max] and no step between
-    two setpoints is faster than the motor's speed limit; else LimitError naming the worst."""
+def checked_setpoints(cfg: AntennaConfig, out: Setpoints, orders: int = 3) -> Setpoints:
+    """``out`` if each setpoint is within the driven joint's range over [theta_min, theta_max] and the stream's
+    speed, acceleration and jerk (up to the derivative ``orders`` its source bounds), as its divided differences give
+    them (k! f[t_i .. t_i+k] for order k), are within the motor's limits; else LimitError naming the worst. Samples of
+    a motion within the limits pass: each divided difference is an average of the motion's own derivative between
+    its samples."""
     lower, upper = np.sort(driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max])))
     p = out.positions
     outside = (p < lower) | (p > upper)
@@ -309,14 +315,26 @@ def checked_setpoints(cfg: AntennaConfig, out: Setpoints) -> Setpoints:
         i = int(np.argmax(outside))
         raise LimitError(f'setpoint {i} (t = {float(out.times[i]):.6g} s): position {float(p[i])!r} rad is outside '
                          f'the driven joint\'s range [{float(lower)!r}, {float(upper)!r}] rad')
-    if p.size > 1:
-        limits = JointLimits.from_config(cfg)
-        speed = limits.ratio * np.abs(np.diff(p)) / np.diff(out.times)
-        i = int(np.argmax(speed))
-        if speed[i] > limits.motor_speed:
-            raise LimitError(f'setpoints {i} and {i + 1}: motor speed {float(speed[i]):.6g} rad/s exceeds its limit '
-                             f'{limits.motor_speed:.6g} rad/s')
+    limits = JointLimits.from_config(cfg)
+    t, diff, factorial = out.times, p, 1.0
+    ulp = float(np.spacing(np.max(np.abs(p)))) if p.size else 0.0
+    for order in range(1, orders + 1):
+        if diff.size < 2:
+            break
+        diff = np.diff(diff) / (t[order:] - t[:-order])  # Newton's divided differences
+        factorial *= order
+        value = limits.ratio * factorial * np.abs(diff)
+        # The positions' own rounding (half an ulp each) moves an order-k difference by up to 2^k ulp / h^k.
+        rounding = limits.ratio * 2.0 ** order * ulp / float(np.min(np.diff(t))) ** order
+        i = int(np.argmax(value))
+        if value[i] > limits.motor(order) + rounding:
+            name, unit = _SETPOINT_QUANTITIES[order]
+            raise LimitError(f'setpoints {i} to {i + order}: motor {name} {float(value[i]):.6g} {unit} exceeds its '
+                             f'limit {limits.motor(order):.6g} {unit}')
     return out
+
+
+_SETPOINT_QUANTITIES = {1: ('speed', 'rad/s'), 2: ('acceleration', 'rad/s^2'), 3: ('jerk', 'rad/s^3')}
 
 
 def replan_start(motion: Motion | None, measured: JointMotionState | None, now_ns: int, tolerance: float,
