@@ -29,6 +29,7 @@ from typing import Any
 from benchmarks import CONFIG, options, print_json
 from benchmarks.process_bench import make_bag
 from benchmarks.timing import cpu_seconds
+from fourbar_ros.config.interface import DEFAULT_STORAGE, Storage
 
 WINDOWS = (1, 16)
 
@@ -152,7 +153,7 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
 def run(quick: bool) -> dict[str, Any]:
     """Figures for benchmarks/run.py: per storage, the replay rate, the read rates and their ratios."""
     n, repeats = (1000, 2) if quick else (5000, 3)
-    storages = ('mcap',) if quick else ('mcap', 'sqlite3')
+    storages = (DEFAULT_STORAGE,) if quick else tuple(Storage)
     out: dict[str, Any] = {'command': 'python -m benchmarks.bag_bench' + (' --quick' if quick else ''),
                            'bag_commands': n, 'repeats': repeats}
     with tempfile.TemporaryDirectory() as tmp:
@@ -163,13 +164,13 @@ def run(quick: bool) -> dict[str, Any]:
             reads += [read_rates(bag) for _ in range(repeats)]  # before and after: same machine load
             raw = statistics.median(r[0] for r in reads)
             decoded = statistics.median(r[1] for r in reads)
-            out[storage] = {**replay, 'rosbags_raw_read_msg_per_s': raw,
+            out[storage.value] = {**replay, 'rosbags_raw_read_msg_per_s': raw,
                             'rosbags_decoded_read_cmd_per_s': decoded}
             for kind in ('events', 'single'):
                 for window in WINDOWS:
                     rate = replay[kind][f'replay_window{window}_cmd_per_s']
-                    out[storage][kind][f'window{window}_over_raw_read'] = rate / raw
-                    out[storage][kind][f'window{window}_over_decoded_read'] = rate / decoded
+                    out[storage.value][kind][f'window{window}_over_raw_read'] = rate / raw
+                    out[storage.value][kind][f'window{window}_over_decoded_read'] = rate / decoded
     return out
 
 

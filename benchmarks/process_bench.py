@@ -32,12 +32,13 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks import CONFIG, REPO, print_json
+from fourbar_ros.config.interface import DEFAULT_STORAGE, Storage
 
 T0_NS = 1_700_000_000 * 1_000_000_000
 BLOCK = 65536  #: messages encoded at a time
 
 
-def make_bag(path: Path, n: int, storage: str, bad_every: int = 1000) -> Path:
+def make_bag(path: Path, n: int, storage: Storage, bad_every: int = 1000) -> Path:
     """``n`` commands sweeping theta_min -> theta_max -> theta_min (period 200) at 100 Hz; every ``bad_every``-th
     a NaN (the policy path too; 0: none)."""
     import numpy as np
@@ -63,13 +64,14 @@ def make_bag(path: Path, n: int, storage: str, bad_every: int = 1000) -> Path:
     return path
 
 
-def copy_bag(src: Path, dst: Path, storage: str) -> int:
+def copy_bag(src: Path, dst: Path, storage: Storage) -> int:
     """Read every raw message with rosbags and write it to a new bag; the number of messages."""
-    from rosbags.rosbag2 import Reader, StoragePlugin, Writer
+    from rosbags.rosbag2 import Reader, Writer
 
     from fourbar_ros.bags.storage import jazzy_typestore
+    from fourbar_ros.bags.storage.adapters import adapter
 
-    plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+    plugin = adapter(storage).plugin
     count = 0
     with Reader(src) as reader, Writer(dst, version=9, storage_plugin=plugin) as writer:
         conns = {c.id: writer.add_connection(c.topic, c.msgtype, typestore=jazzy_typestore())
@@ -80,7 +82,7 @@ def copy_bag(src: Path, dst: Path, storage: str) -> int:
     return count
 
 
-def process(src: Path, dst: Path, storage: str) -> int:
+def process(src: Path, dst: Path, storage: Storage) -> int:
     """`fourbar process SRC DST --params config/antenna.yaml --storage STORAGE`; the commands processed."""
     from fourbar_ros.bags.process import process_bag
     from fourbar_ros.config.antenna_config import load_config
@@ -91,7 +93,7 @@ def process(src: Path, dst: Path, storage: str) -> int:
 KINDS: dict[str, Callable[[Path, Path, str], int]] = {'copy': copy_bag, 'process': process}
 
 
-def timed(kind: str, src: Path, out: Path, storage: str) -> float:
+def timed(kind: str, src: Path, out: Path, storage: Storage) -> float:
     """Seconds of one copy or process into ``out`` (removed before and after)."""
     shutil.rmtree(out, ignore_errors=True)
     start = time.perf_counter()
@@ -101,7 +103,7 @@ def timed(kind: str, src: Path, out: Path, storage: str) -> float:
     return seconds
 
 
-def speed(n: int, rounds: int, storage: str) -> dict[str, Any]:
+def speed(n: int, rounds: int, storage: Storage) -> dict[str, Any]:
     """Interleaved rounds of copy and process on one n-command bag."""
     with tempfile.TemporaryDirectory(prefix='process_bench.') as tmp:
         bag = make_bag(Path(tmp) / 'commands', n, storage)
@@ -112,12 +114,12 @@ def speed(n: int, rounds: int, storage: str) -> dict[str, Any]:
             for kind, row in times.items():
                 row.append(timed(kind, bag, out, storage))
     copy_s, process_s = statistics.median(times['copy']), statistics.median(times['process'])
-    return {'commands': n, 'storage': storage, 'rounds': rounds, 'copy_s': times['copy'],
+    return {'commands': n, 'storage': storage.value, 'rounds': rounds, 'copy_s': times['copy'],
             'process_s': times['process'], 'copy_median_s': copy_s, 'process_median_s': process_s,
             'ratio': process_s / copy_s}
 
 
-def child(kind: str, src: Path, dst: Path, storage: str) -> None:
+def child(kind: str, src: Path, dst: Path, storage: Storage) -> None:
     """Run one copy or process in this (fresh) process and print its peak RSS.
 
     VmHWM, not getrusage's ru_maxrss: Linux carries the parent's peak at fork into a child's ru_maxrss even after
@@ -129,7 +131,7 @@ def child(kind: str, src: Path, dst: Path, storage: str) -> None:
     print(json.dumps({'kind': kind, 'seconds': seconds, 'max_rss_mib': int(peak.split()[1]) / 1024}))
 
 
-def memory(sizes: list[int], storage: str) -> list[dict[str, Any]]:
+def memory(sizes: list[int], storage: Storage) -> list[dict[str, Any]]:
     """Peak RSS of a fresh process copying and processing each size."""
     rows = []
     for n in sizes:
@@ -137,7 +139,7 @@ def memory(sizes: list[int], storage: str) -> list[dict[str, Any]]:
             bag = make_bag(Path(tmp) / 'commands', n, storage)
             for kind in KINDS:
                 done = subprocess.run([sys.executable, '-m', 'benchmarks.process_bench', '--child', kind,
-                                       str(bag), str(Path(tmp) / kind), '--storage', storage],
+                                       str(bag), str(Path(tmp) / kind), '--storage', storage.value],
                                       cwd=REPO, capture_output=True, text=True, check=True)
                 rows.append({**json.loads(done.stdout.strip().splitlines()[-1]), 'commands': n})
     return rows
@@ -146,17 +148,17 @@ def memory(sizes: list[int], storage: str) -> list[dict[str, Any]]:
 def run(quick: bool) -> dict[str, Any]:
     """For ``python -m benchmarks.run``: the speed ratio and peak memory (at two bag sizes in a full run)."""
     n, rounds = (20_000, 3) if quick else (200_000, 5)
-    figures: dict[str, Any] = {'speed': speed(n, rounds, 'mcap')}
+    figures: dict[str, Any] = {'speed': speed(n, rounds, DEFAULT_STORAGE)}
     figures['process_over_copy_ratio'] = figures['speed']['ratio']
     figures['memory'] = {f'{r["kind"]}_{r["commands"]}_peak_rss_mib': r['max_rss_mib']
-                         for r in memory([20_000] if quick else [200_000, 2_000_000], 'mcap')}
+                         for r in memory([20_000] if quick else [200_000, 2_000_000], DEFAULT_STORAGE)}
     return figures
 
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or '').splitlines()[0])
     parser.add_argument('--rounds', type=int, default=3)
-    parser.add_argument('--storage', choices=('mcap', 'sqlite3'), default='mcap')
+    parser.add_argument('--storage', type=Storage, choices=tuple(Storage), default=DEFAULT_STORAGE)
     parser.add_argument('--memory', type=int, nargs='+', metavar='N', help='peak RSS for these bag sizes')
     parser.add_argument('--child', nargs=3, metavar=('KIND', 'IN', 'OUT'), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)

@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parent.parent
 if str(REPO) not in sys.path:  # runnable without installing the package
     sys.path.insert(0, str(REPO))
 
-from fourbar_ros.bags.storage import STORAGES, write_command_bag  # noqa: E402
+from fourbar_ros.bags.storage import DEFAULT_STORAGE, Storage, write_command_bag  # noqa: E402
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config  # noqa: E402
 
 #: First stamp of every bag: 2023-11-14T22:13:20Z, in ns since the epoch.
@@ -141,10 +141,10 @@ def _custom(kind: str, cfg: AntennaConfig, params: Path) -> dict[str, str]:
 def write_all(out: Path, demo: Path | None, params: Path, force: bool = False) -> list[Path]:
     """Write every bag under ``out`` (and the demo bag at ``demo``); return the bag paths."""
     cfg = load_config(params)
-    targets: list[tuple[Path, str, str]] = [
-        (out / f'{kind}_{storage}', kind, storage) for kind in KINDS for storage in STORAGES]
+    targets: list[tuple[Path, str, Storage]] = [
+        (out / f'{kind}_{storage}', kind, storage) for kind in KINDS for storage in Storage]
     if demo is not None:
-        targets.append((demo, 'sweep', 'mcap'))
+        targets.append((demo, 'sweep', DEFAULT_STORAGE))
     for path, _, _ in targets:
         if path.exists():
             if not force:

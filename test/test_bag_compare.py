@@ -17,6 +17,7 @@ from fourbar_ros.bags.compare import compare_bags
 from fourbar_ros.bags.process import process_bag
 from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_commands
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, load_config
+from fourbar_ros.config.interface import Storage
 
 STORE = jazzy_typestore()
 
@@ -68,7 +69,7 @@ def ulps_up(x: float, n: int) -> float:
 
 
 def test_a_bag_equals_itself_and_its_other_storage(processed: Path, cfg: AntennaConfig, tmp_path: Path) -> None:
-    process_bag(BAG_DIR / 'jitter_mcap', tmp_path / 'sqlite', cfg, storage='sqlite3')
+    process_bag(BAG_DIR / 'jitter_mcap', tmp_path / 'sqlite', cfg, storage=Storage.SQLITE3)
     result = compare_bags(processed, tmp_path / 'sqlite', cfg)
     assert result.equal and result.compared == {'/joint_states': 300, '/input_torque': 300}
     rc, _, out = run_main(['compare', processed, processed, '--params', CONFIG])

@@ -31,6 +31,7 @@ from fourbar_ros.bags.storage import (
     write_command_bag,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
+from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.loads import pose_solver
 from fourbar_ros.rules.policy import Policy, decide
@@ -248,7 +249,7 @@ def test_stopped_run_leaves_nothing(sig: int, tmp_path: Path) -> None:
     output nor its temporary directory left."""
     from benchmarks.process_bench import make_bag
 
-    make_bag(tmp_path / 'in', 400_000, 'mcap')  # long enough to be mid-write when the signal arrives
+    make_bag(tmp_path / 'in', 400_000, Storage.MCAP)  # long enough to be mid-write when the signal arrives
     out = tmp_path / 'outputs'
     with Tool(['process', tmp_path / 'in', out], dict(os.environ)) as tool:
         wait_for(lambda: any(p.name.endswith('.partial') for p in tmp_path.iterdir()), what='the partial bag')

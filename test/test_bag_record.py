@@ -14,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from ros_support import NodeProcess, RosSession, wait_for
 
 from fourbar_ros.bags.storage import fingerprint, jazzy_typestore, read_messages
+from fourbar_ros.config.interface import Storage
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -25,7 +26,7 @@ def _listing(root: Path) -> list[str]:
     return sorted(str(p.relative_to(root)) for p in root.rglob('*'))
 
 
-def _record_until_signal(ros: RosSession, out: Path, storage: str, sig: int) -> tuple[int, list[str]]:
+def _record_until_signal(ros: RosSession, out: Path, storage: Storage, sig: int) -> tuple[int, list[str]]:
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics', qos=100)
     try:
         with NodeProcess(NODE_ARGS, ros.env()), \
@@ -40,10 +41,10 @@ def _record_until_signal(ros: RosSession, out: Path, storage: str, sig: int) -> 
         ros.uncollect(diagnostics)
 
 
-@pytest.mark.parametrize('storage, sig', [('mcap', signal.SIGINT), ('sqlite3', signal.SIGINT),
-                                          ('mcap', signal.SIGTERM)],
+@pytest.mark.parametrize('storage, sig', [(Storage.MCAP, signal.SIGINT), (Storage.SQLITE3, signal.SIGINT),
+                                          (Storage.MCAP, signal.SIGTERM)],
                          ids=['mcap-SIGINT', 'sqlite3-SIGINT', 'mcap-SIGTERM'])
-def test_stop_by_signal_leaves_a_complete_bag(storage: str, sig: int, ros: RosSession, tmp_path: Path) -> None:
+def test_stop_by_signal_leaves_a_complete_bag(storage: Storage, sig: int, ros: RosSession, tmp_path: Path) -> None:
     out = tmp_path / 'rec'
     rc, lines = _record_until_signal(ros, out, storage, sig)
     assert rc == 0, lines
@@ -53,12 +54,12 @@ def test_stop_by_signal_leaves_a_complete_bag(storage: str, sig: int, ros: RosSe
     diag = recorded['/diagnostics']
     assert len(diag) >= 1 and all(m.status for _, m in diag)
     assert recorded['/joint_states'] == [] and recorded['/input_torque'] == []  # no commands were sent
-    other = read_with_mcap(out) if storage == 'mcap' else read_with_sqlite(out)
+    other = read_with_mcap(out) if storage is Storage.MCAP else read_with_sqlite(out)
     assert [t for t, _ in other['/diagnostics']] == [t for t, _ in diag]
     assert [m.status[0].message for _, m in other['/diagnostics']] == [m.status[0].message for _, m in diag]
 
     info = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    assert info['version'] == 9 and info['storage_identifier'] == storage
+    assert info['version'] == 9 and info['storage_identifier'] == storage.value
     assert info['message_count'] == len(diag)
     topics = {t['topic_metadata']['name']: t for t in info['topics_with_message_count']}
     assert set(topics) == {'/joint_states', '/input_torque', '/diagnostics'}
@@ -91,7 +92,7 @@ def test_recorded_hashes_match_the_live_graph(ros: RosSession, tmp_path: Path) -
 
 def test_sigkill_leaves_no_bag_at_out(ros: RosSession, tmp_path: Path) -> None:
     out = tmp_path / 'rec'
-    rc, _ = _record_until_signal(ros, out, 'mcap', signal.SIGKILL)
+    rc, _ = _record_until_signal(ros, out, Storage.MCAP, signal.SIGKILL)
     assert rc == -signal.SIGKILL
     assert not out.exists()
     # Only the hidden work directory remains; it never has the bag's name.

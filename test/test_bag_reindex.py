@@ -36,15 +36,14 @@ from fourbar_ros.bags.storage import (
     recorded_qos,
     reindex,
 )
-
-STORAGES = ('mcap', 'sqlite3')
+from fourbar_ros.config.interface import Storage
 
 # A writer that flushes after FLUSHED messages, writes UNFLUSHED more and dies without any cleanup.
 KILLED_WRITER = '''
 import os, sys
-from fourbar_ros.bags.storage import AtomicBagWriter, FLOAT64, DIAGNOSTIC_ARRAY, float64_cdr, recorded_qos
+from fourbar_ros.bags.storage import AtomicBagWriter, FLOAT64, DIAGNOSTIC_ARRAY, Storage, float64_cdr, recorded_qos
 out, storage, flushed, unflushed = sys.argv[1], sys.argv[2], int(sys.argv[3]), int(sys.argv[4])
-bag = AtomicBagWriter(out, storage)
+bag = AtomicBagWriter(out, Storage(storage))
 bag.open()
 cmd = bag.add_topic('/antenna_angle_cmd', FLOAT64, [recorded_qos()])
 bag.add_topic('/diagnostics', DIAGNOSTIC_ARRAY, [recorded_qos(transient_local=True)])
@@ -56,13 +55,13 @@ os._exit(9)
 '''
 
 
-def _killed_writer(out: Path, storage: str, flushed: int, unflushed: int) -> None:
-    proc = subprocess.run([sys.executable, '-c', KILLED_WRITER, str(out), storage, str(flushed), str(unflushed)],
+def _killed_writer(out: Path, storage: Storage, flushed: int, unflushed: int) -> None:
+    proc = subprocess.run([sys.executable, '-c', KILLED_WRITER, str(out), storage.value, str(flushed), str(unflushed)],
                           check=False, cwd=REPO, capture_output=True, text=True, timeout=TIMEOUT)
     assert proc.returncode == 9, proc.stderr
 
 
-def _clean_bag(out: Path, storage: str, n: int) -> Path:
+def _clean_bag(out: Path, storage: Storage, n: int) -> Path:
     """What a clean recording of the first ``n`` messages would have written."""
     from fourbar_ros.bags.storage import DIAGNOSTIC_ARRAY
 
@@ -74,8 +73,8 @@ def _clean_bag(out: Path, storage: str, n: int) -> Path:
     return out
 
 
-@pytest.mark.parametrize('storage', STORAGES)
-def test_killed_writer_keeps_the_flushed_messages(storage: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize('storage', list(Storage))
+def test_killed_writer_keeps_the_flushed_messages(storage: Storage, tmp_path: Path) -> None:
     out = tmp_path / 'rec'
     # 3000 unflushed messages (~120 KB) are still in the open mcap chunk or sqlite3 transaction when it dies.
     _killed_writer(out, storage, 500, 3000)
@@ -88,14 +87,14 @@ def test_killed_writer_keeps_the_flushed_messages(storage: str, tmp_path: Path) 
     # Everything that defines the content equals a clean bag of the flushed messages; only custom data
     # (none here) cannot be recovered.
     assert fingerprint(out) == fingerprint(_clean_bag(tmp_path / 'clean', storage, 500))
-    other = read_with_mcap(out) if storage == 'mcap' else read_with_sqlite(out)
+    other = read_with_mcap(out) if storage is Storage.MCAP else read_with_sqlite(out)
     assert [m.data for _, m in other['/antenna_angle_cmd']] == [i * 0.001 for i in range(500)]
     info = yaml.safe_load((out / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
-    assert info['message_count'] == 500 and info['storage_identifier'] == storage
+    assert info['message_count'] == 500 and info['storage_identifier'] == storage.value
 
 
-@pytest.mark.parametrize('storage', STORAGES)
-def test_reindex_rebuilds_a_bag_directory_in_place(storage: str, tmp_path: Path) -> None:
+@pytest.mark.parametrize('storage', list(Storage))
+def test_reindex_rebuilds_a_bag_directory_in_place(storage: Storage, tmp_path: Path) -> None:
     """A bag directory without metadata.yaml (e.g. moved out of the work directory by hand)."""
     out = tmp_path / 'rec'
     _killed_writer(out, storage, 40, 3)
@@ -115,7 +114,7 @@ def test_reindex_in_place_stopped_between_renames_leaves_one_bag(renames_before_
     """A Ctrl-C right after the old bag is moved aside (1) or the new one moved in (2): one bag at the path, the old
     one or the rebuilt one, and nothing of the rebuild beside it."""
     out = tmp_path / 'rec'
-    _killed_writer(out, 'mcap', 40, 3)
+    _killed_writer(out, Storage.MCAP, 40, 3)
     [work] = partial_dirs(out)
     moved = tmp_path / 'moved'
     (work / 'rec').rename(moved)
@@ -145,8 +144,8 @@ def test_reindex_errors_are_one_line_and_change_nothing(tmp_path: Path) -> None:
     rc, lines, _ = run_main(['reindex', out])
     assert rc == 2 and lines == [f'fourbar reindex: error: {out}: no such bag and no interrupted recording '
                                  '(.rec.*.partial) next to it']
-    _killed_writer(out, 'mcap', 5, 0)
-    _killed_writer(out, 'mcap', 6, 0)
+    _killed_writer(out, Storage.MCAP, 5, 0)
+    _killed_writer(out, Storage.MCAP, 6, 0)
     before = sorted(p.name for p in tmp_path.iterdir())
     with pytest.raises(BagError, match=r'2 interrupted recordings .*pass the one to recover'):
         reindex(out)
@@ -160,7 +159,7 @@ def test_reindex_errors_are_one_line_and_change_nothing(tmp_path: Path) -> None:
         reindex(out)
     # A work directory killed before any message was flushed has nothing to recover.
     empty = tmp_path / 'empty'
-    _killed_writer(empty, 'mcap', 0, 3)
+    _killed_writer(empty, Storage.MCAP, 0, 3)
     with pytest.raises(BagError, match='no complete topic to recover'):
         reindex(empty)
     assert not empty.exists() and len(partial_dirs(empty)) == 1
@@ -169,7 +168,7 @@ def test_reindex_errors_are_one_line_and_change_nothing(tmp_path: Path) -> None:
 def test_reindex_recovers_from_a_truncated_mcap(tmp_path: Path) -> None:
     """A file cut anywhere keeps every chunk that ends before the cut (here: cut inside the last chunk)."""
     # Build a file of three flushed chunks, then cut it in the middle of the third.
-    bag = AtomicBagWriter(tmp_path / 'src', 'mcap')
+    bag = AtomicBagWriter(tmp_path / 'src', Storage.MCAP)
     bag.open()
     conn = bag.add_topic('/antenna_angle_cmd', FLOAT64, [recorded_qos()])
     sizes = []
@@ -194,7 +193,7 @@ def test_reindex_recovers_from_a_truncated_mcap(tmp_path: Path) -> None:
 
 # --------------------------------------------------------------------------- SIGKILL of `fourbar record`
 
-def _on_disk(out: Path, storage: str) -> list[float]:
+def _on_disk(out: Path, storage: Storage) -> list[float]:
     """The stream values already in the recorder's work directory, read without changing anything."""
     dirs = partial_dirs(out)
     if not dirs:
@@ -204,7 +203,7 @@ def _on_disk(out: Path, storage: str) -> list[float]:
         return []
     store = jazzy_typestore()
     values: list[float] = []
-    if storage == 'mcap':
+    if storage is Storage.MCAP:
         from mcap.records import Message
         from mcap.stream_reader import StreamReader
 
@@ -229,8 +228,8 @@ def _on_disk(out: Path, storage: str) -> list[float]:
 
 @pytest.mark.ros
 @pytest.mark.slow
-@pytest.mark.parametrize('storage', STORAGES)
-def test_sigkill_while_streaming_keeps_all_but_the_last_interval(storage: str, ros: RosSession,
+@pytest.mark.parametrize('storage', list(Storage))
+def test_sigkill_while_streaming_keeps_all_but_the_last_interval(storage: Storage, ros: RosSession,
                                                                  tmp_path: Path) -> None:
     out = tmp_path / 'rec'
     interval = 0.5
@@ -262,7 +261,7 @@ def test_sigkill_while_streaming_keeps_all_but_the_last_interval(storage: str, r
     rc, lines, _ = run_main(['reindex', out])
     assert rc == 0, lines
     values = [m.data for _, m in read_messages(out)['/fourbar_reindex_stream']]
-    other = read_with_mcap(out) if storage == 'mcap' else read_with_sqlite(out)
+    other = read_with_mcap(out) if storage is Storage.MCAP else read_with_sqlite(out)
     assert [m.data for _, m in other['/fourbar_reindex_stream']] == values
     kept = len(values)
     # Reliable QoS, in order: what is kept is a gap-free prefix of what was sent, and holds everything that

@@ -28,6 +28,7 @@ from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
+from fourbar_ros.config.interface import Storage
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -97,8 +98,8 @@ def replay_through_node(ros: RosSession, bag: Path, out: Path, cfg: AntennaConfi
 
     recorded = read_messages(out)  # rosbags
     check_outputs(recorded, thetas, cfg, 'rosbags')
-    independent = read_with_mcap(out) if stream.storage == 'mcap' else read_with_sqlite(out)
-    check_outputs(independent, thetas, cfg, 'mcap' if stream.storage == 'mcap' else 'sqlite3+rclpy')
+    independent = read_with_mcap(out) if stream.storage is Storage.MCAP else read_with_sqlite(out)
+    check_outputs(independent, thetas, cfg, 'mcap' if stream.storage is Storage.MCAP else 'sqlite3+rclpy')
     assert int(values['joint_states_published']) == n and int(values['input_torque_published']) == n
     return values
 

@@ -25,7 +25,7 @@ def _numeric(action: argparse.Action) -> type | None:
         return None
     try:
         value = action.type('1')
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, argparse.ArgumentTypeError):
         return None
     return type(value) if type(value) in (int, float) else None
 

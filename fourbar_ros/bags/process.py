@@ -30,6 +30,7 @@ from fourbar_ros.bags.storage import (
     JOINT_STATE,
     AtomicBagWriter,
     BagError,
+    Storage,
     jazzy_typestore,
     open_bag,
     pick_command_topic,
@@ -128,11 +129,11 @@ def _command_blocks(reader: Any, conns: list[Any], path: Path, topic: str,
 
 
 def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
-                topic: str | None = None, storage: str | None = None, block: int = BLOCK,
+                topic: str | None = None, storage: Storage | None = None, block: int = BLOCK,
                 on_block: Callable[[int], None] | None = None) -> ProcessStats:
     """Write to ``dst`` the joint_states and input_torque fourbar_node would publish for the commands of
     ``src`` (see the module docstring). ``topic``: the command topic (default: pick_command_topic's choice of
-    ``/antenna_angle_cmd``); ``storage``: 'mcap' or 'sqlite3' (default: the input's). ``on_block(n)`` is
+    ``/antenna_angle_cmd``); ``storage``: the output's (default: the input's). ``on_block(n)`` is
     called with the number of commands done after each block. Raises BagError (one line) for bad input;
     ``dst`` then does not appear.
     """

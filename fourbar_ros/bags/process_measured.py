@@ -28,6 +28,7 @@ from fourbar_ros.bags.storage import (
     JOINT_STATE,
     AtomicBagWriter,
     BagError,
+    Storage,
     jazzy_typestore,
     open_bag,
     recorded_qos,
@@ -113,7 +114,7 @@ class _Block:
 
 
 def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
-                         topic: str | None = None, storage: str | None = None, block: int = BLOCK) -> MeasuredStats:
+                         topic: str | None = None, storage: Storage | None = None, block: int = BLOCK) -> MeasuredStats:
     """Write to ``dst`` what fourbar_node in an actuator mode publishes for the measured joint states of ``src``
     (see the module docstring). Raises BagError (one line) for bad input; ``dst`` then does not appear."""
     start = time.perf_counter()

@@ -22,6 +22,7 @@ import numpy as np
 from fourbar_ros.bags.storage import (
     AtomicBagWriter,
     BagError,
+    Storage,
     jazzy_typestore,
     open_bag,
     recorded_qos,
@@ -87,7 +88,7 @@ def trajectory_cdr(store: Any, joint: str, points: list[PointFields], stamp_ns: 
 
 
 def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
-                           topic: str | None = None, storage: str | None = None) -> TrajectoryStats:
+                           topic: str | None = None, storage: Storage | None = None) -> TrajectoryStats:
     """Write to ``dst`` what fourbar_node in trajectory mode publishes for the antenna trajectories of ``src``
     (see the module docstring). Raises BagError (one line) for bad input; ``dst`` then does not appear."""
     start = time.perf_counter()

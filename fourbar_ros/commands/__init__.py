@@ -21,6 +21,7 @@ import threading
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
+from fourbar_ros.config.interface import DEFAULT_STORAGE, Storage
 from fourbar_ros.core.errors import FourBarError
 
 _NUMBER = r'(?:(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?|inf(?:inity)?|nan)'
@@ -60,6 +61,22 @@ class Parser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         """A usage error as every other error: one line, ``fourbar <command>: error: ...``, exit status 2."""
         self.exit(2, f'{self.prog}: error: {message} (see {self.prog} --help)\n')
+
+
+def add_storage_argument(parser: argparse.ArgumentParser, help: str, default: Storage | None = DEFAULT_STORAGE) -> None:
+    """``--storage {mcap,sqlite3}``, read as a Storage."""
+    names = ', '.join(map(str, Storage))
+
+    def storage(text: str) -> Storage:
+        try:
+            return Storage(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f'invalid choice: {text!r} (choose from {names})') from None
+
+    if default is not None:
+        help = f'{help} (default: {default})'
+    parser.add_argument('--storage', type=storage, default=default, metavar='{' + names.replace(' ', '') + '}',
+                        help=help)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -15,14 +15,12 @@ import sys
 import time
 from pathlib import Path
 
-from fourbar_ros.commands import CommandError
+from fourbar_ros.commands import CommandError, add_storage_argument
 from fourbar_ros.config.interface import (
     BROADCASTER_JOINT_STATES,
-    DEFAULT_STORAGE,
     DIAGNOSTICS,
     MEASURED_JOINT_STATES,
     NODE_EXECUTABLE,
-    STORAGES,
     STREAM_DEPTH,
 )
 from fourbar_ros.live.node_process import FREE_DOMAIN_IDS
@@ -56,8 +54,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         f'share/fourbar_ros/{DEFAULT_BAG})')
     parser.add_argument('--out', type=Path, default=Path('out/demo'), metavar='DIR',
                         help='output directory: outputs bag, demo.png, node.log (default: out/demo)')
-    parser.add_argument('--storage', choices=STORAGES, default=DEFAULT_STORAGE.value,
-                        help=f'storage of the recorded outputs bag (default: {DEFAULT_STORAGE.value})')
+    add_storage_argument(parser, 'storage of the recorded outputs bag')
     parser.add_argument('--domain-id', type=int, metavar='N',
                         help='ROS_DOMAIN_ID to use, 0..232 (default: the exported ROS_DOMAIN_ID, else the first free '
                         f'one of {_id_ranges(FREE_DOMAIN_IDS)}, searched from a place set by the process id; free: no '

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from fourbar_ros.config.interface import STORAGES
+from fourbar_ros.commands import add_storage_argument
 
 if TYPE_CHECKING:
     from fourbar_ros.config.antenna_config import AntennaConfig
@@ -31,8 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         '*/antenna_angle_cmd), or measured JointState topic (default /joint_states, else the one '
                         '*/joint_states), or antenna trajectory topic (default /antenna_trajectory, else the one '
                         '*/antenna_trajectory); the outputs go next to it')
-    parser.add_argument('--storage', choices=STORAGES,
-                        help='storage plugin of OUT (default: that of IN)')
+    add_storage_argument(parser, 'storage plugin of OUT (default: that of IN)', default=None)
 
 
 def _commands(args: argparse.Namespace, cfg: AntennaConfig) -> str:

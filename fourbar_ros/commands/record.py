@@ -8,8 +8,8 @@ import math
 import sys
 from pathlib import Path
 
-from fourbar_ros.commands import CommandError
-from fourbar_ros.config.interface import DEFAULT_STORAGE, RECORDED_OUTPUTS, STORAGES
+from fourbar_ros.commands import CommandError, add_storage_argument
+from fourbar_ros.config.interface import RECORDED_OUTPUTS
 
 HELP = 'record topics (default: the node outputs) to a rosbag2 bag, mcap by default; Ctrl-C stops it cleanly'
 
@@ -22,8 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--topics', nargs='+', metavar='TOPIC', default=list(DEFAULT_TOPICS),
                         help='topics to record; relative names resolve in the root namespace '
                         f'(default: {" ".join(DEFAULT_TOPICS)})')
-    parser.add_argument('--storage', choices=STORAGES, default=DEFAULT_STORAGE.value,
-                        help=f'storage plugin (default: {DEFAULT_STORAGE.value})')
+    add_storage_argument(parser, 'storage plugin')
     parser.add_argument('--wait', type=float, default=10.0, metavar='S',
                         help='seconds to wait for a publisher on every topic (default: 10)')
     parser.add_argument('--duration', type=float, metavar='S', help='stop after S seconds of recording')

@@ -107,14 +107,16 @@ COMPARED_FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque
 
 
 class Storage(enum.Enum):
-    """rosbag2 storage plugins the bag tools read and write."""
+    """rosbag2 storage plugins the bag tools read and write; the value is the plugin's identifier as
+    metadata.yaml and ``--storage`` spell it."""
 
     MCAP = 'mcap'
     SQLITE3 = 'sqlite3'
 
+    def __str__(self) -> str:
+        return self.value
 
-#: Every storage by its plugin name (command-line choices), the default first.
-STORAGES = tuple(s.value for s in Storage)
+
 DEFAULT_STORAGE = Storage.MCAP
 
 

@@ -22,7 +22,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 
 from fourbar_ros.bags.storage import AtomicBagWriter, BagError, jazzy_typestore, time_from_ns
-from fourbar_ros.config.interface import STREAM_DEPTH
+from fourbar_ros.config.interface import DEFAULT_STORAGE, STREAM_DEPTH, Storage
 from fourbar_ros.live.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
 from fourbar_ros.live.node_params import handshake
 
@@ -124,7 +124,7 @@ class Recorder:
     Call ``close()`` to finish the bag (it appears at ``out``) or ``abort()`` to drop it.
     """
 
-    def __init__(self, node: Node, out: Path, plans: Sequence[TopicPlan], storage: str = 'mcap',
+    def __init__(self, node: Node, out: Path, plans: Sequence[TopicPlan], storage: Storage = DEFAULT_STORAGE,
                  on_message: Callable[[str, int], None] | None = None,
                  flush_interval: float = DEFAULT_FLUSH_INTERVAL) -> None:
         self.node = node

@@ -5,10 +5,8 @@ like ``rosbags``' storage plugins; ``read``, ``write`` and ``reindex`` work on e
 re-exports what the rest of the package uses.
 """
 
-from fourbar_ros.bags.storage.adapters import STORAGES
 from fourbar_ros.bags.storage.common import (
     COMMAND_TOPIC,
-    DEFAULT_STORAGE,
     METADATA_VERSION,
     BagError,
     jazzy_typestore,
@@ -27,11 +25,18 @@ from fourbar_ros.bags.storage.read import (
 )
 from fourbar_ros.bags.storage.reindex import ReindexResult, partial_dirs, reindex
 from fourbar_ros.bags.storage.write import AtomicBagWriter, float64_cdr, write_command_bag
-from fourbar_ros.config.interface import DIAGNOSTIC_ARRAY, FLOAT64, JOINT_STATE, sibling_topic  # re-exported
+from fourbar_ros.config.interface import (  # re-exported
+    DEFAULT_STORAGE,
+    DIAGNOSTIC_ARRAY,
+    FLOAT64,
+    JOINT_STATE,
+    Storage,
+    sibling_topic,
+)
 
 __all__ = [
     'COMMAND_TOPIC', 'DEFAULT_STORAGE', 'DIAGNOSTIC_ARRAY', 'FLOAT64', 'JOINT_STATE', 'METADATA_VERSION',
-    'STORAGES', 'AtomicBagWriter', 'BagError', 'CommandStream', 'ReindexResult', 'fingerprint', 'float64_cdr',
+    'AtomicBagWriter', 'BagError', 'CommandStream', 'ReindexResult', 'Storage', 'fingerprint', 'float64_cdr',
     'jazzy_typestore', 'open_bag', 'partial_dirs', 'pick_command_topic', 'read_commands', 'read_messages',
     'recorded_qos', 'reindex', 'sibling_topic', 'storage_of', 'time_from_ns', 'topic_types',
     'write_command_bag',

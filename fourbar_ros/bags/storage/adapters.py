@@ -1,25 +1,20 @@
-"""The storage adapters by name and by file suffix."""
+"""The storage adapters by storage and by file suffix."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from fourbar_ros.bags.storage.common import BagError
 from fourbar_ros.bags.storage.mcap_storage import McapStorage
 from fourbar_ros.bags.storage.protocol import StorageAdapter
 from fourbar_ros.bags.storage.sqlite3_storage import Sqlite3Storage
+from fourbar_ros.config.interface import Storage
 
-ADAPTERS: dict[str, StorageAdapter] = {a.name: a for a in (McapStorage(), Sqlite3Storage())}
-#: The storage identifiers, the default first.
-STORAGES: tuple[str, ...] = tuple(ADAPTERS)
+ADAPTERS: dict[Storage, StorageAdapter] = {a.storage: a for a in (McapStorage(), Sqlite3Storage())}
 
 
-def adapter(storage: str, path: Path) -> StorageAdapter:
-    """The adapter of ``storage`` ('mcap' or 'sqlite3'); BagError naming ``path`` for any other name."""
-    found = ADAPTERS.get(storage)
-    if found is None:
-        raise BagError(f'{path}: unknown storage {storage!r} (choose from {", ".join(STORAGES)})')
-    return found
+def adapter(storage: Storage) -> StorageAdapter:
+    """The adapter of ``storage``."""
+    return ADAPTERS[storage]
 
 
 def adapter_of_file(file: Path) -> StorageAdapter | None:

@@ -9,7 +9,6 @@ from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, Qo
 from rosbags.typesys import Stores, get_typestore
 
 from fourbar_ros.config.interface import COMMAND
-from fourbar_ros.config.interface import DEFAULT_STORAGE as _DEFAULT
 from fourbar_ros.core.errors import FourBarError
 
 if TYPE_CHECKING:
@@ -17,7 +16,6 @@ if TYPE_CHECKING:
 
 #: The command topic as a recording at the root namespace holds it.
 COMMAND_TOPIC = f'/{COMMAND.name}'
-DEFAULT_STORAGE = _DEFAULT.value
 METADATA_VERSION: Literal[9] = 9  # rosbag2 metadata version of ROS 2 Jazzy
 
 # RMW_DURATION_INFINITE as rosbag2 stores it: 2**63 - 1 ns split into seconds and nanoseconds.

@@ -10,13 +10,14 @@ from rosbags.rosbag2.storage_mcap import McapWriter
 
 from fourbar_ros.bags.storage.common import parse_offered_qos, type_hash
 from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StoredMessage
+from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.errors import one_line
 
 
 class McapStorage:
     """rosbag2's default storage since Iron: one ``.mcap`` file of chunks, a summary and a footer."""
 
-    name = 'mcap'
+    storage = Storage.MCAP
     suffix = '.mcap'
     plugin = StoragePlugin.MCAP
 

@@ -15,6 +15,8 @@ from typing import Protocol
 from rosbags.interfaces import Qos
 from rosbags.rosbag2 import StoragePlugin, Writer
 
+from fourbar_ros.config.interface import Storage
+
 
 @dataclass(frozen=True)
 class FoundTopic:
@@ -46,9 +48,9 @@ class ScanState:
 
 
 class StorageAdapter(Protocol):
-    """One rosbag2 storage: its name, file suffix and rosbags plugin, and what rosbags leaves out."""
+    """One rosbag2 storage: which one, its file suffix and rosbags plugin, and what rosbags leaves out."""
 
-    name: str  #: storage identifier in metadata.yaml: 'mcap' or 'sqlite3'
+    storage: Storage
     suffix: str  #: storage file suffix: '.mcap' or '.db3'
     plugin: StoragePlugin
 

@@ -21,7 +21,7 @@ from rosbags.rosbag2 import Reader
 
 from fourbar_ros.bags.storage.adapters import adapter_of_file
 from fourbar_ros.bags.storage.common import COMMAND_TOPIC, BagError, jazzy_typestore
-from fourbar_ros.config.interface import COMMAND, FLOAT64
+from fourbar_ros.config.interface import COMMAND, FLOAT64, Storage
 from fourbar_ros.core.errors import one_line
 
 
@@ -88,7 +88,7 @@ class CommandStream:
 
     path: Path
     topic: str
-    storage: str
+    storage: Storage
     stamps_ns: tuple[int, ...]
     values: tuple[float, ...]
     raw: tuple[bytes, ...]
@@ -140,13 +140,20 @@ def read_commands(path: str | os.PathLike[str], topic: str | None = None) -> Com
     return CommandStream(p, chosen, storage, tuple(stamps), tuple(values), tuple(raws), tuple(qos))
 
 
-def storage_of(reader: Reader) -> str:
-    """Storage plugin of an open bag: 'mcap' or 'sqlite3'."""
+def storage_of(reader: Reader) -> Storage:
+    """Storage plugin of an open bag; BagError for one the bag tools do not write."""
     path = Path(str(reader.path))
     if path.is_file():
         found = adapter_of_file(path)
-        return found.name if found is not None else ''
-    return str(bag_metadata(path).get('storage_identifier', ''))
+        if found is not None:
+            return found.storage
+        name = path.suffix
+    else:
+        name = str(bag_metadata(path).get('storage_identifier', ''))
+    try:
+        return Storage(name)
+    except ValueError:
+        raise BagError(f'{path}: storage {name!r} is not one of {", ".join(map(str, Storage))}') from None
 
 
 def read_messages(path: str | os.PathLike[str],

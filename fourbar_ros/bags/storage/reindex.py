@@ -15,6 +15,7 @@ from fourbar_ros.bags.storage.common import BagError
 from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StorageAdapter
 from fourbar_ros.bags.storage.read import open_bag
 from fourbar_ros.bags.storage.write import AtomicBagWriter, fsync_path
+from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.errors import one_line
 
 
@@ -28,7 +29,7 @@ class ReindexResult:
     """
 
     path: Path
-    storage: str
+    storage: Storage
     source: Path
     source_bytes: int
     kept_bytes: int
@@ -127,13 +128,13 @@ def reindex(path: str | os.PathLike[str]) -> ReindexResult:
     """
     source, target, work = _source_and_target(Path(path))
     file, storage = _storage_file(source)
-    result = ReindexResult(target, storage.name, file, file.stat().st_size, 0)
+    result = ReindexResult(target, storage.storage, file, file.stat().st_size, 0)
     in_place = target == source
     build = target if not in_place else target.parent / f'.{target.name}.reindexed'
     if build.exists():
         raise BagError(f'{build}: exists already, not overwriting')
     try:
-        with AtomicBagWriter(build, storage.name) as bag:
+        with AtomicBagWriter(build, storage.storage) as bag:
             _copy(file, storage, bag, result)
             if not result.counts:
                 raise BagError(f'{file}: no complete topic to recover ({result.dropped or "empty"})')

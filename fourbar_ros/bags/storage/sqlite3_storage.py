@@ -11,13 +11,14 @@ from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from fourbar_ros.bags.storage.common import parse_offered_qos, type_hash
 from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StoredMessage
+from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.errors import one_line
 
 
 class Sqlite3Storage:
     """rosbag2's storage before Iron: one ``.db3`` sqlite database (topics, messages, definitions)."""
 
-    name = 'sqlite3'
+    storage = Storage.SQLITE3
     suffix = '.db3'
     plugin = StoragePlugin.SQLITE3
 

@@ -25,13 +25,12 @@ from rosbags.rosbag2 import Writer
 from fourbar_ros.bags.storage.adapters import adapter
 from fourbar_ros.bags.storage.common import (
     COMMAND_TOPIC,
-    DEFAULT_STORAGE,
     METADATA_VERSION,
     BagError,
     jazzy_typestore,
     recorded_qos,
 )
-from fourbar_ros.config.interface import FLOAT64
+from fourbar_ros.config.interface import DEFAULT_STORAGE, FLOAT64, Storage
 from fourbar_ros.core.errors import one_line
 
 if TYPE_CHECKING:
@@ -58,9 +57,9 @@ class AtomicBagWriter:
     recovers it.
     """
 
-    def __init__(self, path: str | os.PathLike[str], storage: str = DEFAULT_STORAGE) -> None:
+    def __init__(self, path: str | os.PathLike[str], storage: Storage = DEFAULT_STORAGE) -> None:
         self.path = Path(path)
-        self.adapter = adapter(storage, self.path)
+        self.adapter = adapter(storage)
         if self.path.exists() or self.path.is_symlink():
             raise BagError(f'{self.path}: exists already, not overwriting')
         parent = self.path.parent
@@ -200,7 +199,7 @@ def float64_cdr(value: float) -> bytes:
 
 
 def write_command_bag(path: str | os.PathLike[str], stamps_ns: Sequence[int],
-                      values: Sequence[float], storage: str = DEFAULT_STORAGE,
+                      values: Sequence[float], storage: Storage = DEFAULT_STORAGE,
                       topic: str = COMMAND_TOPIC,
                       custom_data: dict[str, str] | None = None) -> Path:
     """Write a command bag: ``values`` (theta, rad) on ``topic`` at ``stamps_ns`` (ns, epoch).
