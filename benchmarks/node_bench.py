@@ -32,10 +32,9 @@ from typing import Any, NamedTuple
 
 from benchmarks import CONFIG, REPO, options, print_json
 from benchmarks.timing import cpu_seconds, percentile, round_trips_us
-from fourbar_ros.config.interface import COMMAND, JOINT_STATES, MEASURED_JOINT_STATES
+from fourbar_ros.config.interface import COMMAND, JOINT_STATES, MEASURED_JOINT_STATES, STREAM_DEPTH
 from fourbar_ros.live.node_process import NodeProcess, free_domain_id, node_args, node_command
 
-DEPTH = 1000
 PACED_HZ = 200.0  # command rate of the executor comparison (one outstanding at a time)
 LAG_S = 0.25  # a rate is sustained if the last answer comes at most this long after the last command
 #: The targets: the node against the relay on its own executor, the shipped node against the single-threaded relay.
@@ -102,16 +101,16 @@ def helper_node(role: str, topics: Sequence[str]) -> Any:
 
     node = Node(role.replace('-', '_'))
     if role == 'relay':
-        pub = node.create_publisher(JointState, JOINT_STATES.name, DEPTH)
-        node.create_subscription(Float64, COMMAND.name, relay_callback(node, pub), DEPTH)
+        pub = node.create_publisher(JointState, JOINT_STATES.name, STREAM_DEPTH)
+        node.create_subscription(Float64, COMMAND.name, relay_callback(node, pub), STREAM_DEPTH)
     elif role == 'measured-relay':
-        pub = node.create_publisher(JointState, JOINT_STATES.name, DEPTH)
-        node.create_subscription(JointState, MEASURED_JOINT_STATES.name, measured_relay_callback(pub), DEPTH)
+        pub = node.create_publisher(JointState, JOINT_STATES.name, STREAM_DEPTH)
+        node.create_subscription(JointState, MEASURED_JOINT_STATES.name, measured_relay_callback(pub), STREAM_DEPTH)
     else:
         types = {t.__name__: t for t in (JointState, Float64, MarkerArray, DiagnosticArray)}
         for spec in topics:
             topic, type_name = spec.split(':')
-            node.create_subscription(types[type_name], topic, lambda _m: None, DEPTH)
+            node.create_subscription(types[type_name], topic, lambda _m: None, STREAM_DEPTH)
     return node
 
 
@@ -174,13 +173,13 @@ class Target:
         self.pub = self.publisher(client, ns)
         self.count = 0
         self.last_arrival = 0.0
-        self.sub = client.create_subscription(JointState, f'{ns}/{reply}', self.on_reply, DEPTH)
+        self.sub = client.create_subscription(JointState, f'{ns}/{reply}', self.on_reply, STREAM_DEPTH)
 
     def publisher(self, client: Any, ns: str) -> Any:
         from std_msgs.msg import Float64
 
         self.message = Float64
-        return client.create_publisher(Float64, f'{ns}/{COMMAND.name}', DEPTH)
+        return client.create_publisher(Float64, f'{ns}/{COMMAND.name}', STREAM_DEPTH)
 
     def on_reply(self, _msg: Any) -> None:
         self.last_arrival = time.perf_counter()
@@ -203,7 +202,7 @@ class MeasuredTarget(Target):
         from sensor_msgs.msg import JointState
 
         self.message = JointState
-        return client.create_publisher(JointState, f'{ns}/{MEASURED_JOINT_STATES.name}', DEPTH)
+        return client.create_publisher(JointState, f'{ns}/{MEASURED_JOINT_STATES.name}', STREAM_DEPTH)
 
     def send(self, theta: float) -> None:
         """Publish a measurement of the driven rocker at ``theta`` (here its angle q, rad)."""
@@ -396,7 +395,7 @@ def callback_costs(context: Any, domain_env: dict[str, str], repeats: int) -> di
         'joint_states_only': ['/cost/joint_states:JointState'],
         'all_outputs': ['/cost/joint_states:JointState', '/cost/input_torque:Float64'],
     }
-    relay_pub = node.create_publisher(JointState, '/cost/relay_joint_states', DEPTH)
+    relay_pub = node.create_publisher(JointState, '/cost/relay_joint_states', STREAM_DEPTH)
     relay = relay_callback(node, relay_pub)
     pubs = {'joint_states': node._joint_pub, 'input_torque': node._torque_pub}
     out: dict[str, Any] = {}
@@ -549,8 +548,8 @@ def run(quick: bool) -> dict[str, Any]:
         targets = {'relay': systems[f'relay_{DEFAULT_EXECUTOR}'], 'node': systems[shipped]}
         lat = latency(executor, targets, thetas[:n_lat])
         # The same with every output of the node subscribed.
-        extra = [client.create_subscription(Float64, f'/{shipped}/input_torque', lambda _m: None, DEPTH),
-                 client.create_subscription(MarkerArray, f'/{shipped}/linkage_markers', lambda _m: None, DEPTH)]
+        extra = [client.create_subscription(Float64, f'/{shipped}/input_torque', lambda _m: None, STREAM_DEPTH),
+                 client.create_subscription(MarkerArray, f'/{shipped}/linkage_markers', lambda _m: None, STREAM_DEPTH)]
         wait_until(lambda: all(s.get_publisher_count() > 0 for s in extra), 30.0, 'node outputs')
         connect(executor, targets['node'], thetas[1])
         lat_all = latency(executor, targets, thetas[:n_lat // 2])
