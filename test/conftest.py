@@ -1,23 +1,23 @@
-"""Shared pytest setup: test helpers importable as plain modules; hypothesis made deterministic; ulp jitter;
-the ``stress`` marker; the session-wide ROS fixtures.
+"""Shared pytest setup: the helpers of test/support/ importable as ``support.<module>`` from every test folder;
+hypothesis made deterministic; ulp jitter; the ``stress`` marker; the session-wide ROS fixtures.
 
 Property tests draw the same examples on every run (derandomize), so CI cannot pass or fail by luck. Set
 HYPOTHESIS_PROFILE=explore to search with fresh random examples locally.
 
 ``--ulp-jitter`` (or FOURBAR_ULP_JITTER=1) runs the session as if on another CPU: numpy's transcendental ufuncs
-(and with ``--ulp-jitter-math`` the math module's functions) move their results by one ulp (see ulp_jitter.py;
-``--ulp-jitter-share``, default 1: every element; ``--ulp-jitter-seed``: another choice; ``--ulp-jitter-direction``
-hash, up or down; or the FOURBAR_ULP_JITTER_* variables). Only this process is affected, not the processes a test
-starts.
+(and with ``--ulp-jitter-math`` the math module's functions) move their results by one ulp (see
+support/ulp_jitter.py; ``--ulp-jitter-share``, default 1: every element; ``--ulp-jitter-seed``: another choice;
+``--ulp-jitter-direction`` hash, up or down; or the FOURBAR_ULP_JITTER_* variables). Only this process is
+affected, not the processes a test starts.
 
 ``stress`` marks the statistical repeats (a stop case 20 times, soaks, long bursts): a run leaves them out unless
 its ``-m`` expression names the marker (``make test-stress`` is ``-m stress``); every case also runs once without it.
 
 Session fixtures (built once, shared by every module that asks):
-- ``ros``: one rclpy context, client node and executor on one leased domain id (ros_support.RosSession). Whatever
-  a module created on the client node (subscriptions, publishers, clients, timers, extra nodes) is destroyed
-  when the module ends, so the next module starts from the same graph.
-- ``colcon_install``: the install base of one colcon build of the package (colcon_support).
+- ``ros``: one rclpy context, client node and executor on one leased domain id (support.ros_support.RosSession).
+  Whatever a module created on the client node (subscriptions, publishers, clients, timers, extra nodes) is
+  destroyed when the module ends, so the next module starts from the same graph.
+- ``colcon_install``: the install base of one colcon build of the package (support.colcon_support).
 - ``ros2_cli``: an environment that sources that install, on its own leased domain id limited to this host,
   with the ros2 daemon started once for it (and stopped at the end).
 """
@@ -33,13 +33,13 @@ from typing import TYPE_CHECKING
 import pytest
 from hypothesis import settings
 
-sys.path.insert(0, str(Path(__file__).parent))
+sys.path.insert(0, str(Path(__file__).parent))  # test/: the helpers' package ``support``
 
-import ulp_jitter  # found through the path above
+from support import ulp_jitter  # found through the path above
 
 if TYPE_CHECKING:
-    from colcon_support import CliEnv
-    from ros_support import DomainLease, RosSession
+    from support.colcon_support import CliEnv
+    from support.ros_support import DomainLease, RosSession
 
 settings.register_profile('deterministic', derandomize=True, deadline=None, print_blob=True)
 settings.register_profile('explore', derandomize=False, deadline=None, print_blob=True)
@@ -106,7 +106,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 @pytest.fixture(scope='session')
 def ros_session() -> Iterator[RosSession]:
     """The one rclpy session of this run (use ``ros``, which also cleans up after each module)."""
-    from ros_support import RosSession
+    from support.ros_support import RosSession
 
     with RosSession() as session:
         yield session
@@ -123,7 +123,7 @@ def ros(ros_session: RosSession) -> Iterator[RosSession]:
 @pytest.fixture
 def lease() -> Iterator[DomainLease]:
     """A ROS_DOMAIN_ID of this test's own, for a process the test starts (released at its end)."""
-    from ros_support import lease_domain_id
+    from support.ros_support import lease_domain_id
 
     held = lease_domain_id()
     try:
@@ -135,7 +135,7 @@ def lease() -> Iterator[DomainLease]:
 @pytest.fixture(scope='session')
 def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Install base (``.../install``) of the one colcon build of this run; skips without colcon."""
-    from colcon_support import colcon_install as build_once
+    from support.colcon_support import colcon_install as build_once
 
     return build_once(tmp_path_factory)
 
@@ -143,7 +143,7 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope='session')
 def ros2_cli(colcon_install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[CliEnv]:
     """The sourced install's environment for the ros2 command line, with its daemon; skips without ros2."""
-    from colcon_support import cli_env
+    from support.colcon_support import cli_env
 
     with cli_env(colcon_install, tmp_path_factory) as env:
         yield env

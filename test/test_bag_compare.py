@@ -10,8 +10,8 @@ from typing import Any
 
 import numpy as np
 import pytest
-from bag_support import BAG_DIR, CONFIG, Tool, run_main, run_tool, served
-from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
+from support.bag_support import BAG_DIR, CONFIG, Tool, run_main, run_tool, served
+from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.compare import compare_bags
 from fourbar_ros.bags.process import process_bag

@@ -13,9 +13,9 @@ import sys
 from pathlib import Path
 
 import pytest
-from bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
-from colcon_support import CliEnv, ros2
-from ros_support import DomainLease, wait_for
+from support.bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
+from support.colcon_support import CliEnv, ros2
+from support.ros_support import DomainLease, wait_for
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import load_config

@@ -16,8 +16,8 @@ from typing import Any
 
 import pytest
 import yaml
-from bag_support import BAG_DIR, CONFIG, DEMO_BAG, committed_bags, read_with_mcap, storage_file
-from ros_support import REPO
+from support.bag_support import BAG_DIR, CONFIG, DEMO_BAG, committed_bags, read_with_mcap, storage_file
+from support.paths import REPO
 
 from fourbar_ros.bags.storage import (
     COMMAND_TOPIC,

@@ -17,8 +17,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from bag_support import BAG_DIR, CONFIG, Tool, committed_bags, run_main
-from ros_support import wait_for
+from support.bag_support import BAG_DIR, CONFIG, Tool, committed_bags, run_main
+from support.ros_support import wait_for
 
 from fourbar_ros.bags.process import process_bag
 from fourbar_ros.bags.storage import (

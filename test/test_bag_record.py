@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 import yaml
-from bag_support import CONFIG, Tool, read_with_mcap, read_with_sqlite, run_tool, storage_file
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_support import NodeProcess, RosSession, wait_for
+from support.bag_support import CONFIG, Tool, read_with_mcap, read_with_sqlite, run_tool, storage_file
+from support.ros_support import NodeProcess, RosSession, wait_for
 
 from fourbar_ros.bags.storage import fingerprint, jazzy_typestore, read_messages
 from fourbar_ros.config.interface import Storage

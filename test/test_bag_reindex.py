@@ -20,9 +20,10 @@ from pathlib import Path
 
 import pytest
 import yaml
-from bag_support import Tool, read_with_mcap, read_with_sqlite, run_main, storage_file
-from ros_support import REPO, TIMEOUT, RosSession, wait_for
 from std_msgs.msg import Float64
+from support.bag_support import Tool, read_with_mcap, read_with_sqlite, run_main, storage_file
+from support.paths import REPO
+from support.ros_support import TIMEOUT, RosSession, wait_for
 
 from fourbar_ros.bags.storage import (
     FLOAT64,

@@ -11,7 +11,8 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from bag_support import (
+from diagnostic_msgs.msg import DiagnosticArray
+from support.bag_support import (
     CONFIG,
     Tool,
     committed_bags,
@@ -23,8 +24,7 @@ from bag_support import (
     served,
     what_the_node_took,
 )
-from diagnostic_msgs.msg import DiagnosticArray
-from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
+from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config

@@ -21,9 +21,9 @@ import math
 from pathlib import Path
 
 import pytest
-from bag_support import CONFIG, Tool, run_tool, what_the_node_took
 from diagnostic_msgs.msg import DiagnosticArray
-from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
+from support.bag_support import CONFIG, Tool, run_tool, what_the_node_took
+from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import read_messages, write_command_bag
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config

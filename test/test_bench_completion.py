@@ -9,7 +9,7 @@ import math
 import mpmath
 import numpy as np
 import pytest
-from ulp_bounds import CHAIN_ULPS
+from support.ulp_bounds import CHAIN_ULPS
 
 from benchmarks import completion_peers as cp
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA

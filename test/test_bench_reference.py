@@ -7,7 +7,7 @@ import math
 import mpmath
 import numpy as np
 import pytest
-from reference_table import FIRST_ORDER_ROWS
+from support.reference_table import FIRST_ORDER_ROWS
 
 from benchmarks.cases import COMMON_GEOMETRIES, TURNANTENNA, sweep_angles, sweep_interval
 from benchmarks.reference import (

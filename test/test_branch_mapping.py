@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 import pytest
-from ulp_bounds import CHAIN_ULPS, EPS
+from support.ulp_bounds import CHAIN_ULPS, EPS
 
 from fourbar_ros.commands import main
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config

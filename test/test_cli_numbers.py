@@ -3,14 +3,11 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import pytest
-from cli_support import fourbar
+from support.cli_support import fourbar
 
 from fourbar_ros.commands import NEGATIVE_NUMBER, build_parser
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 def subparsers() -> dict[str, argparse.ArgumentParser]:

@@ -6,9 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from bag_support import CONFIG, expected_outputs, run_tool
-from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 from sensor_msgs.msg import JointState
+from support.bag_support import CONFIG, expected_outputs, run_tool
+from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
 
 from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, float64_cdr, read_commands, recorded_qos
 from fourbar_ros.config.antenna_config import load_config

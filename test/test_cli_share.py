@@ -11,12 +11,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from support.paths import REPO
 
 from fourbar_ros.commands import CommandError, build_parser, main
 from fourbar_ros.config.share import share_path
 from fourbar_ros.live.node_process import FREE_DOMAIN_IDS
-
-REPO = Path(__file__).resolve().parent.parent
 
 
 def _indexed_prefix(root: Path, config_text: str) -> Path:

@@ -5,15 +5,13 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import pytest
-from cli_support import fourbar
+from support.cli_support import fourbar
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.rules.policy import Outcome, Policy, decide, in_reach
 
-ROOT = Path(__file__).resolve().parent.parent
 CFG = default_config()
 LO, HI = CFG.theta_min, CFG.theta_max
 REACH = CFG.linkage.reach()

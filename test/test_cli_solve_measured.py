@@ -7,7 +7,7 @@ import json
 import math
 
 import pytest
-from ulp_bounds import CHAIN_ULPS, EPS
+from support.ulp_bounds import CHAIN_ULPS, EPS
 
 from fourbar_ros.commands import main
 from fourbar_ros.config.antenna_config import default_config

@@ -6,6 +6,7 @@ import math
 from pathlib import Path
 
 import pytest
+from support.paths import REPO
 
 from fourbar_ros.config.antenna_config import (
     AntennaConfig,
@@ -19,7 +20,6 @@ from fourbar_ros.config.antenna_config import (
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.errors import FourBarError
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 
 

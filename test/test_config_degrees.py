@@ -9,14 +9,14 @@ from pathlib import Path
 
 import mpmath
 import pytest
+from support.paths import REPO, TEST_DATA
 
-ROOT = Path(__file__).resolve().parent.parent
-FILES = [ROOT / 'config' / 'antenna.yaml', *sorted((ROOT / 'test' / 'data').glob('*.yaml'))]
+FILES = [REPO / 'config' / 'antenna.yaml', *sorted(TEST_DATA.glob('*.yaml'))]
 #: `name: <rad>   # <deg> deg` (the comment's first number with its sign).
 _ANGLE = re.compile(r'^\s*(\w+):\s*(-?[0-9.e+-]+)\s*#\s*([+-]?[0-9.]+) deg\b')
 
 
-@pytest.mark.parametrize('path', FILES, ids=lambda p: str(p.relative_to(ROOT)))
+@pytest.mark.parametrize('path', FILES, ids=lambda p: str(p.relative_to(REPO)))
 def test_angles_are_the_degrees_their_comments_state(path: Path) -> None:
     found = [(m[1], float(m[2]), m[3]) for line in path.read_text(encoding='utf-8').splitlines()
              if (m := _ANGLE.match(line))]

@@ -11,11 +11,11 @@ from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from support.paths import REPO
 
 from fourbar_ros.config.antenna_config import ConfigError, load_config
 from fourbar_ros.config.rcl_yaml import MAX_DEPTH, MAX_FILE_BYTES, parse, read_text
 
-ROOT = Path(__file__).resolve().parent.parent
 VALID = '/**:\n  ros__parameters:\n    load_torque: 2.5\n'
 
 #: Peak RSS a refused command may reach: the interpreter with numpy (~40-60 MB here) plus at most the 1 MiB read
@@ -53,7 +53,7 @@ def run_measured(*args: str) -> dict[str, object]:
     """Run `fourbar ARGS` in a child with a capped address space; its exit status, output, peak RSS and time."""
     code = 'import json\n' + _MEASURE.format(cap=AS_CAP)
     out = subprocess.run([sys.executable, '-c', code, sys.executable, '-m', 'fourbar_ros.commands', *args],
-                         capture_output=True, text=True, cwd=ROOT, timeout=180, check=True)
+                         capture_output=True, text=True, cwd=REPO, timeout=180, check=True)
     result: dict[str, object] = json.loads(out.stdout)
     return result
 
@@ -104,7 +104,7 @@ print(params_file_problem(path))
 def test_loader_and_node_check_refuse_hostile_files(hostile: dict[str, str], case: str) -> None:
     # In a child with a capped address space: a regression must fail the test, not exhaust the machine.
     out = subprocess.run([sys.executable, '-c', _LOADER_CHECK.format(cap=AS_CAP), hostile[case]],
-                         capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
+                         capture_output=True, text=True, cwd=REPO, timeout=120, check=False)
     assert out.returncode == 0, out.stderr[-500:]
     lines = out.stdout.splitlines()
     assert len(lines) == 3  # load_config, unknown_in_node_sections, params_file_problem: one line each

@@ -12,7 +12,7 @@ from typing import Any
 
 import pytest
 from rclpy.node import Node
-from ros_support import RosSession
+from support.ros_support import RosSession
 
 from fourbar_ros.config.antenna_config import ConfigError, load_config, values_from_yaml
 from fourbar_ros.node.fourbar_node import FourBarNode

@@ -5,11 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from cli_support import fourbar
+from support.cli_support import fourbar
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, load_config, unknown_in_node_sections
-
-ROOT = Path(__file__).resolve().parent.parent
 
 SHARED = '''/**:
   ros__parameters:

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support.paths import REPO
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
 from fourbar_ros.config.controllers import (
@@ -42,7 +43,6 @@ from fourbar_ros.rules.controller_contract import (
     check_trajectory,
 )
 
-REPO = Path(__file__).resolve().parent.parent
 CFG = default_config()
 JOINT = CFG.driven_joint
 JTC = trajectory_controller('', CFG.trajectory_controller)

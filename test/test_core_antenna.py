@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from reference_table import FIRST_ORDER_ROWS
-from ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, sine_ratio_scale
+from support.reference_table import FIRST_ORDER_ROWS
+from support.ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, sine_ratio_scale
 
 from fourbar_ros import (
     AntennaLinkage,

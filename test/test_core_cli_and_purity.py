@@ -6,13 +6,12 @@ import json
 import math
 import subprocess
 import sys
-from pathlib import Path
 
 import pytest
-from cli_support import fourbar
+from support.cli_support import fourbar
+from support.paths import REPO
 
-ROOT = Path(__file__).resolve().parent.parent
-CONFIG = ROOT / 'config' / 'antenna.yaml'
+CONFIG = REPO / 'config' / 'antenna.yaml'
 
 KNOWN = [
     (-6.0, 40.921022829819, 56.378807215667, 1.518562886208, -0.981111583723),

@@ -8,8 +8,8 @@ import math
 
 import numpy as np
 import pytest
-from linkages import TURNANTENNA, links
-from ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps
+from support.linkages import TURNANTENNA, links
+from support.ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps
 
 from fourbar_ros import AntennaLinkage, Branch, DeadPointError, Driven, UnreachableError
 from fourbar_ros.core.completion import complete

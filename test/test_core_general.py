@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, sine_ratio_scale
+from support.ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, sine_ratio_scale
 
 from fourbar_ros import (
     AntennaLinkage,

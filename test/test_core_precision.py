@@ -15,7 +15,7 @@ import pytest
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from mpmath import mpf
-from ulp_bounds import second_derivative_scales
+from support.ulp_bounds import second_derivative_scales
 
 from benchmarks.reference import (
     Geometry,

@@ -8,9 +8,9 @@ import math
 
 import numpy as np
 import pytest
-from linkages import TURNANTENNA, links
-from reference_table import FLOAT_ROWS
-from ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, second_derivative_scales
+from support.linkages import TURNANTENNA, links
+from support.reference_table import FLOAT_ROWS
+from support.ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps, second_derivative_scales
 
 from fourbar_ros import AntennaLinkage, Branch, Driven, SingularPositionError, UnreachableError
 from fourbar_ros.core.numeric import FloatArray

@@ -9,7 +9,7 @@ from types import SimpleNamespace
 from typing import Any
 
 import pytest
-from bag_support import CONFIG
+from support.bag_support import CONFIG
 
 from fourbar_ros.bags.demo import (
     PACE_FRACTION,

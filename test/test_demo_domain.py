@@ -6,8 +6,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from bag_support import CONFIG
-from cli_support import fourbar
+from support.bag_support import CONFIG
+from support.cli_support import fourbar
 
 
 @pytest.mark.parametrize('value', ['abc', '233', '-1'])

@@ -12,15 +12,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from support.paths import REPO, TEST_DATA
 
 from fourbar_ros.commands import main as cli_main
 from fourbar_ros.config.antenna_config import config_from_values, load_config
 from fourbar_ros.core.design_check import CheckLimits, _extremum, check_design, sample_curves
 from fourbar_ros.core.loads import solve
 
-ROOT = Path(__file__).resolve().parent.parent
-SHIPPED = ROOT / 'config' / 'antenna.yaml'
-BAD = ROOT / 'test' / 'data' / 'bad_antenna.yaml'
+SHIPPED = REPO / 'config' / 'antenna.yaml'
+BAD = TEST_DATA / 'bad_antenna.yaml'
 
 # Independent 60-digit values (test/data/turnantenna_reference.csv, upper branch) at the ends of the shipped range.
 DELTA_PLUS7 = math.radians(39.390113547656)
@@ -216,10 +216,10 @@ def test_plot_curves_cover_the_range() -> None:
 def test_console_script_exit_status() -> None:
     """As CI would use it: a separate process, exit 1 on the bad configuration."""
     bad = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'check', '--params', str(BAD)],
-                         capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
+                         capture_output=True, text=True, cwd=REPO, timeout=120, check=False)
     assert bad.returncode == 1 and 'verdict: FAIL' in bad.stdout, bad.stderr
     ok = subprocess.run([sys.executable, '-m', 'fourbar_ros.commands', 'check', '--params', str(SHIPPED)],
-                        capture_output=True, text=True, cwd=ROOT, timeout=120, check=False)
+                        capture_output=True, text=True, cwd=REPO, timeout=120, check=False)
     assert ok.returncode == 0 and 'verdict: PASS' in ok.stdout, ok.stderr
 
 

@@ -27,11 +27,11 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from support.paths import REPO
 
 pytest.importorskip('pytest_codeblocks', reason='the documentation tests read Markdown with pytest-codeblocks')
 from pytest_codeblocks import CodeBlock, extract_from_file
 
-REPO = Path(__file__).resolve().parent.parent
 DOCS = [REPO / 'README.md', *sorted((REPO / 'docs').glob('*.md'))]
 RUN = {'sh', 'bash', 'python'}
 #: A number in an output (what figures_within compares): sign, digits, fraction, exponent.

@@ -12,18 +12,18 @@ from pathlib import Path
 
 import pytest
 import yaml
-from colcon_support import BIN, CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.colcon_support import BIN, CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.paths import REPO
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from ros_cli_support import Background, echo_once, publish_until_echoed, run, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import Background, echo_once, publish_until_echoed, run, wait_node  # psutil: with ros2cli
 
 from fourbar_ros.config.antenna_config import load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-REPO = Path(__file__).resolve().parent.parent
 EPS = sys.float_info.epsilon
 
 

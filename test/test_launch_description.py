@@ -9,13 +9,13 @@ from __future__ import annotations
 
 import importlib.util
 from collections.abc import Callable
-from pathlib import Path
 from types import ModuleType
 from typing import Any
 
 import pytest
 import yaml
-from colcon_support import launch_missing
+from support.colcon_support import launch_missing
+from support.paths import REPO
 
 if (_why := launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
@@ -28,7 +28,6 @@ from launch_ros.parameter_descriptions import ParameterFile
 from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME
 from launch import LaunchContext
 
-REPO = Path(__file__).resolve().parent.parent
 LAUNCH_FILE = REPO / 'launch' / 'fourbar.launch.py'
 CONTROLLERS = REPO / 'config' / 'controllers.yaml'
 

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from ros_support import wait_for
+from support.ros_support import wait_for
 
 from fourbar_ros.live import node_process
 from fourbar_ros.live.node_process import NodeProcess, NodeStopError, lease_domain_id

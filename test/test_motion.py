@@ -7,9 +7,9 @@ import math
 
 import numpy as np
 import pytest
-import ulp_jitter
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
+from support import ulp_jitter
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
 from fourbar_ros.core.errors import UnreachableError

@@ -11,16 +11,16 @@ import itertools
 import math
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from ros_support import Collector, RosSession, sync_probe, wait_for, wait_future
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from support.paths import REPO
+from support.ros_support import Collector, RosSession, sync_probe, wait_for, wait_future
 from visualization_msgs.msg import MarkerArray
 
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
@@ -30,7 +30,6 @@ from fourbar_ros.node.fourbar_node import FourBarNode
 
 pytestmark = pytest.mark.ros
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = load_config(YAML)
 LO, HI = CFG.theta_min, CFG.theta_max

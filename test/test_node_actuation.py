@@ -17,9 +17,9 @@ import numpy as np
 import pytest
 from builtin_interfaces.msg import Duration, Time
 from rclpy.parameter import Parameter
-from ros_support import Collector, RosSession, wait_for
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
+from support.ros_support import Collector, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config

@@ -19,10 +19,11 @@ from typing import Any
 import numpy as np
 import pytest
 from rclpy.parameter import Parameter
-from ros_support import Collector, RosSession, wait_for
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
-from ulp_bounds import CHAIN_ULPS, assert_close_ulps, completion_scales
+from support.paths import REPO
+from support.ros_support import Collector, RosSession, wait_for
+from support.ulp_bounds import CHAIN_ULPS, assert_close_ulps, completion_scales
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
@@ -33,7 +34,6 @@ from fourbar_ros.rules.completion import CompletionRule
 
 pytestmark = pytest.mark.ros
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = default_config()
 RULE = CompletionRule(CFG)

@@ -22,11 +22,11 @@ import subprocess
 import sys
 import textwrap
 import weakref
-from pathlib import Path
 from typing import Any
 
 import pytest
-from ros_support import lease_domain_id, node_command
+from support.paths import REPO
+from support.ros_support import lease_domain_id, node_command
 
 from fourbar_ros.node.executor import (
     DEFAULT_EXECUTOR,
@@ -37,8 +37,6 @@ from fourbar_ros.node.executor import (
     executor_kind,
 )
 from fourbar_ros.node.run import spin_once, stop_on_signals
-
-REPO = Path(__file__).resolve().parent.parent
 
 
 def test_message_info_callback_binds_like_a_two_parameter_function_and_accepts_both_forms() -> None:

@@ -14,21 +14,20 @@ from __future__ import annotations
 import signal
 import time
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from ros_support import ONE_JOINT_STATE_PER_COMMAND, Collector, NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from support.paths import REPO
+from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, Collector, NodeProcess, RosSession, sync_probe
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = load_config(YAML)
 LO, HI = CFG.theta_min, CFG.theta_max

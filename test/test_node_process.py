@@ -13,7 +13,10 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from ros_support import (
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from support.paths import REPO
+from support.ros_support import (
     ONE_JOINT_STATE_PER_COMMAND,
     Collector,
     NodeProcess,
@@ -22,8 +25,6 @@ from ros_support import (
     sync_probe,
     wait_future,
 )
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import ConfigError, load_config
 from fourbar_ros.live.node_process import sim_actuator_command
@@ -31,7 +32,6 @@ from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = load_config(YAML)
 LO, HI = CFG.theta_min, CFG.theta_max

@@ -11,21 +11,28 @@ from __future__ import annotations
 import signal
 import statistics
 import time
-from pathlib import Path
 from typing import Any
 
 import pytest
 from builtin_interfaces.msg import Time
-from ros_support import ONE_JOINT_STATE_PER_COMMAND, Collector, NodeProcess, RosSession, Ticker, sync_probe, wait_for
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from support.paths import REPO
+from support.ros_support import (
+    ONE_JOINT_STATE_PER_COMMAND,
+    Collector,
+    NodeProcess,
+    RosSession,
+    Ticker,
+    sync_probe,
+    wait_for,
+)
 
 from fourbar_ros.config.antenna_config import load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = load_config(YAML)
 LO, HI = CFG.theta_min, CFG.theta_max

@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
-from ros_support import lease_domain_id, node_command
+from support.ros_support import lease_domain_id, node_command
 
 pytestmark = pytest.mark.ros
 

@@ -11,21 +11,20 @@ from __future__ import annotations
 
 import re
 import signal
-from pathlib import Path
 from typing import Any
 
 import pytest
-from ros_support import NodeProcess, RosSession, Ticker, sync_probe, wait_for
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
-from stress import once_and_stress
+from support.paths import REPO
+from support.ros_support import NodeProcess, RosSession, Ticker, sync_probe, wait_for
+from support.stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = load_config(YAML)
 LO, HI = CFG.theta_min, CFG.theta_max

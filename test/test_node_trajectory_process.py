@@ -16,9 +16,10 @@ from pathlib import Path
 
 import pytest
 from builtin_interfaces.msg import Duration, Time
-from cli_support import fourbar
 from rclpy.parameter import Parameter
-from ros_support import RosSession, wait_for
+from support.cli_support import fourbar
+from support.paths import REPO
+from support.ros_support import RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.bags.process_trajectory import TrajectoryStats
@@ -32,7 +33,6 @@ from fourbar_ros.rules.controller_contract import ContractRule
 
 pytestmark = pytest.mark.ros
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = default_config()
 #: Stamps count from here (system clock, s): hours ahead, so no trajectory ends in the past on arrival.

@@ -10,15 +10,14 @@ import sys
 from pathlib import Path
 
 import pytest
-from colcon_support import sourced_env as colcon_env
-from ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession, sync_probe
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
+from support.colcon_support import sourced_env as colcon_env
+from support.paths import REPO
+from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession, sync_probe
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.interface import NODE_EXECUTABLE, SIM_EXECUTABLE
-
-REPO = Path(__file__).resolve().parent.parent
 
 
 def test_package_xml_validates_with_catkin_pkg() -> None:

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import math
 import re
-from pathlib import Path
 
 import pytest
+from support.paths import REPO
 
 from fourbar_ros.config.antenna_config import ConfigError, check_value, default_config, values_from_yaml
 from fourbar_ros.config.params import PARAMETERS, PARAMETERS_BY_NAME, ParamSpec, defaults, is_foreign
-
-REPO = Path(__file__).resolve().parent.parent
 
 
 def test_names_unique_and_valid() -> None:

@@ -20,18 +20,18 @@ import time
 from pathlib import Path
 
 import pytest
-from colcon_support import colcon_install, ros2, ros2_cli_missing
+from support.colcon_support import colcon_install, ros2, ros2_cli_missing
+from support.paths import REPO
 
 if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 pytest.importorskip('pytest_codeblocks', reason='the quick start is read from Markdown with pytest-codeblocks')
 from pytest_codeblocks import extract_from_file
-from ros_cli_support import TIMEOUT, Background, run, wait_node  # psutil: with ros2cli
-from ros_support import DomainLease
+from support.ros_cli_support import TIMEOUT, Background, run, wait_node  # psutil: with ros2cli
+from support.ros_support import DomainLease
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-REPO = Path(__file__).resolve().parent.parent
 #: Documented lines this environment has done already, and what the test runs instead (None: nothing).
 SETUP: dict[str, str | None] = {
     # The session's workspace holds a copy of this checkout in src/fourbar_ros (colcon_support.PACKAGE_FILES).

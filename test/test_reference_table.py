@@ -17,7 +17,7 @@ import pytest
 
 mpmath = pytest.importorskip('mpmath')  # the reference needs mpmath (no rosdep key): skip where it is missing
 
-from reference_table import COUPLER, FRAME, ROCKER, ROWS  # noqa: E402
+from support.reference_table import COUPLER, FRAME, ROCKER, ROWS  # noqa: E402
 
 from benchmarks.reference import DPS as DIGITS  # noqa: E402
 from benchmarks.reference import (  # noqa: E402

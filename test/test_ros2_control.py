@@ -14,12 +14,12 @@ import dataclasses
 import math
 import sys
 import xml.etree.ElementTree as ET
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 import yaml
+from support.paths import REPO
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
 from fourbar_ros.config.params import PARAMETERS_BY_NAME
@@ -31,7 +31,6 @@ from fourbar_ros.config.robot_model import (
 )
 from fourbar_ros.config.sim_actuator_params import sim_settings
 
-REPO = Path(__file__).resolve().parent.parent
 CONTROLLERS = REPO / 'config' / 'controllers.yaml'
 EPS = sys.float_info.epsilon
 CONFIGS = {'gamma driven': default_config(), 'delta driven': config_from_values({'driven_rocker': 'delta'}),

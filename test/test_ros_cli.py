@@ -19,12 +19,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from colcon_support import CliEnv, ros2, ros2_cli_missing
+from support.colcon_support import CliEnv, ros2, ros2_cli_missing
 
 if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from ros_cli_support import TIMEOUT, Background, echo_once, publish_until_echoed, run  # psutil: with ros2cli
+from support.ros_cli_support import TIMEOUT, Background, echo_once, publish_until_echoed, run  # psutil: with ros2cli
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.robot_model import robot_description

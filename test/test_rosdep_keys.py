@@ -10,9 +10,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from support.paths import REPO, TEST_DATA
 
-REPO = Path(__file__).resolve().parent.parent
-KEYS_FILE = REPO / 'test' / 'data' / 'rosdep' / 'jazzy_noble_keys.txt'
+KEYS_FILE = TEST_DATA / 'rosdep' / 'jazzy_noble_keys.txt'
 #: The package's own rosdep source file (keys rosdistro lacks), and the platforms it must serve (Jazzy's).
 OWN_SOURCE = REPO / 'rosdep' / 'fourbar_ros.yaml'
 PLATFORMS = ('ubuntu', 'debian')
@@ -46,9 +46,8 @@ ROS_PACKAGES = {
     'diagnostic_msgs', 'visualization_msgs', 'trajectory_msgs', 'geometry_msgs', 'rosgraph_msgs', 'launch',
     'launch_ros', 'launch_testing', 'launch_testing_ros', 'ros2cli',
 }
-#: Local test helpers and the project's own packages.
-LOCAL = {'fourbar_ros', 'benchmarks', 'ros_support', 'bag_support', 'mp_reference', 'ulp_jitter', 'ulp_bounds',
-         'conftest', 'test', 'colcon_support', 'ros_cli_support'}
+#: The project's own packages and the tests' helper package (test/support); each test file's own name is local too.
+LOCAL = {'fourbar_ros', 'benchmarks', 'support', 'conftest', 'test'}
 
 
 def published_keys() -> set[str]:
@@ -94,6 +93,11 @@ def third_party_imports(paths: list[Path]) -> dict[str, list[str]]:
     return found
 
 
+def _test_sources() -> list[Path]:
+    """The tests' Python files in every folder under test/ (conftest, helpers, tests), not the data's scripts."""
+    return sorted(p for p in (REPO / 'test').rglob('*.py') if TEST_DATA not in p.parents)
+
+
 def key_of(module: str) -> str | None:
     if module in ROS_PACKAGES:
         return module
@@ -137,7 +141,7 @@ def test_every_runtime_import_has_an_exec_depend() -> None:
 def test_every_test_import_has_a_key_or_is_known_to_have_none() -> None:
     pkg = package()
     declared = {d.name for d in pkg.exec_depends + pkg.test_depends}  # type: ignore[attr-defined]
-    imports = third_party_imports(sorted((REPO / 'test').glob('*.py')))
+    imports = third_party_imports(_test_sources())
     problems = []
     for module, files in sorted(imports.items()):
         key = key_of(module)

@@ -9,11 +9,11 @@ within the bounds test/ulp_bounds.py states for two float paths (numpy's SIMD tr
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-from ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps
+from support.paths import REPO
+from support.ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, load_config
 from fourbar_ros.core.antenna import Driven
@@ -22,7 +22,7 @@ from fourbar_ros.rules.outputs import JOINTS, JointStateRule, driven_index, outp
 from fourbar_ros.rules.policy import Outcome, Policy, decide, serve
 from fourbar_ros.rules.velocity import Sample, VelocityState, velocity_step
 
-YAML = Path(__file__).resolve().parent.parent / 'config' / 'antenna.yaml'
+YAML = REPO / 'config' / 'antenna.yaml'
 T0 = 1_700_000_000 * 1_000_000_000
 #: Command spacing (ns) and the coarse clock tick (ns) of the sim-time part: several commands share a stamp.
 STEP_NS, TICK_NS = 10_000_000, 25_000_000

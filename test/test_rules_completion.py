@@ -13,8 +13,8 @@ import math
 
 import numpy as np
 import pytest
-import ulp_jitter
-from ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps, completion_scales
+from support import ulp_jitter
+from support.ulp_bounds import CHAIN_ULPS, EPS, assert_close_ulps, completion_scales
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values
 from fourbar_ros.core.antenna import Branch, Driven

@@ -22,9 +22,10 @@ from typing import Any
 import pytest
 from builtin_interfaces.msg import Duration, Time
 from rclpy.parameter import Parameter
-from ros_support import Collector, NodeProcess, RosSession, wait_for
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
+from support.paths import REPO
+from support.ros_support import Collector, NodeProcess, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
@@ -37,7 +38,6 @@ from fourbar_ros.rules.controller_contract import ContractRule
 
 pytestmark = pytest.mark.ros
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = default_config()
 JOINT = CFG.driven_joint

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import json
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
-from cli_support import fourbar
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
-from reference_table import FLOAT_ROWS
+from support.cli_support import fourbar
+from support.reference_table import FLOAT_ROWS
 
 from fourbar_ros.commands import main as cli_main
 from fourbar_ros.core.errors import InvalidGeometryError, SingularPositionError
@@ -31,7 +30,6 @@ from fourbar_ros.core.synthesis import (
     synthesize,
 )
 
-ROOT = Path(__file__).resolve().parent.parent
 EPS = float(np.finfo(float).eps)
 
 # (ground, crank, coupler, rocker): one of each Grashof class, plus a long-coupler and a tiny-rocker case.

@@ -6,17 +6,15 @@ import ast
 import math
 import sys
 from collections.abc import Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
-import ulp_jitter
-from ulp_bounds import EPS, assert_close_ulps
+from support import ulp_jitter
+from support.paths import REPO
+from support.ulp_bounds import EPS, assert_close_ulps
 
 from fourbar_ros import AntennaLinkage
-
-ROOT = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture
@@ -99,7 +97,7 @@ def test_reaches_the_core(plain_numpy: None) -> None:
 def test_package_looks_ufuncs_up_at_call_time() -> None:
     """A module-level alias (from numpy import sin, _atan2 = np.arctan2) would escape the wrapper."""
     escapes = []
-    for path in sorted([*(ROOT / 'fourbar_ros').rglob('*.py'), *(ROOT / 'benchmarks').rglob('*.py')]):
+    for path in sorted([*(REPO / 'fourbar_ros').rglob('*.py'), *(REPO / 'benchmarks').rglob('*.py')]):
         tree = ast.parse(path.read_text(), str(path))
         called = {id(n.func) for n in ast.walk(tree) if isinstance(n, ast.Call)}
         for node in ast.walk(tree):

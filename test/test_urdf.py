@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import numpy.typing as npt
 import pytest
-from cli_support import fourbar
+from support.cli_support import fourbar
+from support.paths import REPO
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
 from fourbar_ros.config.robot_model import robot_description
@@ -24,7 +25,6 @@ from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.completion import coupler_joint_position
 from fourbar_ros.core.transforms import antenna_joint_positions
 
-REPO = Path(__file__).resolve().parent.parent
 YAML = REPO / 'config' / 'antenna.yaml'
 EPS = float(np.finfo(np.float64).eps)
 Matrix = npt.NDArray[np.float64]

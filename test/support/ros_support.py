@@ -20,7 +20,6 @@ import time
 from collections.abc import Callable, Sequence
 from contextlib import suppress
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any, Generic, TypeVar
 
 import rclpy
@@ -33,7 +32,6 @@ from fourbar_ros.live.node_process import DomainLease, NodeProcess, lease_domain
 __all__ = ['TIMEOUT', 'Collector', 'DomainLease', 'NodeProcess', 'RosSession', 'Ticker', 'lease_domain_id',
            'node_command', 'sync_probe', 'wait_for', 'wait_future']
 
-REPO = Path(__file__).resolve().parent.parent
 #: Default deadline (s) for discovery and message waits; generous because the machine is shared.
 TIMEOUT = 30.0
 

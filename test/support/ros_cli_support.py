@@ -139,7 +139,7 @@ def _alive(p: Any) -> bool:
 
 def echo_once(env: dict[str, str], topic: str, msg_type: str) -> Background:
     """``ros2 topic echo --once TOPIC TYPE`` in the background (the type given: no discovery of it needed)."""
-    from colcon_support import ros2
+    from support.colcon_support import ros2
 
     return Background([ros2(), 'topic', 'echo', '--once', topic, msg_type], env)
 
@@ -152,7 +152,8 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
     first command arrives (it skips outputs nobody subscribes to); one answer ends the echo.
     """
     import yaml
-    from colcon_support import ros2
+
+    from support.colcon_support import ros2
 
     deadline = time.monotonic() + timeout
     while echo.proc.poll() is None:
@@ -169,7 +170,7 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
 
 def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[str]:
     """Poll ``ros2 node list`` (the daemon's graph) until ``node`` is listed; return the list."""
-    from colcon_support import ros2
+    from support.colcon_support import ros2
 
     deadline = time.monotonic() + timeout
     while True:

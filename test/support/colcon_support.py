@@ -21,7 +21,8 @@ from pathlib import Path
 
 import pytest
 
-REPO = Path(__file__).resolve().parent.parent
+from support.paths import REPO
+
 #: What a source checkout of the package contains that its build reads.
 PACKAGE_FILES = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'fourbar_ros', 'config', 'launch', 'rviz')
 BIN = Path(sys.executable).parent
@@ -134,7 +135,7 @@ def cli_env(install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator
     stopped and the id given back on leaving. Skips where the ros2 command line is missing."""
     if (why := ros2_cli_missing()) is not None:
         pytest.skip(why)
-    from ros_support import lease_domain_id
+    from support.ros_support import lease_domain_id
 
     prefix = install / 'fourbar_ros'
     lease = lease_domain_id()

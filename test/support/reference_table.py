@@ -8,10 +8,11 @@ d2 gamma/d theta2 and d2 delta/d theta2 (rad/rad^2), upper branch, for frame 0.1
 from __future__ import annotations
 
 import csv
-from pathlib import Path
 from typing import NamedTuple
 
-PATH = Path(__file__).resolve().parent / 'data' / 'turnantenna_reference.csv'
+from support.paths import TEST_DATA
+
+PATH = TEST_DATA / 'turnantenna_reference.csv'
 
 #: Turnantenna's lengths in metres: frame H = AD, rockers l = AB = CD, coupler h = BC.
 FRAME, ROCKER, COUPLER = 0.180, 0.060, 0.102

@@ -17,12 +17,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from cli_support import fourbar
-from ros_support import REPO, TIMEOUT, Collector
-
 from fourbar_ros.config.antenna_config import AntennaConfig
+from support.cli_support import fourbar
+from support.paths import REPO, TEST_DATA
+from support.ros_support import TIMEOUT, Collector
 
-BAG_DIR = REPO / 'test' / 'data' / 'bags'
+BAG_DIR = TEST_DATA / 'bags'
 DEMO_BAG = REPO / 'fourbar_ros' / 'data' / 'demo_sweep'
 CONFIG = REPO / 'config' / 'antenna.yaml'
 
