@@ -25,8 +25,8 @@ test: lint
 test-stress: setup
 	$(BIN)/python -m pytest -m stress
 
-# The pure (non-ROS) tests as if on another CPU (test/ulp_jitter.py): every transcendental result of numpy moved by
-# one ulp, up or down by a hash (two seeds), then all up, then all down.
+# The pure (non-ROS) tests as if on another CPU (test/support/ulp_jitter.py): every transcendental result of numpy
+# moved by one ulp, up or down by a hash (two seeds), then all up, then all down.
 JITTER_RUNS ?= --ulp-jitter-seed=0 --ulp-jitter-seed=1 --ulp-jitter-direction=up --ulp-jitter-direction=down
 test-jitter: setup
 	@set -e; for run in $(JITTER_RUNS); do \

@@ -122,7 +122,8 @@ def test_sim_actuator_argument_starts_the_simulated_drive(install: CliEnv) -> No
 def test_launch_testing_test_passes(install: CliEnv) -> None:
     launch_test = BIN / 'launch_test'
     exe = str(launch_test) if launch_test.exists() else 'launch_test'
-    out = run([exe, str(REPO / 'test' / 'launch_fourbar_ready.py')], install.env, timeout=180, cwd=install.cwd)
+    ready = REPO / 'test' / 'package' / 'launch_fourbar_ready.py'
+    out = run([exe, str(ready)], install.env, timeout=180, cwd=install.cwd)
     text = out.stdout + out.stderr
     assert out.returncode == 0, text[-4000:]
     assert 'test_joint_states_answer_a_command' in text and 'test_exit_codes' in text, text[-4000:]

@@ -58,7 +58,8 @@ def test_errors_are_plausible_on_a_tiny_stream() -> None:
     m = out['methods']
     assert set(m['exact']) == {'mid', 'limit_1e-06', 'limit_1e-12'}
     for where, row in m['exact'].items():
-        # The exact completion: each output within CHAIN_ULPS of its condition-weighted scale (test/ulp_bounds.py).
+        # The exact completion: each output within CHAIN_ULPS of its condition-weighted scale
+        # (test/support/ulp_bounds.py).
         assert row['position_ulps'] <= CHAIN_ULPS, where
         assert row['rate_ulps'] <= CHAIN_ULPS, where
         for other in ('cubic', 'gauss-newton'):  # rates by derivative of a fit or by differences: far worse

@@ -1,4 +1,4 @@
-"""launch_testing test of the installed launch file: run with ``launch_test test/launch_fourbar_ready.py``
+"""launch_testing test of the installed launch file: run with ``launch_test test/package/launch_fourbar_ready.py``
 (test_launch.py does, over a colcon-built install). Not collected by pytest directly (no test_ prefix): it needs
 the package in the ament index.
 

@@ -2,7 +2,7 @@
 packages, executables, parameters, remappings and the spawners' arguments, the mock hardware announced, and the
 combinations it refuses. Where ros2_control or robot_state_publisher is not installed (here), the launch file's
 check for them is replaced, so what it would start with them is checked too; that the processes run is
-test/test_launch.py's (through ``ros2 launch``).
+test/package/test_launch.py's (through ``ros2 launch``).
 """
 
 from __future__ import annotations

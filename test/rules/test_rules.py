@@ -3,7 +3,7 @@
 The node's per-command path (``decide`` only for commands outside the limits, ``loads.pose_solver`` on Python
 floats, ``JointStateRule.sample``) and the array path ``fourbar process`` takes (``serve``, ``outputs_block``,
 numpy) must publish the same: the same commands answered, the same stamps and velocity presence, and values
-within the bounds test/ulp_bounds.py states for two float paths (numpy's SIMD transcendentals against libm).
+within the bounds test/support/ulp_bounds.py states for two float paths (numpy's SIMD transcendentals against libm).
 """
 
 from __future__ import annotations
