@@ -120,12 +120,6 @@ class Pair:
         self.ros.remove_node(self.sim)
 
 
-@pytest.fixture(scope='module')
-def ros() -> Iterator[RosSession]:
-    with RosSession() as session:
-        yield session
-
-
 #: The traj fixture's replan_tolerance: far above the simulated drive's lag (its speed times its 0.05 s time
 #: constant, 3e-3 rad, plus a measurement's age), so a command mid-motion always plans on from the motion.
 WIDE_REPLAN = 0.05
