@@ -9,6 +9,7 @@ formulation that cancels (see test_annex_formula_fails_the_same_bound).
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
@@ -138,15 +139,23 @@ def random_links(seed: int, n: int, low: float = 0.05, high: float = 2.0) -> lis
     return links
 
 
-def test_random_geometries_both_branches() -> None:
-    rng = np.random.default_rng(11)
-    for link in random_links(1, 60):
+def random_poses(link_seed: int, n_links: int, angle_seed: int, per_link: int
+                 ) -> Iterator[tuple[AntennaLinkage, float, Branch]]:
+    """``random_links(link_seed, n_links)``, each at ``per_link`` angles of random sign and magnitude inside its reach
+    (drawn from ``angle_seed``), on both branches."""
+    rng = np.random.default_rng(angle_seed)
+    for link in random_links(link_seed, n_links):
         r = link.reach()
-        for _ in range(4):
+        for _ in range(per_link):
             mag = rng.uniform(r.theta_gap, r.theta_max) * 0.999 + r.theta_gap * 0.001
             theta = float(mag * rng.choice([-1.0, 1.0]))
             for branch in Branch:
-                check(link, theta, branch)
+                yield link, theta, branch
+
+
+def test_random_geometries_both_branches() -> None:
+    for link, theta, branch in random_poses(1, 60, 11, 4):
+        check(link, theta, branch)
 
 
 @pytest.mark.parametrize('digits', range(1, 16))
@@ -291,14 +300,8 @@ def test_annex_formula_fails_the_same_bound() -> None:
 
 
 def test_second_derivatives_random_geometries_both_branches() -> None:
-    rng = np.random.default_rng(21)
-    for link in random_links(2, 30):
-        r = link.reach()
-        for _ in range(3):
-            mag = rng.uniform(r.theta_gap, r.theta_max) * 0.999 + r.theta_gap * 0.001
-            theta = float(mag * rng.choice([-1.0, 1.0]))
-            for branch in Branch:
-                check_second(link, theta, branch)
+    for link, theta, branch in random_poses(2, 30, 21, 3):
+        check_second(link, theta, branch)
 
 
 @pytest.mark.parametrize('digits', [1, 3, 6, 9, 12, 15])
