@@ -8,12 +8,11 @@ import contextlib
 import os
 import re
 import signal
-import subprocess
 import sys
 from pathlib import Path
 
 import pytest
-from support.bag_support import CONFIG, DEMO_BAG, Tool, fourbar_command
+from support.bag_support import CONFIG, DEMO_BAG, Tool
 from support.colcon_support import CliEnv, ros2
 from support.ros_support import DomainLease, wait_for
 
@@ -125,19 +124,6 @@ def test_demo_bad_params_is_one_line(tmp_path: Path) -> None:
     assert not (tmp_path / 'demo').exists()
 
 
-def _run_from(command: list[str], env: dict[str, str], cwd: Path, timeout: float = 300.0) -> tuple[int, str, str]:
-    """Run ``command`` in ``cwd`` to completion (own session, killed with its children on a timeout)."""
-    proc = subprocess.Popen(command, env=env, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        out, err = proc.communicate(timeout=timeout)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-            proc.communicate()
-    return proc.returncode, out, err
-
-
 def _check_demo_output(rc: int, out: str, err: str, cwd: Path, params: Path, bag: Path) -> None:
     assert rc == 0, err
     first = out.splitlines()[0]
@@ -156,8 +142,9 @@ def test_demo_with_no_arguments_from_another_directory(tmp_path: Path) -> None:
     if (Path(sys.prefix) / 'share' / 'fourbar_ros').exists():
         pytest.skip('fourbar_ros is installed into this environment\'s share/ (not an editable install)')
     env = {k: v for k, v in _env().items() if k != 'AMENT_PREFIX_PATH'}
-    rc, out, err = _run_from([*fourbar_command(), 'demo'], env, tmp_path)
-    _check_demo_output(rc, out, err, tmp_path, CONFIG, DEMO_BAG)
+    with Tool(['demo'], env, cwd=tmp_path) as demo:  # own session, killed with its process group on a timeout
+        rc = demo.wait(300.0)
+    _check_demo_output(rc, demo.stdout, demo.stderr, tmp_path, CONFIG, DEMO_BAG)
     assert os.listdir(tmp_path) == ['out']
 
 

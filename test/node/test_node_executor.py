@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import inspect
 import os
-import select
 import signal
 import subprocess
 import sys
@@ -25,6 +24,7 @@ import weakref
 from typing import Any
 
 import pytest
+from support.bag_support import Tool
 from support.paths import REPO
 from support.ros_support import lease_domain_id, node_command
 
@@ -220,22 +220,15 @@ def test_node_runs_the_chosen_executor(args: list[str], variable: str | None, ex
         env.pop(EXECUTOR_ENV, None)
         if variable is not None:
             env[EXECUTOR_ENV] = variable
-        proc = subprocess.Popen([*node_command(), *args, '--ros-args', '-r', '__ns:=/executor_choice'], env=env,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
-        try:
-            assert proc.stderr is not None
-            ready, _, _ = select.select([proc.stderr], [], [], 60.0)  # a deadline, not a sleep
-            line = proc.stderr.readline() if ready else ''  # the node's first log line, written once it spins
-            proc.send_signal(signal.SIGTERM)
-            rest = proc.communicate(timeout=60)[1]
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
+        with Tool([*args, '--ros-args', '-r', '__ns:=/executor_choice'], env, command=node_command()) as node:
+            line = node.wait_line('', 60.0)  # the node's first log line, written once it spins (a deadline)
+            node.signal(signal.SIGTERM)
+            status = node.wait(60.0)
     finally:
         lease.release()
+    rest = ''.join(f'{later}\n' for later in node.lines[1:])
     assert f'callbacks run on the {expected} executor' in line, line + rest
-    assert proc.returncode == 0, rest
+    assert status == 0, rest
 
 
 def test_non_ros_args_drop_every_ros_section() -> None:

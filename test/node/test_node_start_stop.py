@@ -10,14 +10,12 @@ gave a KeyboardInterrupt traceback and SIGTERM status -15.
 from __future__ import annotations
 
 import os
-import select
 import signal
-import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from support.bag_support import Tool
 from support.ros_support import lease_domain_id, node_command
 
 pytestmark = pytest.mark.ros
@@ -39,32 +37,20 @@ sys.meta_path.insert(0, _Gate())
 DEADLINE_S = 60.0
 
 
-def start_gated(tmp_path: Path, domain_id: int) -> tuple[subprocess.Popen[bytes], int]:
+def start_gated(tmp_path: Path, domain_id: int) -> tuple[Tool, int]:
+    """The node started with the gate; the pipe's write end (closing it lets the held import go on)."""
     (tmp_path / 'sitecustomize.py').write_text(GATE, encoding='utf-8')
     read_fd, write_fd = os.pipe()
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), os.environ.get('PYTHONPATH', '')]),
                FOURBAR_TEST_GATE_FD=str(read_fd), ROS_DOMAIN_ID=str(domain_id))
-    proc = subprocess.Popen([*node_command(), '--ros-args', '-p', 'frame_id:=gated'], env=env,
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                            pass_fds=(read_fd,))
-    os.close(read_fd)
-    return proc, write_fd
-
-
-def wait_for_gate(proc: subprocess.Popen[bytes]) -> bytes:
-    """stderr up to the gate's line (deadline-bounded); fails if the process ends first."""
-    assert proc.stderr is not None
-    seen = b''
-    end = time.monotonic() + DEADLINE_S
-    while b'GATE: importing rclpy' not in seen:
-        left = end - time.monotonic()
-        assert left > 0, f'no gate line within {DEADLINE_S} s: {seen!r}'
-        ready, _, _ = select.select([proc.stderr], [], [], left)
-        if ready:
-            chunk = os.read(proc.stderr.fileno(), 4096)
-            assert chunk, f'the node ended before importing rclpy: {seen!r}'
-            seen += chunk
-    return seen
+    try:
+        node = Tool(['--ros-args', '-p', 'frame_id:=gated'], env, command=node_command(), pass_fds=(read_fd,))
+    except BaseException:
+        os.close(write_fd)
+        raise
+    finally:
+        os.close(read_fd)
+    return node, write_fd
 
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
@@ -73,20 +59,18 @@ def test_a_stop_while_importing_rclpy_exits_0_without_a_traceback(tmp_path: Path
         pytest.skip('needs the fourbar_node console script (the quiet start is its entry point)')
     lease = lease_domain_id()
     try:
-        proc, write_fd = start_gated(tmp_path, lease.domain_id)
-        try:
-            seen = wait_for_gate(proc)
-            proc.send_signal(sig)
-            out, err = proc.communicate(timeout=DEADLINE_S)
-        finally:
-            os.close(write_fd)
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
+        node, write_fd = start_gated(tmp_path, lease.domain_id)
+        with node:  # killed and reaped on leaving, whatever happens
+            try:
+                node.wait_line('GATE: importing rclpy', DEADLINE_S)  # fails if the node ends first
+                node.signal(sig)
+                status = node.wait(DEADLINE_S)
+            finally:
+                os.close(write_fd)
     finally:
         lease.release()
-    stderr = (seen + err).decode(errors='replace')
-    assert proc.returncode == 0, f'{sig.name} while importing: status {proc.returncode}\n{stderr}'
+    stderr = node.stderr
+    assert status == 0, f'{sig.name} while importing: status {status}\n{stderr}'
     assert 'Traceback' not in stderr, stderr
-    assert out == b''
+    assert node.stdout == ''
     assert sys.executable  # the same interpreter's console script (node_command)

@@ -4,6 +4,7 @@ CLI as a child process whose stderr lines a test can wait for (or in this proces
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import signal
@@ -97,15 +98,17 @@ def fourbar_command() -> list[str]:
 
 
 class Tool:
-    """``fourbar ARGS`` (or ``COMMAND ARGS``) as a child process (own session, in ``cwd``); its output lines can be
-    waited for."""
+    """``fourbar ARGS`` (or ``COMMAND ARGS``, e.g. the node's console script) as a child process in its own session
+    (so its process group is its own), in ``cwd``, with ``pass_fds`` kept open in it; its output lines can be waited
+    for. Leaving the ``with`` block kills what is still running of the process group and reaps the process."""
 
     def __init__(self, args: Sequence[str | os.PathLike[str]], env: dict[str, str],
-                 command: Sequence[str] | None = None, cwd: Path = REPO) -> None:
+                 command: Sequence[str] | None = None, cwd: Path = REPO, pass_fds: Sequence[int] = ()) -> None:
         self.args = [str(a) for a in args]
-        self.proc = subprocess.Popen([*(command or fourbar_command()), *self.args], env=env, cwd=cwd,
-                                     stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-                                     stderr=subprocess.PIPE, text=True, start_new_session=True)
+        self.cmd = [*(command or fourbar_command()), *self.args]
+        self.proc = subprocess.Popen(self.cmd, env=env, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                     stderr=subprocess.PIPE, text=True, start_new_session=True,
+                                     pass_fds=tuple(pass_fds))
         self.lines: list[str] = []  # stderr
         self.out_lines: list[str] = []  # stdout
         self._cond = threading.Condition()
@@ -126,6 +129,12 @@ class Tool:
         with self._cond:
             return ''.join(f'{line}\n' for line in self.out_lines)
 
+    @property
+    def stderr(self) -> str:
+        """Everything written to stderr so far."""
+        with self._cond:
+            return ''.join(f'{line}\n' for line in self.lines)
+
     def wait_line(self, text: str, timeout: float = TIMEOUT, stdout: bool = False) -> str:
         """Block until a stderr (or stdout) line contains ``text``; fail if the process exits first."""
         lines = self.out_lines if stdout else self.lines
@@ -136,11 +145,11 @@ class Tool:
                     if text in line:
                         return line
                 if self.proc.poll() is not None and not any(r.is_alive() for r in self._readers):
-                    raise AssertionError(f'fourbar {" ".join(self.args)} exited {self.proc.returncode} '
+                    raise AssertionError(f'{" ".join(self.cmd)} exited {self.proc.returncode} '
                                          f'without {text!r}: {self.lines}')
                 left = deadline - time.monotonic()
                 if left <= 0:
-                    raise AssertionError(f'timed out waiting for {text!r} from fourbar {self.args}: {self.lines}')
+                    raise AssertionError(f'timed out waiting for {text!r} from {self.cmd}: {self.lines}')
                 self._cond.wait(min(left, 0.2))
 
     def wait(self, timeout: float = TIMEOUT) -> int:
@@ -149,7 +158,7 @@ class Tool:
             rc = self.proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             self.kill()
-            raise AssertionError(f'fourbar {self.args} did not finish within {timeout} s: {self.lines}') from None
+            raise AssertionError(f'{self.cmd} did not finish within {timeout} s: {self.lines}') from None
         for reader in self._readers:
             reader.join(timeout=5)
         return rc
@@ -162,9 +171,11 @@ class Tool:
             self.proc.send_signal(sig)
 
     def kill(self) -> None:
-        """Kill if still running and reap (safe to repeat)."""
+        """Kill the process and its process group (every child it started there) if still running, and reap it
+        (safe to repeat)."""
         if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGKILL)
+            with contextlib.suppress(ProcessLookupError):
+                os.killpg(self.proc.pid, signal.SIGKILL)
         self.proc.wait()
 
     def __enter__(self) -> Tool:
