@@ -82,7 +82,7 @@ def test_option_like_tokens_stay_options(token: str) -> None:
 def test_design_pairs_with_a_leading_minus() -> None:
     args = build_parser().parse_args(['design', '--pairs', '-0.5,5.0', '0.3,5.6', '1.2,6.1', '--pair', '-1,-2'])
     assert args.pairs == ['-0.5,5.0', '0.3,5.6', '1.2,6.1'] and args.pair == ['-1,-2']
-    # As typed in the issue, end to end: the pairs reach the synthesis (here unbuildable without --allow-flip).
+    # As a user types them, end to end: the pairs reach the synthesis (here unbuildable without --allow-flip).
     out = fourbar('design', '--pairs', '-0.5,5.0', '0.3,5.6', '1.2,6.1')
     assert out.returncode == 2 and 'unbuildable: K1 = -0.390129' in out.stderr
     out = fourbar('design', '--allow-flip', '--json', '--pairs', '-0.5,5.0', '0.3,5.6', '1.2,6.1')

@@ -188,11 +188,11 @@ def test_other_malformed_documents_are_one_line(text: str) -> None:
 
 
 @pytest.mark.parametrize(('text', 'expected'), [
-    ('1' * 100_000 + 'x', '1' * 100_000 + 'x'),          # a near-number: once quadratic backtracking (hours)
+    ('1' * 100_000 + 'x', '1' * 100_000 + 'x'),          # a near-number (quadratic backtracking would take hours)
     ('0x' + '1' * 100_000 + 'g', '0x' + '1' * 100_000 + 'g'),
-    ('1' * 5000, '1' * 5000),                             # strtol and strtod overflow; int() used to raise here
+    ('1' * 5000, '1' * 5000),                             # strtol and strtod overflow (int() would raise here)
     ('0' * 5000 + '17', 15),                              # octal with leading zeros, as strtol reads it
-    ('0x1p99999', '0x1p99999'),                           # hex float overflow: float.fromhex used to raise
+    ('0x1p99999', '0x1p99999'),                           # hex float overflow (float.fromhex would raise)
     ('1' * 30, 1.1111111111111111e29),                    # beyond int64: strtol ERANGE, then a double
 ])
 def test_long_scalars_are_typed_in_linear_time(text: str, expected: object) -> None:

@@ -216,8 +216,9 @@ def test_subnormal_and_tiny_angles() -> None:
 
 
 def test_full_turn_rhombus_near_theta_pi() -> None:
-    # Found by the property test below: AB + CD = H + h, so the over-stretch factor vanishes at theta = pi; formed as
-    # far0 - 4 H h sin^2(theta/2) it cancelled (17-70 ulps of the condition); dyad forms it from pi past |theta| = pi/2.
+    # Angles the property test below draws: AB + CD = H + h, so the over-stretch factor vanishes at theta = pi;
+    # formed as far0 - 4 H h sin^2(theta/2) it cancels (17-70 ulps of the condition); dyad forms it from pi past
+    # |theta| = pi/2.
     link = AntennaLinkage(1.0, 1.0, 1.0, 1.0)
     for theta in (3.1354567304382504, 3.129320807286708):
         check(link, theta)

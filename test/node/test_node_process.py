@@ -230,8 +230,8 @@ def test_command_line_override_is_validated_too(ros: RosSession) -> None:
 
 def test_robot_wide_params_file_other_nodes_parameters_are_ignored(ros: RosSession, tmp_path: Path) -> None:
     """A ``/**`` section shared by a whole robot (robot_description etc.) starts the node; an unknown name in a
-    section naming this node (a typo) is reported by a warning naming it; so is one given with ``-p``.
-    Before the fix the node refused to start (``robot_description: unknown parameter``, status 2)."""
+    section naming this node (a typo) is reported by a warning naming it; so is one given with ``-p``. The node
+    must not refuse the file for another node's parameter (``robot_description: unknown parameter``, status 2)."""
     path = tmp_path / 'robot.yaml'
     text = YAML.read_text(encoding='utf-8').replace(
         '/**:\n  ros__parameters:\n',

@@ -1,9 +1,9 @@
 """fourbar_node on sim time (``-p use_sim_time:=true``), as with ``ros2 bag play --clock``.
 
 A test node publishes rosgraph_msgs/Clock at 40 Hz (rosbag2's default ``--clock`` rate) and a constant-rate
-ramp of commands at 100 Hz into the node process: commands then share stamps. Before the fix every velocity
-was 0.40x the true rate (the anchor was replaced on every command, so one 10 ms step was divided by a 25 ms
-tick); now the mean must be the true rate. Without any /clock the node warns once.
+ramp of commands at 100 Hz into the node process: commands then share stamps. The mean velocity must be the true
+rate (a velocity anchor replaced on every command would divide one 10 ms step by a 25 ms tick: 0.40x the rate).
+Without any /clock the node warns once.
 """
 
 from __future__ import annotations

@@ -3,8 +3,8 @@
 Launch files and supervisors may stop a node right after starting it, while Python is still importing rclpy and
 the message packages (a noticeable time). The test makes that moment deterministic: a ``sitecustomize`` on
 PYTHONPATH holds the node's first ``import rclpy`` on a pipe nobody writes to and says so on stderr; the signal
-is sent then, so it lands inside the import. Before the quiet start (``fourbar_ros.node.main``) SIGINT there
-gave a KeyboardInterrupt traceback and SIGTERM status -15.
+is sent then, so it lands inside the import. Without the quiet start (``fourbar_ros.node.main``) SIGINT there
+gives a KeyboardInterrupt traceback and SIGTERM status -15.
 """
 
 from __future__ import annotations

@@ -2,9 +2,10 @@
 
 Each case starts the console script once (``make test``) and ``REPEATS`` times (``make test-stress``), proves it
 serves (an answer on input_torque), and signals it: idle (no command in flight) or while a 1 kHz command stream
-runs and its answers are subscribed (so the signal lands during take/solve/publish calls). Before the fix (rclpy's
-own signal handlers, which shut the context down under a running callback) SIGTERM failed 4-5 of 20 idle and 19 of
-20 under load, SIGINT 1 of 20 under load: these repeats catch such rates with certainty for all practical purposes.
+runs and its answers are subscribed (so the signal lands during take/solve/publish calls). A stop left to rclpy's
+own signal handlers, which shut the context down under a running callback, fails at rates of SIGTERM 4-5 of 20 idle
+and 19 of 20 under load, SIGINT 1 of 20 under load: these repeats catch such rates with certainty for all practical
+purposes.
 """
 
 from __future__ import annotations
