@@ -86,7 +86,7 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
         procs = {k: NodeProcess(node_args(CONFIG, '-r', f'__ns:=/{k}', '-r', f'__node:=fourbar_node_{k}'),
                                 dict(os.environ, ROS_DOMAIN_ID=str(domain_id), **{EXECUTOR_ENV: k})).start()
                  for k in EXECUTORS}
-        context = init_context(domain_id=domain_id, handle_signals=False)
+        context = init_context(domain_id=domain_id)
         nodes = [Node(f'fourbar_bag_bench_{k}', context=context, start_parameter_services=False) for k in EXECUTORS]
         executors = {k: create_executor(k, context) for k in EXECUTORS}
         diag: dict[str, list[dict[str, str]]] = {k: [] for k in EXECUTORS}

@@ -476,7 +476,7 @@ def running(systems: dict[str, list[str]]) -> Iterator[Bench]:
         try:
             for name, cmd in systems.items():
                 children[name] = start(cmd, env)
-            context = init_context(domain_id, handle_signals=False)
+            context = init_context(domain_id)
             client = Node('bench_client', context=context)
             executor = SingleThreadedExecutor(context=context)
             executor.add_node(client)

@@ -33,9 +33,8 @@ from fourbar_ros.config.interface import (
 from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.completion import complete
 from fourbar_ros.core.errors import FourBarError
-from fourbar_ros.core.loads import motor_torque
+from fourbar_ros.core.loads import motor_torque, poses
 from fourbar_ros.rules.completion import completed_names
-from fourbar_ros.rules.outputs import poses
 from fourbar_ros.rules.policy import Outcome, Policy, Served, serve
 
 FloatArray = npt.NDArray[np.float64]

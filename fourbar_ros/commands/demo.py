@@ -168,7 +168,6 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from fourbar_ros.live.record import Recorder, discover
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
-    from fourbar_ros.node.run import stop_on_signals
 
     assert isinstance(stream, CommandStream) and isinstance(topics, DemoTopics) and isinstance(cfg, AntennaConfig)
     prog = 'fourbar demo'
@@ -186,7 +185,6 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
                                 '-p', f'max_acceleration:={cfg.motor_acceleration_limit / cfg.reducer_ratio!r}'),
                       env, command=sim_actuator_command(), log_path=args.out / 'sim_actuator.log')
     stack = contextlib.ExitStack()
-    stack.enter_context(stop_on_signals())
     stack.callback(_stop_process, node, NODE_EXECUTABLE)  # on every path, last
     stack.callback(_stop_process, sim, 'the simulated actuator')
     context: Context | None = None
@@ -203,7 +201,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     try:  # from the processes' start on: a Ctrl-C at any point still stops them (the stack's callbacks)
         node.start()
         sim.start()
-        context = init_context(domain_id=domain_id, handle_signals=False)  # Ctrl-C: KeyboardInterrupt
+        context = init_context(domain_id=domain_id)  # Ctrl-C: KeyboardInterrupt (commands.main)
         ros = Node('fourbar_demo', context=context, start_parameter_services=False)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(ros)

@@ -81,13 +81,11 @@ def run(args: argparse.Namespace) -> int:
     """Process; exit 0 with a complete bag, 2 with one line on bad input (nothing written)."""
     from fourbar_ros.bags.storage import open_bag, topic_types
     from fourbar_ros.config.antenna_config import default_config, load_config
-    from fourbar_ros.node.run import stop_on_signals
 
     cfg = load_config(args.params) if args.params is not None else default_config()  # ConfigError: exit 2
     with open_bag(args.bag) as reader:  # BagError: exit 2
         types = topic_types(reader)
     process = next((p for _, has, p in KINDS if has(args.bag, types, args.topic)), _commands)  # else its error
-    with stop_on_signals():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt: the partial bag is removed
-        summary = process(args, cfg)
+    summary = process(args, cfg)  # a stop raises KeyboardInterrupt (commands.main): the partial bag is removed
     print(f'fourbar process: wrote {args.out}: {summary}', file=sys.stderr)
     return 0

@@ -70,7 +70,7 @@ def run(args: argparse.Namespace) -> int:
 
     stack = contextlib.ExitStack()
     stop = stack.enter_context(stop_on_signals(raises=None))  # a stop ends the recording, which is then closed
-    context = init_context(handle_signals=False)
+    context = init_context()
     node = Node('fourbar_record', context=context)
     executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
     executor.add_node(node)

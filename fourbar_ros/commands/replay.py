@@ -64,7 +64,6 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
     from fourbar_ros.node.executor import create_executor
-    from fourbar_ros.node.run import stop_on_signals
 
     prog = 'fourbar replay'
     for name in ('rate', 'wait', 'deadline'):
@@ -86,50 +85,49 @@ def run(args: argparse.Namespace) -> int:
         cfg = load_config(args.params)
         answers_from_file = predictor(cfg.theta_min, cfg.theta_max, cfg.out_of_limits)
 
-    with stop_on_signals():  # SIGTERM, like Ctrl-C, raises KeyboardInterrupt (not inside a callback): cleanup runs
-        context = init_context(handle_signals=False)
-        node = Node('fourbar_replay', context=context, start_parameter_services=False)
-        executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
-        executor.add_node(node)
-        progress = Progress(len(stream), 'replay', enabled=False if args.no_progress else None)
-        try:
-            topic = args.topic or stream.topic
-            answer_topic = None
-            if args.lockstep:
-                answer_topic = (args.answer_topic
-                                or sibling_topic(node.resolve_topic_name(topic), INPUT_TORQUE.name))
-            replayer = Replayer(node, stream, topic, answer_topic, clock=args.clock is not None)
-            replayer.wait_for_node(executor, args.wait)
-            if not args.lockstep:
-                unreachable, ignoring = replayer.prepare_timed(executor, args.wait)
-                for fqn in unreachable:
-                    print(f'{prog}: warning: {fqn} has no parameter services; it may miss the first and last commands',
-                          file=sys.stderr)
-                for fqn in ignoring if args.clock is not None else []:
-                    print(f'{prog}: warning: {fqn} has use_sim_time false; it ignores /clock', file=sys.stderr)
-            if args.lockstep:
-                answers = replayer.prepare_lockstep(executor, args.wait, answers_from_file)
-                stats = replayer.run_lockstep(executor, answers, args.deadline, progress, args.window)
-                progress.end()
-                print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s '
-                      f'({stats.rate_hz:.0f}/s) lock-step; {stats.answers} answers on {answer_topic}, '
-                      f'{stats.published - stats.expected_answers} commands rejected by the node\'s limits',
+    context = init_context()  # a stop raises KeyboardInterrupt (commands.main), not inside a callback
+    node = Node('fourbar_replay', context=context, start_parameter_services=False)
+    executor = create_executor(context=context)  # $FOURBAR_EXECUTOR, else events
+    executor.add_node(node)
+    progress = Progress(len(stream), 'replay', enabled=False if args.no_progress else None)
+    try:
+        topic = args.topic or stream.topic
+        answer_topic = None
+        if args.lockstep:
+            answer_topic = (args.answer_topic
+                            or sibling_topic(node.resolve_topic_name(topic), INPUT_TORQUE.name))
+        replayer = Replayer(node, stream, topic, answer_topic, clock=args.clock is not None)
+        replayer.wait_for_node(executor, args.wait)
+        if not args.lockstep:
+            unreachable, ignoring = replayer.prepare_timed(executor, args.wait)
+            for fqn in unreachable:
+                print(f'{prog}: warning: {fqn} has no parameter services; it may miss the first and last commands',
                       file=sys.stderr)
-            else:
-                stats = replayer.run_timed(executor, args.rate, progress,
-                                           clock_hz=args.clock if args.clock is not None else 40.0)
-                progress.end()
-                clock = f'; /clock {stats.clocks} times at {args.clock:g} Hz' if args.clock is not None else ''
-                print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s at rate {args.rate:g} '
-                      f'on {replayer.publisher.topic_name}{clock}', file=sys.stderr)
-            return 0
-        except ReplayError as exc:  # the node did not answer or went away: status 1
+            for fqn in ignoring if args.clock is not None else []:
+                print(f'{prog}: warning: {fqn} has use_sim_time false; it ignores /clock', file=sys.stderr)
+        if args.lockstep:
+            answers = replayer.prepare_lockstep(executor, args.wait, answers_from_file)
+            stats = replayer.run_lockstep(executor, answers, args.deadline, progress, args.window)
             progress.end()
-            raise CommandError(str(exc), status=1) from None
-        except (KeyboardInterrupt, ExternalShutdownException):
+            print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s '
+                  f'({stats.rate_hz:.0f}/s) lock-step; {stats.answers} answers on {answer_topic}, '
+                  f'{stats.published - stats.expected_answers} commands rejected by the node\'s limits',
+                  file=sys.stderr)
+        else:
+            stats = replayer.run_timed(executor, args.rate, progress,
+                                       clock_hz=args.clock if args.clock is not None else 40.0)
             progress.end()
-            print(f'{prog}: interrupted', file=sys.stderr)
-            return 130
-        finally:
-            executor.shutdown()
-            close_context(context, node)
+            clock = f'; /clock {stats.clocks} times at {args.clock:g} Hz' if args.clock is not None else ''
+            print(f'{prog}: {stats.published} commands in {stats.seconds:.2f} s at rate {args.rate:g} '
+                  f'on {replayer.publisher.topic_name}{clock}', file=sys.stderr)
+        return 0
+    except ReplayError as exc:  # the node did not answer or went away: status 1
+        progress.end()
+        raise CommandError(str(exc), status=1) from None
+    except (KeyboardInterrupt, ExternalShutdownException):
+        progress.end()
+        print(f'{prog}: interrupted', file=sys.stderr)
+        return 130
+    finally:
+        executor.shutdown()
+        close_context(context, node)

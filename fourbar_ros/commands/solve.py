@@ -12,7 +12,7 @@ from fourbar_ros.commands.check import warn_unknown_parameters
 from fourbar_ros.config.antenna_config import AntennaConfig, default_config, load_config
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.errors import DeadPointError, FourBarError, SingularPositionError, UnreachableError
-from fourbar_ros.rules.policy import angle_text, out_of_reach_text
+from fourbar_ros.rules.policy import Outcome, Policy, angle_text, decide, out_of_reach_text
 
 HELP = ('solve the linkage at one antenna angle (or a measured rocker angle): rocker angles, rates, second '
         'derivatives, mechanical advantage, input torque')
@@ -162,8 +162,7 @@ def run(args: argparse.Namespace) -> int:
         extra = f'  ({math.degrees(value):.12f} deg)' if key in deg else ''
         print(f'{key:>22}: {value!r}{unit}{extra}')
     print(f'{"load_torque":>22}: {cfg.load_torque!r} N m (about theta)')
-    if not cfg.theta_min <= theta <= cfg.theta_max:
-        print(f'note: theta is outside the configured limits [theta_min, theta_max] = '
-              f'[{angle_text(cfg.theta_min)}, {angle_text(cfg.theta_max)}]; the node would '
-              f'{"clamp" if cfg.out_of_limits == "clamp" else "reject"} this command')
+    decision = decide(theta, cfg.theta_min, cfg.theta_max, Policy(cfg.out_of_limits), linkage.reach())
+    if decision.outcome is not Outcome.ACCEPTED:
+        print(f'note: as a command, the node would not serve it as is: {decision.reason}')
     return 0

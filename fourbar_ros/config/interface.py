@@ -96,6 +96,79 @@ def forward_topic(controller: str) -> Topic:
     return Topic(f'{controller}/commands', FLOAT64_MULTI_ARRAY, CONTROLLER_DEPTH)
 
 
+class Mode(enum.Enum):
+    """fourbar_node's ``mode``: where a served command goes."""
+
+    OPEN_LOOP = 'open_loop'  #: the commanded pose on joint_states (no hardware)
+    TRAJECTORY = 'trajectory'  #: driven-joint trajectories for joint_trajectory_controller
+    FORWARD = 'forward'  #: a driven-joint setpoint stream for forward_command_controller
+
+
+class Direction(enum.Enum):
+    """Which way a message goes, seen from the node."""
+
+    IN = 'in'
+    OUT = 'out'
+
+
+@dataclass(frozen=True)
+class Endpoint:
+    """One topic of the node in one mode: the topic, its direction, and what it carries and when."""
+
+    topic: Topic
+    direction: Direction
+    content: str
+
+
+#: Where the defaults of the ``trajectory_controller`` and ``forward_controller`` parameters send (config.params).
+DEFAULT_TRAJECTORY_CONTROLLER = 'joint_trajectory_controller'
+DEFAULT_FORWARD_CONTROLLER = 'forward_position_controller'
+
+_COMMAND_IN = Endpoint(COMMAND, Direction.IN, 'commanded antenna angle theta, rad (+ tilts the antenna down); taken '
+                       'raw: a payload that is not a Float64 is counted (`commands_malformed`) and skipped')
+_TORQUE_OUT = Endpoint(INPUT_TORQUE, Direction.OUT, 'the torque the driven rocker needs for the commanded angle, '
+                       'N m, + in the sense of increasing rocker angle; once per served command, never republished')
+_STATUS_OUT = (
+    Endpoint(DIAGNOSTICS, Direction.OUT, 'one status `<node name>: antenna tilt linkage` every '
+             '`diagnostics_period` s (keys: [diagnostics](diagnostics.md))'),
+    Endpoint(MARKERS, Direction.OUT, 'frame AD, rockers, coupler BC, joints and antenna arrow in `frame_id` (ns '
+             '`fourbar`, ids 0-4), at most every `marker_period` s, when subscribed and changed'),
+)
+_MEASURED = (
+    Endpoint(ANTENNA_TRAJECTORY, Direction.IN, f'antenna trajectories: joint `{ANTENNA_JOINT}`, positions theta '
+             'rad, optional velocities rad/s and accelerations rad/s^2'),
+    Endpoint(MEASURED_JOINT_STATES, Direction.IN, 'the measured driven joint (position rad, velocity rad/s, '
+             f'effort N m); the launch file remaps it to `{BROADCASTER_JOINT_STATES.name}`'),
+    Endpoint(JOINT_STATES, Direction.OUT, 'per measurement, every joint at its stamp: [driven, other rocker, '
+             'coupler] positions rad (the measured one, then completed exactly), velocities rad/s (chain rule; '
+             'empty without a measured velocity), efforts [measured, 0, 0] N m'),
+    Endpoint(ANTENNA_ANGLE, Direction.OUT, 'per measurement: the measured antenna angle theta, rad'),
+    Endpoint(ANTENNA_RATE, Direction.OUT, 'per measurement with a velocity: d theta/dt, rad/s'),
+    Endpoint(LOAD_TORQUE, Direction.OUT, 'per measurement with an effort: the load the measured effort holds, N m '
+             'about theta, + in the sense of increasing theta'),
+)
+
+
+def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
+              forward_controller: str = DEFAULT_FORWARD_CONTROLLER) -> tuple[Endpoint, ...]:
+    """Every topic fourbar_node reads or writes in ``mode`` (the controller names as its parameters give them)."""
+    if mode is Mode.OPEN_LOOP:
+        pose = Endpoint(JOINT_STATES, Direction.OUT, 'per served command, the commanded pose: joints [`gamma_joint`, '
+                        '`delta_joint`, `coupler_joint`], positions [gamma, delta, gamma + theta] rad, velocities '
+                        'rad/s by finite difference (empty when not meaningful), efforts [driven rocker torque N m '
+                        'in its column, 0.0 elsewhere]; the last pose again every 1/`joint_state_rate` s, freshly '
+                        'stamped, velocities 0.0')
+        return (_COMMAND_IN, pose, _TORQUE_OUT, *_STATUS_OUT)
+    if mode is Mode.TRAJECTORY:
+        out = Endpoint(trajectory_topic(trajectory_controller), Direction.OUT, 'driven-joint trajectories for '
+                       'joint_trajectory_controller: positions rad, velocities rad/s, accelerations rad/s^2 (effort '
+                       'N m only with `effort_feedforward`); checked against the controller\'s own checks first')
+    else:
+        out = Endpoint(forward_topic(forward_controller), Direction.OUT, 'driven-joint setpoints for '
+                       'forward_command_controller: one position rad per message, at `control_rate` while moving')
+    return (_COMMAND_IN, *_MEASURED, out, _TORQUE_OUT, *_STATUS_OUT)
+
+
 #: What the node publishes for each served command, in publishing order.
 PER_COMMAND_OUTPUTS = (JOINT_STATES, INPUT_TORQUE)
 #: The outputs a recording of the node holds by default (``fourbar record``, ``fourbar demo``).

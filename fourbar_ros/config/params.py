@@ -12,6 +12,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
+from fourbar_ros.config.interface import DEFAULT_FORWARD_CONTROLLER, DEFAULT_TRAJECTORY_CONTROLLER, Mode
 from fourbar_ros.core.antenna import Branch, Driven
 
 ParamValue = float | int | str | bool
@@ -156,16 +157,16 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('max_trajectory_points', int, 10000, '',
               'Most points a trajectory may have, received or sent (inserted points included): bounds memory.',
               2, 1000000),
-    ParamSpec('mode', str, 'open_loop', '',
+    ParamSpec('mode', str, Mode.OPEN_LOOP.value, '',
               'open_loop: commands in, the commanded pose out on joint_states (no hardware). trajectory: commands '
               'and antenna trajectories become driven-joint trajectories for joint_trajectory_controller; '
               'forward: a setpoint stream for forward_command_controller. In both actuator modes the measured '
               'driven joint (joint_states) is completed into the whole linkage.',
-              choices=('open_loop', 'trajectory', 'forward'), read_only=True),
-    ParamSpec('trajectory_controller', str, 'joint_trajectory_controller', '',
+              choices=tuple(m.value for m in Mode), read_only=True),
+    ParamSpec('trajectory_controller', str, DEFAULT_TRAJECTORY_CONTROLLER, '',
               'Controller name (trajectory mode): driven-joint trajectories go to <this>/joint_trajectory.',
               read_only=True),
-    ParamSpec('forward_controller', str, 'forward_position_controller', '',
+    ParamSpec('forward_controller', str, DEFAULT_FORWARD_CONTROLLER, '',
               'Controller name (forward mode): driven-joint setpoints go to <this>/commands.', read_only=True),
     ParamSpec('controllers_file', str, '', '',
               'Actuator modes: the ros2_control controllers YAML the drive runs (the controller\'s joints, command '

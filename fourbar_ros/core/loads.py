@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from functools import partial
 from typing import NamedTuple, Protocol, overload
 
 import numpy as np
@@ -118,19 +117,22 @@ def load_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta
     return cfg.load_torque + gravity_torque(cfg, theta, gamma, dgamma_dtheta)
 
 
-def solve(cfg: LoadSpec, theta: float) -> LinkageState:
-    """The linkage state at antenna angle theta (rad) under the configured load.
-
-    Without an antenna mass this is exactly ``cfg.linkage.state(theta, cfg.load_torque, cfg.driven,
-    cfg.branch)``; with one, the load is evaluated at the solved pose. Raises the core's
-    ``UnreachableError``/``DeadPointError`` for an angle the linkage cannot serve.
-    """
-    link = cfg.linkage
+def load_at_pose(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike) -> ArrayLike:
+    """The load torque about theta (N m) at a solved pose (theta, gamma, delta in rad); floats or arrays. The
+    rates are computed only when the antenna's weight needs them."""
     if not has_gravity_load(cfg):
-        return link.state(theta, cfg.load_torque, cfg.driven, cfg.branch)
+        return cfg.load_torque
+    return load_torque(cfg, theta, gamma, cfg.linkage.rates_at(theta, gamma, delta).dgamma_dtheta)
+
+
+def solve(cfg: LoadSpec, theta: float) -> LinkageState:
+    """The whole linkage state at antenna angle theta (rad) under the configured load (the pose below plus the
+    rates and the transmission angle). Raises the core's ``UnreachableError``/``DeadPointError`` for an angle the
+    linkage cannot serve."""
+    link = cfg.linkage
     gamma, delta = link.rocker_angles(theta, cfg.branch)
     rates = link.rates_at(theta, gamma, delta)
-    load = load_torque(cfg, theta, float(gamma), float(rates.dgamma_dtheta))
+    load = load_at_pose(cfg, theta, gamma, delta)
     advantage = rates.dgamma_dtheta if cfg.driven is Driven.GAMMA else rates.ddelta_dtheta
     return LinkageState(theta, gamma, delta, rates.dgamma_dtheta, rates.ddelta_dtheta, advantage,
                         link.torque_at(theta, gamma, delta, load, cfg.driven),
@@ -145,31 +147,37 @@ class Pose(NamedTuple):
     input_torque: float
 
 
-def pose(cfg: LoadSpec, theta: float) -> Pose:
-    """Rocker angles and input torque at theta (rad) under the configured load, without the rates and the
-    transmission angle when the load does not need them. Same floats as ``solve`` (the same core calls)."""
-    link = cfg.linkage
-    gamma, delta = link.rocker_angles(theta, cfg.branch)
-    if has_gravity_load(cfg):
-        rates = link.rates_at(theta, gamma, delta)
-        load = load_torque(cfg, theta, float(gamma), float(rates.dgamma_dtheta))
-    else:
-        load = cfg.load_torque
-    return Pose(float(gamma), float(delta), float(link.torque_at(theta, gamma, delta, load, cfg.driven)))
-
+# The pose, one angle and many: the same core calls in the same order, on Python floats (math module) and on
+# numpy arrays. They agree within the core's few-ulp bound (numpy's SIMD transcendentals against libm).
 
 def pose_solver(cfg: LoadSpec) -> Callable[[float], Pose]:
-    """``theta -> pose(cfg, theta)`` with the configuration's lookups bound once (the node's per-command call)."""
-    if has_gravity_load(cfg):
-        return partial(pose, cfg)
+    """``theta (rad) -> Pose`` with the configuration's lookups bound once (the node's per-command call). Raises
+    the core's ``UnreachableError``/``DeadPointError`` for an angle the linkage cannot serve."""
     angles, torque_at = cfg.linkage.rocker_angles, cfg.linkage.torque_at
-    branch, load, driven = cfg.branch, cfg.load_torque, cfg.driven
+    branch, driven, constant = cfg.branch, cfg.driven, cfg.load_torque
+    gravity = has_gravity_load(cfg)
 
-    def constant_load_pose(theta: float) -> Pose:
+    def solved_pose(theta: float) -> Pose:
         gamma, delta = angles(theta, branch)
+        load = load_at_pose(cfg, theta, gamma, delta) if gravity else constant
         return Pose(float(gamma), float(delta), float(torque_at(theta, gamma, delta, load, driven)))
 
-    return constant_load_pose
+    return solved_pose
+
+
+def pose(cfg: LoadSpec, theta: float) -> Pose:
+    """The pose at one antenna angle theta (rad): ``pose_solver(cfg)(theta)``."""
+    return pose_solver(cfg)(theta)
+
+
+def poses(cfg: LoadSpec, theta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """gamma, delta (rad) and the driven rocker's torque (N m) at each angle theta (rad): the pose on arrays, NaN
+    where the core cannot solve (out of reach, a dead point)."""
+    link = cfg.linkage
+    gamma, delta = link.rocker_angles(theta, cfg.branch, on_invalid='nan')
+    load = load_at_pose(cfg, theta, gamma, delta)
+    torque = np.asarray(link.torque_at(theta, gamma, delta, load, cfg.driven), dtype=np.float64)
+    return np.asarray(gamma), np.asarray(delta), torque
 
 
 @overload

@@ -10,13 +10,13 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 
-def init_context(domain_id: int | None = None, handle_signals: bool = True) -> Context:
-    """A fresh rclpy context (``domain_id`` None: from ROS_DOMAIN_ID, as rclpy does)."""
+def init_context(domain_id: int | None = None) -> Context:
+    """A fresh rclpy context (``domain_id`` None: from ROS_DOMAIN_ID, as rclpy does), without rclpy's signal
+    handlers: the tools stop by ``node.run.stop_on_signals``."""
     from rclpy.signals import SignalHandlerOptions
 
     context = Context()
-    rclpy.init(context=context, domain_id=domain_id,
-               signal_handler_options=SignalHandlerOptions.ALL if handle_signals else SignalHandlerOptions.NO)
+    rclpy.init(context=context, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
     return context
 
 

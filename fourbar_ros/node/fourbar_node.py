@@ -280,12 +280,12 @@ class FourBarNode(Node):
             self._warn(f'{COMMAND.name}: payload skipped: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
             return
         self._last_command = command
-        if self._theta_min <= command <= self._theta_max:  # accepted as is (NaN and inf fail here)
+        decision = decide(command, self._theta_min, self._theta_max, self._policy, self._reach)
+        if decision.outcome is Outcome.ACCEPTED:
             theta = command
             self._last_decision = None
             clamped = None
         else:
-            decision = decide(command, self._theta_min, self._theta_max, self._policy, self._reach)
             self._last_decision = decision
             counters.record(decision.outcome)
             self._warn(decision.reason, throttle_duration_sec=WARN_THROTTLE_S)

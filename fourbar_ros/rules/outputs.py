@@ -1,16 +1,15 @@
 """What fourbar_node publishes for a served antenna angle theta (rad). No ROS.
 
 - The pose: rocker angles gamma, delta (rad) and the driven rocker's torque (N m) under the configured load
-  (constant plus the antenna's weight, ``core.loads``).
+  (constant plus the antenna's weight): ``core.loads.pose_solver`` for one angle, ``core.loads.poses`` for many.
 - ``joint_states``: positions [gamma, delta, gamma + theta] in the order of the joint names (the coupler joint
   is the coupler's angle to the frame, ``core.completion.coupler_joint_position``); velocities by the velocity rule
   (``rules.velocity``); efforts with the torque at the driven rocker and 0.0 at the other joints.
 - ``input_torque``: the driven rocker's torque (N m).
 
-Two paths over the same operations: per command ``loads.pose_solver`` and ``JointStateRule`` (the node: Python
-floats through the math module, the cost of one command) and ``outputs_block`` for an array (``fourbar process``:
-numpy). They agree within a few ulps (numpy's SIMD transcendentals against libm), held together by
-test/test_rules.py.
+Two paths over the same operations: per command ``JointStateRule`` (the node: Python floats through the math
+module, the cost of one command) and ``outputs_block`` for an array (``fourbar process``: numpy). They agree within
+a few ulps (numpy's SIMD transcendentals against libm); the rules tests hold them together.
 An output is added here, to both, and to ``Block``.
 """
 
@@ -23,7 +22,7 @@ import numpy as np
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.completion import coupler_joint_position
-from fourbar_ros.core.loads import Pose, has_gravity_load, load_torque
+from fourbar_ros.core.loads import Pose, poses
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.rules.velocity import BoolArray, IntArray, Sample, VelocityState, velocities, velocity_step
 
@@ -34,18 +33,6 @@ JOINTS = 3
 def driven_index(cfg: AntennaConfig) -> int:
     """Column of the driven rocker's effort (0: gamma, 1: delta)."""
     return 0 if cfg.driven is Driven.GAMMA else 1
-
-
-def poses(cfg: AntennaConfig, theta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """gamma, delta (rad) and the driven rocker's torque (N m) at each angle: ``loads.pose`` on arrays, NaN
-    where the core cannot solve (out of reach, a dead point)."""
-    link = cfg.linkage
-    gamma, delta = link.rocker_angles(theta, cfg.branch, on_invalid='nan')
-    load: float | FloatArray = cfg.load_torque
-    if has_gravity_load(cfg):
-        load = load_torque(cfg, theta, gamma, link.rates_at(theta, gamma, delta).dgamma_dtheta)
-    torque = np.asarray(link.torque_at(theta, gamma, delta, load, cfg.driven), dtype=np.float64)
-    return np.asarray(gamma), np.asarray(delta), torque
 
 
 class JointStateRule:

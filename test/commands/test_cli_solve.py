@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+from pathlib import Path
 
 import pytest
 from support.cli_support import fourbar
@@ -73,10 +74,21 @@ def test_out_of_reach_as_a_number(theta: str, words: list[str]) -> None:
         assert word in line
 
 
-def test_outside_the_limits_is_a_note_not_out_of_reach() -> None:
-    out = fourbar('solve', '--theta', '0.5')
-    assert out.returncode == 0
-    assert 'outside the configured limits' in out.stdout and 'out of reach' not in out.stdout
+@pytest.mark.parametrize(('theta', 'policy', 'verdict'), [
+    ('0.5', 'reject', '; rejected'), ('-0.5', 'clamp', '; clamped to theta_min'), ('0.05', 'reject', None)])
+def test_outside_the_limits_is_a_note_of_the_nodes_verdict(theta: str, policy: str, verdict: str | None,
+                                                           tmp_path: Path) -> None:
+    """The pose is solved; the last line says what the node's policy (``decide``) does with such a command."""
+    params = tmp_path / 'params.yaml'
+    params.write_text(f'fourbar_node:\n  ros__parameters:\n    out_of_limits: {policy}\n')
+    out = fourbar('solve', '--theta', theta, '--params', params)
+    assert out.returncode == 0 and 'out of reach' not in out.stdout
+    last = out.stdout.splitlines()[-1]
+    if verdict is None:
+        assert not last.startswith('note:')
+        return
+    assert last.startswith(f'note: as a command, the node would not serve it as is: command {theta} rad')
+    assert 'outside the limits' in last and verdict in last
 
 
 # ---------------------------------------------------------------- decide(): the node's policy, same convention

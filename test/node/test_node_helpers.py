@@ -6,10 +6,20 @@ import math
 
 import numpy as np
 import pytest
+from support.ulp_bounds import CHAIN_ULPS, assert_close_ulps, pose_scales
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
 from fourbar_ros.core.antenna import Driven, LinkageState
-from fourbar_ros.core.loads import com_height_rate, gravity_torque, load_torque, motor_torque, pose_solver, solve
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.loads import (
+    com_height_rate,
+    gravity_torque,
+    load_torque,
+    motor_torque,
+    pose_solver,
+    poses,
+    solve,
+)
 from fourbar_ros.core.transforms import antenna_joint_positions
 from fourbar_ros.node.diagnostic_values import Counters, Level, SequenceGaps, summarize
 from fourbar_ros.node.marker_geometry import linkage_points
@@ -110,6 +120,35 @@ def test_pose_is_the_same_floats_as_solve(mass: float, driven: str) -> None:
     for theta in np.linspace(LO, HI, 7):
         full = solve(cfg, float(theta))
         assert bound(float(theta)) == (full.gamma, full.delta, full.input_torque)
+
+
+@pytest.mark.parametrize('branch', ['upper', 'lower'])
+@pytest.mark.parametrize('driven', ['gamma', 'delta'])
+@pytest.mark.parametrize('mass', [0.0, 1.5])
+def test_the_scalar_and_the_array_pose_agree(mass: float, driven: str, branch: str) -> None:
+    """pose_solver (one angle, math module) and poses (an array, numpy) over the whole reach, past its ends and
+    at non-finite angles: the same angles solved (NaN on the array path where the scalar path raises), values
+    within CHAIN_ULPS of their condition-weighted scales (ulp_bounds.pose_scales)."""
+    cfg = config_from_values({'antenna_mass': mass, 'com_offset_normal': 0.02, 'driven_rocker': driven,
+                              'branch': branch})
+    reach = cfg.linkage.reach()
+    lo, hi = -reach.theta_max, reach.theta_max
+    theta = np.concatenate((np.linspace(lo - 0.1, hi + 0.1, 4001), [lo, hi, math.nan, math.inf, -math.inf]))
+    scalar = []
+    for t in theta.tolist():
+        try:
+            scalar.append(tuple(pose_solver(cfg)(t)))
+        except FourBarError:
+            scalar.append((math.nan,) * 3)
+    want = np.array(scalar)
+    got = np.column_stack(poses(cfg, theta))
+    solved = np.isfinite(want).all(axis=1)
+    assert 1000 < np.count_nonzero(solved) < theta.size
+    g_scale, d_scale, tau_scale = pose_scales(cfg, theta[solved], want[solved, 2])
+    assert np.isnan(got[~solved]).any(axis=1).all()
+    # At the reach's ends sin(gamma + delta) = 0: the torque's condition is unbounded there (a scale of inf).
+    tau_scale = np.where(np.isnan(tau_scale), np.inf, tau_scale)
+    assert_close_ulps(got[solved], want[solved], CHAIN_ULPS, np.column_stack((g_scale, d_scale, tau_scale)), 'pose')
 
 
 def test_no_mass_no_gravity() -> None:

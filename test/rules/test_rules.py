@@ -13,10 +13,9 @@ import math
 import numpy as np
 import pytest
 from support.paths import REPO
-from support.ulp_bounds import CHAIN_ULPS, angle_scale, assert_close_ulps
+from support.ulp_bounds import CHAIN_ULPS, assert_close_ulps, pose_scales
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, load_config
-from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.loads import pose_solver
 from fourbar_ros.rules.outputs import JOINTS, JointStateRule, driven_index, outputs_block
 from fourbar_ros.rules.policy import Outcome, Policy, decide, serve
@@ -134,14 +133,10 @@ def test_scalar_and_array_paths_publish_the_same(name: str, block: int) -> None:
     want_q = np.array([a[2] for a in answers])
     want_tau = np.array([a[5] for a in answers])
     theta = served.theta
-    link = cfg.linkage
-    gamma, delta = link.rocker_angles(theta, cfg.branch)
-    rates = link.rates_at(theta, gamma, delta)
     # Positions: each path's pose chain (about four transcendentals) is within CHAIN_ULPS of the angle's
     # condition-weighted scale; the coupler joint adds theta to gamma (one more rounding of its own size).
-    g_scale = angle_scale(gamma, theta, rates.dgamma_dtheta)
-    q_scale = np.column_stack((g_scale, angle_scale(delta, theta, rates.ddelta_dtheta),
-                               g_scale + np.abs(theta) + np.abs(want_q[:, 2])))
+    g_scale, d_scale, tau_scale = pose_scales(cfg, theta, want_tau)
+    q_scale = np.column_stack((g_scale, d_scale, g_scale + np.abs(theta) + np.abs(want_q[:, 2])))
     assert_close_ulps(positions, want_q, CHAIN_ULPS, q_scale, 'positions')
     # Velocities: (q - q_anchor) / dt with the same integer dt on both paths, so the position bounds of the
     # sample and its anchor over dt, plus the division's own rounding of |v|.
@@ -151,13 +146,7 @@ def test_scalar_and_array_paths_publish_the_same(name: str, block: int) -> None:
     dt = ((got_stamps[rows] - got_stamps[anchor_row]) * 1e-9)[:, None]
     v_scale = (q_scale[rows] + q_scale[anchor_row]) / dt + np.abs(want_v)
     assert_close_ulps(vel[rows], want_v, CHAIN_ULPS, v_scale, 'velocities')
-    # Torque and efforts: an angle error e moves the sines' ratio by |tau| |cot| e (the two sines s and r of
-    # the torque), and the gravity load's terms (m g times lever arms below 0.2 m) are rounded on their own
-    # scale (the bound test_bag_process states for the same two paths).
-    s = gamma + delta
-    r = delta - theta if cfg.driven is Driven.GAMMA else gamma + theta
-    cond = 1.0 + math.pi * (np.abs(np.cos(s) / np.sin(s)) + np.abs(np.cos(r) / np.sin(r)))
-    tau_scale = (np.abs(want_tau) + cfg.antenna_mass * cfg.gravity * 0.2) * cond
+    # Torque and efforts: within the torque's condition-weighted scale (ulp_bounds.pose_scales).
     assert_close_ulps(torque, want_tau, CHAIN_ULPS, tau_scale, 'input_torque')
     d = driven_index(cfg)
     assert np.array_equal(efforts[:, d], torque)  # the effort layout: the torque in its column, 0.0 elsewhere

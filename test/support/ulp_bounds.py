@@ -66,6 +66,26 @@ def angle_scale(q: ArrayLike, theta: ArrayLike, dq_dtheta: ArrayLike) -> npt.NDA
     return 1.0 + np.abs(q) + np.abs(np.asarray(theta) * np.asarray(dq_dtheta))
 
 
+def pose_scales(cfg: Any, theta: npt.NDArray[np.float64], torque: npt.NDArray[np.float64]
+                ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+    """Condition-weighted scales of gamma, delta (rad) and the driven rocker's torque (N m) at ``theta``.
+
+    The angles: ``angle_scale`` of each rocker. The torque: an angle error e moves its two sines' ratio by
+    |tau| |cot| e (the sines of gamma + delta and of the driven rocker's transmission angle), and the gravity
+    load's terms (m g times lever arms below 0.2 m) are rounded on their own scale.
+    """
+    from fourbar_ros.core.antenna import Driven
+
+    link = cfg.linkage
+    gamma, delta = link.rocker_angles(theta, cfg.branch, on_invalid='nan')
+    rates = link.rates_at(theta, gamma, delta)
+    s = gamma + delta
+    r = delta - theta if cfg.driven is Driven.GAMMA else gamma + theta
+    cond = 1.0 + math.pi * (np.abs(np.cos(s) / np.sin(s)) + np.abs(np.cos(r) / np.sin(r)))
+    return (angle_scale(gamma, theta, rates.dgamma_dtheta), angle_scale(delta, theta, rates.ddelta_dtheta),
+            (np.abs(torque) + cfg.antenna_mass * cfg.gravity * 0.2) * cond)
+
+
 def sine_ratio_scale(coef: ArrayLike, num_angle: ArrayLike, num_scale: ArrayLike, den_angle: ArrayLike,
                      den_scale: ArrayLike) -> npt.NDArray[np.float64]:
     """Scale of v = coef sin(num_angle) / sin(den_angle) (a rocker rate, mechanical advantage or input torque).
