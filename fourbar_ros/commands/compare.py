@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     tol = parser.add_mutually_exclusive_group()
     tol.add_argument('--ulps', type=float, default=DEFAULT_ULPS, metavar='N',
                      help=f'allowed difference in units in the last place of each value\'s scale (default: '
-                     f'{DEFAULT_ULPS:g}; see docs/bags.md for the scales)')
+                     f'{DEFAULT_ULPS:g}; see docs/how-to/bags.md for the scales)')
     tol.add_argument('--atol', type=float, metavar='X', help='allowed absolute difference instead (rad, rad/s, N m)')
     parser.add_argument('--ignore', default='', metavar='FIELDS',
                         help=f'comma-separated fields not to compare: {",".join(COMPARED_FIELDS)} (e.g. a '

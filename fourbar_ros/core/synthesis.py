@@ -8,7 +8,8 @@ equation
     K1 cos t4 - K2 cos t2 + K3 = cos(t2 - t4),
     K1 = l1/l2,  K2 = l1/l4,  K3 = (l1^2 + l2^2 - l3^2 + l4^2) / (2 l2 l4).
 
-(The lecture notes write the last constant as (l1^2 + l2^2 - l3^2)/(l2 l4); that is wrong, see docs/errata.md.)
+(The lecture notes write the last constant as (l1^2 + l2^2 - l3^2)/(l2 l4); that is wrong, see
+docs/explanation/errata.md.)
 Each pair gives one equation linear in (K1, K2, K3): three pairs give a 3x3 system, more give a least-squares problem.
 
 Signs: a negative K1 gives l2 = l1/K1 < 0. A link of length -a at angle t is the same vector as a link of length a

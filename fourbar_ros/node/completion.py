@@ -3,8 +3,9 @@
 Reads ``measured_joint_states`` (the driven joint, as joint_state_broadcaster publishes it; remappable) and for
 every measurement publishes one complete ``joint_states`` (every joint of the linkage at the measurement's stamp),
 ``antenna_angle``, ``antenna_rate`` (with a measured velocity) and ``load_torque`` (with a measured effort): what
-they hold is ``fourbar_ros.rules.completion``; topics and types: docs/node.md. Each output is computed and published
-only while it has a subscriber (the node's own subscription, if remapped onto joint_states, is not counted).
+they hold is ``fourbar_ros.rules.completion``; topics and types: docs/reference/topics.md. Each output is computed
+and published only while it has a subscriber (the node's own subscription, if remapped onto joint_states, is not
+counted).
 
 Read raw: the subscription takes the CDR bytes and ``fourbar_ros.config.cdr`` reads the stamp and names first, the
 float arrays only for a measurement. Skipped without reading the arrays: the node's own complete JointState (its

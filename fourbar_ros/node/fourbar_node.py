@@ -1,26 +1,10 @@
-"""fourbar_node: antenna angle commands in, rocker joint states, input torque, diagnostics and markers out.
+"""fourbar_node: antenna angle commands in; joint states, input torque, diagnostics and markers out; in the
+actuator modes, the front end of a ros2_control drive (node.actuation, node.completion).
 
-Interface (relative names, so namespaces and remapping apply):
-  sub  antenna_angle_cmd  std_msgs/Float64           commanded antenna angle theta, rad (+ tilts down)
-  pub  joint_states       sensor_msgs/JointState     name [gamma_joint, delta_joint, coupler_joint], position
-                                                     [gamma, delta, gamma + theta] rad (every movable joint of
-                                                     `fourbar urdf`'s model); velocity rad/s by finite
-                                                     difference of successive published positions (empty
-                                                     when not meaningful); effort N m: driven rocker's torque,
-                                                     0.0 for the other joints. Every 1/joint_state_rate s the
-                                                     last served pose again, freshly stamped, velocity 0.0
-  pub  input_torque       std_msgs/Float64           torque the driven rocker needs, N m (+ in the sense of q)
-  pub  /diagnostics       diagnostic_msgs/DiagnosticArray   every diagnostics_period s
-  pub  linkage_markers    visualization_msgs/MarkerArray    frame, rockers, coupler, joints, antenna arrow;
-                                                     every marker_period s, only when subscribed and changed
-QoS (fourbar_ros.config.interface): reliable keep-last 1000 for the command (taken raw) and the per-command outputs,
-reliable keep-last 10 for markers and diagnostics; commands the queues drop are counted (commands_lost).
-Each can be overridden with ``qos_overrides./<topic>.<publisher|subscription>.<policy>`` parameters.
-Markers are not per command (drawing them costs more than the rest of a command): a timer publishes them
-at most every marker_period s.
-The node only adapts messages and parameters; the math is in fourbar_ros.core, what a command publishes in
-fourbar_ros.rules (policy, outputs, velocity), and the node's own bookkeeping in state_cache and diagnostic_values.
-Names, topics and QoS: fourbar_ros.config.interface; start, spin and stop: fourbar_ros.node.run.
+Topics, QoS and directions per mode: docs/reference/topics.md (from fourbar_ros.config.interface); parameters:
+docs/reference/parameters.md (from fourbar_ros.config.params). The node only adapts messages and parameters: the
+math is fourbar_ros.core, what a message becomes is fourbar_ros.rules, its bookkeeping state_cache and
+diagnostic_values; start, spin and stop: fourbar_ros.node.run.
 """
 
 from __future__ import annotations

@@ -199,7 +199,7 @@ def node_options(argv: Sequence[str]) -> argparse.Namespace:
                            epilog='ROS arguments follow --ros-args, e.g. --ros-args --params-file config/antenna.yaml')
     parser.add_argument('--executor', choices=EXECUTORS, default=None,
                         help=f'rclpy executor that runs the callbacks (default: ${EXECUTOR_ENV}, else '
-                             f'{DEFAULT_EXECUTOR}); see docs/node.md')
+                             f'{DEFAULT_EXECUTOR}); see docs/reference/cli.md')
     return parser.parse_args(non_ros_args(argv)[1:])
 
 

@@ -50,7 +50,7 @@ def build(name: str, geo: Geometry) -> Solver:
 @pytest.mark.parametrize('scalar', [True, False])
 def test_annex_transcription_is_exact_for_turnantenna_and_wrong_by_pi_for_a_long_coupler(scalar: bool) -> None:
     assert max_error(build('annex', TURNANTENNA), TURNANTENNA, scalar=scalar) < 1e-14
-    # H < h: atan(P) picks the wrong branch where H - h cos(theta) < 0 (docs/errata.md): gamma off by pi.
+    # H < h: atan(P) picks the wrong branch where H - h cos(theta) < 0 (docs/explanation/errata.md): gamma off by pi.
     assert max_error(build('annex', COUPLER_LONG), COUPLER_LONG, scalar=scalar) == pytest.approx(math.pi, abs=1e-6)
     assert max_error(build('annex-atan2', COUPLER_LONG), COUPLER_LONG, scalar=scalar) < 1e-13
 
@@ -58,8 +58,8 @@ def test_annex_transcription_is_exact_for_turnantenna_and_wrong_by_pi_for_a_long
 def test_annex_fails_at_exact_reach_limit_sometimes_and_does_not_apply_to_unequal_rockers() -> None:
     with pytest.raises(NotApplicableError):
         build('annex', Geometry('u', 0.2, 0.05, 0.1, 0.07))
-    # At the last float inside the reach, rounding pushes Q past 1 and acos raises for some geometries (docs/errata.md);
-    # the shipped solver serves every one of them.
+    # At the last float inside the reach, rounding pushes Q past 1 and acos raises for some geometries
+    # (docs/explanation/errata.md); the shipped solver serves every one of them.
     failures = 0
     cases = exact_limit_cases(quick=True)
     for case in cases:

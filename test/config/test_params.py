@@ -74,7 +74,7 @@ def test_foreign_parameters() -> None:
 
 
 def test_docs_table_lists_every_parameter() -> None:
-    doc = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
+    doc = (REPO / 'docs' / 'reference' / 'parameters.md').read_text(encoding='utf-8')
     for p in PARAMETERS:
         assert f'| `{p.name}` |' in doc, p.name
 

@@ -1,4 +1,5 @@
-"""The code blocks of README.md and docs/*.md, run as a reader would run them, so the docs cannot drift.
+"""The code blocks of README.md and every document under docs/, run as a reader would run them, so the docs
+cannot drift.
 
 Blocks are read with pytest-codeblocks' parser (``pytest_codeblocks.extract_from_file``) and follow its Markdown
 conventions: a block's expected output is the next block after ``<!--pytest-codeblocks:expected-output-->``;
@@ -32,7 +33,7 @@ from support.paths import REPO
 pytest.importorskip('pytest_codeblocks', reason='the documentation tests read Markdown with pytest-codeblocks')
 from pytest_codeblocks import CodeBlock, extract_from_file
 
-DOCS = [REPO / 'README.md', *sorted((REPO / 'docs').glob('*.md'))]
+DOCS = [REPO / 'README.md', *sorted((REPO / 'docs').rglob('*.md'))]
 RUN = {'sh', 'bash', 'python'}
 #: A number in an output (what figures_within compares): sign, digits, fraction, exponent.
 NUMBER = re.compile(r'([-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?)')
@@ -129,20 +130,21 @@ def test_same_output_compares_text_exactly_and_numbers_within_the_tolerance() ->
 
 
 def test_documented_joint_names_are_the_nodes() -> None:
-    """docs/node.md and docs/ros.md name the joints the node publishes (the parameters' values, not their names)."""
+    """The topics reference and the robot model name the joints the node publishes (the parameters' defaults)."""
     from fourbar_ros.config.antenna_config import default_config
 
     ab, cd, coupler = default_config().joint_names
-    node = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
-    ros = (REPO / 'docs' / 'ros.md').read_text(encoding='utf-8')
-    assert f'`name` = [`{ab}`, `{cd}`, `{coupler}`]' in node
-    assert f'joint `{ab}`' in ros and f'joint `{cd}`' in ros and f'joint `{coupler}`' in ros
-    assert 'joint `gamma_joint`' not in ros and 'joint `delta_joint`' not in ros
+    topics = (REPO / 'docs' / 'reference' / 'topics.md').read_text(encoding='utf-8')
+    model = (REPO / 'docs' / 'how-to' / 'ros2-control.md').read_text(encoding='utf-8')
+    assert (f'`gamma_joint` (default `{ab}`), `delta_joint` (`{cd}`) and\n  `coupler_joint` (`{coupler}`)'
+            in topics)
+    assert f'joint `{ab}`' in model and f'joint `{cd}`' in model and f'joint `{coupler}`' in model
+    assert 'joint `gamma_joint`' not in model and 'joint `delta_joint`' not in model
 
 
 def test_documented_keys_absent_before_the_first_command_are_the_nodes() -> None:
-    """The diagnostics keys docs/node.md lists as absent until the first command: exactly those a status before
-    any command lacks and one after a served command has."""
+    """The diagnostics keys the diagnostics reference lists as absent until the first command: exactly those a
+    status before any command lacks and one after a served command has."""
     from fourbar_ros.config.antenna_config import default_config
     from fourbar_ros.node.diagnostic_values import Counters, summarize
     from fourbar_ros.rules.policy import decide
@@ -152,7 +154,7 @@ def test_documented_keys_absent_before_the_first_command_are_the_nodes() -> None
     decision = decide(0.05, cfg.theta_min, cfg.theta_max, cfg.out_of_limits, cfg.linkage.reach())
     after = {k for k, _ in summarize(cfg, decision, 0.05, cfg.linkage.state(0.05, cfg.load_torque), Counters(),
                                      1, 0).values}
-    text = (REPO / 'docs' / 'node.md').read_text(encoding='utf-8')
+    text = (REPO / 'docs' / 'reference' / 'diagnostics.md').read_text(encoding='utf-8')
     paragraph = text[text.index('Absent until the first command arrives'):]
     paragraph = paragraph[:paragraph.index('\n\n')]
     documented = set(re.findall(r'`([a-z_]+)`', paragraph)) - {'waiting for the first command'}

@@ -1,6 +1,7 @@
-"""The ROS quick start of README.md and docs/ros.md, run as typed and in the documented order with the real ``ros2``
-command line over the session's colcon build: terminal 1 builds (the session's build stands in, see SETUP) and starts
-the node; terminal 2 waits with ``ros2 topic echo --once``; terminal 3 publishes a command and sets parameters.
+"""The ROS quick start of README.md and its pip-only first terminal (docs/how-to/without-ros.md), run as typed and
+in the documented order with the real ``ros2`` command line over the session's colcon build: terminal 1 builds (the
+session's build stands in, see SETUP) and starts the node; terminal 2 waits with ``ros2 topic echo --once``;
+terminal 3 publishes a command and sets parameters.
 
 The blocks are those marked ``<!--pytest.mark.quickstart-->``. Each terminal is a bash that first does what the
 document tells the reader to do in a new terminal (this environment activated, ``source ~/ws/install/setup.bash``)
@@ -137,6 +138,7 @@ def _check(echo: str, last: str) -> None:
     assert msg['name'] == ['rocker_ab_joint', 'rocker_cd_joint', 'coupler_joint'], echo
     assert len(msg['position']) == 3, echo
     assert 'Set parameter successful' in last, last
+    assert 'Setting parameter failed' in last, last  # theta_max 1.5: out of reach
 
 
 def test_readme_quickstart_runs_as_typed(home: Path, lease: DomainLease) -> None:
@@ -146,11 +148,11 @@ def test_readme_quickstart_runs_as_typed(home: Path, lease: DomainLease) -> None
     _check(echo, last)
 
 
-def test_ros_md_pip_only_quickstart_runs_as_typed(home: Path, lease: DomainLease) -> None:
-    """docs/ros.md: its build and node blocks are README's terminal 1 line for line; its pip-only block is a
-    terminal 1 of its own, followed by the echo and pub terminals of "Run the node"."""
-    build, node, echo_block, pub_block, pip_only = quickstart(REPO / 'docs' / 'ros.md')
-    assert [*build, *node] == quickstart(REPO / 'README.md')[0]
-    echo, last = run_terminals([pip_only, echo_block, pub_block], _env(home, lease), home)
+def test_pip_only_quickstart_runs_as_typed(home: Path, lease: DomainLease) -> None:
+    """docs/how-to/without-ros.md: its pip-only block is a terminal 1 of its own, ending in README's node line,
+    followed by README's echo and pub terminals."""
+    [pip_only] = quickstart(REPO / 'docs' / 'how-to' / 'without-ros.md')
+    readme = quickstart(REPO / 'README.md')
+    assert pip_only[-1] == readme[0][-1]
+    echo, last = run_terminals([pip_only, readme[1], readme[2]], _env(home, lease), home)
     _check(echo, last)
-    assert 'Setting parameter failed' in last, last  # theta_max 1.5: out of reach

@@ -229,7 +229,7 @@ def test_a_slow_trajectory_passes_unchanged() -> None:
 
 # ----------------------------------------------------------------------------- planning
 
-#: ruckig has no rosdep key (pip only, docs/motion.md): the planning tests skip where it is missing.
+#: ruckig has no rosdep key (pip only, docs/how-to/ros2-control.md): the planning tests skip where it is missing.
 needs_ruckig = pytest.mark.skipif(importlib.util.find_spec('ruckig') is None, reason='ruckig not installed (pip only)')
 Q_MIN, Q_MAX = (float(v) for v in driven_angles(CFG, np.array([CFG.theta_min, CFG.theta_max])))
 

@@ -4,7 +4,7 @@ Every bag written here is a rosbag2 bag of metadata version 9 (ROS 2 Jazzy) with
 (``ros2msg``), type hashes (RIHS01) and offered QoS profiles a ``ros2 bag record`` of the same publishers
 would store. A writer can ``flush()`` what it has so far (recordings do it every second by default), so a
 process killed mid-recording leaves its data in that hidden directory; ``reindex()`` turns it into a
-complete bag (see docs/bags.md).
+complete bag (see docs/how-to/bags.md).
 """
 
 from __future__ import annotations

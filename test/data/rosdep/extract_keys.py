@@ -5,7 +5,7 @@
 Reads rosdep/base.yaml and rosdep/python.yaml (system and pip keys: kept when their ``ubuntu`` entry names
 packages for noble, directly, through ``'*'`` or under an installer such as ``pip``) and jazzy/distribution.yaml
 (ROS package names: the ``release: packages:`` of every repository with a release entry, or the repository's name).
-Only the resulting key list is kept in the repository (test/test_rosdep_keys.py reads it); rosdep resolves a key
+Only the resulting key list is kept in the repository (test/package/test_rosdep_keys.py reads it); rosdep resolves a key
 the same way (``rosdep resolve KEY --rosdistro jazzy --os ubuntu:noble``).
 """
 

@@ -1,0 +1,121 @@
+#!/usr/bin/env python3
+"""Write the reference tables that restate code: the node's topics per mode (``config/interface.py``) and its
+parameters (``config/params.py``), into docs/reference/ between the markers
+
+    <!-- generated: NAME -->
+    ...
+    <!-- end generated -->
+
+    python scripts/generate_reference.py           # rewrite the tables in place
+    python scripts/generate_reference.py --check   # exit 1 if a committed table differs from the code
+
+The test suite runs the check, so the docs cannot drift from the code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from collections.abc import Callable
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from fourbar_ros.config.interface import Mode, Topic, endpoints  # noqa: E402
+from fourbar_ros.config.params import PARAMETERS, ParamSpec  # noqa: E402
+
+MARKER = re.compile(r'(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end generated -->)', re.DOTALL)
+
+
+def _qos(topic: Topic) -> str:
+    return f'{topic.reliability.value.replace("_", " ")}, keep last {topic.depth}, volatile'
+
+
+def topics_table() -> str:
+    """One table per mode: topic, type, direction, QoS, content."""
+    out: list[str] = []
+    for mode in Mode:
+        out += [f'### `mode: {mode.value}`', '', '| Topic | Type | Dir | QoS | Content |', '|---|---|---|---|---|']
+        for e in endpoints(mode):
+            out.append(f'| `{e.topic.name}` | `{e.topic.msgtype}` | {e.direction.value} | {_qos(e.topic)} '
+                       f'| {e.content} |')
+        out.append('')
+    return '\n'.join(out)
+
+
+_NAMED = {math.pi: 'pi', -math.pi: '-pi', math.pi / 2: 'pi/2'}
+
+
+def _number(value: float) -> str:
+    """A bound or default as it reads best: pi by name, 1e+06 rather than 1000000.0, else the exact repr."""
+    if value in _NAMED:
+        return _NAMED[value]
+    if isinstance(value, float) and math.isfinite(value) and value != 0 and (
+            abs(value) < 1e-3 or (value.is_integer() and abs(value) >= 1e4)):
+        return f'{value:g}'
+    return repr(value)
+
+
+def _default(p: ParamSpec) -> str:
+    if p.type is str:
+        return f"`{p.default}`" if p.default != '' else "`''`"
+    if p.type is bool:
+        return 'true' if p.default else 'false'
+    text = _number(p.default)  # type: ignore[arg-type]
+    if p.unit == 'rad' and p.default != 0:
+        text += f' ({math.degrees(float(p.default)):.6g} deg)'
+    return text
+
+
+def _allowed(p: ParamSpec) -> str:
+    if p.choices:
+        return ', '.join(f'`{c}`' for c in p.choices)
+    if p.minimum is not None or p.maximum is not None:
+        lo = '-inf' if p.minimum is None else _number(p.minimum)
+        hi = 'inf' if p.maximum is None else _number(p.maximum)
+        return f'[{lo}, {hi}]'
+    return 'non-empty' if p.type is str and p.name != 'controllers_file' else 'any'
+
+
+def parameters_table() -> str:
+    """Every node parameter: name, type, default, unit, allowed values, when it can change, meaning."""
+    types = {float: 'double', int: 'integer', str: 'string', bool: 'bool'}
+    out = ['| Parameter | Type | Default | Unit | Allowed | Set | Meaning |', '|---|---|---|---|---|---|---|']
+    for p in PARAMETERS:
+        when = 'startup' if p.read_only else 'any time'
+        out.append(f'| `{p.name}` | {types[p.type]} | {_default(p)} | {p.unit or "-"} | {_allowed(p)} | {when} '
+                   f'| {p.description} |')
+    return '\n'.join(out) + '\n'
+
+
+GENERATORS: dict[str, Callable[[], str]] = {'topics': topics_table, 'parameters': parameters_table}
+DOCS = (REPO / 'docs' / 'reference' / 'topics.md', REPO / 'docs' / 'reference' / 'parameters.md')
+
+
+def render(text: str) -> str:
+    """``text`` with every generated section rewritten from the code (KeyError for an unknown section name)."""
+    return MARKER.sub(lambda m: m.group(1) + GENERATORS[m.group('name')]() + m.group(4), text)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or '').splitlines()[0])
+    parser.add_argument('--check', action='store_true', help='only compare; exit 1 if a table differs')
+    args = parser.parse_args(argv)
+    stale = []
+    for path in DOCS:
+        text = path.read_text(encoding='utf-8')
+        new = render(text)
+        if new != text:
+            stale.append(path)
+            if not args.check:
+                path.write_text(new, encoding='utf-8')
+    for path in stale:
+        print(f'{path.relative_to(REPO)}: {"differs from the code" if args.check else "rewritten"}', file=sys.stderr)
+    return 1 if args.check and stale else 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
