@@ -24,7 +24,7 @@ rocker cannot take q (outside ``AntennaLinkage.rocker_reach``): nothing is publi
 
 Two paths over the same core calls: ``CompletionRule.one`` per message (Python floats, the math module: the node)
 and ``complete_block`` on arrays (numpy: ``fourbar process``). They agree within a few ulps (numpy's SIMD
-transcendentals against libm), held together by test/test_rules_completion.py.
+transcendentals against libm), held together by test/rules/test_rules_completion.py.
 """
 
 from __future__ import annotations

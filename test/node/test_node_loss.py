@@ -40,16 +40,16 @@ def gamma(theta: float) -> float:
 
 class Rig:
     """The node process in namespace ``ns`` (one JointState per served command, counted) with a command
-    publisher, joint_states and /diagnostics collectors."""
+    publisher (keep last ``depth``), joint_states and /diagnostics collectors."""
 
-    def __init__(self, ros: RosSession, ns: str, executor: str) -> None:
+    def __init__(self, ros: RosSession, ns: str, executor: str, depth: int = 1000) -> None:
         self.ros = ros
         self.ns = ns
         self.proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}',
                                  '-p', 'diagnostics_period:=0.1', *ONE_JOINT_STATE_PER_COMMAND],
                                 ros.env(**{EXECUTOR_ENV: executor}))
         self.proc.start()
-        self.pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
+        self.pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd', depth)
         self.js: Collector[Any] = ros.collect(JointState, f'{ns}/joint_states')
         self.diag: Collector[Any] = ros.collect(DiagnosticArray, '/diagnostics', 10)
         ros.wait_subscribers(self.pub)
@@ -133,6 +133,10 @@ def test_burst_losses_are_counted_and_warned(ros: RosSession, executor: str) -> 
         rig.close()
 
 
+#: Keep-last depth of the payload rigs' publisher: how many later commands an empty payload holds back.
+PAYLOAD_DEPTH = 10
+
+
 @pytest.fixture(scope='module')
 def payload_rigs(ros: RosSession) -> Iterator[dict[str, Rig]]:
     """One node process per executor, shared by the malformed-payload cases (each counts from its own start); one
@@ -174,26 +178,21 @@ def test_malformed_payload_is_counted_and_later_commands_are_served(ros: RosSess
 def test_an_empty_payload_holds_its_publisher_back_only_until_its_history_drops_it(
         ros: RosSession, payload_rigs: dict[str, Rig], executor: str) -> None:
     # Fast DDS never delivers an empty payload, and a reliable reader waits for it in order: the publisher's later
-    # commands arrive once its keep-last history (depth DEPTH here) no longer holds the empty one, all of them, in
-    # order; the skipped number counts as one lost command.
+    # commands arrive once its keep-last history (PAYLOAD_DEPTH) no longer holds the empty one, all of them, in
+    # order; the skipped number counts as one lost command. The rig's one publisher sends everything, so the node's
+    # sequence-gap count is exact (with several publishers it is an estimate: the message info names none).
     rig = rig_for(ros, payload_rigs, executor)
-    depth = 10
-    pub = ros.publisher(Float64, f'{rig.ns}/antenna_angle_cmd', depth)
-    try:
-        ros.wait_subscribers(pub)
-        _, before = rig.status()
-        received0, lost0 = counts(before)
-        rig.js.clear()
-        pub.publish(b'')
-        thetas = [0.001 * (k + 1) for k in range(depth + 2)]
-        for theta in thetas:
-            pub.publish(Float64(data=theta))
-        answers = rig.js.wait_count(len(thetas))
-        assert [m.position[0] for m in answers] == [gamma(t) for t in thetas]
-        _, values = rig.status(lambda s, v: counts(v)[0] - received0 >= len(thetas))
-        assert counts(values) == (received0 + len(thetas), lost0 + 1)
-    finally:
-        ros.node.destroy_publisher(pub)
+    _, before = rig.status()
+    received0, lost0 = counts(before)
+    rig.js.clear()
+    rig.pub.publish(b'')
+    thetas = [0.001 * (k + 1) for k in range(PAYLOAD_DEPTH + 2)]
+    for theta in thetas:
+        rig.pub.publish(Float64(data=theta))
+    answers = rig.js.wait_count(len(thetas))
+    assert [m.position[0] for m in answers] == [gamma(t) for t in thetas]
+    _, values = rig.status(lambda s, v: counts(v)[0] - received0 >= len(thetas))
+    assert counts(values) == (received0 + len(thetas), lost0 + 1)
 
 
 def rig_for(ros: RosSession, rigs: dict[str, Rig], executor: str) -> Rig:
@@ -201,7 +200,7 @@ def rig_for(ros: RosSession, rigs: dict[str, Rig], executor: str) -> Rig:
     if executor not in rigs:
         while rigs:
             rigs.popitem()[1].close()
-        rigs[executor] = Rig(ros, f'/loss_raw_{executor}', executor)
+        rigs[executor] = Rig(ros, f'/loss_raw_{executor}', executor, PAYLOAD_DEPTH)
     return rigs[executor]
 
 
