@@ -128,7 +128,9 @@ def test_pose_is_the_same_floats_as_solve(mass: float, driven: str) -> None:
 def test_the_scalar_and_the_array_pose_agree(mass: float, driven: str, branch: str) -> None:
     """pose_solver (one angle, math module) and poses (an array, numpy) over the whole reach, past its ends and
     at non-finite angles: the same angles solved (NaN on the array path where the scalar path raises), values
-    within CHAIN_ULPS of their condition-weighted scales (ulp_bounds.pose_scales)."""
+    within CHAIN_ULPS of their condition-weighted scales (ulp_bounds.pose_scales). Within a few ulps of the reach's
+    ends, whether an angle is reachable is decided by rounding (reach() and the solve round on their own), so
+    there the two paths need not agree on it; where both solve, their values are compared too."""
     cfg = config_from_values({'antenna_mass': mass, 'com_offset_normal': 0.02, 'driven_rocker': driven,
                               'branch': branch})
     reach = cfg.linkage.reach()
@@ -143,12 +145,13 @@ def test_the_scalar_and_the_array_pose_agree(mass: float, driven: str, branch: s
     want = np.array(scalar)
     got = np.column_stack(poses(cfg, theta))
     solved = np.isfinite(want).all(axis=1)
+    solved_array = ~np.isnan(got).any(axis=1)
+    edge = np.abs(np.abs(theta) - reach.theta_max) <= 4 * np.spacing(reach.theta_max)
     assert 1000 < np.count_nonzero(solved) < theta.size
-    g_scale, d_scale, tau_scale = pose_scales(cfg, theta[solved], want[solved, 2])
-    assert np.isnan(got[~solved]).any(axis=1).all()
-    # At the reach's ends sin(gamma + delta) = 0: the torque's condition is unbounded there (a scale of inf).
-    tau_scale = np.where(np.isnan(tau_scale), np.inf, tau_scale)
-    assert_close_ulps(got[solved], want[solved], CHAIN_ULPS, np.column_stack((g_scale, d_scale, tau_scale)), 'pose')
+    assert np.array_equal(solved[~edge], solved_array[~edge])
+    both = solved & solved_array
+    g_scale, d_scale, tau_scale = pose_scales(cfg, theta[both], want[both, 2])
+    assert_close_ulps(got[both], want[both], CHAIN_ULPS, np.column_stack((g_scale, d_scale, tau_scale)), 'pose')
 
 
 def test_no_mass_no_gravity() -> None:

@@ -70,20 +70,31 @@ def pose_scales(cfg: Any, theta: npt.NDArray[np.float64], torque: npt.NDArray[np
                 ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64], npt.NDArray[np.float64]]:
     """Condition-weighted scales of gamma, delta (rad) and the driven rocker's torque (N m) at ``theta``.
 
-    The angles: ``angle_scale`` of each rocker. The torque: an angle error e moves its two sines' ratio by
-    |tau| |cot| e (the sines of gamma + delta and of the driven rocker's transmission angle), and the gravity
-    load's terms (m g times lever arms below 0.2 m) are rounded on their own scale.
+    The angles: ``angle_scale`` of each rocker. The torque is tau = load (rocker / h) sin(s) / sin(r), with
+    s = gamma + delta and r the driven rocker's transmission angle (delta - theta or gamma + theta). An error e_s in s
+    moves it by |load| (rocker / h) |cos s| e_s / |sin r| (finite at the reach limit, where sin s and tau are 0), an
+    error e_r in r by |tau| |cot r| e_r; each angle's error is within the ulps of its parts' scales (the rockers'
+    angle scales, and |theta|). The load's own terms (the constant, and m g times lever arms below 0.2 m) are
+    rounded on their own scale.
     """
     from fourbar_ros.core.antenna import Driven
 
     link = cfg.linkage
     gamma, delta = link.rocker_angles(theta, cfg.branch, on_invalid='nan')
     rates = link.rates_at(theta, gamma, delta)
+    g_scale = angle_scale(gamma, theta, rates.dgamma_dtheta)
+    d_scale = angle_scale(delta, theta, rates.ddelta_dtheta)
+    gamma_driven = cfg.driven is Driven.GAMMA
     s = gamma + delta
-    r = delta - theta if cfg.driven is Driven.GAMMA else gamma + theta
-    cond = 1.0 + math.pi * (np.abs(np.cos(s) / np.sin(s)) + np.abs(np.cos(r) / np.sin(r)))
-    return (angle_scale(gamma, theta, rates.dgamma_dtheta), angle_scale(delta, theta, rates.ddelta_dtheta),
-            (np.abs(torque) + cfg.antenna_mass * cfg.gravity * 0.2) * cond)
+    r = delta - theta if gamma_driven else gamma + theta
+    r_scale = (d_scale if gamma_driven else g_scale) + np.abs(theta)
+    load = abs(cfg.load_torque) + cfg.antenna_mass * cfg.gravity * 0.2
+    rocker = link.rocker_ab if gamma_driven else link.rocker_cd
+    s_term = load * rocker / link.coupler * np.abs(np.cos(s)) * (g_scale + d_scale) / np.abs(np.sin(r))
+    tau = np.abs(torque)
+    with np.errstate(invalid='ignore'):  # 0 * inf at the exact reach limit, where the angles' condition is unbounded
+        tau_scale = tau + cfg.antenna_mass * cfg.gravity * 0.2 + s_term + tau * np.abs(np.cos(r) / np.sin(r)) * r_scale
+    return g_scale, d_scale, np.where(np.isnan(tau_scale), np.inf, tau_scale)
 
 
 def sine_ratio_scale(coef: ArrayLike, num_angle: ArrayLike, num_scale: ArrayLike, den_angle: ArrayLike,
