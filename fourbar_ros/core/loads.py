@@ -117,12 +117,15 @@ def load_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta
     return cfg.load_torque + gravity_torque(cfg, theta, gamma, dgamma_dtheta)
 
 
-def load_at_pose(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike) -> ArrayLike:
+def load_at_pose(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
+                 dgamma_dtheta: ArrayLike | None = None) -> ArrayLike:
     """The load torque about theta (N m) at a solved pose (theta, gamma, delta in rad); floats or arrays. The
-    rates are computed only when the antenna's weight needs them."""
+    antenna's weight needs dgamma/dtheta: pass it if known, else it is computed (only then)."""
     if not has_gravity_load(cfg):
         return cfg.load_torque
-    return load_torque(cfg, theta, gamma, cfg.linkage.rates_at(theta, gamma, delta).dgamma_dtheta)
+    if dgamma_dtheta is None:
+        dgamma_dtheta = cfg.linkage.rates_at(theta, gamma, delta).dgamma_dtheta
+    return load_torque(cfg, theta, gamma, dgamma_dtheta)
 
 
 def solve(cfg: LoadSpec, theta: float) -> LinkageState:
@@ -132,7 +135,7 @@ def solve(cfg: LoadSpec, theta: float) -> LinkageState:
     link = cfg.linkage
     gamma, delta = link.rocker_angles(theta, cfg.branch)
     rates = link.rates_at(theta, gamma, delta)
-    load = load_at_pose(cfg, theta, gamma, delta)
+    load = load_at_pose(cfg, theta, gamma, delta, rates.dgamma_dtheta)
     advantage = rates.dgamma_dtheta if cfg.driven is Driven.GAMMA else rates.ddelta_dtheta
     return LinkageState(theta, gamma, delta, rates.dgamma_dtheta, rates.ddelta_dtheta, advantage,
                         link.torque_at(theta, gamma, delta, load, cfg.driven),
