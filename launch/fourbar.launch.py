@@ -45,6 +45,7 @@ from fourbar_ros.config.interface import (
     NODE_EXECUTABLE,
     NODE_NAME,
     SIM_EXECUTABLE,
+    Mode,
 )
 from fourbar_ros.config.robot_model import DEFAULT_HARDWARE_PLUGIN as MOCK_PLUGIN  # ros2_control's mock
 from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
@@ -112,14 +113,14 @@ def _setup(context: LaunchContext) -> list[object]:
     if want_control and want_sim:
         raise RuntimeError('fourbar.launch.py: sim_actuator:=true and use_ros2_control:=true both drive the joint; '
                            'choose one')
-    if want_control and mode == 'open_loop':
+    if want_control and mode == Mode.OPEN_LOOP.value:
         if arg('mode'):
             raise RuntimeError('fourbar.launch.py: use_ros2_control:=true needs mode:=trajectory or mode:=forward')
-        mode = 'trajectory'
+        mode = Mode.TRAJECTORY.value
     if effort:
         cfg = replace(cfg, effort_feedforward=True)
         urdf = robot_description(cfg, hardware_plugin=plugin)
-    actuated = mode != 'open_loop'
+    actuated = mode != Mode.OPEN_LOOP.value
     node_overrides: dict[str, object] = {'use_sim_time': use_sim_time, 'mode': mode}
     if actuated:
         node_overrides.update({'controllers_file': controllers, 'effort_feedforward': effort})
@@ -172,7 +173,7 @@ def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, 
                                    'manager or its controllers (install ros-jazzy-ros2-control and '
                                    'ros-jazzy-ros2-controllers)'))
         return actions
-    controller = cfg.trajectory_controller if mode == 'trajectory' else cfg.forward_controller
+    controller = cfg.trajectory_controller if mode == Mode.TRAJECTORY.value else cfg.forward_controller
     actions.append(Node(package='controller_manager', executable='ros2_control_node', namespace=ros_namespace,
                         output='screen', parameters=[controllers, {'use_sim_time': use_sim_time}],
                         remappings=[('~/robot_description', 'robot_description')]))

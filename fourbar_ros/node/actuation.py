@@ -25,6 +25,7 @@ from fourbar_ros.config.controllers import ForwardControllerSettings, Trajectory
 from fourbar_ros.config.interface import (
     ANTENNA_TRAJECTORY,
     MEASURED_JOINT_STATES,
+    Mode,
     forward_topic,
     trajectory_topic,
 )
@@ -84,10 +85,10 @@ class Actuation:
         self._setpoints: Setpoints | None = None
         #: (time on the node clock the setpoint stands for, ns; position rad) of the setpoints published
         self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
-        if self.mode == 'trajectory':
+        if self.mode == Mode.TRAJECTORY.value:
             out = trajectory_topic(cfg.trajectory_controller)
             self._trajectory_pub = node.create_publisher(JointTrajectory, out.name, qos(out))
-        elif self.mode == 'forward':
+        elif self.mode == Mode.FORWARD.value:
             out = forward_topic(cfg.forward_controller)
             self._setpoint_pub = node.create_publisher(Float64MultiArray, out.name, qos(out))
             self._setpoint_msg = Float64MultiArray()
@@ -142,7 +143,7 @@ class Actuation:
             return
         try:
             plan = plan_command(cfg, start, theta)
-            points = planned_points(cfg, plan) if self.mode == 'trajectory' else None
+            points = planned_points(cfg, plan) if self.mode == Mode.TRAJECTORY.value else None
             stream = planned_setpoints(cfg, plan) if points is None else None
         except FourBarError as exc:
             self.counters.commands_not_planned += 1
@@ -212,7 +213,7 @@ class Actuation:
                             and self.contract.allow_nonzero_velocity_at_trajectory_end)
         try:
             converted = serve_antenna_trajectory(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns)
-            stream = trajectory_setpoints(cfg, converted.trajectory) if self.mode == 'forward' else None
+            stream = trajectory_setpoints(cfg, converted.trajectory) if self.mode == Mode.FORWARD.value else None
         except FourBarError as exc:
             problem = problem_of(exc)
             self.counters.rejected[problem] += 1

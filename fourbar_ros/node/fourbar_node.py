@@ -41,6 +41,7 @@ from fourbar_ros.config.interface import (
     JOINT_STATES,
     MARKERS,
     NODE_NAME,
+    Mode,
 )
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
 from fourbar_ros.core.antenna import LinkageState
@@ -84,7 +85,7 @@ class FourBarNode(Node):
         self._debug: Callable[..., object] = logger.debug
         try:
             self._config = self._validated_overrides()
-            contract = None if self._config.mode == 'open_loop' else actuation_contract(self._config)
+            contract = None if self._config.mode == Mode.OPEN_LOOP.value else actuation_contract(self._config)
             constructor_overrides: list[Parameter] = kwargs.get('parameter_overrides') or []
             explicit = set(command_line_names) | {p.name for p in constructor_overrides}
             for path in params_files:
@@ -130,7 +131,7 @@ class FourBarNode(Node):
         # Actuator modes: served commands become motion (node/actuation.py); joint_states carries the measured
         # state, completed here (node/completion.py), never the commanded pose. One subscription to the measured
         # joint: the completion passes each good measurement on to the motion's start state.
-        self._publishes_pose = self._config.mode == 'open_loop'
+        self._publishes_pose = self._config.mode == Mode.OPEN_LOOP.value
         self.actuation: Actuation | None = None
         self.completion: MeasuredCompletion | None = None
         if not self._publishes_pose:
