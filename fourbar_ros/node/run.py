@@ -191,11 +191,13 @@ class _OptionParser(argparse.ArgumentParser):
         raise UsageError(message)
 
 
-def node_options(argv: Sequence[str]) -> argparse.Namespace:
-    """The options of ``fourbar_node`` outside its ``--ros-args`` sections (``argv[0]`` is the program)."""
+def node_options(argv: Sequence[str], prog: str = NODE_EXECUTABLE,
+                 description: str = 'The antenna tilt four-bar node.') -> argparse.Namespace:
+    """The options of a node's console script (``fourbar_node``, ``fourbar_sim_actuator``) outside its
+    ``--ros-args`` sections (``argv[0]`` is the program); ``--help`` prints them and exits 0."""
     from fourbar_ros.node.executor import DEFAULT_EXECUTOR, EXECUTOR_ENV, EXECUTORS
 
-    parser = _OptionParser(prog=NODE_EXECUTABLE, description='The antenna tilt four-bar node.',
+    parser = _OptionParser(prog=prog, description=description,
                            epilog='ROS arguments follow --ros-args, e.g. --ros-args --params-file config/antenna.yaml')
     parser.add_argument('--executor', choices=EXECUTORS, default=None,
                         help=f'rclpy executor that runs the callbacks (default: ${EXECUTOR_ENV}, else '
@@ -299,7 +301,14 @@ def sim_actuator_main(args: list[str] | None = None) -> int:
     from fourbar_ros.node.sim_actuator import SimActuator
 
     argv = sys.argv if args is None else args
-    return serve_node(SIM_EXECUTABLE, SimActuator, argv, executor_kind(), (ConfigError,))
+    try:
+        kind = executor_kind(node_options(argv, SIM_EXECUTABLE, 'The simulated actuator: the ros2_control '
+                                          'controllers and the motor of the tilt drive.').executor)
+    except ValueError as exc:  # UsageError, ExecutorChoiceError
+        STOP.raises = None
+        print(f'{SIM_EXECUTABLE}: error: {exc}', file=sys.stderr)
+        return 2
+    return serve_node(SIM_EXECUTABLE, SimActuator, argv, kind, (ConfigError,))
 
 
 if __name__ == '__main__':
