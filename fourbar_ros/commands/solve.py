@@ -11,6 +11,7 @@ from dataclasses import replace
 from fourbar_ros.commands.check import warn_unknown_parameters
 from fourbar_ros.config.antenna_config import AntennaConfig, default_config, load_config
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
+from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.errors import DeadPointError, FourBarError, SingularPositionError, UnreachableError
 from fourbar_ros.rules.policy import Outcome, Policy, angle_text, decide, out_of_reach_text
 
@@ -77,9 +78,8 @@ _RATES = ('dgamma_dtheta', 'ddelta_dtheta', 'd2gamma_dtheta2', 'd2delta_dtheta2'
 
 
 def _pose(linkage: AntennaLinkage, args: argparse.Namespace, cfg: AntennaConfig) -> tuple[float, float, float]:
-    """(theta, gamma, delta) in rad from --theta, or completed from a measured --gamma / --delta: the pose on
-    cfg.branch with that rocker angle (of from_rocker's two, the one whose theta gives it back on cfg.branch; the
-    two count branches differently, ``core.completion.inverse_branch``).
+    """(theta, gamma, delta) in rad from --theta, or completed from a measured --gamma / --delta: of
+    from_rocker's two poses, the one on the branch the node takes for a measurement (``_measured_branch``).
 
     Raises FourBarError if theta is out of reach (as a number: angles are not wrapped), if the rocker cannot take
     the measured angle (the message names the value and the rocker's range), or if the angle is not finite.
@@ -92,13 +92,18 @@ def _pose(linkage: AntennaLinkage, args: argparse.Namespace, cfg: AntennaConfig)
             raise UnreachableError(f'theta={angle_text(value)} {out_of_reach_text(linkage.reach(), value)}')
         gamma, delta = linkage.rocker_angles(value, cfg.branch)
         return value, float(gamma), float(delta)
-    poses = [linkage.from_rocker(value, measured, b) for b in Branch]
-
-    def miss(pose: tuple[object, object]) -> float:
-        rockers = linkage.rocker_angles(float(pose[0]), cfg.branch)  # type: ignore[arg-type]
-        return abs(math.remainder(float(rockers[0 if measured is Driven.GAMMA else 1]) - value, 2.0 * math.pi))
-    theta, other = min(poses, key=miss)
+    theta, other = linkage.from_rocker(value, measured, _measured_branch(linkage, cfg, measured))
     return (float(theta), value, float(other)) if measured is Driven.GAMMA else (float(theta), float(other), value)
+
+
+def _measured_branch(linkage: AntennaLinkage, cfg: AntennaConfig, measured: Driven) -> Branch:
+    """The branch of ``from_rocker`` that gives back ``cfg.branch``'s pose, by the node's rule
+    (``AntennaConfig.measured_branch``: ``inverse_branch`` at mid-range of the tilt limits; at theta = 0 for a
+    geometry given on the command line that does not reach that angle). Not by comparing the rocker angles the two
+    poses give back: both can be poses of the same branch with the same rocker angle, a tie rounding decides."""
+    mid = 0.5 * (cfg.theta_min + cfg.theta_max)
+    at = mid if abs(mid) <= math.pi and linkage.reach().contains(mid) else 0.0
+    return inverse_branch(linkage, at, measured, cfg.branch)
 
 
 def _solve(linkage: AntennaLinkage, pose: tuple[float, float, float],

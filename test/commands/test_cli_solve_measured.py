@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
 import pytest
 from support.ulp_bounds import CHAIN_ULPS, EPS
 
@@ -48,6 +49,21 @@ def test_measured_rocker_gives_the_theta_pose(capsys: pytest.CaptureFixture[str]
         # points at +-19.3 deg are far), so a few ulps of 1 + |value| times the amplification |dtheta/dq| <= 1.2.
         want, got = as_float(forward[key]), as_float(measured[key])
         assert abs(got - want) <= CHAIN_ULPS * EPS * 16 * (1 + abs(want)), (key, got, want)
+
+
+@pytest.mark.parametrize('driven', list(Driven))
+def test_a_measured_rocker_angle_gives_back_the_pose_it_came_from(capsys: pytest.CaptureFixture[str],
+                                                                 driven: Driven) -> None:
+    """Over the whole tilt range, the rocker angle of a pose of the configured branch gives that pose back. Both of
+    from_rocker's poses can be poses of that branch with the same rocker angle (for gamma at theta = 0: theta 0 and
+    0.626 rad), so the choice is the node's branch (measured_branch), not which pose gives the rocker angle back
+    closer in its last ulps."""
+    for theta in np.linspace(CFG.theta_min, CFG.theta_max, 201).tolist():
+        gamma, delta = LINK.rocker_angles(theta, CFG.branch)
+        q = float(gamma if driven is Driven.GAMMA else delta)
+        got = as_float(solve_json(capsys, f'--{driven.value}', repr(q))['theta'])
+        # theta from the rocker angle: a few ulps of 1 + |theta| times |dtheta/dq| <= 1.2 over the tilt range.
+        assert abs(got - theta) <= CHAIN_ULPS * EPS * 16 * (1 + abs(theta)), (q, got, theta)
 
 
 def test_degrees_and_second_derivatives_are_the_cores(capsys: pytest.CaptureFixture[str]) -> None:
