@@ -77,7 +77,7 @@ def _allowed(p: ParamSpec) -> str:
         lo = '-inf' if p.minimum is None else _number(p.minimum)
         hi = 'inf' if p.maximum is None else _number(p.maximum)
         return f'[{lo}, {hi}]'
-    return 'non-empty' if p.type is str and p.name != 'controllers_file' else 'any'
+    return 'non-empty' if p.type is str and p.default != '' else 'any'
 
 
 def parameters_table() -> str:

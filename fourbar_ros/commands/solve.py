@@ -13,7 +13,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig, default_config, loa
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.errors import DeadPointError, FourBarError, SingularPositionError, UnreachableError
-from fourbar_ros.rules.policy import Outcome, Policy, angle_text, decide, out_of_reach_text
+from fourbar_ros.rules.policy import Outcome, Policy, angle_text, decide, in_reach, out_of_reach_text
 
 HELP = ('solve the linkage at one antenna angle (or a measured rocker angle): rocker angles, rates, second '
         'derivatives, mechanical advantage, input torque')
@@ -102,7 +102,7 @@ def _measured_branch(linkage: AntennaLinkage, cfg: AntennaConfig, measured: Driv
     geometry given on the command line that does not reach that angle). Not by comparing the rocker angles the two
     poses give back: both can be poses of the same branch with the same rocker angle, a tie rounding decides."""
     mid = 0.5 * (cfg.theta_min + cfg.theta_max)
-    at = mid if abs(mid) <= math.pi and linkage.reach().contains(mid) else 0.0
+    at = mid if in_reach(linkage.reach(), mid) else 0.0
     return inverse_branch(linkage, at, measured, cfg.branch)
 
 

@@ -205,6 +205,18 @@ def node_options(argv: Sequence[str], prog: str = NODE_EXECUTABLE,
     return parser.parse_args(non_ros_args(argv)[1:])
 
 
+def chosen_executor(argv: Sequence[str], prog: str, description: str) -> str | None:
+    """The executor a node's console script runs (its ``--executor``, else $FOURBAR_EXECUTOR, else the default);
+    None after printing one line ``<prog>: error: ...`` for a bad option or executor name."""
+    from fourbar_ros.node.executor import executor_kind
+
+    try:
+        return executor_kind(node_options(argv, prog, description).executor)
+    except ValueError as exc:  # UsageError, ExecutorChoiceError
+        print(f'{prog}: error: {exc}', file=sys.stderr)
+        return None
+
+
 def non_ros_args(argv: Sequence[str]) -> list[str]:
     """``argv`` without its ROS arguments: each ``--ros-args`` up to the next ``--`` (or the end), as rcl reads
     them. Pure, so a bad ROS argument (say an unreadable --params-file) is left to its own one-line check."""
@@ -277,15 +289,12 @@ def main(args: list[str] | None = None) -> int:
     from rclpy.exceptions import InvalidParameterTypeException, InvalidParameterValueException
 
     from fourbar_ros.config.antenna_config import ConfigError
-    from fourbar_ros.node.executor import executor_kind
     from fourbar_ros.node.fourbar_node import FourBarNode
 
     argv = sys.argv if args is None else args
-    try:
-        kind = executor_kind(node_options(argv).executor)
-    except ValueError as exc:  # UsageError, ExecutorChoiceError
+    kind = chosen_executor(argv, NODE_EXECUTABLE, 'The antenna tilt four-bar node.')
+    if kind is None:
         STOP.raises = None
-        print(f'fourbar_node: error: {exc}', file=sys.stderr)
         return 2
     return serve_node(NODE_EXECUTABLE,
                       lambda: FourBarNode(params_files=params_files(argv), command_line_names=command_line_names(argv)),
@@ -297,16 +306,13 @@ def sim_actuator_main(args: list[str] | None = None) -> int:
     bad parameters."""
     STOP.install(raises=_quiet_exit)
     from fourbar_ros.config.antenna_config import ConfigError
-    from fourbar_ros.node.executor import executor_kind
     from fourbar_ros.node.sim_actuator import SimActuator
 
     argv = sys.argv if args is None else args
-    try:
-        kind = executor_kind(node_options(argv, SIM_EXECUTABLE, 'The simulated actuator: the ros2_control '
-                                          'controllers and the motor of the tilt drive.').executor)
-    except ValueError as exc:  # UsageError, ExecutorChoiceError
+    kind = chosen_executor(argv, SIM_EXECUTABLE, 'The simulated actuator: the ros2_control controllers and the '
+                           'motor of the tilt drive.')
+    if kind is None:
         STOP.raises = None
-        print(f'{SIM_EXECUTABLE}: error: {exc}', file=sys.stderr)
         return 2
     return serve_node(SIM_EXECUTABLE, SimActuator, argv, kind, (ConfigError,))
 
