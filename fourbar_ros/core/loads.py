@@ -178,7 +178,8 @@ def poses(cfg: LoadSpec, theta: FloatArray) -> tuple[FloatArray, FloatArray, Flo
     where the core cannot solve (out of reach, a dead point)."""
     link = cfg.linkage
     gamma, delta = link.rocker_angles(theta, cfg.branch, on_invalid='nan')
-    load = load_at_pose(cfg, theta, gamma, delta)
+    with np.errstate(invalid='ignore'):  # an infinite theta gives NaN, as documented, not a RuntimeWarning
+        load = load_at_pose(cfg, theta, gamma, delta)
     torque = np.asarray(link.torque_at(theta, gamma, delta, load, cfg.driven), dtype=np.float64)
     return np.asarray(gamma), np.asarray(delta), torque
 

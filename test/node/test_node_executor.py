@@ -122,12 +122,14 @@ class _Dropped:
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
 @pytest.mark.parametrize('inner', [KeyboardInterrupt, None], ids=['raising', 'noting'])
 def test_a_stop_whose_interrupt_python_swallowed_is_kept_by_the_next_stop(
-        sig: int, inner: type[KeyboardInterrupt] | None) -> None:
+        sig: int, inner: type[KeyboardInterrupt] | None, monkeypatch: pytest.MonkeyPatch) -> None:
+    swallowed: list[type[BaseException]] = []  # what Python would print as "Exception ignored in ..."
+    monkeypatch.setattr(sys, 'unraisablehook', lambda unraisable: swallowed.append(unraisable.exc_type))
     with stop_on_signals() as outer:  # what commands.main holds around every command
         dropped = _Dropped()
         ref = weakref.ref(dropped, lambda _: signal.raise_signal(sig))
         del dropped  # the callback runs here; its KeyboardInterrupt goes no further
-        assert ref() is None and outer.requested
+        assert ref() is None and outer.requested and swallowed == [KeyboardInterrupt]
         if inner is None:
             with stop_on_signals(raises=None) as stop:  # a command's own loop: sees the stop at once
                 assert stop.requested

@@ -20,6 +20,7 @@ import launch_testing.actions
 import launch_testing.asserts
 import rclpy
 from ament_index_python.packages import get_package_share_directory
+from diagnostic_msgs.msg import DiagnosticArray
 from launch.actions import IncludeLaunchDescription
 from launch.launch_description_sources import PythonLaunchDescriptionSource
 from rclpy.executors import SingleThreadedExecutor
@@ -57,20 +58,36 @@ class TestCommandIsAnswered(unittest.TestCase):
         executor.add_node(node)
         got: list[Any] = []
         done = threading.Event()
+        status: dict[str, str] = {}  # the node's latest diagnostics values: its side of a failure
 
         def on_joint_states(msg: Any) -> None:
             got.append(msg)
             done.set()
 
+        def on_diagnostics(msg: Any) -> None:
+            for entry in msg.status:
+                if entry.name.startswith('fourbar_node:'):
+                    status.clear()
+                    status.update((kv.key, kv.value) for kv in entry.values)
+
         try:
             node.create_subscription(JointState, f'/{NAMESPACE}/joint_states', on_joint_states, 10)
+            node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
             pub = node.create_publisher(Float64, f'/{NAMESPACE}/antenna_angle_cmd', 10)
             deadline = time.monotonic() + TIMEOUT
+            published = 0
             # Publish until answered: the node skips outputs until it has discovered this subscription.
             while not done.is_set():
-                self.assertLess(time.monotonic(), deadline, 'no joint_states answer')
+                if time.monotonic() >= deadline:
+                    seen = {k: status.get(k) for k in ('commands_received', 'joint_states_published')}
+                    self.fail(f'no joint_states answer in {TIMEOUT} s: {published} commands published; matched '
+                              f'subscriptions of the command publisher: {pub.get_subscription_count()}; '
+                              'joint_states publishers seen: '
+                              f'{node.count_publishers(f"/{NAMESPACE}/joint_states")}; the node\'s diagnostics: '
+                              f'{seen if status else "none received"}')
                 if pub.get_subscription_count() > 0:
                     pub.publish(Float64(data=0.05))
+                    published += 1
                 executor.spin_once(timeout_sec=0.2)
             gamma, delta = cfg.linkage.rocker_angles(0.05, cfg.branch)
             eps = sys.float_info.epsilon

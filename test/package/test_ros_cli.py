@@ -25,6 +25,7 @@ if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
 from support.ros_cli_support import TIMEOUT, Background, echo_once, publish_until_echoed, run  # psutil: with ros2cli
+from support.urdf_kinematics import link_poses
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.robot_model import robot_description
@@ -86,8 +87,6 @@ def test_ros2_run_in_a_namespace_answers_topic_pub_on_topic_echo(antenna: Antenn
 
 def test_published_joint_states_close_the_urdf_loop(antenna: Antenna) -> None:
     """The node's own JointState, through the URDF's forward kinematics: both chains meet at C."""
-    from test_urdf import link_poses
-
     msg = antenna.joint_states
     if not msg:
         pytest.skip('no joint_states received (see the previous test)')
