@@ -1,18 +1,27 @@
 """The topics fourbar_node creates in each mode are exactly those of ``config.interface.endpoints`` (the table the
 reference docs are generated from): names resolved in the node's namespace, message types, directions, keep-last
-depths and reliability. rclpy's own endpoints (``/rosout``, ``/parameter_events``) are left out."""
+depths and reliability. rclpy's own endpoints (``/rosout``, ``/parameter_events``) are left out.
+
+The keys of its diagnostics status, in every mode, are exactly those the diagnostics reference lists."""
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterator
 
 import pytest
 from rclpy.parameter import Parameter
 from rclpy.qos import ReliabilityPolicy
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import JointState
+from support.paths import REPO
 from support.ros_support import RosSession
 
+from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import DIAGNOSTICS, Direction, Mode, endpoints
+from fourbar_ros.node.diagnostic_values import Counters, summarize
 from fourbar_ros.node.fourbar_node import FourBarNode
+from fourbar_ros.rules.policy import decide
 
 pytestmark = pytest.mark.ros
 
@@ -56,3 +65,48 @@ def test_the_node_creates_exactly_the_documented_topics(node: FourBarNode) -> No
             got.add((entity.topic_name, _type_name(entity.msg_type), direction, qos.depth, reliability))
     assert got == want
     assert any(row[0] == DIAGNOSTICS.name for row in got)  # absolute: not moved by the namespace
+
+
+def _documented_keys() -> tuple[set[str], tuple[str, ...]]:
+    """(keys, prefixes of the ``name_<part>`` patterns) named in the first column of the diagnostics reference's
+    key tables."""
+    text = (REPO / 'docs' / 'reference' / 'diagnostics.md').read_text(encoding='utf-8')
+    keys: set[str] = set()
+    prefixes: list[str] = []
+    for line in text.splitlines():
+        if line.startswith('| `'):
+            for key in re.findall(r'`([^`]+)`', line.split('|')[1]):
+                if '<' in key:
+                    prefixes.append(key[:key.index('<')])
+                else:
+                    keys.add(key)
+    return keys, tuple(prefixes)
+
+
+def test_the_status_keys_are_exactly_the_documented_ones(ros: RosSession) -> None:
+    """In each mode, the keys of a status after a served command (and, in the actuator modes, a measurement) are
+    all in the reference; and every key the reference lists is in some mode's status."""
+    cfg = default_config()
+    theta = 0.05
+    decision = decide(theta, cfg.theta_min, cfg.theta_max, cfg.out_of_limits, cfg.linkage.reach())
+    served = summarize(cfg, decision, theta, cfg.linkage.state(theta, cfg.load_torque), Counters(), 1, 0)
+    gamma, delta = cfg.linkage.rocker_angles(theta, cfg.branch)
+    measurement = serialize_message(JointState(name=[cfg.driven_joint],
+                                               position=[gamma if cfg.driven_joint == cfg.gamma_joint else delta]))
+    documented, prefixes = _documented_keys()
+    given: set[str] = {k for k, _ in served.values}  # what only a served command adds (node-independent)
+    for mode in Mode:
+        node = FourBarNode(context=ros.context, namespace=f'/status_{mode.value}',
+                           parameter_overrides=[Parameter('mode', value=mode.value)])
+        try:
+            if node.completion is not None:
+                node.completion.on_measurement(measurement)
+                node.completion.set_commanded(theta)
+            keys = {kv.key for kv in node.diagnostic_status().values}
+        finally:
+            node.destroy_node()
+        undocumented = {k for k in keys if k not in documented and not k.startswith(prefixes)}
+        assert not undocumented, f'{mode.value}: keys missing from docs/reference/diagnostics.md: {undocumented}'
+        given |= keys
+    assert documented <= given, f'documented keys no status has: {documented - given}'
+    assert all(any(k.startswith(p) for k in given) for p in prefixes), prefixes
