@@ -256,7 +256,7 @@ def test_sigkill_while_streaming_keeps_all_but_the_last_interval(storage: Storag
             killed_at = time.monotonic()
             assert recorder.wait() == -signal.SIGKILL
         finally:
-            ros.node.destroy_timer(timer)
+            ros.destroy(timer)
     sent = len(published)
     assert not out.exists()
     rc, lines, _ = run_main(['reindex', out])

@@ -108,7 +108,7 @@ def make_rig(ros: RosSession) -> Iterator[Any]:
     for rig in made:
         for col in rig.outputs.values():
             ros.uncollect(col)
-        ros.node.destroy_publisher(rig.pub)
+        ros.destroy(rig.pub)
         ros.remove_node(rig.node)
 
 

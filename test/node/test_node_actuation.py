@@ -114,8 +114,8 @@ class Pair:
     def close(self) -> None:
         for c in (self.measured, self.complete, self.trajectories, self.setpoints):
             self.ros.uncollect(c)
-        self.ros.node.destroy_publisher(self.cmd)
-        self.ros.node.destroy_publisher(self.antenna)
+        self.ros.destroy(self.cmd)
+        self.ros.destroy(self.antenna)
         self.ros.remove_node(self.node)
         self.ros.remove_node(self.sim)
 

@@ -86,7 +86,7 @@ class Rig:
     def close(self) -> None:
         for c in (self.states, self.angle, self.rate, self.load):
             self.ros.uncollect(c)
-        self.ros.node.destroy_publisher(self.measured)
+        self.ros.destroy(self.measured)
         for sim in self.sims:
             self.ros.remove_node(sim)
         self.ros.remove_node(self.node)
@@ -136,7 +136,7 @@ def test_the_simulated_actuator_is_completed_exactly_and_stamped_with_its_measur
     assert all(math.isfinite(x.data) for x in (*r.rate.messages, *r.load.messages))
     # The load the measured effort implies is the configured one (the sim's effort is the statics' torque).
     assert r.load.messages and all(x.data == pytest.approx(CFG.load_torque, rel=1e-9) for x in r.load.messages)
-    r.ros.node.destroy_publisher(commands)
+    r.ros.destroy(commands)
     r.ros.uncollect(measured_in)
 
 
@@ -157,7 +157,7 @@ def test_no_echo_and_no_commanded_pose_on_joint_states(rig: Any) -> None:
     assert counters.measurements_own_skipped == n and counters.measurements_ignored_no_driven_joint == 0
     assert all(list(m.name) in ([DRIVEN], RULE.names) for m in r.states.messages)  # no commanded [gamma, delta, ..]
     assert [m.header.stamp.sec for m in r.completed()] == list(range(100, 100 + n))
-    r.ros.node.destroy_publisher(commands)
+    r.ros.destroy(commands)
 
 
 def test_bad_measurements_are_counted_and_publish_nothing(rig: Any) -> None:

@@ -73,7 +73,7 @@ class Rig:
     def close(self) -> None:
         self.ros.uncollect(self.js)
         self.ros.uncollect(self.diag)
-        self.ros.node.destroy_publisher(self.pub)
+        self.ros.destroy(self.pub)
         status = self.proc.stop(signal.SIGTERM)
         assert status == 0 and 'Traceback' not in self.proc.stderr, self.proc.stderr
 
@@ -230,5 +230,5 @@ def test_a_scripts_first_command_is_served(ros: RosSession, executor: str) -> No
             assert values['commands_lost'] == '0' and values['commands_accepted'] == '1'
         finally:
             ros.uncollect(diag)
-            ros.node.destroy_publisher(pub)
+            ros.destroy(pub)
             assert proc.stop(signal.SIGTERM) == 0 and 'Traceback' not in proc.stderr, proc.stderr

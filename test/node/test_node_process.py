@@ -72,7 +72,7 @@ def connect(ros: RosSession, proc: NodeProcess, ns: str = '') -> tuple[Any, Coll
 def disconnect(ros: RosSession, pub: Any, *cols: Collector[Any]) -> None:
     for col in cols:
         ros.uncollect(col)
-    ros.node.destroy_publisher(pub)
+    ros.destroy(pub)
 
 
 def assert_clean_exit(proc: NodeProcess, status: int) -> None:

@@ -94,7 +94,7 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, r
     finally:
         ros.uncollect(js)
         ros.uncollect(tq)
-        ros.node.destroy_publisher(pub)
+        ros.destroy(pub)
     return failures
 
 

@@ -129,7 +129,7 @@ class Rig:
         return delta
 
     def close(self) -> None:
-        self.ros.node.destroy_publisher(self.antenna)
+        self.ros.destroy(self.antenna)
         self.ros.remove_node(self.node)
 
 

@@ -71,8 +71,8 @@ class Rig:
 
     def close(self) -> None:
         self.ros.uncollect(self.states)
-        self.ros.node.destroy_publisher(self.traj_pub)
-        self.ros.node.destroy_publisher(self.fwd_pub)
+        self.ros.destroy(self.traj_pub)
+        self.ros.destroy(self.fwd_pub)
         self.ros.remove_node(self.node)
 
     def forward(self, values: Sequence[float]) -> None:

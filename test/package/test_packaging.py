@@ -101,6 +101,6 @@ def test_colcon_installed_node_serves_commands(colcon_install: Path, ros: RosSes
         assert list(msg.position) == pytest.approx([s.gamma, s.delta, s.gamma + 0.05], abs=1e-12)
         assert list(msg.effort) == pytest.approx([s.input_torque, 0.0, 0.0], abs=1e-12)
         ros.uncollect(js)
-        ros.node.destroy_publisher(pub)
+        ros.destroy(pub)
         assert proc.stop(signal.SIGINT) == 0, proc.stderr
         assert 'Traceback' not in proc.stderr

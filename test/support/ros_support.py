@@ -2,7 +2,8 @@
 
 - ``DomainLease``/``lease_domain_id()``, ``NodeProcess``, ``node_command``: fourbar_ros.live.node_process, the
   domain leases and node process the tools use (re-exported here for the tests).
-- ``RosSession``: an rclpy Context on that domain id, a client node and an executor spinning in a thread.
+- ``RosSession``: an rclpy Context on that domain id, a client node and an executor spinning in a thread; what a
+  test created is destroyed through it (``destroy``, ``uncollect``, ``remove_node``), with the thread paused.
 - ``Collector``: a subscription that stores messages and lets a test wait for them with a deadline.
 - ``wait_for(predicate, timeout)``: poll a condition until a deadline (discovery, counts); never a bare sleep.
 - ``sync_probe``: prove every output path is connected end to end before a test starts counting messages.
@@ -17,15 +18,20 @@ from __future__ import annotations
 import os
 import threading
 import time
-from collections.abc import Callable, Sequence
-from contextlib import suppress
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager, suppress
 from dataclasses import dataclass, field
 from typing import Any, Generic, TypeVar
 
 import rclpy
+from rclpy.client import Client
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.publisher import Publisher
+from rclpy.service import Service
+from rclpy.subscription import Subscription
+from rclpy.timer import Timer
 
 from fourbar_ros.live.node_process import DomainLease, NodeProcess, lease_domain_id, node_command
 
@@ -34,6 +40,8 @@ __all__ = ['TIMEOUT', 'Collector', 'DomainLease', 'NodeProcess', 'RosSession', '
 
 #: Default deadline (s) for discovery and message waits; generous because the machine is shared.
 TIMEOUT = 30.0
+#: Longest single wait (s) of the session's executor thread (how late it sees a stop when idle).
+SPIN_SLICE_S = 0.1
 
 M = TypeVar('M')
 
@@ -103,7 +111,12 @@ class Collector(Generic[M]):
 
 @dataclass
 class RosSession:
-    """rclpy on a leased domain id: context, client node, executor thread. Use as a context manager."""
+    """rclpy on a leased domain id: context, client node, executor thread. Use as a context manager.
+
+    rclpy's executor is not safe against an entity destroyed while its thread builds a wait set (an event handler
+    then raises InvalidHandle there, and the thread dies): every destruction goes through ``paused()``, which holds
+    the thread between two bounded spins.
+    """
 
     node_name: str = 'fourbar_test_client'
     lease: DomainLease | None = None
@@ -112,6 +125,9 @@ class RosSession:
     executor: Any = None
     _thread: threading.Thread | None = None
     _owned_lease: bool = False
+    _spin_lock: threading.Lock = field(default_factory=threading.Lock)  # held by the thread while it spins
+    _running: threading.Event = field(default_factory=threading.Event)  # clear: the thread waits before spinning
+    _stopping: bool = False
 
     @property
     def domain_id(self) -> int:
@@ -127,6 +143,7 @@ class RosSession:
             self.executor = SingleThreadedExecutor(context=self.context)
             self.node = Node(self.node_name, context=self.context)
             self.executor.add_node(self.node)
+            self._running.set()
             self._thread = threading.Thread(target=self._spin, name='ros-executor', daemon=True)
             self._thread.start()
         except BaseException:
@@ -138,13 +155,30 @@ class RosSession:
         from rclpy.executors import ExternalShutdownException
 
         with suppress(ExternalShutdownException):
-            self.executor.spin()
+            while not self._stopping and self.context.ok():
+                self._running.wait()
+                with self._spin_lock:
+                    if self._running.is_set() and not self._stopping:
+                        self.executor.spin_once(timeout_sec=SPIN_SLICE_S)
+
+    @contextmanager
+    def paused(self) -> Iterator[None]:
+        """The executor thread holds still (outside any wait set) while the block runs."""
+        self._running.clear()
+        self.executor.wake()  # ends the running wait at once
+        try:
+            with self._spin_lock:
+                yield
+        finally:
+            self._running.set()
 
     def __exit__(self, *exc: object) -> None:
         self.close()
 
     def close(self) -> None:
         """Stop the executor, destroy nodes, shut the context down, release the domain id."""
+        self._stopping = True
+        self._running.set()
         if self.executor is not None:
             self.executor.shutdown(timeout_sec=5.0)
         if self._thread is not None:
@@ -163,14 +197,23 @@ class RosSession:
         return {*node.subscriptions, *node.publishers, *node.clients, *node.services, *node.timers,
                 *self.executor.get_nodes()}
 
+    def destroy(self, *entities: Any) -> None:
+        """Destroy the client node's publishers, subscriptions, clients, services or timers, and Collectors'
+        subscriptions, with the executor thread paused."""
+        node = self.node
+        by_kind = ((Subscription, node.destroy_subscription), (Publisher, node.destroy_publisher),
+                   (Client, node.destroy_client), (Service, node.destroy_service), (Timer, node.destroy_timer))
+        with self.paused():
+            for item in entities:
+                entity = item.subscription if isinstance(item, Collector) else item
+                next(destroy for kind, destroy in by_kind if isinstance(entity, kind))(entity)
+
     def destroy_entities_since(self, before: set[Any]) -> None:
         """Destroy what was added after ``entities()`` returned ``before``: endpoints, timers and extra nodes."""
         node = self.node
-        for kinds, destroy in ((node.subscriptions, node.destroy_subscription),
-                               (node.publishers, node.destroy_publisher), (node.clients, node.destroy_client),
-                               (node.services, node.destroy_service), (node.timers, node.destroy_timer)):
-            for entity in [e for e in kinds if e not in before]:
-                destroy(entity)
+        added = [e for kind in (node.subscriptions, node.publishers, node.clients, node.services, node.timers)
+                 for e in kind if e not in before]
+        self.destroy(*added)
         for extra in [n for n in self.executor.get_nodes() if n not in before]:
             self.remove_node(extra)
 
@@ -188,9 +231,10 @@ class RosSession:
         self.executor.wake()
 
     def remove_node(self, node: Node) -> None:
-        """Stop spinning ``node`` and destroy it."""
-        self.executor.remove_node(node)
-        node.destroy_node()
+        """Stop spinning ``node`` and destroy it (the executor thread paused)."""
+        with self.paused():
+            self.executor.remove_node(node)
+            node.destroy_node()
 
     def collect(self, msg_type: type[M], topic: str, qos: Any = 1000) -> Collector[M]:
         """Subscribe the client node to ``topic``; messages land in the returned Collector."""
@@ -201,7 +245,7 @@ class RosSession:
 
     def uncollect(self, collector: Collector[Any]) -> None:
         """Destroy a Collector's subscription."""
-        self.node.destroy_subscription(collector.subscription)
+        self.destroy(collector)
 
     def publisher(self, msg_type: type, topic: str, qos: Any = 1000) -> Any:
         """A client publisher."""
