@@ -4,10 +4,10 @@ the lagged, limited drive, and the encoder."""
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 import pytest
+from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.controllers import trajectory_controller
@@ -28,21 +28,6 @@ from fourbar_ros.node.sim_actuator_model import (
 from fourbar_ros.rules.controller_contract import ContractRule
 
 EPS = float(np.finfo(np.float64).eps)
-
-
-@dataclass
-class Duration:
-    sec: int = 0
-    nanosec: int = 0
-
-
-@dataclass
-class Point:
-    positions: list[float]
-    velocities: list[float] = field(default_factory=list)
-    accelerations: list[float] = field(default_factory=list)
-    time_from_start: Duration = field(default_factory=Duration)
-    effort: list[float] = field(default_factory=list)
 
 
 def at(t: float) -> Duration:
@@ -102,7 +87,8 @@ def test_segment_clips_time_and_zero_duration_is_the_end() -> None:
 # ----------------------------------------------------------------------------- trajectory checks
 
 def test_waypoints_pick_the_joint_column_and_optional_arrays() -> None:
-    pts = [Point([9.0, 0.1], [], [], at(0.5)), Point([9.0, 0.2], [0.0, 0.3], [0.0, 0.4], at(1.0))]
+    pts = [Point([9.0, 0.1], time_from_start=at(0.5)),
+           Point([9.0, 0.2], [0.0, 0.3], [0.0, 0.4], time_from_start=at(1.0))]
     got = waypoints(['other', 'j'], 'j', pts)
     assert got == [Waypoint(0.5, 0.1, None, None), Waypoint(1.0, 0.2, 0.3, 0.4)]
     assert waypoints(['j'], 'j', []) == []

@@ -8,12 +8,13 @@ actuator modes make of commands and antenna trajectories passes the contract the
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
 from support.paths import REPO
+from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
 from fourbar_ros.config.controllers import (
@@ -49,37 +50,22 @@ JTC = trajectory_controller('', CFG.trajectory_controller)
 NOW = 1_000 * 10**9  # ns
 
 
-@dataclass
-class Dur:
-    sec: int
-    nanosec: int
-
-
-@dataclass
-class Pt:
-    positions: list[float]
-    velocities: list[float] = field(default_factory=list)
-    accelerations: list[float] = field(default_factory=list)
-    effort: list[float] = field(default_factory=list)
-    time_from_start: Dur = field(default_factory=lambda: Dur(0, 0))
-
-
-def pts(times: list[float], positions: list[float], **fields: list[list[float]]) -> list[Pt]:
-    return [Pt([p], time_from_start=Dur(*duration_parts(t)), **{k: v[i] for k, v in fields.items()})
+def pts(times: list[float], positions: list[float], **fields: list[list[float]]) -> list[Point]:
+    return [Point([p], time_from_start=Duration(*duration_parts(t)), **{k: v[i] for k, v in fields.items()})
             for i, (t, p) in enumerate(zip(times, positions, strict=True))]
 
 
 GOOD = pts([0.0, 1.0], [0.8, 0.9], velocities=[[0.0], [0.0]])
 
 #: One message per rule, each breaking that rule alone: (joint_names, points, stamp ns).
-BREAKS: dict[ContractRule, tuple[list[str], list[Pt], int]] = {
+BREAKS: dict[ContractRule, tuple[list[str], list[Point], int]] = {
     ContractRule.PARTIAL_JOINTS: ([JOINT, 'other_joint'], GOOD, 0),
     ContractRule.NO_POINTS: ([JOINT], [], 0),
     ContractRule.FOREIGN_JOINT: (['elbow_joint'], GOOD, 0),
     ContractRule.END_MOVING: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], velocities=[[0.0], [2.0 * FLOAT_EPSILON]]), 0),
     ContractRule.ENDS_IN_PAST: ([JOINT], GOOD, NOW - 2 * 10**9),
     ContractRule.TIME_NOT_INCREASING: ([JOINT], pts([0.0, 1.0, 1.0], [0.8, 0.9, 0.95]), 0),
-    ContractRule.FIELD_SIZE: ([JOINT], [*GOOD[:1], Pt([0.9, 1.0], time_from_start=Dur(1, 0))], 0),
+    ContractRule.FIELD_SIZE: ([JOINT], [*GOOD[:1], Point([0.9, 1.0], time_from_start=Duration(1, 0))], 0),
     ContractRule.EFFORT_FIELD: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], effort=[[0.1], [0.2]]), 0),
 }
 
@@ -123,10 +109,10 @@ def test_the_options_admit_what_they_name() -> None:
     assert check_trajectory(JTC, [JOINT], at_eps, 0, NOW) is None
     # Integration in goals: a point may leave out positions, not every field.
     integrating = replace(JTC, allow_integration_in_goal_trajectories=True)
-    velocities_only = [Pt([], [0.0]), Pt([], [0.0], time_from_start=Dur(1, 0))]
+    velocities_only = [Point([], [0.0]), Point([], [0.0], time_from_start=Duration(1, 0))]
     assert check_trajectory(integrating, [JOINT], velocities_only, 0, NOW) is None
     assert check_trajectory(JTC, [JOINT], velocities_only, 0, NOW).rule is ContractRule.FIELD_SIZE  # type: ignore[union-attr]
-    empty = [Pt([]), Pt([], time_from_start=Dur(1, 0))]
+    empty = [Point([]), Point([], time_from_start=Duration(1, 0))]
     assert check_trajectory(integrating, [JOINT], empty, 0, NOW).rule is ContractRule.FIELD_SIZE  # type: ignore[union-attr]
 
 
@@ -140,9 +126,9 @@ def test_the_checks_run_in_the_controllers_order() -> None:
 
 def test_times_compare_in_whole_nanoseconds() -> None:
     # 1 ns apart is increasing; the same ns is not.
-    p = [Pt([0.8], time_from_start=Dur(0, 5)), Pt([0.9], time_from_start=Dur(0, 6))]
+    p = [Point([0.8], time_from_start=Duration(0, 5)), Point([0.9], time_from_start=Duration(0, 6))]
     assert check_trajectory(JTC, [JOINT], p, 0, NOW) is None
-    p[1].time_from_start = Dur(0, 5)
+    p[1].time_from_start = Duration(0, 5)
     assert check_trajectory(JTC, [JOINT], p, 0, NOW).rule is ContractRule.TIME_NOT_INCREASING  # type: ignore[union-attr]
 
 
@@ -195,7 +181,6 @@ def test_the_node_refuses_to_start_with_a_contract_it_cannot_meet(tmp_path: Path
 # --------------------------------------------------------------------------- what the node makes passes
 
 
-
 def effort_contract(tmp_path: Path) -> TrajectoryControllerSettings:
     text = (REPO / 'config' / 'controllers.yaml').read_text()
     assert text.count('      - position\n    state_interfaces:') == 1
@@ -220,7 +205,7 @@ def test_planned_commands_pass_the_contract_with_and_without_effort(tmp_path: Pa
     assert outgoing_refusal(effort_contract(tmp_path), JOINT, with_effort, 0, NOW) is None
 
 
-def antenna(times: list[float], theta: list[float], theta_dot: list[float]) -> list[Pt]:
+def antenna(times: list[float], theta: list[float], theta_dot: list[float]) -> list[Point]:
     return pts(times, theta, velocities=[[v] for v in theta_dot])
 
 

@@ -4,10 +4,11 @@ problem per case), the plans and setpoints of plain commands, and the running mo
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 import pytest
+from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import ANTENNA_JOINT
@@ -33,22 +34,8 @@ CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
 
 
-@dataclass
-class Dur:
-    sec: int
-    nanosec: int
-
-
-@dataclass
-class Pt:
-    positions: list[float]
-    time_from_start: Dur
-    velocities: list[float] = field(default_factory=list)
-    accelerations: list[float] = field(default_factory=list)
-
-
-def pts(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Pt]:
-    return [Pt([th], Dur(*duration_parts(t)), [] if theta_dot is None else [theta_dot[i]])
+def pts(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Point]:
+    return [Point([th], [] if theta_dot is None else [theta_dot[i]], time_from_start=Duration(*duration_parts(t)))
             for i, (t, th) in enumerate(zip(times, theta, strict=True))]
 
 
@@ -74,7 +61,7 @@ CASES = {
     TrajectoryProblem.TIME_NOT_INCREASING: ([ANTENNA_JOINT], pts([1.0, 0.5], [0.0, 0.01])),
     TrajectoryProblem.OUT_OF_REACH: ([ANTENNA_JOINT], pts([0.0, 1.0], [0.0, CFG.theta_min - 1e-6])),
     TrajectoryProblem.OVER_LIMITS: ([ANTENNA_JOINT], pts([0.0, 0.01], [CFG.theta_min, CFG.theta_max])),
-    TrajectoryProblem.INVALID: ([ANTENNA_JOINT], [Pt([0.0, 1.0], Dur(0, 0))]),
+    TrajectoryProblem.INVALID: ([ANTENNA_JOINT], [Point([0.0, 1.0])]),
 }
 
 
