@@ -88,6 +88,7 @@ class AntennaConfig:
     controllers_file: str
     effort_feedforward: bool
     replan_tolerance: float
+    measured_range_tolerance: float
     measurement_timeout: float
     tracking_window: float
     gamma_joint: str

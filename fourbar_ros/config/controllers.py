@@ -50,6 +50,13 @@ class TrajectoryControllerSettings:
     allow_nonzero_velocity_at_trajectory_end: bool = False
     allow_integration_in_goal_trajectories: bool = False
     interpolate_from_desired_state: bool = False
+    open_loop_control: bool = False  #: deprecated; as interpolate_from_desired_state
+    interpolation_method: str = 'splines'  #: or 'none'
+    #: any of ``speed_scaling.state_interface`` / ``command_interface`` set, or an initial factor other than 1
+    speed_scaling: bool = False
+    cmd_timeout: float = 0.0  #: s after the last point at which the controller stops on its own (0: never)
+    #: ``constraints.stopped_velocity_tolerance`` (rad/s): checked at the goal with an effort command interface
+    stopped_velocity_tolerance: float = 0.01
     #: ``constraints.goal_time``: s allowed past the last point's time to get within the goal tolerance (0: forever)
     goal_time: float = 0.0
     tolerances: Mapping[str, JointTolerances] = field(default_factory=dict)
@@ -119,7 +126,17 @@ def trajectory_controller(path: str, controller: str) -> TrajectoryControllerSet
                           '[acceleration]]; position, effort)', ('controllers_file',))
     flags = {key: bool(_typed(source, controller, values, key, bool, False))
              for key in ('allow_partial_joints_goal', 'allow_nonzero_velocity_at_trajectory_end',
-                         'allow_integration_in_goal_trajectories', 'interpolate_from_desired_state')}
+                         'allow_integration_in_goal_trajectories', 'interpolate_from_desired_state',
+                         'open_loop_control')}
+    scaling = (str(_typed(source, controller, values, 'speed_scaling.state_interface', str, '')),
+               str(_typed(source, controller, values, 'speed_scaling.command_interface', str, '')),
+               float(_typed(source, controller, values, 'speed_scaling.initial_scaling_factor',  # type: ignore[arg-type]
+                            float, 1.0)))
+    motion = {'interpolation_method': str(_typed(source, controller, values, 'interpolation_method', str, 'splines')),
+              'speed_scaling': scaling != ('', '', 1.0),
+              'cmd_timeout': float(_typed(source, controller, values, 'cmd_timeout', float, 0.0)),  # type: ignore[arg-type]
+              'stopped_velocity_tolerance': float(_typed(  # type: ignore[arg-type]
+                  source, controller, values, 'constraints.stopped_velocity_tolerance', float, 0.01))}
     goal_time = float(_typed(source, controller, values, 'constraints.goal_time', float, 0.0))  # type: ignore[arg-type]
     tolerances = {j: JointTolerances(
         float(_typed(source, controller, values, f'constraints.{j}.trajectory', float, 0.0)),  # type: ignore[arg-type]
@@ -127,7 +144,8 @@ def trajectory_controller(path: str, controller: str) -> TrajectoryControllerSet
         for j in joints}
     return TrajectoryControllerSettings(controller, joints, commands,
                                         _strings(source, controller, values, 'state_interfaces', True),
-                                        goal_time=goal_time, tolerances=tolerances, **flags)
+                                        goal_time=goal_time, tolerances=tolerances,
+                                        **flags, **motion)  # type: ignore[arg-type]
 
 
 def forward_controller(path: str, controller: str) -> ForwardControllerSettings:

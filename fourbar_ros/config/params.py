@@ -179,6 +179,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('replan_tolerance', float, 0.02, 'rad',
               'Actuator modes: a command during a motion plans on from the motion being followed while the '
               'measured driven joint is within this of it; otherwise from the measured state.', 0.0, 3.2),
+    ParamSpec('measured_range_tolerance', float, 1e-5, 'rad',
+              'Actuator modes: a measured driven joint outside its range for [theta_min, theta_max] by at most this '
+              '(an encoder count through the reducer rounds outward) starts a motion from the nearest end of the '
+              'range; further out, no motion is planned from it.', 0.0, 0.1),
     ParamSpec('measurement_timeout', float, 0.5, 's',
               'Actuator modes: no measured driven joint for this long makes the diagnostics WARN.', 0.001, 3600.0),
     ParamSpec('tracking_window', float, 5.0, 's',

@@ -22,7 +22,7 @@ from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import LimitError, TrajectoryError
 from fourbar_ros.motion.limits import JointLimits, segment_magnitudes, worst_violation
-from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, on_wire, static_efforts
+from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire, static_efforts
 
 #: How far (in ulps of the range's larger end) ruckig's position extrema may pass an end of the driven joint's range
 #: that the motion only reaches: its rounding of a profile that ends exactly there.
@@ -45,7 +45,8 @@ PLAN_SHRINK = 1.0 - 1e-4
 PLAN_SHRINKS = (PLAN_SHRINK, 1.0 - 2e-3, 1.0 - 0.15)
 
 __all__ = ['END_SPAN', 'PLAN_SHRINK', 'PLAN_SHRINKS', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles',
-           'min_segment', 'plan_motion', 'plan_to_angle', 'sample_grid', 'setpoints', 'trajectory_points']
+           'min_segment', 'plan_motion', 'plan_to_angle', 'rocker_states', 'sample_grid', 'setpoints',
+           'trajectory_points']
 
 
 @dataclass(frozen=True)
@@ -270,6 +271,14 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
 def _sampled(cfg: AntennaConfig, plan: Plan, times: FloatArray) -> DrivenTrajectory:
     """The plan's states at ``times`` (s, on the wire) with the static effort at each pose and the antenna path."""
     q, q_dot, q_ddot = plan.sample(np.minimum(times, plan.duration))
+    return rocker_states(cfg, times, q, q_dot, q_ddot, SplineKind.QUINTIC)
+
+
+def rocker_states(cfg: AntennaConfig, times: FloatArray, q: FloatArray, q_dot: FloatArray, q_ddot: FloatArray,
+                  kind: SplineKind, antenna_rates: bool = False) -> DrivenTrajectory:
+    """Driven-joint states (rad, rad/s, rad/s^2 at ``times`` s) as a trajectory of ``kind`` (the fields it
+    carries), with the static effort at each pose and the antenna path: theta, and with ``antenna_rates`` its rates
+    where the kind has them (theta_dot = q_dot / q', theta_ddot = (q_ddot - q'' theta_dot^2) / q')."""
     theta_a, other_a = cfg.linkage.from_rocker(q, cfg.driven, cfg.measured_branch)
     theta, other = np.asarray(theta_a), np.asarray(other_a)
     gamma, delta = (q, other) if cfg.driven is Driven.GAMMA else (other, q)
@@ -277,7 +286,15 @@ def _sampled(cfg: AntennaConfig, plan: Plan, times: FloatArray) -> DrivenTraject
     g1 = np.asarray(rates.dgamma_dtheta)
     q1 = g1 if cfg.driven is Driven.GAMMA else np.asarray(rates.ddelta_dtheta)
     efforts = static_efforts(cfg, theta, gamma, g1, q1)
-    return DrivenTrajectory(times, q, q_dot, q_ddot, efforts, AntennaTrajectory(times, theta))
+    if kind is SplineKind.LINEAR or not antenna_rates:
+        v, a = (None, None) if kind is SplineKind.LINEAR else (q_dot, q_ddot if kind is SplineKind.QUINTIC else None)
+        return DrivenTrajectory(times, q, v, a, efforts, AntennaTrajectory(times, theta))
+    theta_dot = q_dot / q1
+    if kind is SplineKind.CUBIC:
+        return DrivenTrajectory(times, q, q_dot, None, efforts, AntennaTrajectory(times, theta, theta_dot))
+    q2 = np.asarray(cfg.linkage.second_derivative_at(theta, gamma, delta, rates, cfg.driven))
+    theta_ddot = (q_ddot - q2 * theta_dot * theta_dot) / q1
+    return DrivenTrajectory(times, q, q_dot, q_ddot, efforts, AntennaTrajectory(times, theta, theta_dot, theta_ddot))
 
 
 def setpoints(cfg: AntennaConfig, plan: Plan, rate: float | None = None) -> Setpoints:

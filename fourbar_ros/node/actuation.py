@@ -30,26 +30,29 @@ from fourbar_ros.config.interface import (
     trajectory_topic,
 )
 from fourbar_ros.core.errors import FourBarError, one_line
-from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Setpoints
+from fourbar_ros.motion.planner import JointMotionState, Setpoints
 from fourbar_ros.motion.trajectory import DrivenTrajectory
+from fourbar_ros.node.problem_log import ProblemLog
 from fourbar_ros.node.qos import qos
 from fourbar_ros.rules.actuation import (
     ActuationCounters,
     Motion,
     PointFields,
+    Start,
+    continued,
+    motion_start,
     outgoing_refusal,
     plan_command,
     planned_points,
     planned_setpoints,
     point_fields,
     problem_of,
-    replan_start,
     serve_antenna_trajectory,
+    takeover_lead,
     trajectory_setpoints,
 )
 from fourbar_ros.rules.controller_contract import check_forward_command
 
-WARN_THROTTLE_S = 1.0
 #: Setpoints kept in ``recent_setpoints`` (the last seconds of the stream at the default rate).
 RECENT_SETPOINTS = 1000
 
@@ -70,12 +73,12 @@ class Actuation:
     ``subscribe_measured``: read the measured driven joint on measured_joint_states here (a component that already
     does can call ``note_measured`` instead)."""
 
-    def __init__(self, node: Node, config: Callable[[], AntennaConfig], warn: Callable[..., object],
+    def __init__(self, node: Node, config: Callable[[], AntennaConfig], problems: ProblemLog,
                  contract: TrajectoryControllerSettings | ForwardControllerSettings,
                  subscribe_measured: bool = True) -> None:
         cfg = config()
         self._config = config
-        self._warn = warn
+        self._problems = problems
         self._clock: Any = node.get_clock()
         self.mode = cfg.mode
         self.contract = contract
@@ -121,13 +124,17 @@ class Actuation:
             v = velocity if velocity is not None and velocity - velocity == 0.0 else 0.0
             self.measured = JointMotionState(position, v)
 
-    def start_state(self, now_ns: int) -> JointMotionState | None:
-        """Where a new motion starts (``replan_start``); counts a motion left for the measured state."""
+    def start_state(self, now_ns: int) -> Start | None:
+        """Where a new motion starts (``motion_start``: in trajectory mode ``takeover_lead`` ahead of now when it
+        continues the running motion); counts a motion left for the measured state, and a measured start moved
+        onto the range."""
         cfg = self._config()
-        speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reducer_ratio
-        state, left = replan_start(self.motion, self.measured, now_ns, cfg.replan_tolerance, speed)
-        self.counters.commands_replanned_from_measured += left
-        return state
+        lead = takeover_lead(cfg) if self.mode == Mode.TRAJECTORY.value else 0.0
+        start = motion_start(cfg, self.motion, self.measured, now_ns, lead)
+        if start is not None:
+            self.counters.commands_replanned_from_measured += start.from_measured
+            self.counters.measured_start_clamped += start.clamped
+        return start
 
     # ------------------------------------------------------------------ plain commands
 
@@ -138,23 +145,27 @@ class Actuation:
         start = self.start_state(now_ns)
         if start is None:
             self.counters.commands_not_planned += 1
-            self._warn(f'command theta = {theta!r} rad not planned: no measured {cfg.driven_joint} on '
-                       f'{MEASURED_JOINT_STATES.name} yet', throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.warn('command no start', f'command theta = {theta!r} rad not planned: no measured '
+                                f'{cfg.driven_joint} on {MEASURED_JOINT_STATES.name} yet')
             return
         try:
-            plan = plan_command(cfg, start, theta)
-            points = planned_points(cfg, plan) if self.mode == Mode.TRAJECTORY.value else None
+            plan = plan_command(cfg, start.state, theta)
+            points = (continued(cfg, start, planned_points(cfg, plan)) if self.mode == Mode.TRAJECTORY.value
+                      else None)
             stream = planned_setpoints(cfg, plan) if points is None else None
         except FourBarError as exc:
             self.counters.commands_not_planned += 1
-            self._warn(f'command theta = {theta!r} rad not planned: {one_line(exc)}',
-                       throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.warn(f'command {type(exc).__name__}',
+                                f'command theta = {theta!r} rad not planned: {one_line(exc)}')
             return
-        if points is not None and not self._send(cfg, points, 0, now_ns, 'trajectory'):
-            self.counters.commands_not_planned += 1
-            return
+        if points is not None:
+            if not self._send(cfg, points, now_ns, now_ns, 'trajectory'):
+                self.counters.commands_not_planned += 1
+                return
+            self.motion = Motion(now_ns, trajectory=points)
+        else:
+            self.motion = Motion(now_ns, plan=plan)
         self.counters.commands_planned += 1
-        self.motion = Motion(now_ns, plan=plan)
         if stream is not None:
             self._stream(stream)
 
@@ -166,8 +177,8 @@ class Actuation:
         refusal = outgoing_refusal(self.contract, cfg.driven_joint, points, stamp_ns, now_ns)
         if refusal is not None:
             self.counters.refused[refusal.rule] += 1
-            self._warn(f'{what} not sent: the controller would refuse it ({refusal.rule.value}): {refusal.reason}',
-                       throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.warn(f'{what} refused {refusal.rule.value}', f'{what} not sent: the controller would '
+                                f'refuse it ({refusal.rule.value}): {refusal.reason}')
             return False
         self._trajectory_pub.publish(trajectory_message(cfg.driven_joint, points, stamp_ns))
         self.counters.trajectories_sent += 1
@@ -212,20 +223,23 @@ class Actuation:
         allow_moving_end = (isinstance(self.contract, TrajectoryControllerSettings)
                             and self.contract.allow_nonzero_velocity_at_trajectory_end)
         try:
-            converted = serve_antenna_trajectory(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns)
+            start = self.start_state(now_ns)
+            converted = serve_antenna_trajectory(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns,
+                                                 start)
             stream = trajectory_setpoints(cfg, converted.trajectory) if self.mode == Mode.FORWARD.value else None
         except FourBarError as exc:
             problem = problem_of(exc)
             self.counters.rejected[problem] += 1
-            self._warn(f'antenna trajectory refused ({problem.value}): {one_line(exc)}',
-                       throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.warn(f'antenna trajectory {problem.value}',
+                                f'antenna trajectory refused ({problem.value}): {one_line(exc)}')
             return
         traj = converted.trajectory
-        if stream is None and not self._send(cfg, traj, stamp_ns, now_ns, 'antenna trajectory'):
+        if stream is None and not self._send(cfg, traj, converted.stamp_ns, now_ns, 'antenna trajectory'):
             return
         self.counters.trajectory_points_inserted += converted.inserted
         self.counters.trajectories_retimed += converted.retimed
-        self.motion = Motion(stamp_ns or now_ns, trajectory=traj)
+        self.counters.trajectories_connected += start is not None
+        self.motion = Motion(converted.stamp_ns or now_ns, trajectory=traj)
         if stream is not None:
             self._stream(stream)
 

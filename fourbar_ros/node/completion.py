@@ -37,9 +37,8 @@ from fourbar_ros.config.cdr import MalformedCdrError, read_joint_state_arrays, r
 from fourbar_ros.config.interface import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.node.diagnostic_values import Level
+from fourbar_ros.node.problem_log import ProblemLog
 from fourbar_ros.rules.completion import CompletionRule, Skipped, driven_index, driven_measurement
-
-WARN_THROTTLE_S = 1.0
 
 
 @dataclass
@@ -60,17 +59,16 @@ class MeasuredCompletion:
     """Subscription, publishers, counters and diagnostic values of the completion."""
 
     def __init__(self, node: Node, cfg: AntennaConfig, joint_pub: Any, qos: Callable[[Topic], QoSProfile],
-                 warn: Callable[..., object],
+                 problems: ProblemLog,
                  on_measured: Callable[[float, float | None], None] | None = None) -> None:
-        """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic; ``warn``: a logger;
+        """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic;
+        ``problems``: the node's log by problem kind;
         ``on_measured``: called with each measured driven joint that is finite and within reach: position rad,
         velocity rad/s (None: not measured)."""
         self._on_measured = on_measured
         self.rule = CompletionRule(cfg)
         self.counters = MeasurementCounters()
-        self._warn = warn
-        get_logger: Callable[[], Any] = node.get_logger  # unannotated in rclpy
-        self._error: Callable[..., object] = get_logger().error
+        self._problems = problems
         self._timeout = cfg.measurement_timeout
         self._window = cfg.tracking_window
         self._joint_pub = joint_pub
@@ -123,7 +121,7 @@ class MeasuredCompletion:
         if not rule.in_reach(q):
             counters.measurements_out_of_range += 1
             self._range_error = rule.out_of_range(q)
-            self._error(self._range_error, throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.error('measurement out of range', self._range_error)
             return
         if self._on_measured is not None:
             self._on_measured(q, q_dot)
@@ -134,8 +132,8 @@ class MeasuredCompletion:
             done = rule.one(q, q_dot if joints or rate else None, tau if load or joints else None)
         except FourBarError as exc:
             counters.measurements_not_completed += 1
-            self._error(f'cannot complete {self._driven} = {q!r} rad: {one_line(exc)}',
-                        throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.error(f'completion {type(exc).__name__}',
+                                 f'cannot complete {self._driven} = {q!r} rad: {one_line(exc)}')
             return
         self._range_error = None
         if joints:
@@ -169,7 +167,7 @@ class MeasuredCompletion:
         key = f'measurements_{why.value}'
         setattr(self.counters, key, getattr(self.counters, key) + 1)
         if why is not Skipped.OWN:
-            self._warn(line, throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.warn(f'measurement {why.value}', line)
 
     def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
         """(level, message, key/value pairs) of the completion: ERROR while the last measurement was out of

@@ -56,6 +56,7 @@ from fourbar_ros.node.executor import (
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
 from fourbar_ros.node.param_descriptors import declarations
+from fourbar_ros.node.problem_log import CallbackGuard, ProblemLog
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.state_cache import StateCache
 from fourbar_ros.rules.actuation import actuation_contract
@@ -83,6 +84,9 @@ class FourBarNode(Node):
         self.info: Callable[..., object] = logger.info
         self._error: Callable[..., object] = logger.error
         self._debug: Callable[..., object] = logger.debug
+        self.problems = ProblemLog(lambda level, line: (self._warn if level == 'warn' else self._error)(line),
+                                   WARN_THROTTLE_S)
+        self.guard = CallbackGuard(self.problems)
         try:
             self._config = self._validated_overrides()
             contract = None if self._config.mode == Mode.OPEN_LOOP.value else actuation_contract(self._config)
@@ -136,8 +140,8 @@ class FourBarNode(Node):
         self.completion: MeasuredCompletion | None = None
         if not self._publishes_pose:
             assert contract is not None
-            self.actuation = Actuation(self, lambda: self._config, self._warn, contract, subscribe_measured=False)
-            self.completion = MeasuredCompletion(self, self._config, self._joint_pub, qos, self._warn,
+            self.actuation = Actuation(self, lambda: self._config, self.problems, contract, subscribe_measured=False)
+            self.completion = MeasuredCompletion(self, self._config, self._joint_pub, qos, self.problems,
                                                  on_measured=self.actuation.note_measured)
         if self._config.joint_state_rate > 0.0 and self._publishes_pose:
             self._joint_state_timer = self.create_timer(1.0 / self._config.joint_state_rate,
@@ -147,6 +151,21 @@ class FourBarNode(Node):
         self._clock_warned = False
         self._clock_check = self.create_timer(NO_CLOCK_WARN_S, self._check_sim_clock,
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    # ------------------------------------------------------------------ the callback boundary
+
+    def create_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any], *args: Any,
+                            **kwargs: Any) -> Any:
+        """rclpy's, with the callback guarded (``CallbackGuard``: an exception is counted, logged, swallowed)."""
+        guard = getattr(self, 'guard', None)  # rclpy's own /clock subscription comes before it
+        wrapped = callback if guard is None else guard.wrap(f'sub_{topic.strip("/").replace("/", "_")}', callback)
+        return super().create_subscription(msg_type, topic, wrapped, *args, **kwargs)
+
+    def create_timer(self, timer_period_sec: float, callback: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """rclpy's, with the callback guarded."""
+        name = getattr(callback, '__name__', 'timer').strip('_').removeprefix('on_')
+        wrapped = callback if getattr(self, 'guard', None) is None else self.guard.wrap(name, callback)
+        return super().create_timer(timer_period_sec, wrapped, *args, **kwargs)
 
     # ------------------------------------------------------------------ configuration
 
@@ -210,6 +229,10 @@ class FourBarNode(Node):
         except ConfigError as exc:
             self._pending = None
             return SetParametersResult(successful=False, reason=str(exc))
+        except Exception as exc:  # the callback boundary: refuse the change, keep the node up
+            self._pending = None
+            self.guard.errors['set_parameters'] = self.guard.errors.get('set_parameters', 0) + 1
+            return SetParametersResult(successful=False, reason=f'{type(exc).__name__}: {one_line(exc)}')
         return SetParametersResult(successful=True)
 
     def _count_result(self, result: SetParametersResult) -> SetParametersResult:
@@ -262,7 +285,7 @@ class FourBarNode(Node):
             command = read_float64(raw)
         except MalformedCdrError as exc:
             counters.commands_malformed += 1
-            self._warn(f'{COMMAND.name}: payload skipped: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
+            self.problems.warn('command payload', f'{COMMAND.name}: payload skipped: {exc}')
             return
         self._last_command = command
         decision = decide(command, self._theta_min, self._theta_max, self._policy, self._reach)
@@ -273,7 +296,7 @@ class FourBarNode(Node):
         else:
             self._last_decision = decision
             counters.record(decision.outcome)
-            self._warn(decision.reason, throttle_duration_sec=WARN_THROTTLE_S)
+            self.problems.warn(f'command {decision.outcome.value}', decision.reason)
             if decision.theta is None:
                 return
             theta, clamped = decision.theta, decision
@@ -306,7 +329,7 @@ class FourBarNode(Node):
         try:
             return self.cache.get(theta)
         except FourBarError as exc:  # limits lie inside the reach, so only a core bug gets here
-            self._error(f'cannot solve theta={theta!r}: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
+            self.problems.error('solve', f'cannot solve theta={theta!r}: {exc}')
             return None
 
     def _publish_joints(self, theta: float, state: Pose) -> None:

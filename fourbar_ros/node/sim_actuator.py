@@ -50,6 +50,9 @@ class SimCounters:
 
     commands_accepted: int = 0
     commands_rejected: int = 0
+    commands_ignored_nan: int = 0  #: forward commands of NaN only: the controller keeps its last command
+    #: forward commands of the wrong size: the controller's update fails and the controller manager deactivates it
+    forward_deactivations: int = 0
     joint_states_published: int = 0
     joint_states_skipped: int = 0
 
@@ -79,7 +82,8 @@ class SimActuator(Node):
         self.encoder = Encoder(s.encoder_counts_per_rev, cfg.reducer_ratio, s.position_offset, s.position_noise,
                                s.velocity_noise, s.effort_noise, s.noise_seed)
         self.counters = SimCounters()
-        self.follower = TrajectoryFollower(jtc, s.joint, self.drive.position)
+        self.forward_active = True
+        self.follower = TrajectoryFollower(jtc, s.joint, self.drive.position, 1.0 / s.publish_rate)
         self._clock: Any = self.get_clock()
         self._last_tick_ns: int | None = None
         self._reference = self.drive.position  # the position command the drive follows until the next update
@@ -102,11 +106,26 @@ class SimActuator(Node):
             self._refuse(f'trajectory ({refusal.rule.value})', refusal.reason)
 
     def _on_forward(self, msg: Float64MultiArray) -> None:
+        # forward_command_controller's update (jazzy): a command of NaN only is no command; a wrong size fails the
+        # update, and the controller manager deactivates the controller (further commands are not written).
         data = list(msg.data)
-        refusal = check_forward_command(self._forward, data)
-        if refusal is not None or not all(math.isfinite(v) for v in data):
+        if not self.forward_active:
             self.counters.commands_rejected += 1
-            self._refuse('forward command', refusal.reason if refusal is not None else f'not finite: {data}')
+            self._refuse('forward command', 'the forward controller was deactivated by a command of the wrong size')
+            return
+        if data and all(math.isnan(v) for v in data):
+            self.counters.commands_ignored_nan += 1
+            return
+        refusal = check_forward_command(self._forward, data)
+        if refusal is not None:
+            self.forward_active = False
+            self.counters.forward_deactivations += 1
+            self.counters.commands_rejected += 1
+            self._refuse('forward command', f'{refusal.reason}: the controller is deactivated')
+            return
+        if not all(math.isfinite(v) for v in data):  # stricter: the controller would write an infinity
+            self.counters.commands_rejected += 1
+            self._refuse('forward command', f'not finite: {data}')
             return
         self.follower.hold(float(data[0]))
         self.counters.commands_accepted += 1

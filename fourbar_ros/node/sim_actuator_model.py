@@ -5,17 +5,18 @@ It stands in for ros2_control's hardware plus its controllers on machines withou
 - ``TrajectoryFollower`` is joint_trajectory_controller (Jazzy, ``interpolation_method: splines``, topic
   interface) for the one driven joint: it refuses exactly what ``fourbar_ros.rules.controller_contract`` refuses
   (the controller's own ``validate_trajectory_msg``, with its settings from the controllers YAML), and a refused
-  message leaves the running trajectory in place. An accepted one replaces it and starts at the first update after
-  its arrival (a zero stamp: at that update) from the state measured there (position, and velocity when the
-  controller has a velocity state interface), as with ``interpolate_from_desired_state`` false; before the first
-  point it interpolates from that state, then point to point (``segment``: quintic when both ends give position,
-  velocity and acceleration, cubic with velocities on both ends, linear otherwise), then holds the last point. It
+  message leaves the running trajectory in place. An accepted one replaces it and is followed as the controller
+  follows it (``rules.controller_motion``, the one model of that: taken over at the first update after its
+  arrival from the state measured there, the lead-in with zero-filled velocity and acceleration, the segments,
+  velocity-only points integrated, the hold); each update commands the reference one update period ahead. It
   holds the measured position when the measured position is off the reference by more than the joint's
   ``trajectory`` tolerance before the last point, or by more than its ``goal`` tolerance ``goal_time`` s after it.
   What it does not imitate: the action interface and its goal results, PID or other closed-loop adapters,
-  ``cmd_timeout``, speed scaling, joint angle wrap-around, ``interpolate_from_desired_state`` true, deceleration on
-  cancel, partial goals of several joints (it has one), and the controller manager's update timing (here a timer
-  of the node's; ``update`` is called at ``publish_rate``).
+  ``cmd_timeout``, speed scaling, joint angle wrap-around, ``interpolate_from_desired_state`` true,
+  ``interpolation_method: none``, deceleration on cancel, the stopped-velocity goal check of an effort interface,
+  partial goals of several joints (it has one), and the controller manager's update timing (here a timer of the
+  node's; ``update`` is called at ``publish_rate``, without jitter). Stricter than the controller: a non-finite
+  value in a trajectory is refused (the controller would follow it).
 - ``LagActuator`` is the drive: a first-order lag (time constant ``tau``, s) towards the reference, its speed
   limited to ``max_velocity`` (rad/s) and its speed change to ``max_acceleration`` (rad/s^2); it also never
   asks for more speed than it can brake from before the reference, so a reference that stands still or moves
@@ -28,7 +29,6 @@ Angles are the driven joint's (rad, joint side of the reducer), times in seconds
 
 from __future__ import annotations
 
-import bisect
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -46,6 +46,7 @@ from fourbar_ros.rules.controller_contract import (
     TrajectoryPointLike,
     check_trajectory,
 )
+from fourbar_ros.rules.controller_motion import ControllerPoint, Reference, controller_reference
 
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
@@ -70,7 +71,7 @@ class Waypoint(NamedTuple):
     velocity (rad/s) and acceleration (rad/s^2) where the message gives them (else None)."""
 
     time: float
-    position: float
+    position: float | None  # None: integrated from the velocities (allow_integration_in_goal_trajectories)
     velocity: float | None
     acceleration: float | None
 
@@ -88,11 +89,13 @@ def _column(values: Sequence[float], index: int, width: int, field: str, k: int,
 
 
 def waypoints(joint_names: Sequence[str], joint: str, points: Sequence[PointLike],
-              max_points: int = MAX_TRAJECTORY_POINTS) -> list[Waypoint]:
+              max_points: int = MAX_TRAJECTORY_POINTS, integrate: bool = False) -> list[Waypoint]:
     """The driven joint's waypoints of a JointTrajectory the contract accepted (``TrajectoryFollower.receive``).
 
     Stricter than the controller where the simulation needs it: raises ``TrajectoryError`` for a non-finite value,
-    more than ``max_points`` points (memory stays bounded), or ``joint`` missing or named twice.
+    more than ``max_points`` points (memory stays bounded), or ``joint`` missing or named twice. With ``integrate``
+    (``allow_integration_in_goal_trajectories``) a point may leave its position out (it is integrated from the
+    velocities, ``rules.controller_motion``).
     """
     count = sum(1 for name in joint_names if name == joint)
     if count != 1:
@@ -107,67 +110,30 @@ def waypoints(joint_names: Sequence[str], joint: str, points: Sequence[PointLike
         t = p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
         if not t > last or t < 0.0:
             raise TrajectoryError(f'point {k}: time_from_start {t!r} s does not increase (previous {last!r} s)')
-        position = _column(p.positions, index, width, 'positions', k, required=True)
-        assert position is not None
+        position = _column(p.positions, index, width, 'positions', k, required=not integrate)
         out.append(Waypoint(t, position, _column(p.velocities, index, width, 'velocities', k, required=False),
                             _column(p.accelerations, index, width, 'accelerations', k, required=False)))
         last = t
     return out
 
 
-def segment(start: Waypoint | Setpoint, end: Waypoint, duration: float, s: float) -> Setpoint:
-    """The reference ``s`` seconds into a segment of ``duration`` s from ``start`` to ``end`` (s is clipped to
-    [0, duration]): quintic if both ends give velocity and acceleration, cubic if both give velocity, else linear.
-    A zero-length segment is its end point."""
-    if duration <= 0.0:
-        return Setpoint(end.position, end.velocity or 0.0, end.acceleration or 0.0)
-    s = min(max(s, 0.0), duration)
-    p0, p1, T = start.position, end.position, duration
-    v0, v1, a0, a1 = start.velocity, end.velocity, start.acceleration, end.acceleration
-    if v0 is None or v1 is None:
-        return Setpoint(p0 + (p1 - p0) * s / T, (p1 - p0) / T, 0.0)
-    if a0 is None or a1 is None:
-        c2 = (3.0 * (p1 - p0) - (2.0 * v0 + v1) * T) / T**2
-        c3 = (2.0 * (p0 - p1) + (v0 + v1) * T) / T**3
-        return Setpoint(p0 + s * (v0 + s * (c2 + s * c3)), v0 + s * (2.0 * c2 + 3.0 * s * c3), 2.0 * c2 + 6.0 * c3 * s)
-    d = p1 - p0
-    c2 = 0.5 * a0
-    c3 = (20.0 * d - (8.0 * v1 + 12.0 * v0) * T - (3.0 * a0 - a1) * T**2) / (2.0 * T**3)
-    c4 = (-30.0 * d + (14.0 * v1 + 16.0 * v0) * T + (3.0 * a0 - 2.0 * a1) * T**2) / (2.0 * T**4)
-    c5 = (12.0 * d - 6.0 * (v1 + v0) * T - (a0 - a1) * T**2) / (2.0 * T**5)
-    return Setpoint(p0 + s * (v0 + s * (c2 + s * (c3 + s * (c4 + s * c5)))),
-                    v0 + s * (2.0 * c2 + s * (3.0 * c3 + s * (4.0 * c4 + s * 5.0 * c5))),
-                    2.0 * c2 + s * (6.0 * c3 + s * (12.0 * c4 + s * 20.0 * c5)))
-
-
-@dataclass(frozen=True)
 class Trajectory:
-    """A trajectory started at ``start`` (s, on the node's clock) from ``initial`` (the state measured at its first
-    update: a Waypoint at time 0 whose velocity is None without a velocity state interface) through ``points``
-    (times from ``start``)."""
+    """A trajectory taken over at ``start`` (s, on the node's clock) from the state measured there, as the
+    controller follows it (``rules.controller_motion.Reference``: the lead-in, the segments, the hold); times
+    inside are relative to ``start``, so they keep their precision."""
 
-    start: float
-    initial: Waypoint
-    points: tuple[Waypoint, ...]
+    def __init__(self, start: float, reference: Reference) -> None:
+        self.start = start
+        self.reference = reference
 
     def sample(self, now: float) -> Setpoint:
-        """The reference at time ``now`` (s): the initial state before the start, the last point's position after
-        the end (velocity and acceleration 0), the interpolating segment between."""
-        t = now - self.start
-        if t < 0.0:
-            return Setpoint(self.initial.position, 0.0, 0.0)
-        last = self.points[-1]
-        if t >= last.time:
-            return Setpoint(last.position, 0.0, 0.0)
-        k = bisect.bisect_right(self.points, t, key=lambda p: p.time)  # first point after t
-        before = self.initial if k == 0 else self.points[k - 1]
-        t0 = 0.0 if k == 0 else self.points[k - 1].time
-        return segment(before, self.points[k], self.points[k].time - t0, t - t0)
+        """The reference at time ``now`` (s): its value at the takeover before it, the held last point after."""
+        return Setpoint(*self.reference.sample(now - self.start))
 
     @property
     def end(self) -> float:
         """Time (s, node clock) of the last point."""
-        return self.start + self.points[-1].time
+        return self.start + float(self.reference.knots[-1])
 
 
 @dataclass
@@ -192,8 +158,11 @@ class TrajectoryFollower:
     """joint_trajectory_controller for the joint ``joint`` with ``settings`` (module docstring). ``reference(now,
     position, velocity)`` is its update: the position reference (rad) at ``now`` (s) given the measured state."""
 
-    def __init__(self, settings: TrajectoryControllerSettings, joint: str, position: float) -> None:
+    def __init__(self, settings: TrajectoryControllerSettings, joint: str, position: float,
+                 period: float = 0.0) -> None:
+        """``period``: the update period (s); each update commands the reference that far ahead."""
         self.settings = settings
+        self.period = period
         self.joint = joint
         self.counters = FollowerCounters()
         self._hold = Setpoint(position, 0.0, 0.0)
@@ -213,7 +182,8 @@ class TrajectoryFollower:
             self.counters.refused[refusal.rule] += 1
             return refusal
         try:
-            taken = waypoints(joint_names, self.joint, points)
+            taken = waypoints(joint_names, self.joint, points,
+                              integrate=self.settings.allow_integration_in_goal_trajectories)
         except TrajectoryError as exc:
             self.counters.refused_not_finite += 1
             return Refusal(ContractRule.FIELD_SIZE, str(exc))
@@ -227,18 +197,21 @@ class TrajectoryFollower:
         self._trajectory = self._pending = None
 
     def reference(self, now: float, position: float, velocity: float) -> Setpoint:
-        """The controller's update at ``now`` (s) with the measured position (rad) and velocity (rad/s)."""
-        if self._pending is not None:  # its first update: it starts here, from the state measured here
+        """The controller's update at ``now`` (s) with the measured position (rad) and velocity (rad/s): the
+        command it writes, the reference one update period ahead."""
+        if self._pending is not None:  # its first update: it takes over here, from the state measured here
             stamp_ns, points = self._pending
             self._pending = None
-            start = stamp_ns * 1e-9 if stamp_ns else now
-            initial = Waypoint(0.0, position, velocity if self._velocity_state else None, None)
-            self._trajectory = Trajectory(start, initial, points)
+            stamp = None if stamp_ns == 0 else stamp_ns * 1e-9 - now
+            reference = controller_reference(
+                self._velocity_state, [ControllerPoint(*p) for p in points], stamp, 0.0, position, velocity,
+                self.period)
+            self._trajectory = Trajectory(now, reference)
             self.holding_reason = None
             self._check(now, position, first=True)
         elif self._trajectory is not None:
             self._check(now, position, first=False)
-        return self._trajectory.sample(now) if self._trajectory is not None else self._hold
+        return self._trajectory.sample(now + self.period) if self._trajectory is not None else self._hold
 
     def _check(self, now: float, position: float, first: bool) -> None:
         traj = self._trajectory

@@ -14,9 +14,15 @@ recorded message). No ROS: messages are read through the attributes they share w
   driven-joint spline the same way (``trajectory_setpoints``).
 - Every trajectory goes out as ``point_fields`` (no effort unless ``effort_feedforward``) and only after the
   controller's contract (``rules.controller_contract``) accepts it (``outgoing_refusal``).
-- ``Motion`` is what the drive is following (a plan or a sent trajectory from its start time). A new command plans
-  on from the motion's state while the measured driven joint is within ``replan_tolerance`` of it, else from the
-  measured state (``replan_start``): the drive is never sent a step larger than that tolerance.
+- ``Motion`` is what the drive is following: a plan (forward mode), or the reference joint_trajectory_controller
+  follows for a sent trajectory (``rules.controller_motion``). A new motion starts where ``motion_start`` says: on
+  the running motion, ``takeover_lead`` s ahead, while the measured driven joint is within ``replan_tolerance`` of
+  it, else from the measured state (moved onto the driven joint's range when it lies outside by no more than
+  ``measured_range_tolerance``). Every trajectory is stamped with the node's time of its first point, which is the
+  running motion's state at that time: the controller, taking it over at its first update after arrival, continues
+  the reference it was following (no lead-in from the measured state, no step) and reaches the new motion at the
+  lead. An antenna trajectory is joined to that start by a connecting segment, checked against the limits like every
+  other and, for a zero stamp under ``limit_policy: retime``, given the time it needs (``connect``).
 """
 
 from __future__ import annotations
@@ -24,7 +30,7 @@ from __future__ import annotations
 import enum
 import math
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, astuple, dataclass, field, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -37,7 +43,9 @@ from fourbar_ros.config.controllers import (
     trajectory_controller,
 )
 from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import FourBarError, UnreachableError
+from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import (
     EmptyTrajectoryError,
     LimitError,
@@ -49,24 +57,43 @@ from fourbar_ros.motion.errors import (
 )
 from fourbar_ros.motion.limits import JointLimits, LimitPolicy, enforce_limits
 from fourbar_ros.motion.planner import (
+    PLAN_SHRINK,
     JointMotionState,
     Plan,
     Setpoints,
     driven_angles,
     plan_to_angle,
+    rocker_states,
     sample_grid,
     setpoints,
     trajectory_points,
 )
 from fourbar_ros.motion.refine import refine
-from fourbar_ros.motion.splines import evaluate, hermite_coefficients
-from fourbar_ros.motion.trajectory import DrivenTrajectory, SplineKind, antenna_trajectory, to_driven
-from fourbar_ros.rules.controller_contract import ContractRule, PointLike, Refusal, check_trajectory, duration_ns
+from fourbar_ros.motion.splines import evaluate, hermite_coefficients, segment_extremes
+from fourbar_ros.motion.trajectory import (
+    AntennaTrajectory,
+    DrivenTrajectory,
+    SplineKind,
+    antenna_trajectory,
+    on_wire,
+    to_driven,
+)
+from fourbar_ros.rules.controller_contract import (
+    FLOAT_EPSILON,
+    ContractRule,
+    PointLike,
+    Refusal,
+    check_trajectory,
+    duration_ns,
+)
+from fourbar_ros.rules.controller_motion import ControllerPoint, motion_settings_problem, segment_coefficients
 
-__all__ = ['ActuationCounters', 'Converted', 'DurationFields', 'EndMovingError', 'EndsInPastError', 'Motion',
-           'PointFields', 'PointLike', 'TrajectoryProblem', 'actuation_contract', 'antenna_arrays', 'convert',
-           'duration_parts', 'outgoing_refusal', 'plan_command', 'planned_points', 'planned_setpoints',
-           'point_fields', 'problem_of', 'replan_start', 'serve_antenna_trajectory', 'trajectory_setpoints']
+__all__ = ['TAKEOVER_SPACINGS', 'ActuationCounters', 'CannotReachError', 'Converted', 'DurationFields',
+           'EndMovingError', 'EndsInPastError', 'Motion', 'PointFields', 'PointLike', 'Start', 'TrajectoryProblem',
+           'actuation_contract', 'antenna_arrays', 'at_rest_end', 'connect', 'continued', 'convert', 'driven_range',
+           'duration_parts', 'motion_start', 'outgoing_refusal', 'plan_command', 'planned_points',
+           'planned_setpoints', 'point_fields', 'problem_of', 'serve_antenna_trajectory', 'takeover_lead',
+           'trajectory_setpoints']
 
 
 class TrajectoryProblem(enum.Enum):
@@ -81,6 +108,8 @@ class TrajectoryProblem(enum.Enum):
     OVER_LIMITS = 'over_limits'
     END_MOVING = 'end_moving'  #: the last point's velocity is not 0 (the controller would refuse it)
     ENDS_IN_PAST = 'ends_in_past'  #: stamped, and its last point's time is already past on arrival
+    #: the drive cannot get from where it is to the first point by that point's time within the limits
+    CANNOT_REACH_IN_TIME = 'cannot_reach_in_time'
     INVALID = 'invalid'  #: anything else: mismatched arrays, accelerations without velocities, ...
 
 
@@ -92,12 +121,17 @@ class EndsInPastError(TrajectoryError):
     """A stamped antenna trajectory whose last point's time has passed when it arrives."""
 
 
+class CannotReachError(TrajectoryError):
+    """The motion from the drive's start to an antenna trajectory's first point is over the limits in the time the
+    trajectory leaves it."""
+
+
 _PROBLEMS: tuple[tuple[type[FourBarError], TrajectoryProblem], ...] = (
     (EmptyTrajectoryError, TrajectoryProblem.EMPTY), (TooManyPointsError, TrajectoryProblem.TOO_MANY_POINTS),
     (WrongJointError, TrajectoryProblem.WRONG_JOINT), (NotFiniteError, TrajectoryProblem.NOT_FINITE),
     (TimeNotIncreasingError, TrajectoryProblem.TIME_NOT_INCREASING), (UnreachableError, TrajectoryProblem.OUT_OF_REACH),
     (LimitError, TrajectoryProblem.OVER_LIMITS), (EndMovingError, TrajectoryProblem.END_MOVING),
-    (EndsInPastError, TrajectoryProblem.ENDS_IN_PAST))
+    (EndsInPastError, TrajectoryProblem.ENDS_IN_PAST), (CannotReachError, TrajectoryProblem.CANNOT_REACH_IN_TIME))
 
 
 def problem_of(exc: FourBarError) -> TrajectoryProblem:
@@ -117,6 +151,8 @@ class ActuationCounters:
     commands_planned: int = 0
     commands_not_planned: int = 0  # no start state yet, or the motion cannot stop within the range
     commands_replanned_from_measured: int = 0  # the measured joint was off the motion by more than replan_tolerance
+    measured_start_clamped: int = 0  # a start measured outside the range by at most measured_range_tolerance
+    trajectories_connected: int = 0  # antenna trajectories given a connecting segment from the drive's state
     setpoints_published: int = 0
     rejected: dict[TrajectoryProblem, int] = field(default_factory=lambda: dict.fromkeys(TrajectoryProblem, 0))
     #: messages of this package's own making the controller's contract refused (never sent)
@@ -162,41 +198,257 @@ def antenna_arrays(joint_names: Sequence[str], points: Sequence[PointLike], join
 @dataclass(frozen=True)
 class Converted:
     """A converted antenna trajectory: the driven joint's (every point within the limits), the points inserted by
-    refinement, the largest deviation bound of its segments (rad), and whether it was retimed."""
+    refinement, the largest deviation bound of its segments (rad), whether it was retimed, and the stamp (ns) it
+    goes out with (0: start on arrival)."""
 
     trajectory: DrivenTrajectory
     inserted: int
     bound: float
     retimed: bool
+    stamp_ns: int = 0
 
 
-def convert(cfg: AntennaConfig, joint_names: Sequence[str], points: Sequence[PointLike]) -> Converted:
+def convert(cfg: AntennaConfig, joint_names: Sequence[str], points: Sequence[PointLike],
+            allow_moving_end: bool = True) -> Converted:
     """An antenna trajectory message's driven-joint trajectory (module docstring). Raises FourBarError (one line;
-    ``problem_of`` classifies it) when it cannot be served as given: nothing is returned partially."""
+    ``problem_of`` classifies it) when it cannot be served as given: nothing is returned partially. Unless
+    ``allow_moving_end``, the last velocity must be 0 as the controller judges it (``at_rest_end``)."""
     arrays = antenna_arrays(joint_names, points, ANTENNA_JOINT, cfg.max_trajectory_points)
-    driven = to_driven(cfg, antenna_trajectory(cfg, *arrays))
+    antenna = antenna_trajectory(cfg, *arrays)
+    if not allow_moving_end:
+        antenna = at_rest_end(cfg, antenna)
+    driven = to_driven(cfg, antenna)
     refined = refine(cfg, driven)
     policy: LimitPolicy = 'retime' if cfg.limit_policy == 'retime' else 'reject'
     out = enforce_limits(refined.trajectory, JointLimits.from_config(cfg), cfg, policy)
     return Converted(out, refined.inserted, refined.bound, out is not refined.trajectory)
 
 
+def at_rest_end(cfg: AntennaConfig, antenna: AntennaTrajectory) -> AntennaTrajectory:
+    """``antenna`` with its last theta_dot set to exactly 0 when the driven joint's last velocity (q' theta_dot,
+    rad/s) is within FLOAT_EPSILON, as the controller judges a trajectory's end at rest; EndMovingError beyond."""
+    td = antenna.theta_dot
+    if td is None or td[-1] == 0.0:
+        return antenna
+    theta = antenna.theta[-1:]
+    gamma, delta = cfg.linkage.rocker_angles(theta, cfg.branch)
+    rates = cfg.linkage.rates_at(theta, gamma, delta)
+    q1 = float(np.asarray(rates.dgamma_dtheta if cfg.driven is Driven.GAMMA else rates.ddelta_dtheta)[0])
+    velocity = q1 * float(td[-1])
+    if abs(velocity) > FLOAT_EPSILON:
+        raise EndMovingError(f'the last point moves (theta_dot = {float(td[-1])!r} rad/s, the driven joint '
+                             f'{velocity!r} rad/s, above float epsilon {FLOAT_EPSILON:.3g}): the controller takes '
+                             'trajectories that end at rest (allow_nonzero_velocity_at_trajectory_end is false)')
+    rest = td.copy()
+    rest[-1] = 0.0
+    return replace(antenna, theta_dot=rest)
+
+
 def serve_antenna_trajectory(cfg: AntennaConfig, allow_moving_end: bool, joint_names: Sequence[str],
-                             points: Sequence[PointLike], stamp_ns: int, now_ns: int) -> Converted:
-    """``convert``, after the two refusals a controller would make of the result whatever the conversion does:
-    a stamped trajectory (``stamp_ns`` != 0) whose last point's time is before ``now_ns`` (EndsInPastError), and a
-    last velocity that is not 0 while ``allow_moving_end`` is false (EndMovingError; the chain rule keeps a zero
-    velocity zero). Stamps and times in ns on the receiver's clock."""
+                             points: Sequence[PointLike], stamp_ns: int, now_ns: int,
+                             start: Start | None = None) -> Converted:
+    """``convert``, after the refusal a controller would make of the result whatever the conversion does: a
+    stamped trajectory (``stamp_ns`` != 0) whose last point's time is before ``now_ns`` (EndsInPastError); then,
+    given the drive's ``start`` (``motion_start`` at ``now_ns``), joined to it (``connect``) and stamped at
+    ``now_ns``. Without a start (nothing measured or followed yet) it goes out as given, and the controller's own
+    lead-in from the measured state is not checked. Stamps and times in ns on the receiver's clock."""
     if points:
         last = points[-1]
         if stamp_ns != 0 and stamp_ns + duration_ns(last.time_from_start) < now_ns:
             raise EndsInPastError(f'stamped to start at {stamp_ns * 1e-9:.9f} s, its last point is '
                                   f'{(now_ns - stamp_ns - duration_ns(last.time_from_start)) * 1e-9:.6g} s past')
-        if not allow_moving_end and len(last.velocities) and last.velocities[0] != 0.0:
-            raise EndMovingError(f'the last point moves (theta_dot = {float(last.velocities[0])!r} rad/s): the '
-                                 'controller takes trajectories that end at rest '
-                                 '(allow_nonzero_velocity_at_trajectory_end is false)')
-    return convert(cfg, joint_names, points)
+    converted = convert(cfg, joint_names, points, allow_moving_end)
+    if start is None:
+        return replace(converted, stamp_ns=stamp_ns)
+    return connect(cfg, converted, start, stamp_ns, now_ns)
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a new motion starts: the driven joint's ``state`` at ``lead`` s after the node's now. ``before``, when
+    the motion continues a running one, is that motion's state now: sent as a first point at 0, so that the
+    controller follows the old reference until it takes the new one over. ``from_measured``: a running motion was
+    left for the measured state; ``clamped``: the measured position lay outside the range by at most
+    ``measured_range_tolerance`` and was moved onto its nearest end."""
+
+    state: JointMotionState
+    lead: float = 0.0
+    before: JointMotionState | None = None
+    from_measured: bool = False
+    clamped: bool = False
+
+
+#: Trajectory mode: a continuing motion starts this many point spacings (1/control_rate) after the node's now, so
+#: that the controller, taking the trajectory over at its first update after arrival, is still on the old
+#: reference's part of it.
+TAKEOVER_SPACINGS = 2
+
+
+def takeover_lead(cfg: AntennaConfig) -> float:
+    """How far ahead (s) a continuing motion starts in trajectory mode."""
+    return TAKEOVER_SPACINGS / cfg.control_rate
+
+
+def driven_range(cfg: AntennaConfig) -> tuple[float, float]:
+    """The driven joint's range (rad) over [theta_min, theta_max], lowest first."""
+    lower, upper = np.sort(driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max])))
+    return float(lower), float(upper)
+
+
+def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotionState | None, now_ns: int,
+                 lead: float) -> Start | None:
+    """Where a new motion starts (``Start``), ``lead`` s after ``now_ns`` when it continues a running motion.
+
+    On the running motion while the measured driven position is within ``replan_tolerance`` of it now (or nothing
+    is measured yet); else from the measured state (position rad, velocity within the planner's speed limit,
+    acceleration 0) now: a drive held by its controller, or lagging, is not sent a step. A measured position
+    outside the range by at most ``measured_range_tolerance`` starts from the nearest end (an encoder rounds to
+    whole counts, so a drive parked at an end may read half a count beyond it). With no motion running: the
+    measured state, else the end of the last motion; None before any of them exists."""
+    if measured is not None:
+        speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reducer_ratio
+        if abs(measured.velocity) > speed:
+            measured = JointMotionState(measured.position, math.copysign(speed, measured.velocity))
+    if motion is not None and not motion.done(now_ns):
+        now_state = motion.state_at(now_ns)
+        if measured is None or abs(measured.position - now_state.position) <= cfg.replan_tolerance:
+            ahead = now_ns + round(lead * 1e9)
+            return Start(motion.state_at(ahead), lead, now_state) if lead > 0.0 else Start(now_state)
+        return _from_measured(cfg, measured, left=True)
+    if measured is not None:
+        return _from_measured(cfg, measured, left=False)
+    return None if motion is None else Start(motion.state_at(now_ns))
+
+
+def _from_measured(cfg: AntennaConfig, measured: JointMotionState, left: bool) -> Start:
+    lower, upper = driven_range(cfg)
+    q = measured.position
+    if lower - cfg.measured_range_tolerance <= q < lower or upper < q <= upper + cfg.measured_range_tolerance:
+        clamped = JointMotionState(min(max(q, lower), upper), measured.velocity, measured.acceleration)
+        return Start(clamped, from_measured=left, clamped=True)
+    return Start(measured, from_measured=left)
+
+
+def continued(cfg: AntennaConfig, start: Start, traj: DrivenTrajectory) -> DrivenTrajectory:
+    """A trajectory that starts at ``start.state`` (its time 0), sent as the node sends it: stamped at the node's
+    now, ``start.before`` first at 0 when it continues a running motion, ``traj`` from ``start.lead`` on."""
+    if start.before is None:
+        return traj
+    head = _state_point(cfg, start.before, traj)
+    return _joined(head, traj, start.lead)
+
+
+def _state_point(cfg: AntennaConfig, state: JointMotionState, like: DrivenTrajectory) -> DrivenTrajectory:
+    """One point at time 0 holding ``state``, with the fields of ``like``."""
+    q, v, a = (np.array([x]) for x in astuple(state))
+    return rocker_states(cfg, np.array([0.0]), q, v, a, like.kind, like.antenna.theta_dot is not None)
+
+
+def _joined(head: DrivenTrajectory, tail: DrivenTrajectory, shift: float) -> DrivenTrajectory:
+    """``head``'s points, then ``tail``'s ``shift`` s later (times on the wire); fields as ``tail``'s kind."""
+    def cat(a: FloatArray | None, b: FloatArray | None) -> FloatArray | None:
+        return None if a is None or b is None else np.concatenate([a, b])
+
+    times = on_wire(np.concatenate([head.times, tail.times + shift]))
+    ha, ta = head.antenna, tail.antenna
+    antenna = AntennaTrajectory(times, np.concatenate([ha.theta, ta.theta]), cat(ha.theta_dot, ta.theta_dot),
+                                cat(ha.theta_ddot, ta.theta_ddot))
+    return DrivenTrajectory(times, np.concatenate([head.positions, tail.positions]),
+                            cat(head.velocities, tail.velocities), cat(head.accelerations, tail.accelerations),
+                            np.concatenate([head.efforts, tail.efforts]), antenna)
+
+
+def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: int, now_ns: int) -> Converted:
+    """The converted antenna trajectory joined to the drive's ``start``, stamped at ``now_ns``: ``start``'s
+    points (``continued``), then a connecting segment to the first point still due after ``start.lead``, then the
+    rest. A zero stamp puts the trajectory's time 0 at the lead; a stamp puts it at the stamp. The connecting
+    segment is the controller's polynomial of the trajectory's kind; when it is over a limit or leaves the range,
+    a zero-stamped trajectory under ``limit_policy: retime`` is delayed by the least time that brings it within
+    them, and anything else is refused (CannotReachError). Points already due at the lead are dropped."""
+    traj = converted.trajectory
+    lead = start.lead
+    origin = lead if stamp_ns == 0 else (stamp_ns - now_ns) * 1e-9
+    due = origin + traj.times <= lead
+    keep = int(np.argmin(due)) if not due.all() else len(traj)
+    if keep == len(traj):
+        raise CannotReachError(f'every point is due by {lead:.6g} s, when the drive can take the trajectory over')
+    tail = _tail(traj, keep)
+    head = _state_point(cfg, start.state, traj)
+    gap = origin + float(tail.times[0]) - lead
+    limits = JointLimits.from_config(cfg)
+    lower, upper = driven_range(cfg)
+    problem = _connection_problem(head, tail, gap, limits, lower, upper)
+    shift = 0.0
+    if problem is not None:
+        if stamp_ns != 0 or cfg.limit_policy != 'retime':
+            raise CannotReachError(f'from {float(start.state.position)!r} rad, the first point '
+                                   f'{float(tail.positions[0])!r} rad in {gap:.6g} s: {problem}')
+        need = _least_gap(head, tail, gap, limits, lower, upper)
+        shift = need - gap
+    joined = _joined(head, tail, origin - lead + shift)
+    if start.before is not None:
+        joined = continued(cfg, start, joined)
+    return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0, now_ns)
+
+
+def _tail(traj: DrivenTrajectory, keep: int) -> DrivenTrajectory:
+    if keep == 0:
+        return traj
+    a = traj.antenna
+
+    def cut(x: FloatArray | None) -> FloatArray | None:
+        return None if x is None else x[keep:]
+
+    antenna = AntennaTrajectory(a.times[keep:], a.theta[keep:], cut(a.theta_dot), cut(a.theta_ddot))
+    return DrivenTrajectory(traj.times[keep:], traj.positions[keep:], cut(traj.velocities),
+                            cut(traj.accelerations), traj.efforts[keep:], antenna)
+
+
+def _connection_problem(head: DrivenTrajectory, tail: DrivenTrajectory, gap: float, limits: JointLimits,
+                        lower: float, upper: float) -> str | None:
+    """What of the connecting segment (``gap`` s from head's one point to tail's first) is over a limit or out of
+    the range, or None."""
+    if not gap > 0.0:
+        return 'no time to get there' if head.positions[0] != tail.positions[0] else None
+    a, b = (ControllerPoint(0.0, float(t.positions[i]), _at(t.velocities, i), _at(t.accelerations, i))
+            for t, i in ((head, 0), (tail, 0)))
+    b = ControllerPoint(gap, b.position, b.velocity, b.acceleration)
+    c = segment_coefficients(gap, a, b)[None, :]
+    times = np.array([0.0, gap])
+    orders = (1,) if tail.kind is SplineKind.LINEAR else (1, 2, 3)
+    for order in orders:
+        value = float(segment_extremes(times, c, order)[0])
+        if value > limits.at_rocker(order):
+            name, unit = _SETPOINT_QUANTITIES[order]
+            return (f'the motor {name} {limits.ratio * value:.6g} {unit} exceeds its limit '
+                    f'{limits.motor(order):.6g} {unit}')
+    p = evaluate(c, np.linspace(0.0, 1.0, 65)[None, :])
+    if p.min() < lower or p.max() > upper:
+        return f'it passes the driven joint through [{p.min()!r}, {p.max()!r}] rad, beyond [{lower!r}, {upper!r}] rad'
+    return None
+
+
+def _at(x: FloatArray | None, i: int) -> float | None:
+    return None if x is None else float(x[i])
+
+
+def _least_gap(head: DrivenTrajectory, tail: DrivenTrajectory, gap: float, limits: JointLimits, lower: float,
+               upper: float) -> float:
+    """The least connecting time (s, to 1e-6 relative, on the wire) at least ``gap`` within the limits."""
+    bad, good = max(gap, 0.0), max(2.0 * gap, 1e-3)
+    while _connection_problem(head, tail, good, limits, lower, upper) is not None:
+        bad, good = good, 2.0 * good
+        if good > 3600.0:
+            raise CannotReachError(f'no connecting time up to 3600 s brings the motion from '
+                                   f'{float(head.positions[0])!r} rad to {float(tail.positions[0])!r} rad within '
+                                   'the limits and the range')
+    while good - bad > 1e-6 * good:
+        mid = 0.5 * (bad + good)
+        if _connection_problem(head, tail, mid, limits, lower, upper) is None:
+            good = mid
+        else:
+            bad = mid
+    return float(on_wire(np.array([good]))[0]) + 1e-9
 
 
 def duration_parts(t: float) -> tuple[int, int]:
@@ -251,6 +503,10 @@ def actuation_contract(cfg: AntennaConfig, mode: str | None = None,
             cfg.controllers_file, cfg.trajectory_controller)
     else:
         contract = forward_controller(cfg.controllers_file, cfg.forward_controller)
+    if isinstance(contract, TrajectoryControllerSettings):
+        problem = motion_settings_problem(contract)
+        if problem is not None:
+            raise ConfigError(f'controllers_file: {problem}', ('controllers_file',))
     if list(contract.joints) != [cfg.driven_joint]:
         raise ConfigError(f'controllers_file: the controller {contract.name} has joints {list(contract.joints)}; the '
                           f'node drives the one joint {cfg.driven_joint!r}', ('controllers_file',))
@@ -337,32 +593,11 @@ def checked_setpoints(cfg: AntennaConfig, out: Setpoints, orders: int = 3) -> Se
 _SETPOINT_QUANTITIES = {1: ('speed', 'rad/s'), 2: ('acceleration', 'rad/s^2'), 3: ('jerk', 'rad/s^3')}
 
 
-def replan_start(motion: Motion | None, measured: JointMotionState | None, now_ns: int, tolerance: float,
-                 speed_limit: float = math.inf) -> tuple[JointMotionState | None, bool]:
-    """Where a new command's motion starts, and whether the running motion was left for the measurement.
-
-    The running motion's state at ``now_ns`` while the measured driven position is within ``tolerance`` rad of it
-    (or nothing is measured yet); else the measured state (position rad, velocity rad/s within +-``speed_limit``,
-    acceleration 0): a drive held by its controller, or lagging, is not sent a step. With no motion running: the
-    measured state, else the end of the last motion; None before any of them exists. (A measured speed at or past
-    the limit, as a saturated drive or encoder noise gives, is planned from the limit: a plan may not start over
-    it.)"""
-    if measured is not None and abs(measured.velocity) > speed_limit:
-        measured = JointMotionState(measured.position, math.copysign(speed_limit, measured.velocity))
-    if motion is not None and not motion.done(now_ns):
-        state = motion.state_at(now_ns)
-        if measured is None or abs(measured.position - state.position) <= tolerance:
-            return state, False
-        return measured, True
-    if measured is not None:
-        return measured, False
-    return (None if motion is None else motion.state_at(now_ns)), False
-
-
 class Motion:
     """What the drive is following from ``start_ns`` (integer ns, node clock: a float of seconds since 1970 would
-    keep only ~0.2 us): a plan, or a sent trajectory whose times count from ``start_ns``. ``state_at`` gives its
-    position, velocity and acceleration at a time: a replan starts there."""
+    keep only ~0.2 us): a plan, or a sent trajectory whose times count from ``start_ns`` (its stamp; the
+    controller's reference on its segments, ``rules.controller_motion``). ``state_at`` gives its position, velocity
+    and acceleration at a time: a replan starts there."""
 
     def __init__(self, start_ns: int, plan: Plan | None = None, trajectory: DrivenTrajectory | None = None) -> None:
         if (plan is None) == (trajectory is None):
@@ -385,7 +620,7 @@ class Motion:
         traj = self.trajectory
         assert traj is not None
         times = traj.times
-        if t >= times[-1]:
+        if t >= times[-1] or len(traj) == 1:
             return JointMotionState(float(traj.positions[-1]))
         i = max(int(np.searchsorted(times, t, side='right')) - 1, 0)
         seg = slice(i, i + 2)

@@ -1,0 +1,235 @@
+"""What joint_trajectory_controller does with a trajectory over time, for one joint: the reference it follows.
+
+Follows ros2_controllers' jazzy branch (``joint_trajectory_controller.cpp`` ``update``, ``trajectory.cpp``
+``set_point_before_trajectory_msg``, ``sample``, ``interpolate_between_points``, ``deduce_from_derivatives``), topic
+interface, ``interpolation_method: splines``:
+
+- A trajectory the contract accepted (``rules.controller_contract``) takes over at the controller's first update
+  after it arrives (``takeover``). Its time origin is its ``header.stamp``, or that update for a zero stamp.
+- The state before it is the one measured at the takeover: the position, the velocity where the controller has a
+  velocity state interface; a velocity (acceleration) the first point gives and the state lacks is zero-filled.
+- If the first point is due after the takeover, a lead-in segment runs from that state at the takeover to the first
+  point; else there is none, and the reference continues on the segment holding the takeover (a point already due
+  is a step from wherever the drive is).
+- Point to point, each segment is linear, cubic or quintic by the fields both its ends give; a point without a
+  position (or velocity) gets one by integrating the next derivative by the trapezoid rule
+  (``allow_integration_in_goal_trajectories``). After the last point: that point held (its velocity as given).
+- Each update at time t commands the reference at t + one update period.
+
+Left out: ``interpolation_method: none``, ``interpolate_from_desired_state`` / ``open_loop_control``, speed scaling,
+``cmd_timeout``, joint angle wrap-around, acceleration state interfaces, the action interface (the node refuses the
+settings that would change the motion: ``motion_settings_problem``), and the controller manager's timing jitter.
+Times are float seconds from an origin the caller picks (e.g. the arrival): keep them small, not seconds since 1970.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from fourbar_ros.config.controllers import TrajectoryControllerSettings
+from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.motion.splines import evaluate, segment_extremes
+
+__all__ = ['ControllerPoint', 'Reference', 'controller_reference', 'lead_in_segment', 'motion_settings_problem',
+           'segment_coefficients']
+
+_DEGREE_COLUMNS = 6  # quintic: every segment's power-basis coefficients padded to six
+
+
+@dataclass(frozen=True)
+class ControllerPoint:
+    """One trajectory point of one joint: time s from the trajectory's origin; position rad, velocity rad/s,
+    acceleration rad/s^2, each None where the message leaves the field empty."""
+
+    time: float
+    position: float | None
+    velocity: float | None = None
+    acceleration: float | None = None
+
+
+def segment_coefficients(h: float, a: ControllerPoint, b: ControllerPoint) -> FloatArray:
+    """Power-basis coefficients in s = (t - t_a) / h of the controller's polynomial from ``a`` to ``b`` (positions
+    given), padded to six: linear, cubic when both give velocities, quintic when both give accelerations too."""
+    p0, p1 = float(a.position), float(b.position)  # type: ignore[arg-type]
+    dp = p1 - p0
+    out = np.zeros(_DEGREE_COLUMNS)
+    out[0] = p0
+    if a.velocity is None or b.velocity is None:
+        out[1] = dp
+        return out
+    v0, v1 = a.velocity * h, b.velocity * h
+    if a.acceleration is None or b.acceleration is None:
+        out[1:4] = v0, 3.0 * dp - 2.0 * v0 - v1, -2.0 * dp + v0 + v1
+        return out
+    a0, a1 = a.acceleration * h * h, b.acceleration * h * h
+    out[1:6] = (v0, 0.5 * a0, 10.0 * dp - 6.0 * v0 - 4.0 * v1 - 0.5 * (3.0 * a0 - a1),
+                -15.0 * dp + 8.0 * v0 + 7.0 * v1 + 0.5 * (3.0 * a0 - 2.0 * a1),
+                6.0 * dp - 3.0 * (v0 + v1) - 0.5 * (a0 - a1))
+    return out
+
+
+def _deduce(a: ControllerPoint, b: ControllerPoint, dt: float) -> tuple[ControllerPoint, ControllerPoint]:
+    """``deduce_from_derivatives``: b's missing position (and velocity) by the trapezoid rule from a."""
+    if b.position is not None:
+        return a, b
+    va = 0.0 if a.velocity is None else a.velocity
+    vb = b.velocity
+    aa = a.acceleration
+    if vb is None:
+        aa = 0.0 if aa is None else aa
+        vb = va + (aa + (b.acceleration or 0.0)) * 0.5 * dt
+    a = ControllerPoint(a.time, a.position, va, aa)
+    return a, ControllerPoint(b.time, float(a.position) + (va + vb) * 0.5 * dt, vb, b.acceleration)  # type: ignore[arg-type]
+
+
+def lead_in_segment(velocity_state: bool, measured_position: float, measured_velocity: float | None,
+                    first: ControllerPoint) -> ControllerPoint:
+    """The state the controller interpolates from at the takeover (time 0 of the lead-in): the measured position,
+    the measured velocity with a velocity state interface (``velocity_state``), zero-filled velocity /
+    acceleration where ``first`` gives one and the state lacks it."""
+    velocity = measured_velocity if velocity_state else None
+    if velocity is None and first.velocity is not None:
+        velocity = 0.0
+    acceleration = 0.0 if first.acceleration is not None else None
+    return ControllerPoint(0.0, measured_position, velocity, acceleration)
+
+
+@dataclass(frozen=True)
+class Reference:
+    """The controller's reference from ``takeover`` on (s): segments between ``knots`` (s, increasing) with
+    power-basis ``coefficients`` (rad, one row per segment, s in [0, 1]) and their ``degrees`` (1, 3, 5); then
+    ``hold`` (position rad, velocity rad/s) from the last knot on. ``lead_in`` says whether the first segment is the
+    controller's own, from the measured state. ``period`` is the update period (s)."""
+
+    takeover: float
+    knots: FloatArray
+    coefficients: FloatArray
+    degrees: tuple[int, ...]
+    hold: tuple[float, float]
+    lead_in: bool
+    period: float
+
+    def sample(self, t: float) -> tuple[float, float, float]:
+        """(position rad, velocity rad/s, acceleration rad/s^2) of the reference at time t (s; before the
+        takeover: its value at the takeover)."""
+        t = max(t, self.takeover)
+        knots = self.knots
+        if knots.size < 2 or t >= knots[-1]:
+            return self.hold[0], self.hold[1], 0.0
+        i = max(int(np.searchsorted(knots, t, side='right')) - 1, 0)
+        h = float(knots[i + 1] - knots[i])
+        s = np.array([[min(max((t - float(knots[i])) / h, 0.0), 1.0)]])
+        c = self.coefficients[i:i + 1]
+        p, v, a = (float(evaluate(c, s, k)[0, 0]) / h ** k for k in range(3))
+        return p, v, a
+
+    def command(self, update_time: float) -> float:
+        """The position (rad) the update at ``update_time`` (s) writes: the reference one period ahead."""
+        return self.sample(update_time + self.period)[0]
+
+    def extremes(self) -> dict[int, float]:
+        """Derivative order (1 velocity, 2 acceleration, 3 jerk) -> its largest magnitude over every segment from
+        the takeover on (rad/s^k, closed form). A linear segment bounds the speed only (its acceleration is a step
+        at each point); a segment wholly before the takeover is not followed and left out."""
+        out = {1: 0.0, 2: 0.0, 3: 0.0}
+        if self.knots.size < 2:
+            return out
+        followed = self.knots[1:] > self.takeover
+        degrees = np.array(self.degrees)
+        for order in out:
+            rows = followed & (degrees > 1) if order > 1 else followed
+            if rows.any():
+                idx = np.flatnonzero(rows)
+                h = self.knots[idx + 1] - self.knots[idx]
+                values = segment_extremes(np.concatenate([[0.0], np.cumsum(h)]), self.coefficients[idx], order)
+                out[order] = float(values.max())
+        return out
+
+    def position_range(self) -> tuple[float, float]:
+        """Lowest and highest reference position (rad) from the takeover on (sampled at the segments' derivative
+        roots in closed form is not needed here: 64 samples per segment plus its ends, for tests and the simulated
+        drive)."""
+        if self.knots.size < 2:
+            return self.hold[0], self.hold[0]
+        s = np.linspace(0.0, 1.0, 65)[None, :]
+        p = evaluate(self.coefficients, s)
+        return float(min(p.min(), self.hold[0])), float(max(p.max(), self.hold[0]))
+
+
+def controller_reference(velocity_state: bool, points: Sequence[ControllerPoint], stamp: float | None,
+                         takeover: float, measured_position: float, measured_velocity: float | None,
+                         period: float) -> Reference:
+    """The reference the controller follows for an accepted trajectory of ``points`` (times from its origin),
+    stamped at ``stamp`` s (None: a zero stamp, the origin is the takeover), taken over at ``takeover`` s from the
+    measured state (rad, rad/s or None; the velocity counts only with a velocity state interface,
+    ``velocity_state``), with update period ``period`` s (module docstring)."""
+    origin = takeover if stamp is None else stamp
+    pts = [ControllerPoint(origin + p.time, p.position, p.velocity, p.acceleration) for p in points]
+    first = pts[0]
+    knots: list[float] = []
+    rows: list[FloatArray] = []
+    degrees: list[int] = []
+    lead_in = takeover < first.time
+    if lead_in:
+        before = lead_in_segment(velocity_state, measured_position, measured_velocity, first)
+        before = ControllerPoint(takeover, before.position, before.velocity, before.acceleration)
+        h = first.time - takeover
+        before, first = _deduce(before, first, h)
+        pts[0] = first
+        rows.append(segment_coefficients(h, before, first))
+        degrees.append(_degree(before, first))
+        knots.append(takeover)
+    for i in range(len(pts) - 1):
+        a, b = pts[i], pts[i + 1]
+        h = b.time - a.time
+        if a.position is None:  # only the first point can lack one here, without a lead-in: no state to deduce from
+            a = ControllerPoint(a.time, measured_position, a.velocity, a.acceleration)
+        a, b = _deduce(a, b, h)
+        pts[i], pts[i + 1] = a, b
+        rows.append(segment_coefficients(h, a, b))
+        degrees.append(_degree(a, b))
+        knots.append(a.time)
+    last = pts[-1]
+    knots.append(last.time)
+    hold_position = last.position if last.position is not None else measured_position
+    coefficients = np.array(rows) if rows else np.zeros((0, _DEGREE_COLUMNS))
+    return Reference(takeover, np.array(knots) if rows else np.array([last.time]), coefficients, tuple(degrees),
+                     (float(hold_position), float(last.velocity or 0.0)), lead_in, period)
+
+
+def _degree(a: ControllerPoint, b: ControllerPoint) -> int:
+    if a.velocity is None or b.velocity is None:
+        return 1
+    return 3 if a.acceleration is None or b.acceleration is None else 5
+
+
+def motion_settings_problem(settings: TrajectoryControllerSettings) -> str | None:
+    """One line naming a controller setting that changes the motion in a way this model does not follow (the node
+    refuses to start with it), or None. Modelled: splines, the state interfaces (velocity or not),
+    allow_integration_in_goal_trajectories, allow_nonzero_velocity_at_trajectory_end, the tolerances."""
+    if settings.interpolation_method != 'splines':
+        return (f'{settings.name}.interpolation_method is {settings.interpolation_method!r}: the controller then '
+                'jumps from point to point; give splines')
+    if settings.interpolate_from_desired_state or settings.open_loop_control:
+        key = 'interpolate_from_desired_state' if settings.interpolate_from_desired_state else 'open_loop_control'
+        return (f'{settings.name}.{key} is true: the controller then starts a trajectory from its last command, '
+                'not the measured state; set it false')
+    if 'acceleration' in settings.state_interfaces:
+        return (f'{settings.name}.state_interfaces has acceleration: the controller then starts from a measured '
+                'acceleration; give [position] or [position, velocity]')
+    if settings.speed_scaling:
+        return (f'{settings.name}.speed_scaling is set: the controller then plays trajectories at a variable rate; '
+                'leave it unset')
+    if settings.cmd_timeout > 0.0:
+        return (f'{settings.name}.cmd_timeout is {settings.cmd_timeout!r} s: the controller then stops a '
+                'trajectory on its own; set it 0')
+    if settings.has_effort_command_interface and settings.stopped_velocity_tolerance != 0.01:
+        return (f'{settings.name}.constraints.stopped_velocity_tolerance with an effort command interface changes '
+                'when the controller holds; leave it at its default 0.01 rad/s')
+    if not math.isfinite(settings.goal_time):
+        return f'{settings.name}.constraints.goal_time must be finite'
+    return None
