@@ -35,7 +35,7 @@ from fourbar_ros.motion.planner import (
 from fourbar_ros.motion.refine import deviation_bounds, refine
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients, segment_extremes
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, antenna_trajectory, on_wire, to_driven
-from fourbar_ros.rules.actuation import replan_start
+from fourbar_ros.rules.actuation import motion_start
 
 CFG = default_config()
 DELTA_CFG = config_from_values({'driven_rocker': 'delta'})
@@ -444,16 +444,18 @@ def test_a_converted_antenna_trajectory_is_held_between_its_points() -> None:
 @given(st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.sampled_from([0.01, 0.001]))
 def test_a_plan_from_a_measured_state_is_never_refused_for_its_interpolation(
         where: float, speed: float, spacing: float) -> None:
-    # A replan from the measured state (``replan_start``: position and velocity, acceleration 0): the controller's
+    # A replan from the measured state (``motion_start``: position and velocity, acceleration 0): the controller's
     # quintics through the profile must stay within the limits between the points too (a segment over them is split
     # at its phase boundaries).
     cfg = default_config()
     ends = driven_angles(cfg, np.array([cfg.theta_min, cfg.theta_max]))
     lo, hi = float(ends.min()), float(ends.max())
     measured = JointMotionState(lo + (hi - lo) * where, speed * LIMITS.at_rocker(1))  # up to the drive's limit
-    start, _ = replan_start(None, measured, 0, cfg.replan_tolerance, PLAN_SHRINK * LIMITS.at_rocker(1))
+    found = motion_start(cfg, None, measured, 0, 0.0)
+    assert found is not None
+    start = found.state
+    assert abs(start.velocity) <= PLAN_SHRINK * LIMITS.at_rocker(1)
     for theta in (cfg.theta_min, 0.5 * (cfg.theta_min + cfg.theta_max), cfg.theta_max):
-        assert start is not None
         try:
             plan = plan_to_angle(cfg, LIMITS, start, theta)
         except UnreachableError:

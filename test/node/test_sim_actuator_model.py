@@ -22,10 +22,10 @@ from fourbar_ros.node.sim_actuator_model import (
     TrajectoryFollower,
     Waypoint,
     braking_speed,
-    segment,
     waypoints,
 )
 from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.controller_motion import ControllerPoint, controller_reference
 
 EPS = float(np.finfo(np.float64).eps)
 
@@ -33,55 +33,6 @@ EPS = float(np.finfo(np.float64).eps)
 def at(t: float) -> Duration:
     sec = math.floor(t)
     return Duration(sec, round((t - sec) * 1e9))
-
-
-# ----------------------------------------------------------------------------- segments
-
-def poly(coeffs: list[float], s: float) -> tuple[float, float, float]:
-    """Value, first and second derivative of sum c_k s^k."""
-    p = sum(c * s**k for k, c in enumerate(coeffs))
-    v = sum(k * c * s**(k - 1) for k, c in enumerate(coeffs) if k >= 1)
-    a = sum(k * (k - 1) * c * s**(k - 2) for k, c in enumerate(coeffs) if k >= 2)
-    return p, v, a
-
-
-@pytest.mark.parametrize('degree, with_vel, with_acc', [(1, False, False), (3, True, False), (5, True, True)])
-def test_segment_reproduces_its_polynomial(degree: int, with_vel: bool, with_acc: bool) -> None:
-    """Each interpolant is exact for polynomials of its own degree: given a polynomial's ends, it returns that
-    polynomial everywhere (value and both derivatives). So a wrong coefficient cannot pass."""
-    rng = np.random.default_rng(7)
-    for _ in range(200):
-        coeffs = list(rng.uniform(-2.0, 2.0, degree + 1))
-        T = float(rng.uniform(0.05, 3.0))
-        p0, v0, a0 = poly(coeffs, 0.0)
-        p1, v1, a1 = poly(coeffs, T)
-        start = Waypoint(0.0, p0, v0 if with_vel else None, a0 if with_acc else None)
-        end = Waypoint(T, p1, v1 if with_vel else None, a1 if with_acc else None)
-        # Size of the terms summed, times T^-2 for the acceleration: the rounding of both evaluations (Horner
-        # vs the monomial sum, and the coefficient solve) is a few dozen ulps of it.
-        scale = sum(abs(c) * max(T, 1.0)**k for k, c in enumerate(coeffs)) / min(T, 1.0)**2
-        for s in np.linspace(0.0, T, 11):
-            got = segment(start, end, T, float(s))
-            want = poly(coeffs, float(s))
-            for g, w in zip(got, want, strict=True):
-                assert abs(g - w) <= 256 * EPS * scale, (degree, T, s, got, want)
-
-
-def test_segment_mixed_ends_fall_back_like_the_controller() -> None:
-    """Velocity on one end only is linear; velocities on both but acceleration on one only is cubic."""
-    a = Waypoint(0.0, 0.0, 1.0, None)
-    b = Waypoint(1.0, 2.0, None, 0.0)
-    assert segment(a, b, 1.0, 0.25) == Setpoint(0.5, 2.0, 0.0)
-    c = Waypoint(1.0, 1.0, 1.0, 5.0)
-    cubic = segment(a, c, 1.0, 0.5)  # p = s: the cubic through (0, 1) and (1, 1) slopes
-    assert cubic == pytest.approx(Setpoint(0.5, 1.0, 0.0), abs=4 * EPS)
-
-
-def test_segment_clips_time_and_zero_duration_is_the_end() -> None:
-    a, b = Waypoint(0.0, 0.0, None, None), Waypoint(1.0, 1.0, None, None)
-    assert segment(a, b, 1.0, -1.0).position == 0.0
-    assert segment(a, b, 1.0, 2.0).position == 1.0
-    assert segment(a, Waypoint(0.0, 3.0, 1.0, None), 0.0, 0.0) == Setpoint(3.0, 1.0, 0.0)
 
 
 # ----------------------------------------------------------------------------- trajectory checks
@@ -120,11 +71,19 @@ def test_waypoints_bound_the_point_count() -> None:
 
 # ----------------------------------------------------------------------------- sampling
 
+def trajectory(start: float, position: float, velocity: float | None, points: list[Waypoint],
+               velocity_state: bool = True) -> Trajectory:
+    """A trajectory taken over at ``start`` s from the measured state, zero stamp."""
+    ref = controller_reference(velocity_state, [ControllerPoint(*p) for p in points], None, 0.0, position, velocity,
+                               0.0)
+    return Trajectory(start, ref)
+
+
 def test_trajectory_sampling_in_time() -> None:
-    initial = Waypoint(0.0, 1.0, None, None)  # no velocity state interface: the first segment is linear
-    traj = Trajectory(10.0, initial, (Waypoint(1.0, 2.0, None, None), Waypoint(3.0, 0.0, None, None)))
-    assert traj.sample(9.0) == Setpoint(1.0, 0.0, 0.0)  # before its start: the state it started from
-    assert traj.sample(10.5) == Setpoint(1.5, 1.0, 0.0)  # from the initial state to the first point
+    traj = trajectory(10.0, 1.0, None, [Waypoint(1.0, 2.0, None, None), Waypoint(3.0, 0.0, None, None)],
+                      velocity_state=False)  # no velocity state interface, positions only: linear lead-in
+    assert traj.sample(9.0) == Setpoint(1.0, 1.0, 0.0)  # before its takeover: its value there
+    assert traj.sample(10.5) == Setpoint(1.5, 1.0, 0.0)  # from the measured state to the first point
     assert traj.sample(11.0).position == 2.0
     assert traj.sample(12.0) == Setpoint(1.0, -1.0, 0.0)
     assert traj.sample(13.0) == Setpoint(0.0, 0.0, 0.0)  # after its end: hold the last position
@@ -132,15 +91,14 @@ def test_trajectory_sampling_in_time() -> None:
     assert traj.end == 13.0
 
 
-def test_trajectory_first_segment_is_cubic_from_a_measured_moving_state() -> None:
+def test_trajectory_lead_in_is_quintic_when_the_first_point_has_accelerations() -> None:
     """From the measured state (position and velocity: the controller reads no acceleration) to a point with
-    velocity and acceleration: cubic, as the controller's (both ends have velocities, not both accelerations);
-    position and velocity continuous at the start."""
-    initial = Waypoint(0.0, 0.3, 0.2, None)
-    traj = Trajectory(0.0, initial, (Waypoint(2.0, 0.5, 0.0, 0.0),))
+    velocity and acceleration: the controller zero-fills the state's acceleration, so the lead-in is quintic, with
+    acceleration 0 at its start; position and velocity continuous at the start."""
+    traj = trajectory(0.0, 0.3, 0.2, [Waypoint(2.0, 0.5, 0.0, 0.0)])
     s = traj.sample(0.0)
-    assert (s.position, s.velocity) == pytest.approx((0.3, 0.2), abs=8 * EPS)
-    assert s == segment(initial, Waypoint(2.0, 0.5, 0.0, None), 2.0, 0.0)  # the cubic: acceleration ignored
+    assert (s.position, s.velocity, s.acceleration) == pytest.approx((0.3, 0.2, 0.0), abs=8 * EPS)
+    assert traj.reference.degrees == (5,)
     assert traj.sample(2.0) == Setpoint(0.5, 0.0, 0.0)
 
 
@@ -181,8 +139,8 @@ def test_the_follower_refuses_what_the_controller_refuses_and_goes_on(rule: Cont
     refusal = f.receive(names, points, stamp, 10 * 10**9)
     assert refusal is not None and refusal.rule is rule and f.counters.refused[rule] == 1
     # The running trajectory goes on: the same reference as without the refused message.
-    assert f.reference(11.0, 0.85, 0.0) == Trajectory(10.0, Waypoint(0.0, 0.8, 0.0, None),
-                                                       tuple(waypoints([J], J, rest([0.0, 2.0], [0.8, 0.9])))
+    assert f.reference(11.0, 0.85, 0.0) == trajectory(10.0, 0.8, 0.0, waypoints([J], J, rest([0.0, 2.0],
+                                                                                              [0.8, 0.9]))
                                                        ).sample(11.0)
     assert (running.position, running.velocity) == (0.8, 0.0)
 

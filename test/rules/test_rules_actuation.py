@@ -25,9 +25,10 @@ from fourbar_ros.rules.actuation import (
     planned_points,
     planned_setpoints,
     problem_of,
-    replan_start,
+    motion_start,
     trajectory_setpoints,
 )
+from fourbar_ros.rules.actuation import Start, takeover_lead
 from fourbar_ros.rules.controller_contract import ContractRule
 
 CFG = default_config()
@@ -126,14 +127,17 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
     model = motion.state_at(now)
     tol = CFG.replan_tolerance
     near = JointMotionState(model.position + 0.5 * tol, 0.001)
-    assert replan_start(motion, near, now, tol) == (model, False)
+    assert motion_start(CFG, motion, near, now, 0.0) == Start(model)
+    # Trajectory mode starts a continuing motion a lead ahead, and sends the state now first.
+    lead = takeover_lead(CFG)
+    assert motion_start(CFG, motion, near, now, lead) == Start(motion.state_at(now + round(lead * 1e9)), lead, model)
     # Held at the start (a refused trajectory, or a hold after a tolerance violation): the measured state.
     held = JointMotionState(float(q[0]))
-    assert replan_start(motion, held, now, tol) == (held, True)
-    assert replan_start(motion, None, now, tol) == (model, False)  # nothing measured: the motion
+    assert motion_start(CFG, motion, held, now, lead) == Start(held, from_measured=True)
+    assert motion_start(CFG, motion, None, now, 0.0) == Start(model)  # nothing measured: the motion
     done = start_ns + round(plan.duration * 1e9) + 1
-    assert replan_start(motion, held, done, tol) == (held, False)  # no motion running: the measurement
-    assert replan_start(None, None, now, tol) == (None, False)
+    assert motion_start(CFG, motion, held, done, lead) == Start(held)  # no motion running: the measurement
+    assert motion_start(CFG, None, None, now, lead) is None
     # The plan from the held state starts there: the drive is sent no step.
     assert plan_command(CFG, held, 0.0).state_at(0.0) == held
 
