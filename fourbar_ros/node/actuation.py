@@ -42,6 +42,7 @@ from fourbar_ros.rules.actuation import (
     continued,
     motion_start,
     outgoing_refusal,
+    outgoing_stamp,
     plan_command,
     planned_points,
     planned_setpoints,
@@ -159,7 +160,7 @@ class Actuation:
                                 f'command theta = {theta!r} rad not planned: {one_line(exc)}')
             return
         if points is not None:
-            if not self._send(cfg, points, now_ns, now_ns, 'trajectory'):
+            if not self._send(cfg, points, outgoing_stamp(start, now_ns), now_ns, 'trajectory'):
                 self.counters.commands_not_planned += 1
                 return
             self.motion = Motion(now_ns, trajectory=points)
@@ -223,7 +224,8 @@ class Actuation:
         allow_moving_end = (isinstance(self.contract, TrajectoryControllerSettings)
                             and self.contract.allow_nonzero_velocity_at_trajectory_end)
         try:
-            start = self.start_state(now_ns)
+            # Joined to the drive only where it is measured: a model of the motion alone is not where the drive is.
+            start = self.start_state(now_ns) if self.measured is not None else None
             converted = serve_antenna_trajectory(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns,
                                                  start)
             stream = trajectory_setpoints(cfg, converted.trajectory) if self.mode == Mode.FORWARD.value else None

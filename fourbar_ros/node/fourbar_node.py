@@ -49,7 +49,7 @@ from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
 from fourbar_ros.node.actuation import Actuation
 from fourbar_ros.node.completion import MeasuredCompletion
-from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, SequenceGaps, command_rate, summarize
+from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, Level, SequenceGaps, command_rate, summarize
 from fourbar_ros.node.executor import (
     MessageInfoCallback,
 )
@@ -413,6 +413,9 @@ class FourBarNode(Node):
                 level, message = measured_level, measured_message
         if self.actuation is not None:
             values += self.actuation.diagnostic_values()
+        values += self.guard.diagnostic_values()
+        if self.guard.total and level < Level.WARN:
+            level, message = Level.WARN, f'{self.guard.total} callback errors (see callback_errors_<callback>)'
         # Named as diagnostic_updater names a task's status: '<node name>: <task>' (no namespace, no leading slash).
         return DiagnosticStatus(
             level=bytes([int(level)]), name=f'{self.get_name()}: {DIAGNOSTIC_TASK}',

@@ -18,10 +18,10 @@ recorded message). No ROS: messages are read through the attributes they share w
   follows for a sent trajectory (``rules.controller_motion``). A new motion starts where ``motion_start`` says: on
   the running motion, ``takeover_lead`` s ahead, while the measured driven joint is within ``replan_tolerance`` of
   it, else from the measured state (moved onto the driven joint's range when it lies outside by no more than
-  ``measured_range_tolerance``). Every trajectory is stamped with the node's time of its first point, which is the
-  running motion's state at that time: the controller, taking it over at its first update after arrival, continues
-  the reference it was following (no lead-in from the measured state, no step) and reaches the new motion at the
-  lead. An antenna trajectory is joined to that start by a connecting segment, checked against the limits like every
+  ``measured_range_tolerance``). A trajectory continuing a running motion is stamped with the node's time of its
+  first point, the running motion's state at that time: the controller, taking it over at its first update after
+  arrival, continues the reference it was following (no lead-in from the measured state, no step) and reaches the
+  new motion at the lead. One from the measured state starts at the takeover (``outgoing_stamp``). An antenna trajectory is joined to that start by a connecting segment, checked against the limits like every
   other and, for a zero stamp under ``limit_policy: retime``, given the time it needs (``connect``).
 """
 
@@ -91,7 +91,7 @@ from fourbar_ros.rules.controller_motion import ControllerPoint, motion_settings
 __all__ = ['TAKEOVER_SPACINGS', 'ActuationCounters', 'CannotReachError', 'Converted', 'DurationFields',
            'EndMovingError', 'EndsInPastError', 'Motion', 'PointFields', 'PointLike', 'Start', 'TrajectoryProblem',
            'actuation_contract', 'antenna_arrays', 'at_rest_end', 'connect', 'continued', 'convert', 'driven_range',
-           'duration_parts', 'motion_start', 'outgoing_refusal', 'plan_command', 'planned_points',
+           'duration_parts', 'motion_start', 'outgoing_refusal', 'outgoing_stamp', 'plan_command', 'planned_points',
            'planned_setpoints', 'point_fields', 'problem_of', 'serve_antenna_trajectory', 'takeover_lead',
            'trajectory_setpoints']
 
@@ -302,9 +302,9 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     On the running motion while the measured driven position is within ``replan_tolerance`` of it now (or nothing
     is measured yet); else from the measured state (position rad, velocity within the planner's speed limit,
     acceleration 0) now: a drive held by its controller, or lagging, is not sent a step. A measured position
-    outside the range by at most ``measured_range_tolerance`` starts from the nearest end (an encoder rounds to
-    whole counts, so a drive parked at an end may read half a count beyond it). With no motion running: the
-    measured state, else the end of the last motion; None before any of them exists."""
+    within ``measured_range_tolerance`` of an end of the range, outside it or moving outward, starts from that end
+    at rest (an encoder rounds to whole counts, so a drive parked at an end may read half a count beyond it). With
+    no motion running: the measured state, else the end of the last motion; None before any of them exists."""
     if measured is not None:
         speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reducer_ratio
         if abs(measured.velocity) > speed:
@@ -322,9 +322,12 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
 
 def _from_measured(cfg: AntennaConfig, measured: JointMotionState, left: bool) -> Start:
     lower, upper = driven_range(cfg)
-    q = measured.position
-    if lower - cfg.measured_range_tolerance <= q < lower or upper < q <= upper + cfg.measured_range_tolerance:
-        clamped = JointMotionState(min(max(q, lower), upper), measured.velocity, measured.acceleration)
+    q, v, tol = measured.position, measured.velocity, cfg.measured_range_tolerance
+    # Within the tolerance of an end (inside or out), a speed outward is the drive pressing on the end or settling
+    # there, not a motion that could go on: it starts at the end, at rest.
+    at_lower, at_upper = lower - tol <= q < lower + tol and v <= 0.0, upper - tol < q <= upper + tol and v >= 0.0
+    if (at_lower or at_upper) and (not lower <= q <= upper or v != 0.0):
+        clamped = JointMotionState(min(max(q, lower), upper), 0.0)
         return Start(clamped, from_measured=left, clamped=True)
     return Start(measured, from_measured=left)
 
@@ -368,27 +371,42 @@ def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: in
     traj = converted.trajectory
     lead = start.lead
     origin = lead if stamp_ns == 0 else (stamp_ns - now_ns) * 1e-9
-    due = origin + traj.times <= lead
+    due = origin + traj.times < lead
     keep = int(np.argmin(due)) if not due.all() else len(traj)
     if keep == len(traj):
-        raise CannotReachError(f'every point is due by {lead:.6g} s, when the drive can take the trajectory over')
+        raise CannotReachError(f'every point is due before {lead:.6g} s, when the drive can take the trajectory over')
     tail = _tail(traj, keep)
-    head = _state_point(cfg, start.state, traj)
     gap = origin + float(tail.times[0]) - lead
-    limits = JointLimits.from_config(cfg)
-    lower, upper = driven_range(cfg)
-    problem = _connection_problem(head, tail, gap, limits, lower, upper)
-    shift = 0.0
-    if problem is not None:
-        if stamp_ns != 0 or cfg.limit_policy != 'retime':
-            raise CannotReachError(f'from {float(start.state.position)!r} rad, the first point '
-                                   f'{float(tail.positions[0])!r} rad in {gap:.6g} s: {problem}')
-        need = _least_gap(head, tail, gap, limits, lower, upper)
-        shift = need - gap
-    joined = _joined(head, tail, origin - lead + shift)
+    # How far the drive is from the first point, counting a step's worth of its speed.
+    step = abs(float(tail.positions[0]) - start.state.position) + abs(start.state.velocity) / cfg.control_rate
+    if gap <= 0.0 and step <= cfg.measured_range_tolerance:
+        # The first point is where the drive rests, at the takeover: it stands for the start itself.
+        joined = _joined(_tail(tail, len(tail)), tail, origin - lead)
+        shift = 0.0
+    else:
+        head = _state_point(cfg, start.state, traj)
+        limits = JointLimits.from_config(cfg)
+        lower, upper = driven_range(cfg)
+        problem = _connection_problem(head, tail, gap, limits, lower, upper)
+        shift = 0.0
+        if problem is not None:
+            if stamp_ns != 0 or cfg.limit_policy != 'retime':
+                raise CannotReachError(f'from {float(start.state.position)!r} rad, the first point '
+                                       f'{float(tail.positions[0])!r} rad in {gap:.6g} s: {problem}')
+            shift = _least_gap(head, tail, gap, limits, lower, upper) - gap
+        joined = _joined(head, tail, origin - lead + shift)
     if start.before is not None:
         joined = continued(cfg, start, joined)
-    return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0, now_ns)
+    return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0,
+                     outgoing_stamp(start, now_ns) if stamp_ns == 0 else now_ns)
+
+
+def outgoing_stamp(start: Start, now_ns: int) -> int:
+    """The stamp (ns) of a trajectory starting at ``start`` whose time 0 is the node's ``now_ns``: that time when
+    it continues a running motion (so the controller continues it wherever it takes it over); 0 when it starts
+    from the measured state (the drive is there: starting it at the takeover adds no step, and a short motion
+    cannot end in the past on arrival)."""
+    return now_ns if start.before is not None else 0
 
 
 def _tail(traj: DrivenTrajectory, keep: int) -> DrivenTrajectory:
@@ -409,7 +427,7 @@ def _connection_problem(head: DrivenTrajectory, tail: DrivenTrajectory, gap: flo
     """What of the connecting segment (``gap`` s from head's one point to tail's first) is over a limit or out of
     the range, or None."""
     if not gap > 0.0:
-        return 'no time to get there' if head.positions[0] != tail.positions[0] else None
+        return 'no time to get there'
     a, b = (ControllerPoint(0.0, float(t.positions[i]), _at(t.velocities, i), _at(t.accelerations, i))
             for t, i in ((head, 0), (tail, 0)))
     b = ControllerPoint(gap, b.position, b.velocity, b.acceleration)

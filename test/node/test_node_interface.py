@@ -102,6 +102,7 @@ def test_the_status_keys_are_exactly_the_documented_ones(ros: RosSession) -> Non
             if node.completion is not None:
                 node.completion.on_measurement(measurement)
                 node.completion.set_commanded(theta)
+            node.guard.wrap('probe', lambda: 1 / 0)()  # a callback that raises: counted under its name
             keys = {kv.key for kv in node.diagnostic_status().values}
         finally:
             node.destroy_node()

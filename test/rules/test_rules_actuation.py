@@ -18,17 +18,18 @@ from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_ang
 from fourbar_ros.rules.actuation import (
     ActuationCounters,
     Motion,
+    Start,
     TrajectoryProblem,
     convert,
     duration_parts,
+    motion_start,
     plan_command,
     planned_points,
     planned_setpoints,
     problem_of,
-    motion_start,
+    takeover_lead,
     trajectory_setpoints,
 )
-from fourbar_ros.rules.actuation import Start, takeover_lead
 from fourbar_ros.rules.controller_contract import ContractRule
 
 CFG = default_config()
