@@ -21,8 +21,9 @@ recorded message). No ROS: messages are read through the attributes they share w
   ``measured_range_tolerance``). A trajectory continuing a running motion is stamped with the node's time of its
   first point, the running motion's state at that time: the controller, taking it over at its first update after
   arrival, continues the reference it was following (no lead-in from the measured state, no step) and reaches the
-  new motion at the lead. One from the measured state starts at the takeover (``outgoing_stamp``). An antenna trajectory is joined to that start by a connecting segment, checked against the limits like every
-  other and, for a zero stamp under ``limit_policy: retime``, given the time it needs (``connect``).
+  new motion at the lead. One from the measured state starts at the takeover (``outgoing_stamp``). An antenna
+  trajectory is joined to the measured drive's start by a connecting segment, checked against the limits like
+  every other and, for a zero stamp under ``limit_policy: retime``, given the time it needs (``connect``).
 """
 
 from __future__ import annotations
