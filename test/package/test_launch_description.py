@@ -189,7 +189,7 @@ PLUGIN_PACKAGES = {'mock_components': 'hardware_interface'}
 
 
 def _plugin_package(plugin: str) -> str:
-    prefix = plugin.split('/')[0]
+    prefix = plugin.split('/', maxsplit=1)[0]
     return PLUGIN_PACKAGES.get(prefix, prefix)
 
 
