@@ -18,9 +18,10 @@ from typing import Any
 
 import numpy as np
 import pytest
+from support.cli_support import fourbar
 from support.paths import REPO
 
-from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
 from fourbar_ros.config.controllers import forward_controller, trajectory_controller
 from fourbar_ros.config.params import PARAMETERS_BY_NAME
 from fourbar_ros.config.rcl_yaml import ConfigError, parse, read_text, values_from_yaml
@@ -35,7 +36,8 @@ from fourbar_ros.config.sim_actuator_params import sim_settings
 CONTROLLERS = REPO / 'config' / 'controllers.yaml'
 EPS = sys.float_info.epsilon
 CONFIGS = {'gamma driven': default_config(), 'delta driven': config_from_values({'driven_rocker': 'delta'}),
-           'renamed': config_from_values({'gamma_joint': 'tilt_motor_joint', 'hardware_id': 'mast<1>'})}
+           'renamed': config_from_values({'gamma_joint': 'tilt_motor_joint', 'hardware_id': 'mast<1>',
+                                          'driven_joint_offset': -0.0123})}
 
 
 def block(urdf: str) -> ET.Element:
@@ -72,8 +74,29 @@ def test_ros2_control_block_is_the_driven_joint_with_the_reducer(cfg: AntennaCon
     (tj,) = trans.findall('joint')
     assert tj.attrib == {'name': name, 'role': 'joint1'}
     assert float(tj.findtext('mechanical_reduction') or '') == cfg.reducer_ratio
-    assert float(tj.findtext('offset') or '') == 0.0
+    assert float(tj.findtext('offset') or '') == cfg.driven_joint_offset  # rad
     assert [a.attrib['role'] for a in trans.findall('actuator')] == ['actuator1']
+
+
+def _offset(urdf: str) -> float:
+    (offset,) = block(urdf).findall('transmission/joint/offset')
+    return float(offset.text or '')
+
+
+def test_the_transmission_offset_is_the_driven_joint_offset_parameter(tmp_path: Any) -> None:
+    """ros2_control's SimpleTransmission: joint = actuator / mechanical_reduction + offset (rad)."""
+    assert PARAMETERS_BY_NAME['driven_joint_offset'].default == 0.0
+    assert _offset(robot_description(default_config())) == 0.0
+    params = tmp_path / 'antenna.yaml'
+    params.write_text((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8').replace(
+        'driven_joint_offset: 0.0 ', 'driven_joint_offset: -0.2618', 1), encoding='utf-8')
+    cfg = load_config(params)
+    assert cfg.driven_joint_offset == -0.2618 and _offset(robot_description(cfg)) == -0.2618
+    out = fourbar('urdf', '--params', params)  # what the launch file and `fourbar urdf` give robot_state_publisher
+    assert out.returncode == 0, out.stderr
+    assert _offset(out.stdout) == -0.2618
+    with pytest.raises(ConfigError, match='driven_joint_offset'):
+        config_from_values({'driven_joint_offset': 4.0})  # rad, beyond one half turn
 
 
 def test_hardware_plugin_is_replaced_and_escaped() -> None:
