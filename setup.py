@@ -15,6 +15,7 @@ setup(
         ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE}']),
         (f'share/{PACKAGE}', ['package.xml']),
         (f'share/{PACKAGE}/config', glob('config/*.yaml')),
+        (f'share/{PACKAGE}/config/security', glob('config/security/*.xml')),  # the SROS2 policy
         (f'share/{PACKAGE}/launch', glob('launch/*.launch.py')),
         (f'share/{PACKAGE}/rviz', glob('rviz/*.rviz')),
         (f'share/{PACKAGE}/bags/demo_sweep', glob(f'{PACKAGE}/data/demo_sweep/*')),
@@ -25,7 +26,7 @@ setup(
         'plot': ['matplotlib'],
         'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
                  'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py', 'pytest-codeblocks',
-                 'pytest-xdist'],
+                 'pytest-xdist', 'lxml'],
     },
     zip_safe=True,
     maintainer='fourbar_ros developers',

@@ -72,6 +72,7 @@ class AntennaConfig:
     com_offset_normal: float
     gravity: float
     reducer_ratio: float
+    driven_joint_offset: float
     reducer_efficiency: float
     motor_torque_limit: float
     output_torque_limit: float

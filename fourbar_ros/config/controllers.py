@@ -2,7 +2,9 @@
 
 The same file is given to ``ros2_control_node --params-file`` and to fourbar_node (``controllers_file``), so the
 node checks its output against the controller's own settings. Each controller's section is read the way a ROS 2
-parameter file is (``rcl_yaml``: node name = controller name); a setting it leaves out takes the Jazzy default
+parameter file is (``rcl_yaml``: node name = controller name, in the controller manager's namespace, where the
+manager starts its controllers; the shipped file's ``/**/`` keys apply in any namespace); a setting it leaves out
+takes the Jazzy default
 (``joint_trajectory_controller/src/joint_trajectory_controller_parameters.yaml`` and
 ``forward_command_controller/src/*_parameters.yaml`` of ros2_controllers, jazzy branch). No ROS import.
 Tolerances and positions in rad, times in s.
@@ -85,10 +87,10 @@ def controllers_path(path: str) -> Path:
     return Path(path) if path else share_path(CONTROLLERS_FILE)
 
 
-def _section(path: str, controller: str) -> tuple[str, dict[str, object]]:
+def _section(path: str, controller: str, namespace: str) -> tuple[str, dict[str, object]]:
     source = str(controllers_path(path))
     try:
-        values = values_from_yaml(read_text(source), source, controller)
+        values = values_from_yaml(read_text(source), source, controller, namespace)
     except ConfigError as exc:
         raise ConfigError(f'controllers_file: {exc}', ('controllers_file',)) from None
     return source, values
@@ -112,12 +114,13 @@ def _typed(source: str, controller: str, values: Mapping[str, object], key: str,
     return value
 
 
-def trajectory_controller(path: str, controller: str) -> TrajectoryControllerSettings:
-    """The joint_trajectory_controller ``controller`` of the controllers YAML ``path`` (empty: the package's).
+def trajectory_controller(path: str, controller: str, namespace: str = '/') -> TrajectoryControllerSettings:
+    """The joint_trajectory_controller ``controller`` of the controllers YAML ``path`` (empty: the package's), as the
+    controller node ``namespace``/``controller`` receives it (the namespace of its controller manager).
 
     Raises ConfigError (one line) for an unreadable file, no section for ``controller``, or a value of the wrong
     type or an interface combination the controller refuses at configuration."""
-    source, values = _section(path, controller)
+    source, values = _section(path, controller, namespace)
     joints = _strings(source, controller, values, 'joints', True)
     commands = _strings(source, controller, values, 'command_interfaces', True)
     if tuple(sorted(commands)) not in _JTC_COMBINATIONS or len(set(commands)) != len(commands):
@@ -148,8 +151,8 @@ def trajectory_controller(path: str, controller: str) -> TrajectoryControllerSet
                                         **flags, **motion)  # type: ignore[arg-type]
 
 
-def forward_controller(path: str, controller: str) -> ForwardControllerSettings:
-    """The forward_command_controller ``controller`` of the controllers YAML ``path`` (empty: the package's).
-    Raises ConfigError (one line) as ``trajectory_controller``."""
-    source, values = _section(path, controller)
+def forward_controller(path: str, controller: str, namespace: str = '/') -> ForwardControllerSettings:
+    """The forward_command_controller ``controller`` of the controllers YAML ``path`` (empty: the package's), in
+    ``namespace`` as ``trajectory_controller``. Raises ConfigError (one line) as ``trajectory_controller``."""
+    source, values = _section(path, controller, namespace)
     return ForwardControllerSettings(controller, _strings(source, controller, values, 'joints', True))

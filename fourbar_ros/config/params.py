@@ -129,6 +129,10 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Gravitational acceleration for the antenna weight.', 0.0, 100.0),
     ParamSpec('reducer_ratio', float, 500.0, '',
               'Reducer ratio motor:rocker (motor turns per rocker turn).', 1e-6, 1.0e7),
+    ParamSpec('driven_joint_offset', float, 0.0, 'rad',
+              'Driven joint position where the motor position reads 0: the `<offset>` of the URDF\'s '
+              'SimpleTransmission (ros2_control: joint = motor / reducer_ratio + this). Only the URDF uses it.',
+              -math.pi, math.pi, read_only=True),
     ParamSpec('reducer_efficiency', float, 1.0, '',
               'Reducer efficiency in (0, 1]; motor torque = rocker torque / (ratio * efficiency).',
               1e-6, 1.0),

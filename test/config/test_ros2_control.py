@@ -18,11 +18,13 @@ from typing import Any
 
 import numpy as np
 import pytest
-import yaml
+from support.cli_support import fourbar
 from support.paths import REPO
 
-from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
+from fourbar_ros.config.controllers import forward_controller, trajectory_controller
 from fourbar_ros.config.params import PARAMETERS_BY_NAME
+from fourbar_ros.config.rcl_yaml import ConfigError, parse, read_text, values_from_yaml
 from fourbar_ros.config.robot_model import (
     DEFAULT_HARDWARE_PLUGIN,
     driven_angle,
@@ -34,7 +36,8 @@ from fourbar_ros.config.sim_actuator_params import sim_settings
 CONTROLLERS = REPO / 'config' / 'controllers.yaml'
 EPS = sys.float_info.epsilon
 CONFIGS = {'gamma driven': default_config(), 'delta driven': config_from_values({'driven_rocker': 'delta'}),
-           'renamed': config_from_values({'gamma_joint': 'tilt_motor_joint', 'hardware_id': 'mast<1>'})}
+           'renamed': config_from_values({'gamma_joint': 'tilt_motor_joint', 'hardware_id': 'mast<1>',
+                                          'driven_joint_offset': -0.0123})}
 
 
 def block(urdf: str) -> ET.Element:
@@ -71,8 +74,29 @@ def test_ros2_control_block_is_the_driven_joint_with_the_reducer(cfg: AntennaCon
     (tj,) = trans.findall('joint')
     assert tj.attrib == {'name': name, 'role': 'joint1'}
     assert float(tj.findtext('mechanical_reduction') or '') == cfg.reducer_ratio
-    assert float(tj.findtext('offset') or '') == 0.0
+    assert float(tj.findtext('offset') or '') == cfg.driven_joint_offset  # rad
     assert [a.attrib['role'] for a in trans.findall('actuator')] == ['actuator1']
+
+
+def _offset(urdf: str) -> float:
+    (offset,) = block(urdf).findall('transmission/joint/offset')
+    return float(offset.text or '')
+
+
+def test_the_transmission_offset_is_the_driven_joint_offset_parameter(tmp_path: Any) -> None:
+    """ros2_control's SimpleTransmission: joint = actuator / mechanical_reduction + offset (rad)."""
+    assert PARAMETERS_BY_NAME['driven_joint_offset'].default == 0.0
+    assert _offset(robot_description(default_config())) == 0.0
+    params = tmp_path / 'antenna.yaml'
+    params.write_text((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8').replace(
+        'driven_joint_offset: 0.0 ', 'driven_joint_offset: -0.2618', 1), encoding='utf-8')
+    cfg = load_config(params)
+    assert cfg.driven_joint_offset == -0.2618 and _offset(robot_description(cfg)) == -0.2618
+    out = fourbar('urdf', '--params', params)  # what the launch file and `fourbar urdf` give robot_state_publisher
+    assert out.returncode == 0, out.stderr
+    assert _offset(out.stdout) == -0.2618
+    with pytest.raises(ConfigError, match='driven_joint_offset'):
+        config_from_values({'driven_joint_offset': 4.0})  # rad, beyond one half turn
 
 
 def test_hardware_plugin_is_replaced_and_escaped() -> None:
@@ -133,19 +157,30 @@ INTERFACES = {'position', 'velocity', 'acceleration', 'effort'}
 DEPRECATED = {'open_loop_control'}
 
 
-def controllers() -> dict[str, Any]:
-    data: dict[str, Any] = yaml.safe_load(CONTROLLERS.read_text(encoding='utf-8'))
-    return data
+#: The namespaces the file is checked in: the launch file's default (none) and the README's.
+NAMESPACES = ('/', '/tilt')
 
 
-def params_of(data: dict[str, Any], controller: str) -> dict[str, Any]:
-    section: dict[str, Any] = data[controller]['ros__parameters']
-    return section
+def _nested(flat: dict[str, object]) -> dict[str, Any]:
+    """rcl's dotted parameter names (``constraints.goal_time``) as the nested mappings the YAML writes."""
+    out: dict[str, Any] = {}
+    for name, value in flat.items():
+        *parents, leaf = name.split('.')
+        level = out
+        for p in parents:
+            level = level.setdefault(p, {})
+        level[leaf] = value
+    return out
+
+
+def params_of(controller: str, namespace: str = '/') -> dict[str, Any]:
+    """What the node ``namespace``/``controller`` receives from the file by rcl's rules (a controller runs in its
+    controller manager's namespace)."""
+    return _nested(values_from_yaml(read_text(CONTROLLERS), str(CONTROLLERS), controller, namespace))
 
 
 def test_controller_manager_section() -> None:
-    data = controllers()
-    cm = params_of(data, 'controller_manager')
+    cm = params_of('controller_manager')
     assert type(cm['update_rate']) is int and cm['update_rate'] > 0  # an integer parameter: 100.0 is refused
     declared = {name: entry['type'] for name, entry in cm.items() if isinstance(entry, dict)}
     assert set(declared.values()) <= set(TYPES)
@@ -155,22 +190,24 @@ def test_controller_manager_section() -> None:
     assert declared['joint_state_broadcaster'] == 'joint_state_broadcaster/JointStateBroadcaster'
     assert PARAMETERS_BY_NAME['trajectory_controller'].default == 'joint_trajectory_controller'
     assert PARAMETERS_BY_NAME['forward_controller'].default == 'forward_position_controller'
-    assert set(data) == {'controller_manager', *declared}  # every controller configured, nothing else
+    # Every controller configured, nothing else.
+    sections = set(parse(read_text(CONTROLLERS), str(CONTROLLERS)))
+    assert sections == {f'/**/{name}' for name in ('controller_manager', *declared)}
     for name, kind in declared.items():
-        assert set(params_of(data, name)) <= TYPES[kind], name
+        assert set(params_of(name)) <= TYPES[kind], name
 
 
 def test_controllers_drive_the_urdf_joint_through_its_interfaces() -> None:
-    data, cfg = controllers(), default_config()
+    cfg = default_config()
     rc = block(robot_description(cfg))
     (joint,) = rc.findall('joint')
     commands = {c.attrib['name'] for c in joint.findall('command_interface')}
     states = {s.attrib['name'] for s in joint.findall('state_interface')}
     for name in ('joint_state_broadcaster', 'joint_trajectory_controller', 'forward_position_controller'):
-        assert params_of(data, name)['joints'] == [cfg.driven_joint] == [joint.attrib['name']], name
-    jsb = params_of(data, 'joint_state_broadcaster')
+        assert params_of(name)['joints'] == [cfg.driven_joint] == [joint.attrib['name']], name
+    jsb = params_of('joint_state_broadcaster')
     assert set(jsb['interfaces']) <= states
-    jtc = params_of(data, 'joint_trajectory_controller')
+    jtc = params_of('joint_trajectory_controller')
     assert set(jtc['command_interfaces']) <= commands & INTERFACES
     assert set(jtc['state_interfaces']) <= states & INTERFACES
     assert jtc['state_interfaces'][0] == 'position'  # the controller needs the position state first
@@ -195,3 +232,37 @@ def test_effort_feedforward_adds_the_effort_command_interface() -> None:
     assert [c.attrib['name'] for c in joint.findall('command_interface')] == ['position', 'effort']
     (plain,) = block(robot_description(default_config())).findall('joint')
     assert [c.attrib['name'] for c in plain.findall('command_interface')] == ['position']
+
+
+@pytest.mark.parametrize('namespace', NAMESPACES)
+def test_the_file_applies_in_any_namespace_by_rcls_rules(namespace: str) -> None:
+    """With ``namespace:=tilt`` the launch file starts /tilt/controller_manager, which starts its controllers as
+    /tilt/<name> with the same parameter file: each gets its section, as in the root namespace."""
+    prefix = namespace.rstrip('/')
+    cm = values_from_yaml(read_text(CONTROLLERS), str(CONTROLLERS), 'controller_manager', namespace)
+    assert cm['update_rate'] == 100  # Hz
+    assert {k: v for k, v in cm.items() if k.endswith('.type')} == {
+        'joint_state_broadcaster.type': 'joint_state_broadcaster/JointStateBroadcaster',
+        'joint_trajectory_controller.type': 'joint_trajectory_controller/JointTrajectoryController',
+        'forward_position_controller.type': 'position_controllers/JointGroupPositionController'}
+    joint = default_config().driven_joint
+    jtc = values_from_yaml(read_text(CONTROLLERS), str(CONTROLLERS), 'joint_trajectory_controller', namespace)
+    assert jtc['joints'] == [joint] and jtc['command_interfaces'] == ['position']
+    assert jtc['constraints.goal_time'] == 0.5 and jtc[f'constraints.{joint}.goal'] == 0.001  # s, rad
+    for name in ('joint_state_broadcaster', 'forward_position_controller'):
+        assert params_of(name, namespace)['joints'] == [joint], f'{prefix}/{name}'
+    # What fourbar_node reads for the controller it sends to, in the same namespace.
+    settings = trajectory_controller('', 'joint_trajectory_controller', namespace)
+    assert settings.joints == (joint,) and settings.goal_time == 0.5
+    assert settings == trajectory_controller('', 'joint_trajectory_controller')
+    assert forward_controller('', 'forward_position_controller', namespace).joints == (joint,)
+
+
+def test_a_plain_section_key_does_not_apply_in_a_namespace(tmp_path: Any) -> None:
+    # Why the shipped file writes /**/: rcl reads `jtc:` as /jtc, which a controller in /tilt does not receive.
+    path = tmp_path / 'plain.yaml'
+    path.write_text('jtc:\n  ros__parameters:\n    joints: [j]\n    command_interfaces: [position]\n'
+                    '    state_interfaces: [position]\n', encoding='utf-8')
+    assert trajectory_controller(str(path), 'jtc').joints == ('j',)
+    with pytest.raises(ConfigError, match="no '/\\*\\*:' or '/tilt/jtc' section"):
+        trajectory_controller(str(path), 'jtc', '/tilt')

@@ -8,6 +8,7 @@ test/package/test_launch.py's (through ``ros2 launch``).
 from __future__ import annotations
 
 import importlib.util
+import xml.etree.ElementTree as ET
 from collections.abc import Callable
 from types import ModuleType
 from typing import Any
@@ -181,3 +182,44 @@ def test_the_node_name_is_the_interfaces() -> None:
     s = Started(everything)
     node = s.one('fourbar_ros', 'fourbar_node')
     assert s.text(node._Node__node_name) == NODE_NAME
+
+
+#: pluginlib library namespaces whose package has another name: ros2_control's mock hardware is in hardware_interface.
+PLUGIN_PACKAGES = {'mock_components': 'hardware_interface'}
+
+
+def _plugin_package(plugin: str) -> str:
+    prefix = plugin.split('/', maxsplit=1)[0]
+    return PLUGIN_PACKAGES.get(prefix, prefix)
+
+
+@pytest.mark.parametrize('arguments', [{'mode': 'trajectory', 'namespace': 'tilt'}, {'mode': 'forward'},
+                                       {'effort_feedforward': 'true'}],
+                         ids=['trajectory in tilt', 'forward', 'effort feed-forward'])
+def test_every_package_the_ros2_control_bringup_uses_is_an_exec_depend(arguments: dict[str, str]) -> None:
+    """What ``use_ros2_control:=true`` needs installed: the executables' packages, the URDF's hardware and
+    transmission plugins, and the controller types the controller manager reads from the controllers file in the
+    launch's namespace (rcl's rules). Each must be an exec_depend, so rosdep installs it (test_rosdep_keys checks
+    that every key resolves for Jazzy)."""
+    from catkin_pkg.package import parse_package
+
+    from fourbar_ros.config.rcl_yaml import read_text, values_from_yaml
+
+    s = Started(everything, use_ros2_control='true', **arguments)
+    needed = {n.node_package for n in s.nodes} - {'fourbar_ros'}
+    assert {'controller_manager', 'robot_state_publisher'} <= needed
+    urdf = s.parameters(s.one('robot_state_publisher', 'robot_state_publisher'))[1]['robot_description']
+    plugins = [p.text or '' for p in ET.fromstring(urdf).iter('plugin')]
+    assert 'mock_components/GenericSystem' in plugins and 'transmission_interface/SimpleTransmission' in plugins
+    needed |= {_plugin_package(p) for p in plugins}
+    manager = s.one('controller_manager', 'ros2_control_node')
+    (controllers,) = s.parameters(manager)[0]
+    namespace = '/' + arguments.get('namespace', '')
+    values = values_from_yaml(read_text(controllers), controllers, 'controller_manager', namespace)
+    types = {str(v) for k, v in values.items() if k.endswith('.type')}
+    assert len(types) == 3  # the broadcaster and both controllers: the section applies in this namespace
+    needed |= {_plugin_package(t) for t in types}
+    spawned = {s.arguments(n)[0] for n in s.node('controller_manager', 'spawner')}
+    assert spawned <= {k.removesuffix('.type') for k in values if k.endswith('.type')}
+    declared = {d.name for d in parse_package(str(REPO / 'package.xml')).exec_depends}
+    assert not needed - declared, f'add <exec_depend> for {sorted(needed - declared)} to package.xml'
