@@ -32,6 +32,7 @@ IMPORT_KEYS: dict[str, str | None] = {
     'hypothesis': 'python3-hypothesis',
     'catkin_pkg': 'python3-catkin-pkg',
     'psutil': 'python3-psutil',
+    'mujoco': 'python3-mujoco-pip',   # rosdistro's pip key (the torque witness; skipped where missing)
     'mpmath': None,
     'pylinkage': None,                 # benchmark peers, imported only by benchmarks (skipped where missing)
     'mechanism': None,
