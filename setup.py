@@ -26,7 +26,7 @@ setup(
         'plot': ['matplotlib'],
         'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
                  'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py', 'pytest-codeblocks',
-                 'pytest-xdist', 'lxml'],
+                 'pytest-xdist', 'lxml', 'mujoco'],  # mujoco: the torque witness (test/core/test_torque_witness.py)
     },
     zip_safe=True,
     maintainer='fourbar_ros developers',

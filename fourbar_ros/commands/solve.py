@@ -1,5 +1,9 @@
 """`fourbar solve`: rocker angles, rates and their derivatives, mechanical advantage and input torque at one antenna
-angle, or at the pose a measured rocker angle completes."""
+angle, or at the pose a measured rocker angle completes.
+
+The input torque is the node's: the core's load model (``core.loads.load_at_pose``: the constant ``load_torque`` plus
+the antenna's weight at its configured centre of mass) mapped to the driven rocker by ``AntennaLinkage.torque_at``,
+the calls ``core.loads.pose_solver`` makes for every command the node serves."""
 
 from __future__ import annotations
 
@@ -13,6 +17,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig, default_config, loa
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.errors import DeadPointError, FourBarError, SingularPositionError, UnreachableError
+from fourbar_ros.core.loads import gravity_torque, has_gravity_load, load_at_pose
 from fourbar_ros.rules.policy import Outcome, Policy, angle_text, decide, in_reach, out_of_reach_text
 
 HELP = ('solve the linkage at one antenna angle (or a measured rocker angle): rocker angles, rates, second '
@@ -38,14 +43,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--rocker-cd', type=float, metavar='L', help='rocker CD length (m) if it differs from AB')
     parser.add_argument('--coupler', type=float, metavar='C', help='coupler BC length (m)')
     parser.add_argument('--load-torque', type=float, metavar='NM',
-                        help='load torque on the antenna about theta, in the sense of increasing theta (N m); '
-                        'default: the configuration\'s load_torque')
+                        help='constant load torque about theta that the drive must supply, + in the sense of '
+                        'increasing theta (N m); default: the configuration\'s load_torque. The antenna\'s weight '
+                        '(antenna_mass in --params) adds to it')
     parser.add_argument('--driven', choices=[d.value for d in Driven], help='driven rocker (default: configured)')
     parser.add_argument('--branch', choices=['upper', 'lower'], help='assembly branch (default: configured)')
     parser.add_argument('--json', action='store_true', help='print one JSON object (radians, N m)')
 
 
 def _configuration(args: argparse.Namespace) -> tuple[AntennaConfig, AntennaLinkage]:
+    """The configuration (``--params`` or the built-in one, with the flags' overrides) and its linkage. Geometry
+    flags replace the lengths and the linkage in the configuration too: the load model reads them there."""
     given = [f for f in _GEOMETRY_FLAGS if getattr(args, f) is not None]
     if args.params is not None and given:
         raise FourBarError(f'--params and --{given[0].replace("_", "-")} exclude each other: '
@@ -69,11 +77,14 @@ def _configuration(args: argparse.Namespace) -> tuple[AntennaConfig, AntennaLink
         if not math.isfinite(args.load_torque):
             raise FourBarError(f'--load-torque={args.load_torque} must be finite (N m)')
         overrides['load_torque'] = args.load_torque
+    if given:
+        overrides.update(linkage=linkage, frame_length=linkage.frame, rocker_ab_length=linkage.rocker_ab,
+                         coupler_length=linkage.coupler, rocker_cd_length=linkage.rocker_cd)
     return (replace(cfg, **overrides) if overrides else cfg), linkage  # type: ignore[arg-type]
 
 
 _KEYS = ('theta', 'gamma', 'delta', 'dgamma_dtheta', 'ddelta_dtheta', 'd2gamma_dtheta2', 'd2delta_dtheta2',
-         'input_torque', 'mechanical_advantage', 'transmission_angle')
+         'input_torque', 'mechanical_advantage', 'transmission_angle', 'gravity_torque')
 _RATES = ('dgamma_dtheta', 'ddelta_dtheta', 'd2gamma_dtheta2', 'd2delta_dtheta2', 'mechanical_advantage')
 
 
@@ -113,26 +124,43 @@ def _solve(linkage: AntennaLinkage, pose: tuple[float, float, float],
 
     The pose exists wherever the linkage reaches (also at the reach limit, where the rockers are in line); only the
     rates, their derivatives and the mechanical advantage (a rate) are unbounded there, and the torque is unbounded
-    at a dead point.
+    at a dead point. ``gravity_torque`` is the antenna weight's share of the load about theta (N m, + in the sense of
+    increasing theta; 0.0 without a weight); with a weight, it and the input torque are undetermined at the reach
+    limit (the weight's lever holds dgamma/dtheta).
     """
     theta, gamma, delta = pose
     values: dict[str, float | None] = {'theta': theta, 'gamma': gamma, 'delta': delta}
     reasons: dict[str, str] = {}
+    dgamma_dtheta: float | None = None
     try:
         rates = linkage.rates_at(theta, gamma, delta)
         second = linkage.second_derivatives_at(theta, gamma, delta, rates)
-        values['dgamma_dtheta'], values['ddelta_dtheta'] = float(rates[0]), float(rates[1])
+        dgamma_dtheta = float(rates[0])
+        values['dgamma_dtheta'], values['ddelta_dtheta'] = dgamma_dtheta, float(rates[1])
         values['d2gamma_dtheta2'], values['d2delta_dtheta2'] = float(second[0]), float(second[1])
         values['mechanical_advantage'] = values['dgamma_dtheta' if cfg.driven is Driven.GAMMA else 'ddelta_dtheta']
     except SingularPositionError:
         for key in _RATES:
             values[key] = None
             reasons[key] = 'unbounded: theta is at the reach limit (the rockers are parallel)'
-    try:
-        values['input_torque'] = float(linkage.torque_at(theta, gamma, delta, cfg.load_torque, cfg.driven))
-    except DeadPointError:
-        values['input_torque'] = None
-        reasons['input_torque'] = f'unbounded: theta is a dead point of the {cfg.driven.value} rocker'
+    weight = has_gravity_load(cfg)
+    if weight and dgamma_dtheta is None:
+        # The weight's lever dy_com/dtheta holds dgamma/dtheta, unbounded here (the torque's limit is finite but
+        # the core does not take it).
+        for key in ('gravity_torque', 'input_torque'):
+            values[key] = None
+            reasons[key] = ('undetermined: the antenna weight\'s load needs dgamma/dtheta, unbounded at the reach '
+                            'limit')
+    else:
+        # The core's load model, as the node evaluates it (core.loads.pose_solver): constant plus weight.
+        values['gravity_torque'] = (float(gravity_torque(cfg, theta, gamma, dgamma_dtheta))
+                                    if weight and dgamma_dtheta is not None else 0.0)
+        load = load_at_pose(cfg, theta, gamma, delta, dgamma_dtheta)
+        try:
+            values['input_torque'] = float(linkage.torque_at(theta, gamma, delta, load, cfg.driven))
+        except DeadPointError:
+            values['input_torque'] = None
+            reasons['input_torque'] = f'unbounded: theta is a dead point of the {cfg.driven.value} rocker'
     values['transmission_angle'] = float(linkage.transmission_angle_at(theta, gamma, delta, cfg.driven))
     for key in _KEYS:
         value = values[key]
@@ -153,13 +181,17 @@ def run(args: argparse.Namespace) -> int:
     values, reasons = _solve(linkage, pose, cfg)
     warn_unknown_parameters('fourbar solve', args.params)
     if args.json:
-        print(json.dumps({**values, 'load_torque': cfg.load_torque, 'driven': cfg.driven.value,
-                          'branch': cfg.branch.name.lower(), 'null_reasons': reasons}, allow_nan=False))
+        gravity = values.pop('gravity_torque')
+        print(json.dumps({**values, 'load_torque': cfg.load_torque, 'gravity_torque': gravity,
+                          'driven': cfg.driven.value, 'branch': cfg.branch.name.lower(), 'null_reasons': reasons},
+                         allow_nan=False))
         return 0
     deg = {'theta', 'gamma', 'delta', 'transmission_angle'}
     print(f'linkage: frame {linkage.frame} m, rockers {linkage.rocker_ab} / {linkage.rocker_cd} m, '
           f'coupler {linkage.coupler} m; branch {cfg.branch.name.lower()}, driven rocker {cfg.driven.value}')
     for key, value in values.items():
+        if key == 'gravity_torque':
+            continue
         if value is None:
             print(f'{key:>22}: none ({reasons[key]})')
             continue
@@ -167,6 +199,12 @@ def run(args: argparse.Namespace) -> int:
         extra = f'  ({math.degrees(value):.12f} deg)' if key in deg else ''
         print(f'{key:>22}: {value!r}{unit}{extra}')
     print(f'{"load_torque":>22}: {cfg.load_torque!r} N m (about theta)')
+    if has_gravity_load(cfg):
+        gravity = values['gravity_torque']
+        weight = (f'antenna_mass {cfg.antenna_mass!r} kg, centre of mass {cfg.com_offset_along!r} m along B->C and '
+                  f'{cfg.com_offset_normal!r} m normal from the coupler midpoint, gravity {cfg.gravity!r} m/s^2')
+        print(f'{"gravity_torque":>22}: ' + (f'none ({reasons["gravity_torque"]})' if gravity is None
+                                             else f'{gravity!r} N m (about theta, in input_torque: {weight})'))
     decision = decide(theta, cfg.theta_min, cfg.theta_max, Policy(cfg.out_of_limits), linkage.reach())
     if decision.outcome is not Outcome.ACCEPTED:
         print(f'note: as a command, the node would not serve it as is: {decision.reason}')

@@ -89,7 +89,8 @@ class FourBarNode(Node):
         self.guard = CallbackGuard(self.problems)
         try:
             self._config = self._validated_overrides()
-            contract = None if self._config.mode == Mode.OPEN_LOOP.value else actuation_contract(self._config)
+            contract = (None if self._config.mode == Mode.OPEN_LOOP.value
+                        else actuation_contract(self._config, namespace=self.get_namespace()))
             constructor_overrides: list[Parameter] = kwargs.get('parameter_overrides') or []
             explicit = set(command_line_names) | {p.name for p in constructor_overrides}
             for path in params_files:

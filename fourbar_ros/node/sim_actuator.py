@@ -68,8 +68,10 @@ class SimActuator(Node):
         try:
             self.config = config_from_values(declared_values(startup))
             self.settings = sim_settings(startup, self.config)
-            jtc = trajectory_controller(self.config.controllers_file, self.config.trajectory_controller)
-            self._forward = forward_controller(self.config.controllers_file, self.config.forward_controller)
+            jtc = trajectory_controller(self.config.controllers_file, self.config.trajectory_controller,
+                                        self.get_namespace())
+            self._forward = forward_controller(self.config.controllers_file, self.config.forward_controller,
+                                               self.get_namespace())
         except ConfigError:
             destroy_node(self)
             raise

@@ -512,16 +512,18 @@ def outgoing_refusal(contract: TrajectoryControllerSettings, joint: str, points:
     return check_trajectory(contract, [joint], points, stamp_ns, now_ns)
 
 
-def actuation_contract(cfg: AntennaConfig, mode: str | None = None,
+def actuation_contract(cfg: AntennaConfig, mode: str | None = None, namespace: str = '/',
                        ) -> TrajectoryControllerSettings | ForwardControllerSettings:
     """The settings of the controller that ``mode`` (default: the configured one; trajectory or forward) sends to,
-    from ``controllers_file``. Raises ConfigError (one line) when they cannot take what the node sends: the
-    controller's joints not the one driven joint, or ``effort_feedforward`` without an effort command interface."""
+    from ``controllers_file`` as the controller manager in ``namespace`` reads it. Raises ConfigError (one line)
+    when they cannot take what the node sends: the controller's joints not the one driven joint,
+    ``effort_feedforward`` without an effort command interface, or a setting that changes the motion in a way the
+    node does not model (``rules.controller_motion.motion_settings_problem``)."""
     if (mode or cfg.mode) == 'trajectory':
         contract: TrajectoryControllerSettings | ForwardControllerSettings = trajectory_controller(
-            cfg.controllers_file, cfg.trajectory_controller)
+            cfg.controllers_file, cfg.trajectory_controller, namespace)
     else:
-        contract = forward_controller(cfg.controllers_file, cfg.forward_controller)
+        contract = forward_controller(cfg.controllers_file, cfg.forward_controller, namespace)
     if isinstance(contract, TrajectoryControllerSettings):
         problem = motion_settings_problem(contract)
         if problem is not None:

@@ -33,6 +33,7 @@ IMPORT_KEYS: dict[str, str | None] = {
     'catkin_pkg': 'python3-catkin-pkg',
     'psutil': 'python3-psutil',
     'lxml': 'python3-lxml',
+    'mujoco': 'python3-mujoco-pip',   # rosdistro's pip key (the torque witness; skipped where missing)
     'mpmath': None,
     'pylinkage': None,                 # benchmark peers, imported only by benchmarks (skipped where missing)
     'mechanism': None,
