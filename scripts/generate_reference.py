@@ -1,6 +1,7 @@
 #!/usr/bin/env python3
-"""Write the reference tables that restate code: the node's topics per mode (``config/interface.py``) and its
-parameters (``config/params.py``), into docs/reference/ between the markers
+"""Write the tables that restate code: the node's topics per mode and its QoS override parameters
+(``config/interface.py``) and its parameters (``config/params.py``) into docs/reference/, and the fields `fourbar
+compare` compares (``config/interface.py``) into docs/how-to/bags.md, between the markers
 
     <!-- generated: NAME -->
     ...
@@ -24,7 +25,15 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from fourbar_ros.config.interface import Mode, Topic, endpoints  # noqa: E402
+from fourbar_ros.config.interface import (  # noqa: E402
+    COMPARED,
+    QOS_OVERRIDABLE,
+    Direction,
+    Mode,
+    Topic,
+    endpoints,
+    qos_override_parameters,
+)
 from fourbar_ros.config.params import PARAMETERS, ParamSpec  # noqa: E402
 
 MARKER = re.compile(r'(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end generated -->)', re.DOTALL)
@@ -44,6 +53,27 @@ def topics_table() -> str:
                        f'| {e.content} |')
         out.append('')
     return '\n'.join(out)
+
+
+#: The namespace the QoS override table's parameter names are written for (the README's).
+EXAMPLE_NAMESPACE = '/tilt'
+
+
+def qos_overrides_table() -> str:
+    """The QoS override parameters rclpy declares, per endpoint, for a node in EXAMPLE_NAMESPACE."""
+    names = qos_override_parameters(EXAMPLE_NAMESPACE)
+    per = len(names) // len(QOS_OVERRIDABLE)
+    out = [f'| Topic | Dir | Parameters (a node in `{EXAMPLE_NAMESPACE}`) |', '|---|---|---|']
+    for k, (topic, direction) in enumerate(QOS_OVERRIDABLE):
+        entity = 'subscription' if direction is Direction.IN else 'publisher'
+        keys = ', '.join(f'`{n}`' for n in names[k * per:(k + 1) * per])
+        out.append(f'| `{topic.name}` | {direction.value} ({entity}) | {keys} |')
+    return '\n'.join(out) + '\n'
+
+
+def compared_fields_list() -> str:
+    """The fields of `fourbar compare --ignore`, each with what it covers."""
+    return ''.join(f'- `{name}`: {meaning}\n' for name, meaning in COMPARED.items())
 
 
 _NAMED = {math.pi: 'pi', -math.pi: '-pi', math.pi / 2: 'pi/2'}
@@ -91,8 +121,10 @@ def parameters_table() -> str:
     return '\n'.join(out) + '\n'
 
 
-GENERATORS: dict[str, Callable[[], str]] = {'topics': topics_table, 'parameters': parameters_table}
-DOCS = (REPO / 'docs' / 'reference' / 'topics.md', REPO / 'docs' / 'reference' / 'parameters.md')
+GENERATORS: dict[str, Callable[[], str]] = {'topics': topics_table, 'qos_overrides': qos_overrides_table,
+                                            'parameters': parameters_table, 'compared_fields': compared_fields_list}
+DOCS = (REPO / 'docs' / 'reference' / 'topics.md', REPO / 'docs' / 'reference' / 'parameters.md',
+        REPO / 'docs' / 'how-to' / 'bags.md')
 
 
 def render(text: str) -> str:

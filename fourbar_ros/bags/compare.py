@@ -408,8 +408,8 @@ class Comparer:
 def compare_bags(path_a: str | os.PathLike[str], path_b: str | os.PathLike[str], cfg: AntennaConfig,
                  ulps: float = DEFAULT_ULPS, atol: float | None = None, ignore: Sequence[str] = (),
                  limit: int = 10, block: int = BLOCK) -> Comparison:
-    """Compare the JointState and Float64 topics of two bags (see the module docstring), ``block`` messages at
-    a time per topic (memory does not grow with the bags). BagError (one line) on bad input."""
+    """Compare the JointState, Float64 and JointTrajectory topics of two bags (see the module docstring), ``block``
+    messages at a time per topic (memory does not grow with the bags). BagError (one line) on bad input."""
     comparer = Comparer(cfg, ulps, atol, ignore, limit)
     result = comparer.result
     types_a, types_b = topic_types_of(path_a), topic_types_of(path_b)

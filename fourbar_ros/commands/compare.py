@@ -11,8 +11,8 @@ from fourbar_ros.config.interface import COMPARED_FIELDS
 #: bag_compare.DEFAULT_ULPS, written out: building the parser must not import rosbags.
 DEFAULT_ULPS = 16.0
 
-HELP = ('compare the joint_states and input_torque of two bags message by message (ulps of each value\'s '
-        'scale, or --atol); exit 0 equal, 1 different, 2 bad input')
+HELP = ('compare two bags of the node\'s outputs message by message: every JointState, Float64 and JointTrajectory '
+        'topic (ulps of each value\'s scale, or --atol); exit 0 equal, 1 different, 2 bad input')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,9 +25,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                      f'{DEFAULT_ULPS:g}; see docs/how-to/bags.md for the scales)')
     tol.add_argument('--atol', type=float, metavar='X', help='allowed absolute difference instead (rad, rad/s, N m)')
     parser.add_argument('--ignore', default='', metavar='FIELDS',
-                        help=f'comma-separated fields not to compare: {",".join(COMPARED_FIELDS)} (e.g. a '
-                        'recording of a live node against `fourbar process`: stamps,velocities, which come from '
-                        'the node\'s clock)')
+                        help=f'comma-separated fields not to compare, of {",".join(COMPARED_FIELDS)}: stamps are '
+                        'header stamps and log times; positions, velocities (with trajectory accelerations) and '
+                        'efforts those of JointStates and trajectory points; the others the data of the Float64 '
+                        'topic of that name (e.g. a recording of a live node against `fourbar process`: '
+                        'stamps,velocities, which come from the node\'s clock)')
     parser.add_argument('--params', type=Path, metavar='YAML',
                         help='parameter file of the node (geometry for the torque\'s condition; default: defaults)')
     parser.add_argument('--show', type=int, default=10, metavar='N', help='print the first N differences (default 10)')

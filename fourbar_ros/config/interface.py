@@ -169,14 +169,42 @@ def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTRO
     return (_COMMAND_IN, *_MEASURED, out, _TORQUE_OUT, *_STATUS_OUT)
 
 
+#: The endpoints whose QoS parameters may override, in every mode: (topic, direction). The node creates them with
+#: rclpy's ``QoSOverridingOptions.with_default_policies()``, so rclpy declares a read-only parameter
+#: ``qos_overrides.<resolved topic>.<publisher|subscription>.<policy>`` for each policy of QOS_OVERRIDE_POLICIES.
+QOS_OVERRIDABLE: tuple[tuple[Topic, Direction], ...] = (
+    (COMMAND, Direction.IN), (JOINT_STATES, Direction.OUT), (INPUT_TORQUE, Direction.OUT), (MARKERS, Direction.OUT))
+#: The policies ``with_default_policies`` declares (durability and the others stay as the node sets them).
+QOS_OVERRIDE_POLICIES = ('history', 'depth', 'reliability')
+
+
+def qos_override_parameters(namespace: str = '/') -> tuple[str, ...]:
+    """rclpy's QoS override parameter names for the node in ``namespace`` (topics not remapped), in the order of
+    QOS_OVERRIDABLE and QOS_OVERRIDE_POLICIES."""
+    names = []
+    for topic, direction in QOS_OVERRIDABLE:
+        resolved = topic.name if topic.name.startswith('/') else f'{namespace.rstrip("/")}/{topic.name}'
+        entity = 'subscription' if direction is Direction.IN else 'publisher'
+        names += [f'qos_overrides.{resolved}.{entity}.{policy}' for policy in QOS_OVERRIDE_POLICIES]
+    return tuple(names)
+
+
 #: What the node publishes for each served command, in publishing order.
 PER_COMMAND_OUTPUTS = (JOINT_STATES, INPUT_TORQUE)
 #: The outputs a recording of the node holds by default (``fourbar record``, ``fourbar demo``).
 RECORDED_OUTPUTS = (JOINT_STATES, INPUT_TORQUE, DIAGNOSTICS)
 
-#: The fields ``fourbar compare`` compares (and may be told to ignore).
-COMPARED_FIELDS = ('stamps', 'positions', 'velocities', 'efforts', 'input_torque', 'antenna_angle', 'antenna_rate',
-                   'load_torque')
+#: The fields ``fourbar compare`` compares (and ``--ignore`` may drop), with what each covers (bags.compare).
+COMPARED: dict[str, str] = {
+    'stamps': 'JointState and JointTrajectory header stamps, and every message\'s log time',
+    'positions': 'JointState positions and trajectory point positions',
+    'velocities': 'JointState velocities (and whether one is present), trajectory point velocities and '
+                  'accelerations',
+    'efforts': 'JointState efforts and trajectory point efforts',
+    **{t.name: f'the data of each Float64 topic named `{t.name}`' for t in (INPUT_TORQUE, ANTENNA_ANGLE, ANTENNA_RATE,
+                                                                           LOAD_TORQUE)},
+}
+COMPARED_FIELDS = tuple(COMPARED)
 
 
 class Storage(enum.Enum):

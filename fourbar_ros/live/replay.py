@@ -204,10 +204,19 @@ class Replayer:
         (``prepare_timed``/``prepare_lockstep`` found them) for a parameter: the request leaves this participant
         after the commands, for the same node, which receives them in order; its answer proves the commands
         before it arrived.
+
+        The executor keeps running callbacks while the acknowledgements are awaited (a reliable writer's last
+        sample may wait for its next heartbeat, up to a heartbeat period): ``wait_for_all_acked`` holds the GIL
+        while it blocks, so it is asked without blocking between bounded spins, and a recorder on the same
+        executor stamps what arrives meanwhile when it arrives.
         """
         if self.publisher.qos_profile.reliability == ReliabilityPolicy.RELIABLE:
-            self.publisher.wait_for_all_acked(Duration(seconds=timeout_s))
+            spin_until(executor, self.all_acked, timeout_s)
         handshake(self.node, executor, self.reachable, timeout_s)
+
+    def all_acked(self) -> bool:
+        """Every reliable subscription has acknowledged every command published so far (asked without waiting)."""
+        return bool(self.publisher.wait_for_all_acked(Duration(nanoseconds=0)))
 
     def _publish_clock(self, stamp_ns: int) -> None:
         from builtin_interfaces.msg import Time

@@ -9,13 +9,16 @@ import os
 import re
 import signal
 import sys
+from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
 from support.bag_support import CONFIG, DEMO_BAG, Tool
 from support.colcon_support import CliEnv, ros2
-from support.ros_support import DomainLease, wait_for
+from support.ros_support import DomainLease, lease_domain_id, wait_for
 
+from fourbar_ros.bags.demo import pace
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES
@@ -24,20 +27,45 @@ from fourbar_ros.live.node_process import domain_in_use
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 
+#: How far (in pacing periods) a command's receive time in the demo's recording may lag its send time.
+LAG_PERIODS = 5
+
+
 def _env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'}
 
 
-def test_demo_runs_to_the_end_on_the_exported_domain(lease: DomainLease, tmp_path: Path) -> None:
-    # On an exported ROS_DOMAIN_ID (so a user's other terminals see its topics), said in its first line.
-    out = tmp_path / 'demo'
-    with Tool(['demo', '--params', CONFIG, '--out', out], {**_env(), 'ROS_DOMAIN_ID': str(lease.domain_id)}) as demo:
-        rc = demo.wait(120.0)  # a deadline against hangs; the demo takes about 20 s here
-        assert rc == 0, demo.lines
-        stdout = demo.stdout
-    assert not domain_in_use(lease.domain_id)  # both node processes are gone
+@dataclass(frozen=True)
+class DemoRun:
+    """One `fourbar demo` run to the end, on an exported ROS_DOMAIN_ID: its domain, stdout and output directory."""
+
+    domain_id: int
+    stdout: str
+    out: Path
+
+
+@pytest.fixture(scope='module')
+def demo_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[DemoRun]:
+    """The demo run once for the module's checks (it takes about 20 s), on a domain leased for the module."""
+    lease = lease_domain_id()
+    try:
+        out = tmp_path_factory.mktemp('demo_run') / 'demo'
+        # On an exported ROS_DOMAIN_ID (so a user's other terminals see its topics), said in its first line.
+        with Tool(['demo', '--params', CONFIG, '--out', out],
+                  {**_env(), 'ROS_DOMAIN_ID': str(lease.domain_id)}) as demo:
+            rc = demo.wait(120.0)  # a deadline against hangs
+            assert rc == 0, demo.lines
+            stdout = demo.stdout
+        yield DemoRun(lease.domain_id, stdout, out)
+    finally:
+        lease.release()
+
+
+def test_demo_runs_to_the_end_on_the_exported_domain(demo_run: DemoRun) -> None:
+    stdout, out = demo_run.stdout, demo_run.out
+    assert not domain_in_use(demo_run.domain_id)  # both node processes are gone
     first = stdout.splitlines()[0]
-    assert f' on ROS_DOMAIN_ID {lease.domain_id} (from ROS_DOMAIN_ID; this host only); ' in first, first
+    assert f' on ROS_DOMAIN_ID {demo_run.domain_id} (from ROS_DOMAIN_ID; this host only); ' in first, first
     lines = {line.split()[0]: line for line in stdout.splitlines() if line.strip()}
     for key in ('command', 'tracking', 'speed', 'torque', 'margin', 'counts', 'check', 'replay', 'plot'):
         assert key in lines, stdout
@@ -75,6 +103,27 @@ def test_demo_runs_to_the_end_on_the_exported_domain(lease: DomainLease, tmp_pat
     assert 0.0 <= margin < 100.0
     counts = lines['counts']
     assert f'{len(measured)} measured joint_states' in counts and f'{len(angles)} antenna_angle' in counts
+
+
+def test_demo_records_each_command_when_it_was_sent(demo_run: DemoRun) -> None:
+    """The recording's receive time (log time) of each command against its send time by the replay's schedule (one
+    command every pacing period): none lags by more than LAG_PERIODS periods. The demo records on the executor that
+    replays; one that stopped running callbacks while the replay waited for the last commands' acknowledgements
+    (a heartbeat period of the middleware) stamped the last command, and the motion planned for it, that late."""
+    cfg = load_config(CONFIG)
+    period = pace(read_commands(DEMO_BAG).values, cfg)
+    received = [t for t, _ in read_messages(demo_run.out / 'outputs')['/antenna_angle_cmd']]
+    assert len(received) == len(read_commands(DEMO_BAG))
+    # Send times are known up to the replay's start: take the schedule that the earliest-received command met.
+    offsets = [(t - received[0]) * 1e-9 - i * period for i, t in enumerate(received)]
+    start = min(offsets)
+    lags = [o - start for o in offsets]
+    worst = max(range(len(lags)), key=lags.__getitem__)
+    sent, got = (start + worst * period) * 1e3, (offsets[worst] + worst * period) * 1e3
+    assert lags[worst] <= LAG_PERIODS * period, (
+        f'command {worst} of {len(lags)} (one sent every {period * 1e3:.1f} ms): sent by the schedule at '
+        f'{sent:.1f} ms, received at {got:.1f} ms (both since command 0 was received): {got - sent:.1f} ms late, '
+        f'over the bound of {LAG_PERIODS} periods ({LAG_PERIODS * period * 1e3:.1f} ms)')
 
 
 def _nodes(pid: int) -> list[int]:
