@@ -165,7 +165,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'open_loop: commands in, the commanded pose out on joint_states (no hardware). trajectory: commands '
               'and antenna trajectories become driven-joint trajectories for joint_trajectory_controller; '
               'forward: a setpoint stream for forward_command_controller. In both actuator modes the measured '
-              'driven joint (joint_states) is completed into the whole linkage.',
+              'driven joint (measured_joint_states) is completed into the whole linkage on joint_states.',
               choices=tuple(m.value for m in Mode), read_only=True),
     ParamSpec('trajectory_controller', str, DEFAULT_TRAJECTORY_CONTROLLER, '',
               'Controller name (trajectory mode): driven-joint trajectories go to <this>/joint_trajectory.',
