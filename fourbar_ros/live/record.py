@@ -16,6 +16,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
+from rclpy.clock import ROSClock
 from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -25,6 +26,7 @@ from fourbar_ros.bags.storage import AtomicBagWriter, BagError, jazzy_typestore,
 from fourbar_ros.config.interface import DEFAULT_STORAGE, STREAM_DEPTH, Storage
 from fourbar_ros.live.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
 from fourbar_ros.live.node_params import handshake
+from fourbar_ros.node.executor import MessageInfoCallback
 
 #: History depth of the recording subscriptions: how far the recorder may fall behind a burst (the node's own).
 RECORD_DEPTH = STREAM_DEPTH
@@ -153,15 +155,21 @@ class Recorder:
             self.abort()
             raise
 
-    def _writer_for(self, conn: Any, name: str) -> Callable[[bytes], None]:
-        clock = self.node.get_clock()
+    def _writer_for(self, conn: Any, name: str) -> MessageInfoCallback:
+        """The subscription callback writing ``name``'s messages. The log time is the middleware's receive time
+        (``received_timestamp``, system clock), so a callback run late by a busy executor or a loaded machine still
+        records when the message arrived; under sim time, the node's clock when the callback runs."""
+        clock: Any = self.node.get_clock()
+        sim_time = isinstance(clock, ROSClock) and clock.ros_time_is_active
 
-        def write(data: bytes) -> None:
-            self.bag.write(conn, clock.now().nanoseconds, data)
+        def write(data: bytes, info: dict[str, Any]) -> None:
+            received = info.get('received_timestamp')
+            log = clock.now().nanoseconds if sim_time or not received else int(received)
+            self.bag.write(conn, log, data)
             self.counts[name] += 1
             if self.on_message is not None:
                 self.on_message(name, self.counts[name])
-        return write
+        return MessageInfoCallback(write)
 
     def flush_if_due(self, now: float | None = None) -> bool:
         """Flush the bag if ``flush_interval`` seconds (monotonic) passed since the last flush."""
