@@ -50,7 +50,7 @@ def draw(theta_deg: npt.NDArray[np.float64], before: npt.NDArray[np.float64], af
         ax.set_title(f'{label}: RMS {rms:.3g} mrad', fontsize=10)
         ax.set_ylabel('sensor - model (mrad)')
     axes[0].legend(loc='best', fontsize=8)
-    axes[1].set_xlabel('antenna angle theta (deg, sensor offset removed)')
+    axes[1].set_xlabel('antenna angle theta (deg): the calibrated model at the measured joint')
     fig.suptitle(title)
     fig.subplots_adjust(left=0.1, right=0.97, top=0.88, bottom=0.09, hspace=0.3)
     buf = io.BytesIO()

@@ -77,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
         if args.report is not None:
             files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
         if plot is not None and worker is not None:
-            theta = np.degrees(data.theta - fit.parameter('sensor_offset').value)
+            # x: the calibrated model's angle (from the encoder), not the noisy reading, which would bias the bins
+            theta = np.degrees(data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)
             title = f'fourbar calibrate: {data.path.name}, {data.times.size} readings, {cfg.driven_joint}'
             files[plot] = worker.render(theta, fit.residuals_before, fit.residuals_after, title)
             report['plot'] = str(plot)
