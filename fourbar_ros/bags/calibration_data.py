@@ -63,7 +63,8 @@ def imu_tilt(ax: FloatArray, az: FloatArray) -> FloatArray:
     theta (the antenna tilted down, x toward -z) gives a negative a_x. A small mounting error about y is the
     calibration's sensor offset; a mount turned about z or x changes the sign or the axis and must be undone first.
     """
-    return np.arctan2(-np.asarray(ax, dtype=np.float64), np.asarray(az, dtype=np.float64))
+    tilt: FloatArray = np.arctan2(-np.asarray(ax, dtype=np.float64), np.asarray(az, dtype=np.float64))
+    return tilt
 
 
 @dataclass(frozen=True)
@@ -160,6 +161,8 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
         raise CalibrationError(f'{p}: topic {angle_topic} has no messages')
     j_ns, q, effort = _joint_states(p, chosen, raws[chosen], np.array(logs[chosen], dtype=np.int64), driven_joint)
     s_log = np.array(logs[angle_topic], dtype=np.int64)
+    s_ns: Any
+    theta: FloatArray
     s_ns, theta = (_imus(p, angle_topic, raws[angle_topic], s_log) if sensor_type == IMU
                    else (s_log, _float64s(p, angle_topic, raws[angle_topic])))
     finite_j, finite_s = np.isfinite(q), np.isfinite(theta)
@@ -216,7 +219,8 @@ def _float64s(p: Path, topic: str, raws: list[bytes]) -> FloatArray:
         return values
     store = jazzy_typestore()
     try:
-        return np.array([float(store.deserialize_cdr(r, FLOAT64).data) for r in raws])
+        msgs: list[Any] = [store.deserialize_cdr(r, FLOAT64) for r in raws]
+        return np.array([float(m.data) for m in msgs], dtype=np.float64)
     except Exception as exc:
         raise CalibrationError(f'{p}: a message on {topic} is not a valid {FLOAT64} ({one_line(exc)})') from None
 
@@ -240,4 +244,4 @@ def _imus(p: Path, topic: str, raws: list[bytes], logs: Any) -> tuple[Any, Float
             raise CalibrationError(f'{p}: message {k} on {topic} is not a valid {IMU} ({one_line(exc)})') from None
         stamps[k] = sec * 1_000_000_000 + nanosec
     stamps = np.where(stamps != 0, stamps, logs)
-    return stamps, imu_tilt(acc[:, 0], acc[:, 2])
+    return stamps, np.asarray(imu_tilt(acc[:, 0], acc[:, 2]), dtype=np.float64)

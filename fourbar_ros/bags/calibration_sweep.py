@@ -46,6 +46,7 @@ class Sweep:
     counts_per_rev: int = 4096  #: encoder counts per motor turn (0: not rounded)
     reducer_ratio: float = 500.0
     sensor_delay: float = 0.0013  #: the sensor's first reading after the encoder's (s)
+    sensor_clock_offset: float = 0.0  #: how far the sensor's clock runs ahead of the encoder's (s)
     joint_name: str = 'rocker_ab_joint'
     names: tuple[str, ...] = field(default=('rocker_ab_joint',))
     driven: Driven = Driven.GAMMA
@@ -90,7 +91,7 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     qm = sweep.measured_q(sweep.true_q(sweep.theta(tj)))
     reading = sweep.theta(ts) + sweep.truth['sensor_offset'] + rng.normal(0.0, sweep.sensor_noise, ts.size)
     j_ns = _START_NS + np.round(tj * 1e9).astype(np.int64)
-    s_ns = _START_NS + np.round(ts * 1e9).astype(np.int64)
+    s_ns = _START_NS + np.round((ts + sweep.sensor_clock_offset) * 1e9).astype(np.int64)
     k = len(sweep.names)
     position = np.zeros((tj.size, k))
     position[:, sweep.names.index(sweep.joint_name)] = qm

@@ -9,6 +9,7 @@ import math
 import os
 import re
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -168,7 +169,7 @@ def _calibrated_yaml(params: Path, bag: Path, fit: Calibration) -> str:
         if len(found) > 1:
             raise CommandError(f'{params}: {name} is set {len(found)} times; edit the file by hand with the report')
         if found:
-            text = pattern.sub(lambda m, v=value: f'{m["head"]}{v!r}{m["tail"]}', text)
+            text = pattern.sub(_replacer(value), text)
             continue
         sections = list(re.finditer(r'^(?P<indent>[ \t]*)ros__parameters[ \t]*:[ \t]*(?:#[^\n]*)?$', text,
                                     re.MULTILINE))
@@ -193,6 +194,13 @@ def _calibrated_yaml(params: Path, bag: Path, fit: Calibration) -> str:
         raise CommandError(f'{params}: could not set the lengths in this file (read back {read_back}); set them by '
                            'hand from the report')
     return text
+
+
+def _replacer(value: float) -> Callable[[re.Match[str]], str]:
+    """The substitution of one ``key: value  # comment`` line: the new value (repr: it reads back exactly)."""
+    def replace(m: re.Match[str]) -> str:
+        return f'{m["head"]}{value!r}{m["tail"]}'
+    return replace
 
 
 def _plot_path(output: Path | None, report: Path | None) -> Path | None:

@@ -87,7 +87,8 @@ def predict(p: FloatArray, q_measured: FloatArray, driven: Driven, branch: Branc
     ``branch`` is ``from_rocker``'s (``AntennaConfig.measured_branch``)."""
     link = _linkage(p)
     theta = link.from_rocker(np.asarray(q_measured, dtype=np.float64) + p[4], driven, branch, on_invalid='nan').theta
-    return np.asarray(theta) + p[5]
+    out: FloatArray = np.asarray(theta, dtype=np.float64) + p[5]
+    return out
 
 
 def model_jacobian(p: FloatArray, q_measured: FloatArray, driven: Driven,
@@ -130,7 +131,8 @@ def model_mismatch(link: AntennaLinkage, q_measured: ArrayLike, sensor_theta: Ar
         return float(sensor_theta) - sensor_offset - theta
     theta_a = link.from_rocker(np.asarray(q_measured, dtype=np.float64) + driven_joint_offset, driven, branch,
                                on_invalid='nan').theta
-    return np.asarray(sensor_theta, dtype=np.float64) - sensor_offset - np.asarray(theta_a)
+    out: FloatArray = np.asarray(sensor_theta, dtype=np.float64) - sensor_offset - np.asarray(theta_a)
+    return out
 
 
 @dataclass(frozen=True)
@@ -191,11 +193,12 @@ def _rms(r: FloatArray) -> float:
 
 def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[float, float, float, float],
               driven: Driven, branch: Branch, length_sd: float = 5e-4, offset_sd: float = OFFSET_SD,
-              max_iterations: int = MAX_ITERATIONS) -> Calibration:
+              max_iterations: int | None = None) -> Calibration:
     """Fit the lengths (m, prior ``lengths`` in LENGTH_NAMES order, sd ``length_sd`` m) and the offsets (rad, prior
     0, sd ``offset_sd``) to paired readings: measured driven joint ``q_measured`` (rad) and sensor ``sensor_theta``
     (rad), arrays of one length. Raises CalibrationError (one line) when the given geometry cannot take the
-    measured joint or the fit does not converge. The caller checks that the readings span the tilt range."""
+    measured joint or the fit does not converge (within ``max_iterations`` Levenberg-Marquardt iterations per pass,
+    default MAX_ITERATIONS). The caller checks that the readings span the tilt range."""
     q = np.ascontiguousarray(q_measured, dtype=np.float64)
     y = np.ascontiguousarray(sensor_theta, dtype=np.float64)
     n = q.size
@@ -204,6 +207,7 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
     if not (length_sd > 0.0 and offset_sd > 0.0 and math.isfinite(length_sd) and math.isfinite(offset_sd)):
         raise CalibrationError(f'prior sds must be finite and positive (lengths {length_sd} m, offsets {offset_sd} '
                                'rad)')
+    iteration_limit = MAX_ITERATIONS if max_iterations is None else max_iterations
     p0 = np.array([*map(float, lengths), 0.0, 0.0])
     sd = np.array([length_sd] * 4 + [offset_sd] * 2)
     pred0, _ = model_jacobian(p0, q, driven, branch)
@@ -217,7 +221,7 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
     iterations = passes = 0
     for _ in range(MAX_PASSES):
         passes += 1
-        z, used = _levenberg_marquardt(z, p0, sd, sigma, q, y, driven, branch, max_iterations)
+        z, used = _levenberg_marquardt(z, p0, sd, sigma, q, y, driven, branch, iteration_limit)
         iterations += used
         r = y - model_jacobian(p0 + sd * z, q, driven, branch)[0]
         new_sigma = max(math.sqrt(float(np.dot(r, r)) / (n - 6)), 1e-15)
@@ -233,7 +237,7 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
     js = jac * (sd / sigma)
     hessian = js.T @ js + np.eye(6)
     cov_scaled = np.linalg.inv(hessian)
-    covariance = cov_scaled * np.outer(sd, sd)
+    covariance: FloatArray = np.asarray(cov_scaled * np.outer(sd, sd), dtype=np.float64)
     singular, directions = np.linalg.svd(js, full_matrices=False)[1:]
     params = tuple(FittedParameter(name, float(p[i]), float(math.sqrt(covariance[i, i])), float(p0[i]),
                                    float(sd[i])) for i, name in enumerate(PARAMETER_NAMES))
