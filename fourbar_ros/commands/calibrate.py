@@ -117,7 +117,7 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
     from fourbar_ros.core.calibration import DETERMINED_RATIO, PARAMETER_NAMES
 
     before, after = fit.residuals_before, fit.residuals_after
-    theta = data.theta - fit.parameter('sensor_offset').value
+    theta = data.theta - fit.residuals_after - fit.parameter('sensor_offset').value  # the calibrated model's angle
     return {
         'bag': str(args.bag),
         'params': str(args.params),
@@ -127,7 +127,7 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
         'driven_joint': cfg.driven_joint,
         'paired_readings': int(data.times.size),
         'readings_left_out': int(data.outside),
-        'tilt_span_rad': [float(theta.min()), float(theta.max())],  # the sensor's, its offset removed
+        'tilt_span_rad': [float(theta.min()), float(theta.max())],
         'parameters': _parameters(fit),
         'residual_rms_rad': float(math.sqrt(float((after * after).mean()))),
         'largest_residual_rad': float(abs(after).max()),
