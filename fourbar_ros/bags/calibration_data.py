@@ -147,14 +147,15 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
             want = joint_topic or '/joint_state_broadcaster/joint_states'
             raise CalibrationError(f'{p}: no measured {JOINT_STATE} topic {want} ({_topics(types)})')
         conns = [c for c in reader.connections if c.topic in (chosen, angle_topic)]
-        raws: dict[str, list[bytes]] = {chosen: [], angle_topic: []}
-        logs: dict[str, list[int]] = {chosen: [], angle_topic: []}
         try:
-            for conn, log, data in reader.messages(connections=conns):
-                raws[conn.topic].append(bytes(data))
-                logs[conn.topic].append(log)
+            messages = [(conn.topic == chosen, log, data) for conn, log, data in reader.messages(connections=conns)]
         except Exception as exc:
             raise BagError(f'{p}: unreadable bag ({one_line(exc)})') from exc
+    raws = {topic: [bytes(d) for is_joint, _, d in messages if is_joint is (topic == chosen)]
+            for topic in (chosen, angle_topic)}
+    logs = {topic: [t for is_joint, t, _ in messages if is_joint is (topic == chosen)]
+            for topic in (chosen, angle_topic)}
+    del messages
     if not raws[chosen]:
         raise CalibrationError(f'{p}: topic {chosen} has no messages')
     if not raws[angle_topic]:

@@ -65,12 +65,12 @@ DETERMINED_RATIO = 0.5
 #: Levenberg-Marquardt iterations per pass, and passes re-estimating sigma, before the fit counts as not converged.
 MAX_ITERATIONS = 100
 MAX_PASSES = 20
-#: Convergence: a step below this (in prior sds) ends a pass; sigma changing by less than this fraction ends the
-#: passes.
-STEP_TOL = 1e-6
+#: Convergence: a step below this (in prior sds), or one lowering the cost (chi-square: residuals over sigma, squared,
+#: plus the prior's terms) by less than COST_TOL, ends a pass (both far below what moves a result: the posterior sds
+#: are where the cost rises by 1); sigma changing by less than SIGMA_TOL (relative) ends the passes.
+STEP_TOL = 1e-5
+COST_TOL = 1e-6
 SIGMA_TOL = 1e-4
-#: ... or a step lowering the cost by less than this fraction of it.
-COST_TOL = 1e-10
 
 
 class CalibrationError(FourBarError):
@@ -196,7 +196,8 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
               max_iterations: int | None = None) -> Calibration:
     """Fit the lengths (m, prior ``lengths`` in LENGTH_NAMES order, sd ``length_sd`` m) and the offsets (rad, prior
     0, sd ``offset_sd``) to paired readings: measured driven joint ``q_measured`` (rad) and sensor ``sensor_theta``
-    (rad), arrays of one length. Raises CalibrationError (one line) when the given geometry cannot take the
+    (rad), arrays of one length, in time order (the first noise estimate differences consecutive readings). Raises
+    CalibrationError (one line) when the given geometry cannot take the
     measured joint or the fit does not converge (within ``max_iterations`` Levenberg-Marquardt iterations per pass,
     default MAX_ITERATIONS). The caller checks that the readings span the tilt range."""
     q = np.ascontiguousarray(q_measured, dtype=np.float64)
@@ -217,14 +218,16 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
         raise CalibrationError(f'{bad} of {n} measured joint angles are out of the given geometry\'s reach (first '
                                f'q={float(q[~np.isfinite(r0)][0])!r} rad): check the parameter file and the joint')
     z = np.zeros(6)  # scaled parameters: p = p0 + sd * z
-    sigma = max(_rms(r0), 1e-12)
+    # First noise estimate: consecutive readings differ by their noise and little else (the model's error is smooth
+    # along a sweep), so the passes re-estimating sigma start next to where they end.
+    sigma = max(float(np.std(np.diff(r0))) / math.sqrt(2.0), 1e-12)
     iterations = passes = 0
     for _ in range(MAX_PASSES):
         passes += 1
         z, used = _levenberg_marquardt(z, p0, sd, sigma, q, y, driven, branch, iteration_limit)
         iterations += used
         r = y - model_jacobian(p0 + sd * z, q, driven, branch)[0]
-        new_sigma = max(math.sqrt(float(np.dot(r, r)) / (n - 6)), 1e-15)
+        new_sigma = max(math.sqrt(_square(r) / (n - 6)), 1e-15)
         settled = abs(new_sigma - sigma) <= SIGMA_TOL * sigma
         sigma = new_sigma
         if settled:
@@ -235,7 +238,7 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
     p = p0 + sd * z
     pred, jac = model_jacobian(p, q, driven, branch)
     js = jac * (sd / sigma)
-    hessian = js.T @ js + np.eye(6)
+    hessian = _normal(js) + np.eye(6)
     cov_scaled = np.linalg.inv(hessian)
     covariance: FloatArray = np.asarray(cov_scaled * np.outer(sd, sd), dtype=np.float64)
     singular, directions = np.linalg.svd(js, full_matrices=False)[1:]
@@ -244,25 +247,39 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
     return Calibration(params, covariance, singular, directions, sigma, r0, y - pred, iterations, passes)
 
 
+def _normal(js: FloatArray) -> FloatArray:
+    """J^T J (6 x 6) without BLAS threads, which cost more than they save on 6 columns."""
+    out: FloatArray = np.einsum('ij,ik->jk', js, js)
+    return out
+
+
+def _square(r: FloatArray) -> float:
+    """|r|^2 (einsum: no BLAS threads for a dot product)."""
+    return float(np.einsum('i,i->', r, r))
+
+
 def _cost(z: FloatArray, r: FloatArray, sigma: float) -> float:
-    return float(np.dot(r, r)) / (sigma * sigma) + float(np.dot(z, z))
+    return _square(r) / (sigma * sigma) + _square(z)
 
 
 def _levenberg_marquardt(z: FloatArray, p0: FloatArray, sd: FloatArray, sigma: float, q: FloatArray, y: FloatArray,
                          driven: Driven, branch: Branch, max_iterations: int) -> tuple[FloatArray, int]:
     """Minimise |r(z)|^2 / sigma^2 + |z|^2 over the scaled parameters z; (z, iterations). Raises CalibrationError
-    if it does not converge within max_iterations."""
+    if it does not converge within max_iterations. Damped by lam I (Levenberg): in the scaled parameters the prior
+    adds I to the normal matrix, so every direction has curvature at least 1; Marquardt's diag(A) would damp the
+    directions the data barely see (mixtures of parameters the data see well) by the stiff ones' curvature and
+    crawl along them."""
     lam = 1e-3
     pred, jac = model_jacobian(p0 + sd * z, q, driven, branch)
     r = y - pred
     cost = _cost(z, r, sigma)
     for it in range(1, max_iterations + 1):
         js = jac * (sd / sigma)          # d pred / dz, whitened
-        g = js.T @ (r / sigma) - z       # minus half the gradient of the cost
-        a = js.T @ js + np.eye(6)
+        g = np.einsum('ij,i->j', js, r) / sigma - z  # minus half the gradient of the cost
+        a = _normal(js) + np.eye(6)
         while True:
             try:
-                step = np.linalg.solve(a + lam * np.diag(np.diag(a)), g)
+                step = np.linalg.solve(a + lam * np.eye(6), g)
             except np.linalg.LinAlgError:
                 step = np.full(6, np.nan)
             trial = z + step
@@ -279,7 +296,7 @@ def _levenberg_marquardt(z: FloatArray, p0: FloatArray, sd: FloatArray, sigma: f
         decrease = cost - t_cost
         z, r, jac, cost = trial, t_r, t_jac, t_cost
         lam = max(lam / 10.0, 1e-12)
-        if float(np.max(np.abs(step))) < STEP_TOL or decrease <= COST_TOL * cost:
+        if float(np.max(np.abs(step))) < STEP_TOL or decrease <= COST_TOL:
             return z, it
     raise CalibrationError(f'the fit did not converge in {max_iterations} iterations (last step '
                            f'{float(np.max(np.abs(step))):.3g} prior sds)')
