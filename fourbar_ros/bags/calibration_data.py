@@ -72,7 +72,8 @@ class CalibrationData:
     """A recording's streams and their pairs. Times in s from ``t0_ns`` (ns, the first message's time).
 
     ``q``: the driven joint at the sensor's paired times (rad, interpolated); ``theta``: the sensor's readings there
-    (rad); ``joint_times``/``joint_q``/``joint_effort``: the encoder's own stream (effort NaN where not measured).
+    (rad); ``joint_times``/``joint_q``/``joint_velocity``/``joint_effort``: the encoder's own stream (rad, rad/s,
+    N m; velocity and effort NaN where not measured).
     """
 
     path: Path
@@ -82,6 +83,7 @@ class CalibrationData:
     t0_ns: int
     joint_times: FloatArray
     joint_q: FloatArray
+    joint_velocity: FloatArray
     joint_effort: FloatArray
     sensor_times: FloatArray
     sensor_theta: FloatArray
@@ -160,14 +162,17 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
         raise CalibrationError(f'{p}: topic {chosen} has no messages')
     if not raws[angle_topic]:
         raise CalibrationError(f'{p}: topic {angle_topic} has no messages')
-    j_ns, q, effort = _joint_states(p, chosen, raws[chosen], np.array(logs[chosen], dtype=np.int64), driven_joint)
+    j_ns, q, velocity, effort = _joint_states(p, chosen, raws[chosen], np.array(logs[chosen], dtype=np.int64),
+                                              driven_joint)
     s_log = np.array(logs[angle_topic], dtype=np.int64)
     s_ns: Any
     theta: FloatArray
     s_ns, theta = (_imus(p, angle_topic, raws[angle_topic], s_log) if sensor_type == IMU
                    else (s_log, _float64s(p, angle_topic, raws[angle_topic])))
     finite_j, finite_s = np.isfinite(q), np.isfinite(theta)
-    j_ns, q, effort = j_ns[finite_j], q[finite_j], effort[finite_j]
+    j_ns, q, velocity, effort = j_ns[finite_j], q[finite_j], velocity[finite_j], effort[finite_j]
+    order = np.argsort(j_ns, kind='stable')
+    j_ns, q, velocity, effort = j_ns[order], q[order], velocity[order], effort[order]
     s_ns, theta = s_ns[finite_s], theta[finite_s]
     if q.size == 0 or theta.size == 0:
         raise CalibrationError(f'{p}: no finite {"joint position" if q.size == 0 else "sensor reading"}')
@@ -175,7 +180,8 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
     jt = (j_ns - t0) * 1e-9
     st = (s_ns - t0) * 1e-9
     times, qp, thp = pair(jt, q, st, theta)
-    return CalibrationData(p, chosen, angle_topic, sensor_type, t0, jt, q, effort, st, theta, times, qp, thp)
+    return CalibrationData(p, chosen, angle_topic, sensor_type, t0, jt, q, velocity, effort, st, theta, times, qp,
+                           thp)
 
 
 def _topics(types: dict[str, str]) -> str:
@@ -183,8 +189,9 @@ def _topics(types: dict[str, str]) -> str:
 
 
 def _joint_states(p: Path, topic: str, raws: list[bytes], logs: Any,
-                  driven_joint: str) -> tuple[Any, FloatArray, FloatArray]:
-    """(times ns, position rad, effort N m or NaN) of the driven joint: the header stamp, else the receive time."""
+                  driven_joint: str) -> tuple[Any, FloatArray, FloatArray, FloatArray]:
+    """(times ns, position rad, velocity rad/s or NaN, effort N m or NaN) of the driven joint: the header stamp,
+    else the receive time."""
     try:
         sec, nanosec, frame_id, names, _ = read_joint_state_head(raws[0])
     except MalformedCdrError as exc:
@@ -193,14 +200,15 @@ def _joint_states(p: Path, topic: str, raws: list[bytes], logs: Any,
     if fast is not None:
         i = names.index(driven_joint)
         stamps, q, effort = fast.stamps_ns, fast.position[:, i].copy(), fast.effort[:, i].copy()
+        velocity = fast.velocity[:, i].copy()
     else:
         n = len(raws)
         stamps = np.zeros(n, dtype=np.int64)
-        q, effort = np.full(n, np.nan), np.full(n, np.nan)
+        q, velocity, effort = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
         for k, raw in enumerate(raws):
             try:
                 sec, nanosec, _, names, at = read_joint_state_head(raw)
-                position, _, efforts = read_joint_state_arrays(raw, at)
+                position, velocities, efforts = read_joint_state_arrays(raw, at)
             except MalformedCdrError:
                 continue
             if driven_joint in names:
@@ -208,10 +216,11 @@ def _joint_states(p: Path, topic: str, raws: list[bytes], logs: Any,
                 stamps[k] = sec * 1_000_000_000 + nanosec
                 q[k] = position[i] if i < len(position) else math.nan
                 effort[k] = efforts[i] if i < len(efforts) else math.nan
+                velocity[k] = velocities[i] if i < len(velocities) else math.nan
         if not np.isfinite(q).any():
             raise CalibrationError(f'{p}: no JointState on {topic} has the driven joint {driven_joint!r}')
     stamps = np.where(stamps != 0, stamps, logs)
-    return stamps, q, effort
+    return stamps, q, velocity, effort
 
 
 def _float64s(p: Path, topic: str, raws: list[bytes]) -> FloatArray:

@@ -24,6 +24,8 @@ from fourbar_ros.config.cdr import encode_float64s, encode_joint_states
 from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, DEFAULT_STORAGE, Storage
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.calibration import PARAMETER_NAMES
+from fourbar_ros.core.completion import inverse_branch
+from fourbar_ros.core.load_calibration import LOAD_NAMES, effort_model, load_pose
 
 __all__ = ['GRAVITY', 'Sweep', 'write_calibration_bag']
 
@@ -52,6 +54,10 @@ class Sweep:
     driven: Driven = Driven.GAMMA
     branch: Branch = Branch.UPPER
     seed: int = 0
+    #: The antenna's load as built (``load_calibration.LOAD_NAMES``: kg, m, m, N m, efficiency): the joint states
+    #: then carry the joint's velocity (rad/s) and the effort it takes (N m, ``effort_model``) plus noise.
+    load: dict[str, float] | None = None
+    effort_noise: float = 0.02
 
     def linkage(self) -> AntennaLinkage:
         t = self.truth
@@ -63,6 +69,12 @@ class Sweep:
         lo, hi = self.theta_range
         phase = 2.0 * math.pi * self.cycles * np.asarray(seconds) / self.duration
         return 0.5 * (lo + hi) + 0.5 * (hi - lo) * np.cos(phase)
+
+    def theta_rate(self, seconds: np.ndarray) -> np.ndarray:
+        """d theta/dt (rad/s) at ``seconds``."""
+        lo, hi = self.theta_range
+        omega = 2.0 * math.pi * self.cycles / self.duration
+        return np.asarray(-0.5 * (hi - lo) * omega * np.sin(omega * np.asarray(seconds)))
 
     def true_q(self, theta: np.ndarray) -> np.ndarray:
         """The true driven rocker angle (rad) at antenna angle ``theta`` (rad)."""
@@ -89,14 +101,18 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     tj = np.arange(0.0, sweep.duration, 1.0 / sweep.joint_rate)
     ts = np.arange(sweep.sensor_delay, sweep.duration, 1.0 / sweep.sensor_rate)
     qm = sweep.measured_q(sweep.true_q(sweep.theta(tj)))
+    velocity, effort, has_velocity = _load(sweep, tj, rng)
     reading = sweep.theta(ts) + sweep.truth['sensor_offset'] + rng.normal(0.0, sweep.sensor_noise, ts.size)
     j_ns = _START_NS + np.round(tj * 1e9).astype(np.int64)
     s_ns = _START_NS + np.round((ts + sweep.sensor_clock_offset) * 1e9).astype(np.int64)
     k = len(sweep.names)
     position = np.zeros((tj.size, k))
     position[:, sweep.names.index(sweep.joint_name)] = qm
-    joint_raws = encode_joint_states(j_ns, '', sweep.names, position, np.zeros((tj.size, k)),
-                                     np.zeros((tj.size, k)), np.zeros(tj.size, dtype=np.bool_))
+    i = sweep.names.index(sweep.joint_name)
+    efforts, velocities = np.zeros((tj.size, k)), np.zeros((tj.size, k))
+    efforts[:, i], velocities[:, i] = effort, velocity
+    joint_raws = encode_joint_states(j_ns, '', sweep.names, position, efforts, velocities,
+                                     np.full(tj.size, has_velocity))
     if sweep.sensor == 'imu':
         sensor_raws = _imus(s_ns, reading)
         sensor_type = IMU
@@ -119,6 +135,24 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
             else:
                 write(sc, log, sensor_raws[i])
     return Path(path)
+
+
+def _load(sweep: Sweep, tj: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, bool]:
+    """(joint velocity rad/s, effort N m, whether the joint states carry a velocity) of the sweep's load."""
+    if sweep.load is None:
+        return np.zeros(tj.size), np.zeros(tj.size), False
+    link = sweep.linkage()
+    theta = sweep.theta(tj)
+    g, d = link.rocker_angles(theta, sweep.branch)
+    rates = link.rates_at(theta, g, d)
+    q_rate = sweep.theta_rate(tj) * np.asarray(rates.dgamma_dtheta if sweep.driven is Driven.GAMMA
+                                               else rates.ddelta_dtheta)
+    q_true = sweep.true_q(theta)
+    branch = inverse_branch(link, 0.5 * sum(sweep.theta_range), sweep.driven, sweep.branch)
+    p = np.array([sweep.load[name] for name in LOAD_NAMES])
+    pose = load_pose(link, q_true, q_rate, sweep.driven, branch)
+    effort = effort_model(p, pose, GRAVITY)[0] + rng.normal(0.0, sweep.effort_noise, tj.size)
+    return q_rate, effort, True
 
 
 def _imus(stamps_ns: np.ndarray, theta: np.ndarray) -> list[bytes]:

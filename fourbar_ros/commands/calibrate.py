@@ -56,7 +56,7 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.calibration_data import read_calibration_data
     from fourbar_ros.commands._residual_plot import PlotWorker
     from fourbar_ros.config.antenna_config import load_config
-    from fourbar_ros.core.calibration import CalibrationError, calibrate
+    from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, calibrate
 
     if not (math.isfinite(args.length_tolerance) and args.length_tolerance > 0.0):
         raise CommandError(f'--length-tolerance {args.length_tolerance!r} m must be finite and positive')
@@ -71,10 +71,15 @@ def run(args: argparse.Namespace) -> int:
         _check_span(cfg, data)
         lengths = (cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length, cfg.rocker_cd_length)
         fit = calibrate(data.q, data.theta, lengths, cfg.driven, cfg.measured_branch, args.length_tolerance)
+        load = _load(cfg, data, fit)
+        values = {name: fit.parameter(name).value for name in LENGTH_NAMES}
+        if isinstance(load, dict):
+            values.update(load['written_to_parameter_file'])
         files: dict[Path, bytes] = {}
         if args.output is not None:
-            files[args.output] = _calibrated_yaml(args.params, args.bag, fit).encode()
+            files[args.output] = _calibrated_yaml(args.params, args.bag, values).encode()
         report = _report(args, cfg, data, fit)
+        report['load'] = load
         if args.report is not None:
             files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
         if plot is not None and worker is not None:
@@ -93,6 +98,59 @@ def run(args: argparse.Namespace) -> int:
     write_atomically(files)
     print(_summary(report, files))
     return 0
+
+
+#: The load parameters that are node parameters (written to OUT.yaml when the data determined them).
+_NODE_LOAD_PARAMETERS = ('antenna_mass', 'com_offset_along', 'com_offset_normal', 'reducer_efficiency')
+
+
+def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[str, Any] | None:
+    """The load model fitted to the measured effort (``core.load_calibration``), as the report's ``load``: None
+    without an effort in the recording; ``{"skipped": why}`` when it cannot be fitted (the geometry still is)."""
+    import numpy as np
+
+    from fourbar_ros.core.calibration import CalibrationError
+    from fourbar_ros.core.load_calibration import LoadPrior, calibrate_load
+
+    effort = data.joint_effort
+    finite = np.isfinite(effort)
+    if not finite.any() or not np.any(effort[finite] != 0.0):
+        return None
+    if not cfg.gravity > 0.0:
+        return {'skipped': 'gravity is 0 in the parameter file'}
+    velocity = data.joint_velocity
+    measured = bool(np.isfinite(velocity).all())
+    q_rate = velocity if measured else np.gradient(data.joint_q, data.joint_times)
+    prior = LoadPrior(cfg.antenna_mass, cfg.com_offset_along, cfg.com_offset_normal, 0.0, cfg.reducer_efficiency)
+    q_true = data.joint_q + fit.parameter('driven_joint_offset').value
+    try:
+        load, used = calibrate_load(fit.linkage(), q_true, q_rate, effort, cfg.driven, cfg.measured_branch,
+                                    cfg.gravity, prior)
+    except CalibrationError as exc:
+        return {'skipped': str(exc)}
+    units = {'antenna_mass': 'kg', 'coulomb_friction': 'N m', 'reducer_efficiency': ''}
+    fitted = {p.name: p for p in load.parameters}
+    parameters = {p.name: {'value': p.value, 'sd': p.sd, 'determined_by_data': p.determined_by_data,
+                           'prior': p.prior, 'prior_sd': p.prior_sd, 'unit': units.get(p.name, 'm')}
+                  for p in load.parameters}
+    written = {name: fitted[name].value for name in _NODE_LOAD_PARAMETERS
+               if fitted[name].determined_by_data
+               and (name != 'reducer_efficiency' or 0.0 < fitted[name].value <= 1.0)}
+    r = load.residuals
+    return {
+        'parameters': parameters,
+        'readings': int(np.count_nonzero(used)),
+        'velocity': 'measured' if measured else 'differentiated from the positions',
+        'residual_rms_N_m': float(np.sqrt(np.mean(r * r))),
+        'largest_residual_N_m': float(np.max(np.abs(r))),
+        'noise_sd_N_m': load.sigma,
+        'singular_values': [float(x) for x in load.singular_values],
+        'directions_determined_by_data': int(np.count_nonzero(load.singular_values > math.sqrt(3.0))),
+        'model': ('effort = tau_in / reducer_efficiency + coulomb_friction sign(q_dot) when the motor drives, '
+                  'tau_in reducer_efficiency + ... when back-driven; tau_in = antenna_mass g dy_com/dtheta '
+                  'dtheta/dq at the calibrated pose; readings at rest left out'),
+        'written_to_parameter_file': written,
+    }
 
 
 def _check_span(cfg: AntennaConfig, data: CalibrationData) -> None:
@@ -154,15 +212,15 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
 _NUMBER_LINE = r'^(?P<head>[ \t]*{key}[ \t]*:[ \t]*)(?P<value>[^#\n]*?)(?P<tail>[ \t]*(?:#[^\n]*)?)$'
 
 
-def _calibrated_yaml(params: Path, bag: Path, fit: Calibration) -> str:
-    """The parameter file's text with the four lengths replaced by the calibrated ones (comments kept), checked by
-    reading it back with the node's own reader and validation."""
+def _calibrated_yaml(params: Path, bag: Path, values: dict[str, float]) -> str:
+    """The parameter file's text with ``values`` (node parameters: the four lengths, and the load's parameters the
+    data determined) replacing the file's (comments kept), checked by reading it back with the node's own reader
+    and validation."""
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.config.rcl_yaml import read_text
-    from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError
+    from fourbar_ros.core.calibration import CalibrationError
 
     text = read_text(params)
-    values = {name: fit.parameter(name).value for name in LENGTH_NAMES}
     for name, value in values.items():
         pattern = re.compile(_NUMBER_LINE.format(key=re.escape(name)), re.MULTILINE)
         found = pattern.findall(text)
@@ -179,7 +237,7 @@ def _calibrated_yaml(params: Path, bag: Path, fit: Calibration) -> str:
         indent = sections[0]['indent'] + '  '
         at = sections[0].end()
         text = f'{text[:at]}\n{indent}{name}: {value!r}  # calibrated{text[at:]}'
-    stamp = (f'# {", ".join(LENGTH_NAMES)}: calibrated by `fourbar calibrate` from the recording {bag.name} '
+    stamp = (f'# {", ".join(values)}: calibrated by `fourbar calibrate` from the recording {bag.name} '
              f'(report: the sds and what the data determined).\n')
     text = stamp + text
     with tempfile.TemporaryDirectory() as tmp:
@@ -188,10 +246,10 @@ def _calibrated_yaml(params: Path, bag: Path, fit: Calibration) -> str:
         try:
             cfg = load_config(check)
         except ValueError as exc:
-            raise CalibrationError(f'the calibrated lengths do not make a valid parameter file: {exc}') from None
-    read_back = {name: getattr(cfg, name) for name in LENGTH_NAMES}
+            raise CalibrationError(f'the calibrated values do not make a valid parameter file: {exc}') from None
+    read_back = {name: getattr(cfg, name) for name in values}
     if read_back != values:
-        raise CommandError(f'{params}: could not set the lengths in this file (read back {read_back}); set them by '
+        raise CommandError(f'{params}: could not set the values in this file (read back {read_back}); set them by '
                            'hand from the report')
     return text
 
@@ -255,6 +313,16 @@ def _summary(report: dict[str, Any], files: dict[Path, bytes]) -> str:
         by = 'data' if p['determined_by_data'] else 'prior'
         lines.append(f'  {name:<20} {p["value"]:.9g} {p["unit"]} (sd {p["sd"]:.2g}, prior {p["prior"]:.6g} sd '
                      f'{p["prior_sd"]:.2g}; by the {by})')
+    load = report.get('load')
+    if isinstance(load, dict) and 'parameters' in load:
+        lines.append(f'  load from the measured effort ({load["readings"]} moving readings, residual RMS '
+                     f'{load["residual_rms_N_m"]:.3g} N m):')
+        for name, p in load['parameters'].items():
+            by = 'data' if p['determined_by_data'] else 'prior'
+            lines.append(f'  {name:<20} {p["value"]:.6g} {p["unit"]} (sd {p["sd"]:.2g}, prior {p["prior"]:.6g} '
+                         f'sd {p["prior_sd"]:.2g}; by the {by})'.replace('  (', ' ('))
+    elif isinstance(load, dict):
+        lines.append(f'  load model not fitted: {load["skipped"]}')
     lines += [f'  wrote {path}' for path in files]
     if files:
         lines.append('  driven_joint_offset and sensor_offset are not node parameters: they are in the report only')

@@ -42,6 +42,7 @@ Pure: numpy and the core only.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -52,7 +53,7 @@ from fourbar_ros.core.numeric import ArrayLike, FloatArray
 
 __all__ = [
     'DETERMINED_RATIO', 'LENGTH_NAMES', 'OFFSET_SD', 'PARAMETER_NAMES', 'Calibration', 'CalibrationError',
-    'FittedParameter', 'calibrate', 'model_jacobian', 'model_mismatch', 'predict',
+    'FittedParameter', 'MapFit', 'calibrate', 'map_fit', 'model_jacobian', 'model_mismatch', 'predict',
 ]
 
 #: The fitted parameters, in order: the four lengths (m, named as the node's parameters), then the offsets (rad).
@@ -208,47 +209,81 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
     if not (length_sd > 0.0 and offset_sd > 0.0 and math.isfinite(length_sd) and math.isfinite(offset_sd)):
         raise CalibrationError(f'prior sds must be finite and positive (lengths {length_sd} m, offsets {offset_sd} '
                                'rad)')
-    iteration_limit = MAX_ITERATIONS if max_iterations is None else max_iterations
     p0 = np.array([*map(float, lengths), 0.0, 0.0])
     sd = np.array([length_sd] * 4 + [offset_sd] * 2)
-    pred0, _ = model_jacobian(p0, q, driven, branch)
+
+    def model(p: FloatArray) -> tuple[FloatArray, FloatArray]:
+        return model_jacobian(p, q, driven, branch)
+
+    pred0 = model(p0)[0]
     r0 = y - pred0
     if not np.all(np.isfinite(r0)):
         bad = int(np.count_nonzero(~np.isfinite(r0)))
         raise CalibrationError(f'{bad} of {n} measured joint angles are out of the given geometry\'s reach (first '
                                f'q={float(q[~np.isfinite(r0)][0])!r} rad): check the parameter file and the joint')
-    z = np.zeros(6)  # scaled parameters: p = p0 + sd * z
+    fit = map_fit(model, y, p0, sd, PARAMETER_NAMES, max_iterations, unit='rad')
+    return Calibration(fit.parameters, fit.covariance, fit.singular_values, fit.directions, fit.sigma, r0,
+                       fit.residuals, fit.iterations, fit.passes)
+
+
+@dataclass(frozen=True)
+class MapFit:
+    """What ``map_fit`` found: the parameters (value, posterior sd, prior), their covariance, the singular values
+    and right singular vectors of the data part of the scaled Jacobian, the noise sd estimated from the residuals
+    (the data's unit), the residuals (data minus model) at the fit, and the work done."""
+
+    parameters: tuple[FittedParameter, ...]
+    covariance: FloatArray
+    singular_values: FloatArray
+    directions: FloatArray
+    sigma: float
+    residuals: FloatArray
+    iterations: int
+    passes: int
+
+
+Model = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
+
+
+def map_fit(model: Model, y: FloatArray, p0: FloatArray, sd: FloatArray, names: Sequence[str],
+            max_iterations: int | None = None, unit: str = '') -> MapFit:
+    """Maximum a posteriori fit of ``model`` (parameters -> (prediction (N,), Jacobian (N, k))) to data ``y`` (in
+    time order) under the Gaussian prior N(p0, diag(sd^2)), the noise sd estimated from the residuals (passes
+    re-estimating it until it settles). Raises CalibrationError when it does not converge."""
+    n, k = y.size, p0.size
+    iteration_limit = MAX_ITERATIONS if max_iterations is None else max_iterations
+    r0 = y - model(p0)[0]
+    z = np.zeros(k)  # scaled parameters: p = p0 + sd * z
     # First noise estimate: consecutive readings differ by their noise and little else (the model's error is smooth
     # along a sweep), so the passes re-estimating sigma start next to where they end.
-    sigma = max(float(np.std(np.diff(r0))) / math.sqrt(2.0), 1e-12)
+    sigma = max(float(np.std(np.diff(r0))) / math.sqrt(2.0), 1e-12 * max(float(np.max(np.abs(y))), 1.0))
     iterations = passes = 0
     for _ in range(MAX_PASSES):
         passes += 1
-        z, used = _levenberg_marquardt(z, p0, sd, sigma, q, y, driven, branch, iteration_limit)
+        z, used = _levenberg_marquardt(z, p0, sd, sigma, y, model, iteration_limit)
         iterations += used
-        r = y - model_jacobian(p0 + sd * z, q, driven, branch)[0]
-        new_sigma = max(math.sqrt(_square(r) / (n - 6)), 1e-15)
+        r = y - model(p0 + sd * z)[0]
+        new_sigma = max(math.sqrt(_square(r) / (n - k)), 1e-300)
         settled = abs(new_sigma - sigma) <= SIGMA_TOL * sigma
         sigma = new_sigma
         if settled:
             break
     else:
         raise CalibrationError(f'the fit did not converge: the noise estimate still moved after {MAX_PASSES} '
-                               f'passes (sigma {sigma:.3g} rad)')
+                               f'passes (sigma {sigma:.3g} {unit})')
     p = p0 + sd * z
-    pred, jac = model_jacobian(p, q, driven, branch)
+    pred, jac = model(p)
     js = jac * (sd / sigma)
-    hessian = _normal(js) + np.eye(6)
-    cov_scaled = np.linalg.inv(hessian)
+    cov_scaled = np.linalg.inv(_normal(js) + np.eye(k))
     covariance: FloatArray = np.asarray(cov_scaled * np.outer(sd, sd), dtype=np.float64)
     singular, directions = np.linalg.svd(js, full_matrices=False)[1:]
     params = tuple(FittedParameter(name, float(p[i]), float(math.sqrt(covariance[i, i])), float(p0[i]),
-                                   float(sd[i])) for i, name in enumerate(PARAMETER_NAMES))
-    return Calibration(params, covariance, singular, directions, sigma, r0, y - pred, iterations, passes)
+                                   float(sd[i])) for i, name in enumerate(names))
+    return MapFit(params, covariance, singular, directions, sigma, y - pred, iterations, passes)
 
 
 def _normal(js: FloatArray) -> FloatArray:
-    """J^T J (6 x 6) without BLAS threads, which cost more than they save on 6 columns."""
+    """J^T J (k x k) without BLAS threads, which cost more than they save on a few columns."""
     out: FloatArray = np.einsum('ij,ik->jk', js, js)
     return out
 
@@ -262,29 +297,29 @@ def _cost(z: FloatArray, r: FloatArray, sigma: float) -> float:
     return _square(r) / (sigma * sigma) + _square(z)
 
 
-def _levenberg_marquardt(z: FloatArray, p0: FloatArray, sd: FloatArray, sigma: float, q: FloatArray, y: FloatArray,
-                         driven: Driven, branch: Branch, max_iterations: int) -> tuple[FloatArray, int]:
+def _levenberg_marquardt(z: FloatArray, p0: FloatArray, sd: FloatArray, sigma: float, y: FloatArray, model: Model,
+                         max_iterations: int) -> tuple[FloatArray, int]:
     """Minimise |r(z)|^2 / sigma^2 + |z|^2 over the scaled parameters z; (z, iterations). Raises CalibrationError
     if it does not converge within max_iterations. Damped by lam I (Levenberg): in the scaled parameters the prior
     adds I to the normal matrix, so every direction has curvature at least 1; Marquardt's diag(A) would damp the
     directions the data barely see (mixtures of parameters the data see well) by the stiff ones' curvature and
     crawl along them."""
     lam = 1e-3
-    pred, jac = model_jacobian(p0 + sd * z, q, driven, branch)
+    k = z.size
+    pred, jac = model(p0 + sd * z)
     r = y - pred
     cost = _cost(z, r, sigma)
     for it in range(1, max_iterations + 1):
         js = jac * (sd / sigma)          # d pred / dz, whitened
         g = np.einsum('ij,i->j', js, r) / sigma - z  # minus half the gradient of the cost
-        a = _normal(js) + np.eye(6)
+        a = _normal(js) + np.eye(k)
         while True:
             try:
-                step = np.linalg.solve(a + lam * np.eye(6), g)
+                step = np.linalg.solve(a + lam * np.eye(k), g)
             except np.linalg.LinAlgError:
-                step = np.full(6, np.nan)
+                step = np.full(k, np.nan)
             trial = z + step
-            t_pred, t_jac = (model_jacobian(p0 + sd * trial, q, driven, branch) if np.all(np.isfinite(step))
-                             else (np.full_like(y, np.nan), jac))
+            t_pred, t_jac = model(p0 + sd * trial) if np.all(np.isfinite(step)) else (np.full_like(y, np.nan), jac)
             t_r = y - t_pred
             t_cost = _cost(trial, t_r, sigma) if np.all(np.isfinite(t_r)) else math.inf
             if t_cost <= cost:

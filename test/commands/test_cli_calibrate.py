@@ -127,3 +127,31 @@ def test_bad_input_is_status_2(tmp_path: Path, out: Path, capsys: pytest.Capture
     assert calibrate(tmp_path, bag, '--length-tolerance', '0') == 2
     assert 'must be finite and positive' in capsys.readouterr().err
     assert list(out.iterdir()) == []
+
+
+def test_the_load_from_the_measured_effort(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A recording whose joint states carry velocity and effort: the load model is fitted too, and the node's
+    parameters the data determined are written to the file."""
+    load = {'antenna_mass': 2.0, 'com_offset_along': 0.03, 'com_offset_normal': 0.02, 'coulomb_friction': 0.05,
+            'reducer_efficiency': 0.7}
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, duration=120.0, cycles=2.0, load=load, seed=2))
+    assert calibrate(tmp_path, bag) == 0
+    report = json.loads((out / 'report.json').read_text())
+    fitted = report['load']
+    assert fitted['velocity'] == 'measured'
+    assert fitted['noise_sd_N_m'] == pytest.approx(0.02, rel=0.1)
+    for name, p in fitted['parameters'].items():
+        assert abs(p['value'] - load[name]) <= 4.0 * p['sd'], name
+    written = fitted['written_to_parameter_file']
+    assert set(written) == {'antenna_mass', 'com_offset_along', 'com_offset_normal', 'reducer_efficiency'}
+    cfg = load_config(out / 'calibrated.yaml')
+    for name, value in written.items():
+        assert getattr(cfg, name) == value
+    assert 'load from the measured effort' in capsys.readouterr().out
+
+
+def test_no_effort_no_load_model(tmp_path: Path, out: Path) -> None:
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, duration=60.0))
+    assert calibrate(tmp_path, bag) == 0
+    assert json.loads((out / 'report.json').read_text())['load'] is None
+    assert load_config(out / 'calibrated.yaml').antenna_mass == load_config(CONFIG).antenna_mass
