@@ -1,6 +1,6 @@
 """`fourbar calibrate` on a 10-minute recording against rosbags reading the same bag, same run.
 
-    .venv/bin/python -m benchmarks.calibrate_bench [--quick] [--rounds 3]
+    .venv/bin/python -m benchmarks.calibrate_bench [--quick] [--rounds 3] [--duration 600]
 
 - the recording: a synthetic sweep (``fourbar_ros.bags.calibration_sweep``) of 600 s, joint states at 100 Hz
   (60,000) and a Float64 inclinometer at 50 Hz (30,000), mcap, written to a temporary directory;
@@ -23,6 +23,7 @@ import argparse
 import contextlib
 import io
 import math
+import os
 import resource
 import shutil
 import statistics
@@ -89,6 +90,7 @@ def run(duration: float, rounds: int) -> dict[str, Any]:
     read, calibrate = statistics.median(reads), statistics.median(calibrations)
     return {
         'recording': {'seconds': duration, 'messages': messages, 'joint_states_hz': 100, 'sensor_hz': 50},
+        'load_average': os.getloadavg(),
         'processes': {'read_s': read, 'calibrate_s': calibrate, 'ratio': calibrate / read,
                       'cpu_ratio': statistics.median(calibrate_cpu) / statistics.median(read_cpu),
                       'rounds': {'read_s': reads, 'calibrate_s': calibrations, 'read_cpu_s': read_cpu,
@@ -103,8 +105,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or '').splitlines()[0])
     parser.add_argument('--quick', action='store_true', help='a 60 s recording, one round')
     parser.add_argument('--rounds', type=int, default=3)
+    parser.add_argument('--duration', type=float, default=600.0, help='seconds of recording (default 600)')
     args = parser.parse_args(argv)
-    return print_json(run(60.0 if args.quick else 600.0, 1 if args.quick else args.rounds))
+    return print_json(run(60.0 if args.quick else args.duration, 1 if args.quick else args.rounds))
 
 
 if __name__ == '__main__':
