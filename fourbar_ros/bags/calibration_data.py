@@ -1,0 +1,257 @@
+"""A calibration recording read and paired: the measured driven joint and an antenna angle sensor (no rclpy).
+
+The recording holds
+
+- the measured driven joint: ``sensor_msgs/msg/JointState`` (position rad, effort N m) on the measured topic
+  (``--measured-topic``; by default joint_state_broadcaster's ``/joint_state_broadcaster/joint_states`` or
+  ``/measured_joint_states``, else the one such topic in a namespace: ``process_measured.measured_topic``), the
+  driven joint found by its name (``gamma_joint`` or ``delta_joint`` of the parameter file);
+- the antenna angle sensor on ``angle_topic``: ``std_msgs/msg/Float64`` (rad, in theta's sense: positive tilts the
+  antenna down), or ``sensor_msgs/msg/Imu``, whose tilt is taken from gravity (``imu_tilt``).
+
+Each message is timed by its header stamp when it has one (a JointState's or an Imu's, unless zero), else by the
+recording's receive time (a Float64's). The encoder is interpolated linearly at the sensor's times, only inside its
+own span and not across a gap longer than ``GAP_FACTOR`` of its median interval. Problems of the data (a missing
+topic, a topic of the wrong type, streams that do not overlap) raise ``CalibrationError`` (one line).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fourbar_ros.bags.process_measured import measured_topic
+from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag, topic_types
+from fourbar_ros.config.cdr import (
+    MalformedCdrError,
+    decode_float64s,
+    decode_joint_states,
+    read_joint_state_arrays,
+    read_joint_state_head,
+)
+from fourbar_ros.core.calibration import CalibrationError
+from fourbar_ros.core.errors import one_line
+from fourbar_ros.core.numeric import FloatArray
+
+__all__ = ['IMU', 'SENSOR_TYPES', 'CalibrationData', 'imu_tilt', 'pair', 'read_calibration_data']
+
+IMU = 'sensor_msgs/msg/Imu'
+#: The antenna angle sensors read.
+SENSOR_TYPES = (FLOAT64, IMU)
+#: The encoder is not interpolated across a gap longer than this many of its median intervals.
+GAP_FACTOR = 10.0
+_STAMP = struct.Struct('<iI')
+_UINT32 = struct.Struct('<I')
+_ACCEL = struct.Struct('<3d')
+#: Bytes from the (8-aligned) orientation to linear_acceleration in an Imu: orientation (4 doubles), its covariance
+#: (9), angular_velocity (3) and its covariance (9).
+_ACCEL_AT = 8 * (4 + 9 + 3 + 9)
+
+
+def imu_tilt(ax: FloatArray, az: FloatArray) -> FloatArray:
+    """The antenna angle theta (rad) from an accelerometer at rest on the antenna: ``atan2(-a_x, a_z)``.
+
+    The IMU's axes are the robot model's coupler frame (REP-103): x along the antenna (B -> C), y along the joint
+    axes (the model's +y), z up when theta = 0. The coupler frame is the root turned by theta about +y, so at rest
+    the measured specific force (gravity's reaction, +9.8 m/s^2 up) reads (-g sin theta, 0, g cos theta): positive
+    theta (the antenna tilted down, x toward -z) gives a negative a_x. A small mounting error about y is the
+    calibration's sensor offset; a mount turned about z or x changes the sign or the axis and must be undone first.
+    """
+    tilt: FloatArray = np.arctan2(-np.asarray(ax, dtype=np.float64), np.asarray(az, dtype=np.float64))
+    return tilt
+
+
+@dataclass(frozen=True)
+class CalibrationData:
+    """A recording's streams and their pairs. Times in s from ``t0_ns`` (ns, the first message's time).
+
+    ``q``: the driven joint at the sensor's paired times (rad, interpolated); ``theta``: the sensor's readings there
+    (rad); ``joint_times``/``joint_q``/``joint_velocity``/``joint_effort``: the encoder's own stream (rad, rad/s,
+    N m; velocity and effort NaN where not measured).
+    """
+
+    path: Path
+    joint_topic: str
+    sensor_topic: str
+    sensor_type: str
+    t0_ns: int
+    joint_times: FloatArray
+    joint_q: FloatArray
+    joint_velocity: FloatArray
+    joint_effort: FloatArray
+    sensor_times: FloatArray
+    sensor_theta: FloatArray
+    times: FloatArray
+    q: FloatArray
+    theta: FloatArray
+
+    @property
+    def outside(self) -> int:
+        """Sensor readings left out: outside the encoder's span or in one of its gaps."""
+        return self.sensor_times.size - self.times.size
+
+    def summary(self) -> str:
+        return (f'{self.joint_times.size} joint states on {self.joint_topic}, {self.sensor_times.size} readings '
+                f'[{self.sensor_type}] on {self.sensor_topic}: {self.times.size} paired ({self.outside} outside the '
+                f'encoder\'s span or its gaps)')
+
+
+def pair(joint_times: FloatArray, joint_q: FloatArray, sensor_times: FloatArray,
+         sensor_theta: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """(times, q, theta): the encoder interpolated linearly at the sensor's times (s) inside its span and not across
+    a gap longer than GAP_FACTOR median intervals; raises CalibrationError when no reading falls there."""
+    order = np.argsort(joint_times, kind='stable')
+    tj, qj = joint_times[order], joint_q[order]
+    keep = np.concatenate(([True], np.diff(tj) > 0.0))  # one value per time
+    tj, qj = tj[keep], qj[keep]
+    ts = sensor_times
+    if tj.size < 2 or ts.size == 0 or ts.max() < tj[0] or ts.min() > tj[-1]:
+        raise CalibrationError(
+            f'the streams do not overlap in time: joint states {_span(tj)}, sensor {_span(ts)} (s from the first '
+            'message); record both at once, with their clocks agreeing')
+    inside = (ts >= tj[0]) & (ts <= tj[-1])
+    dt = np.diff(tj)
+    gap = GAP_FACTOR * float(np.median(dt))
+    at = np.clip(np.searchsorted(tj, ts, side='right') - 1, 0, tj.size - 2)
+    inside &= dt[at] <= gap
+    if not inside.any():
+        raise CalibrationError(f'no sensor reading falls inside the joint states\' span {_span(tj)} s outside its '
+                               'gaps: the streams do not overlap in time')
+    t = ts[inside]
+    return t, np.interp(t, tj, qj), sensor_theta[inside]
+
+
+def _span(t: FloatArray) -> str:
+    return f'[{float(t.min()):.3f}, {float(t.max()):.3f}]' if t.size else '(no messages)'
+
+
+def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle_topic: str,
+                          joint_topic: str | None = None) -> CalibrationData:
+    """Read a recording (see the module docstring) and pair its streams. Raises BagError for an unreadable bag and
+    CalibrationError (one line) for data that cannot calibrate."""
+    p = Path(path)
+    with open_bag(p) as reader:
+        types = topic_types(reader)
+        if angle_topic not in types:
+            raise CalibrationError(f'{p}: no sensor topic {angle_topic} ({_topics(types)})')
+        sensor_type = types[angle_topic]
+        if sensor_type not in SENSOR_TYPES:
+            raise CalibrationError(f'{p}: sensor topic {angle_topic} has type {sensor_type}, expected '
+                                   f'{" or ".join(SENSOR_TYPES)}')
+        chosen = measured_topic(p, types, joint_topic)
+        if chosen is None:
+            want = joint_topic or '/joint_state_broadcaster/joint_states'
+            raise CalibrationError(f'{p}: no measured {JOINT_STATE} topic {want} ({_topics(types)})')
+        conns = [c for c in reader.connections if c.topic in (chosen, angle_topic)]
+        try:
+            messages = [(conn.topic == chosen, log, data) for conn, log, data in reader.messages(connections=conns)]
+        except Exception as exc:
+            raise BagError(f'{p}: unreadable bag ({one_line(exc)})') from exc
+    raws = {topic: [bytes(d) for is_joint, _, d in messages if is_joint is (topic == chosen)]
+            for topic in (chosen, angle_topic)}
+    logs = {topic: [t for is_joint, t, _ in messages if is_joint is (topic == chosen)]
+            for topic in (chosen, angle_topic)}
+    del messages
+    if not raws[chosen]:
+        raise CalibrationError(f'{p}: topic {chosen} has no messages')
+    if not raws[angle_topic]:
+        raise CalibrationError(f'{p}: topic {angle_topic} has no messages')
+    j_ns, q, velocity, effort = _joint_states(p, chosen, raws[chosen], np.array(logs[chosen], dtype=np.int64),
+                                              driven_joint)
+    s_log = np.array(logs[angle_topic], dtype=np.int64)
+    s_ns: Any
+    theta: FloatArray
+    s_ns, theta = (_imus(p, angle_topic, raws[angle_topic], s_log) if sensor_type == IMU
+                   else (s_log, _float64s(p, angle_topic, raws[angle_topic])))
+    finite_j, finite_s = np.isfinite(q), np.isfinite(theta)
+    j_ns, q, velocity, effort = j_ns[finite_j], q[finite_j], velocity[finite_j], effort[finite_j]
+    order = np.argsort(j_ns, kind='stable')
+    j_ns, q, velocity, effort = j_ns[order], q[order], velocity[order], effort[order]
+    s_ns, theta = s_ns[finite_s], theta[finite_s]
+    if q.size == 0 or theta.size == 0:
+        raise CalibrationError(f'{p}: no finite {"joint position" if q.size == 0 else "sensor reading"}')
+    t0 = int(min(j_ns.min(), s_ns.min()))
+    jt = (j_ns - t0) * 1e-9
+    st = (s_ns - t0) * 1e-9
+    times, qp, thp = pair(jt, q, st, theta)
+    return CalibrationData(p, chosen, angle_topic, sensor_type, t0, jt, q, velocity, effort, st, theta, times, qp,
+                           thp)
+
+
+def _topics(types: dict[str, str]) -> str:
+    return 'topics: ' + ', '.join(f'{t} [{m}]' for t, m in sorted(types.items())) if types else 'the bag has no topics'
+
+
+def _joint_states(p: Path, topic: str, raws: list[bytes], logs: Any,
+                  driven_joint: str) -> tuple[Any, FloatArray, FloatArray, FloatArray]:
+    """(times ns, position rad, velocity rad/s or NaN, effort N m or NaN) of the driven joint: the header stamp,
+    else the receive time."""
+    try:
+        sec, nanosec, frame_id, names, _ = read_joint_state_head(raws[0])
+    except MalformedCdrError as exc:
+        raise CalibrationError(f'{p}: message 0 on {topic} is not a valid {JOINT_STATE} ({one_line(exc)})') from None
+    fast = decode_joint_states(raws, frame_id, tuple(names)) if driven_joint in names else None
+    if fast is not None:
+        i = names.index(driven_joint)
+        stamps, q, effort = fast.stamps_ns, fast.position[:, i].copy(), fast.effort[:, i].copy()
+        velocity = fast.velocity[:, i].copy()
+    else:
+        n = len(raws)
+        stamps = np.zeros(n, dtype=np.int64)
+        q, velocity, effort = np.full(n, np.nan), np.full(n, np.nan), np.full(n, np.nan)
+        for k, raw in enumerate(raws):
+            try:
+                sec, nanosec, _, names, at = read_joint_state_head(raw)
+                position, velocities, efforts = read_joint_state_arrays(raw, at)
+            except MalformedCdrError:
+                continue
+            if driven_joint in names:
+                i = names.index(driven_joint)
+                stamps[k] = sec * 1_000_000_000 + nanosec
+                q[k] = position[i] if i < len(position) else math.nan
+                effort[k] = efforts[i] if i < len(efforts) else math.nan
+                velocity[k] = velocities[i] if i < len(velocities) else math.nan
+        if not np.isfinite(q).any():
+            raise CalibrationError(f'{p}: no JointState on {topic} has the driven joint {driven_joint!r}')
+    stamps = np.where(stamps != 0, stamps, logs)
+    return stamps, q, velocity, effort
+
+
+def _float64s(p: Path, topic: str, raws: list[bytes]) -> FloatArray:
+    values = decode_float64s(raws)
+    if values is not None:
+        return values
+    store = jazzy_typestore()
+    try:
+        msgs: list[Any] = [store.deserialize_cdr(r, FLOAT64) for r in raws]
+        return np.array([float(m.data) for m in msgs], dtype=np.float64)
+    except Exception as exc:
+        raise CalibrationError(f'{p}: a message on {topic} is not a valid {FLOAT64} ({one_line(exc)})') from None
+
+
+def _imus(p: Path, topic: str, raws: list[bytes], logs: Any) -> tuple[Any, FloatArray]:
+    """(times ns, theta rad) of little-endian CDR Imu messages: the header stamp (else the receive time) and the
+    tilt from linear_acceleration (``imu_tilt``)."""
+    n = len(raws)
+    stamps = np.empty(n, dtype=np.int64)
+    acc = np.empty((n, 3))
+    for k, raw in enumerate(raws):
+        try:
+            if len(raw) < 16 or raw[1] != 1:
+                raise ValueError('not little-endian CDR')
+            sec, nanosec = _STAMP.unpack_from(raw, 4)
+            length = _UINT32.unpack_from(raw, 12)[0]
+            at = 16 + length
+            at += -(at - 4) % 8
+            acc[k] = _ACCEL.unpack_from(raw, at + _ACCEL_AT)
+        except (ValueError, struct.error) as exc:
+            raise CalibrationError(f'{p}: message {k} on {topic} is not a valid {IMU} ({one_line(exc)})') from None
+        stamps[k] = sec * 1_000_000_000 + nanosec
+    stamps = np.where(stamps != 0, stamps, logs)
+    return stamps, np.asarray(imu_tilt(acc[:, 0], acc[:, 2]), dtype=np.float64)

@@ -1,0 +1,330 @@
+"""`fourbar calibrate BAG --params FILE --angle-topic TOPIC`: the linkage as built, fitted to a recorded sweep."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import json
+import math
+import os
+import re
+import tempfile
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from fourbar_ros.commands import CommandError
+
+if TYPE_CHECKING:
+    from fourbar_ros.bags.calibration_data import CalibrationData
+    from fourbar_ros.config.antenna_config import AntennaConfig
+    from fourbar_ros.core.calibration import Calibration
+
+HELP = ('fit the linkage as built (the four lengths, the driven joint\'s offset and the sensor\'s) to a recorded '
+        'sweep of the measured driven joint and an antenna angle sensor; write the calibrated parameter file, a '
+        'report and a plot of the residuals')
+
+#: A recording must sweep at least this much tilt (rad, 1 deg) to say anything about the geometry.
+MIN_TILT_SPAN = math.radians(1.0)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of `fourbar calibrate`."""
+    parser.add_argument('bag', type=Path, metavar='BAG', help='the recording (directory, .mcap or .db3)')
+    parser.add_argument('--params', type=Path, metavar='FILE', required=True,
+                        help='the node\'s parameter file: the lengths as designed (the prior), the driven rocker, '
+                        'its joint name and the branch')
+    parser.add_argument('--angle-topic', metavar='TOPIC', required=True,
+                        help='the antenna angle sensor: std_msgs/Float64 (rad, positive tilts the antenna down) or '
+                        'sensor_msgs/Imu (the tilt from gravity, axes as the coupler frame)')
+    parser.add_argument('--measured-topic', metavar='TOPIC',
+                        help='the measured driven joint, sensor_msgs/JointState (default: '
+                        '/joint_state_broadcaster/joint_states or /measured_joint_states, else the one such topic '
+                        'in a namespace)')
+    parser.add_argument('-o', '--output', type=Path, metavar='OUT.yaml',
+                        help='write the parameter file with the calibrated lengths (and OUT.png, the residuals)')
+    parser.add_argument('--report', type=Path, metavar='OUT.json', help='write the report as JSON')
+    parser.add_argument('--length-tolerance', type=float, default=5e-4, metavar='M',
+                        help='standard deviation of each given length, the prior (m, default 0.0005)')
+
+
+def run(args: argparse.Namespace) -> int:
+    """Calibrate; exit 0 with the outputs written, 1 with one line when the recording cannot calibrate, 2 on bad
+    input; nothing written unless everything is."""
+    import numpy as np
+
+    from fourbar_ros.bags.calibration_data import read_calibration_data
+    from fourbar_ros.commands._residual_plot import PlotWorker
+    from fourbar_ros.config.antenna_config import load_config
+    from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, calibrate
+
+    if not (math.isfinite(args.length_tolerance) and args.length_tolerance > 0.0):
+        raise CommandError(f'--length-tolerance {args.length_tolerance!r} m must be finite and positive')
+    for out in (args.output, args.report):
+        if out is not None and not out.parent.is_dir():
+            raise CommandError(f'{out}: directory {out.parent} does not exist')
+    cfg = load_config(args.params)  # ConfigError: exit 2
+    plot = _plot_path(args.output, args.report)
+    worker = PlotWorker() if plot is not None else None
+    try:
+        data = read_calibration_data(args.bag, cfg.driven_joint, args.angle_topic, args.measured_topic)
+        _check_span(cfg, data)
+        lengths = (cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length, cfg.rocker_cd_length)
+        fit = calibrate(data.q, data.theta, lengths, cfg.driven, cfg.measured_branch, args.length_tolerance)
+        load = _load(cfg, data, fit)
+        values = {name: fit.parameter(name).value for name in LENGTH_NAMES}
+        if isinstance(load, dict):
+            values.update(load['written_to_parameter_file'])
+        files: dict[Path, bytes] = {}
+        if args.output is not None:
+            files[args.output] = _calibrated_yaml(args.params, args.bag, values).encode()
+        report = _report(args, cfg, data, fit)
+        report['load'] = load
+        if args.report is not None:
+            files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
+        if plot is not None and worker is not None:
+            # x: the calibrated model's angle (from the encoder), not the noisy reading, which would bias the bins
+            theta = np.degrees(data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)
+            title = f'fourbar calibrate: {data.path.name}, {data.times.size} readings, {cfg.driven_joint}'
+            files[plot] = worker.render(theta, fit.residuals_before, fit.residuals_after, title)
+            report['plot'] = str(plot)
+            if args.report is not None:
+                files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
+    except CalibrationError as exc:
+        raise CommandError(str(exc), status=1) from None
+    finally:
+        if worker is not None:
+            worker.close()
+    write_atomically(files)
+    print(_summary(report, files))
+    return 0
+
+
+#: The load parameters that are node parameters (written to OUT.yaml when the data determined them).
+_NODE_LOAD_PARAMETERS = ('antenna_mass', 'com_offset_along', 'com_offset_normal', 'reducer_efficiency')
+
+
+def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[str, Any] | None:
+    """The load model fitted to the measured effort (``core.load_calibration``), as the report's ``load``: None
+    without an effort in the recording; ``{"skipped": why}`` when it cannot be fitted (the geometry still is)."""
+    import numpy as np
+
+    from fourbar_ros.core.calibration import CalibrationError
+    from fourbar_ros.core.load_calibration import LoadPrior, calibrate_load
+
+    effort = data.joint_effort
+    finite = np.isfinite(effort)
+    if not finite.any() or not np.any(effort[finite] != 0.0):
+        return None
+    if not cfg.gravity > 0.0:
+        return {'skipped': 'gravity is 0 in the parameter file'}
+    velocity = data.joint_velocity
+    measured = bool(np.isfinite(velocity).all())
+    q_rate = velocity if measured else np.gradient(data.joint_q, data.joint_times)
+    prior = LoadPrior(cfg.antenna_mass, cfg.com_offset_along, cfg.com_offset_normal, 0.0, cfg.reducer_efficiency)
+    q_true = data.joint_q + fit.parameter('driven_joint_offset').value
+    try:
+        load, used = calibrate_load(fit.linkage(), q_true, q_rate, effort, cfg.driven, cfg.measured_branch,
+                                    cfg.gravity, prior)
+    except CalibrationError as exc:
+        return {'skipped': str(exc)}
+    units = {'antenna_mass': 'kg', 'coulomb_friction': 'N m', 'reducer_efficiency': ''}
+    fitted = {p.name: p for p in load.parameters}
+    parameters = {p.name: {'value': p.value, 'sd': p.sd, 'determined_by_data': p.determined_by_data,
+                           'prior': p.prior, 'prior_sd': p.prior_sd, 'unit': units.get(p.name, 'm')}
+                  for p in load.parameters}
+    written = {name: fitted[name].value for name in _NODE_LOAD_PARAMETERS
+               if fitted[name].determined_by_data
+               and (name != 'reducer_efficiency' or 0.0 < fitted[name].value <= 1.0)}
+    r = load.residuals
+    return {
+        'parameters': parameters,
+        'readings': int(np.count_nonzero(used)),
+        'velocity': 'measured' if measured else 'differentiated from the positions',
+        'residual_rms_N_m': float(np.sqrt(np.mean(r * r))),
+        'largest_residual_N_m': float(np.max(np.abs(r))),
+        'noise_sd_N_m': load.sigma,
+        'singular_values': [float(x) for x in load.singular_values],
+        'directions_determined_by_data': int(np.count_nonzero(load.singular_values > math.sqrt(3.0))),
+        'model': ('effort = tau_in / reducer_efficiency + coulomb_friction sign(q_dot) when the motor drives, '
+                  'tau_in reducer_efficiency + ... when back-driven; tau_in = antenna_mass g dy_com/dtheta '
+                  'dtheta/dq at the calibrated pose; readings at rest left out'),
+        'written_to_parameter_file': written,
+    }
+
+
+def _check_span(cfg: AntennaConfig, data: CalibrationData) -> None:
+    from fourbar_ros.core.calibration import CalibrationError
+
+    theta = cfg.linkage.from_rocker(data.q, cfg.driven, cfg.measured_branch, on_invalid='nan').theta
+    finite = [float(t) for t in (theta.min(), theta.max())] if theta.size else [0.0, 0.0]  # type: ignore[union-attr]
+    span = finite[1] - finite[0] if all(map(math.isfinite, finite)) else math.nan
+    if not span >= MIN_TILT_SPAN:
+        shown = f'{math.degrees(span):.1f}' if math.isfinite(span) else 'an unknown range'
+        raise CalibrationError(f'the recording spans {shown} deg of tilt: it cannot determine the geometry; sweep '
+                               f'the tilt range')
+
+
+def _parameters(fit: Calibration) -> dict[str, dict[str, Any]]:
+    units = {'driven_joint_offset': 'rad', 'sensor_offset': 'rad'}
+    return {p.name: {'value': p.value, 'sd': p.sd, 'determined_by_data': p.determined_by_data, 'prior': p.prior,
+                     'prior_sd': p.prior_sd, 'unit': units.get(p.name, 'm')} for p in fit.parameters}
+
+
+def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[str, Any]:
+    from fourbar_ros.core.calibration import DETERMINED_RATIO, PARAMETER_NAMES
+
+    before, after = fit.residuals_before, fit.residuals_after
+    theta = data.theta - fit.residuals_after - fit.parameter('sensor_offset').value  # the calibrated model's angle
+    return {
+        'bag': str(args.bag),
+        'params': str(args.params),
+        'measured_topic': data.joint_topic,
+        'sensor_topic': data.sensor_topic,
+        'sensor_type': data.sensor_type,
+        'driven_joint': cfg.driven_joint,
+        'paired_readings': int(data.times.size),
+        'readings_left_out': int(data.outside),
+        'tilt_span_rad': [float(theta.min()), float(theta.max())],
+        'parameters': _parameters(fit),
+        'residual_rms_rad': float(math.sqrt(float((after * after).mean()))),
+        'largest_residual_rad': float(abs(after).max()),
+        'residual_rms_before_rad': float(math.sqrt(float((before * before).mean()))),
+        'largest_residual_before_rad': float(abs(before).max()),
+        'noise_sd_rad': fit.sigma,
+        'singular_values': [float(s) for s in fit.singular_values],
+        'singular_directions': {'parameters': list(PARAMETER_NAMES),
+                                'rows': [[float(x) for x in row] for row in fit.directions]},
+        'directions_determined_by_data': fit.determined_directions,
+        'rule': (f'determined_by_data: the posterior sd is below {DETERMINED_RATIO} of the prior sd; a direction is '
+                 f'determined by the data when its singular value (of J diag(prior sd) / noise sd) exceeds '
+                 f'{math.sqrt(DETERMINED_RATIO ** -2 - 1.0):.4g}'),
+        'conventions': ('lengths m, angles rad; sensor = theta(q_measured + driven_joint_offset) + sensor_offset; '
+                        'driven_joint_offset is the ros2_control transmission <offset> (joint = actuator / '
+                        'reduction + offset) that makes the measured joint the true rocker angle, for a recording '
+                        'made with <offset> 0.0 (else add the offset in effect); sensor_offset is the sensor\'s '
+                        'reading at theta = 0'),
+        'not_in_parameter_file': ['driven_joint_offset', 'sensor_offset'],
+        'iterations': fit.iterations,
+    }
+
+
+_NUMBER_LINE = r'^(?P<head>[ \t]*{key}[ \t]*:[ \t]*)(?P<value>[^#\n]*?)(?P<tail>[ \t]*(?:#[^\n]*)?)$'
+
+
+def _calibrated_yaml(params: Path, bag: Path, values: dict[str, float]) -> str:
+    """The parameter file's text with ``values`` (node parameters: the four lengths, and the load's parameters the
+    data determined) replacing the file's (comments kept), checked by reading it back with the node's own reader
+    and validation."""
+    from fourbar_ros.config.antenna_config import load_config
+    from fourbar_ros.config.rcl_yaml import read_text
+    from fourbar_ros.core.calibration import CalibrationError
+
+    text = read_text(params)
+    for name, value in values.items():
+        pattern = re.compile(_NUMBER_LINE.format(key=re.escape(name)), re.MULTILINE)
+        found = pattern.findall(text)
+        if len(found) > 1:
+            raise CommandError(f'{params}: {name} is set {len(found)} times; edit the file by hand with the report')
+        if found:
+            text = pattern.sub(_replacer(value), text)
+            continue
+        sections = list(re.finditer(r'^(?P<indent>[ \t]*)ros__parameters[ \t]*:[ \t]*(?:#[^\n]*)?$', text,
+                                    re.MULTILINE))
+        if len(sections) != 1:
+            raise CommandError(f'{params}: {name} is not set and the file has {len(sections)} ros__parameters '
+                               'sections; set it by hand from the report')
+        indent = sections[0]['indent'] + '  '
+        at = sections[0].end()
+        text = f'{text[:at]}\n{indent}{name}: {value!r}  # calibrated{text[at:]}'
+    stamp = (f'# {", ".join(values)}: calibrated by `fourbar calibrate` from the recording {bag.name} '
+             f'(report: the sds and what the data determined).\n')
+    text = stamp + text
+    with tempfile.TemporaryDirectory() as tmp:
+        check = Path(tmp) / 'calibrated.yaml'
+        check.write_text(text, encoding='utf-8')
+        try:
+            cfg = load_config(check)
+        except ValueError as exc:
+            raise CalibrationError(f'the calibrated values do not make a valid parameter file: {exc}') from None
+    read_back = {name: getattr(cfg, name) for name in values}
+    if read_back != values:
+        raise CommandError(f'{params}: could not set the values in this file (read back {read_back}); set them by '
+                           'hand from the report')
+    return text
+
+
+def _replacer(value: float) -> Callable[[re.Match[str]], str]:
+    """The substitution of one ``key: value  # comment`` line: the new value (repr: it reads back exactly)."""
+    def replace(m: re.Match[str]) -> str:
+        return f'{m["head"]}{value!r}{m["tail"]}'
+    return replace
+
+
+def _plot_path(output: Path | None, report: Path | None) -> Path | None:
+    """OUT.png beside OUT.yaml (else beside OUT.json); None without either."""
+    base = output if output is not None else report
+    return None if base is None else base.with_suffix('.png')
+
+
+def write_atomically(files: dict[Path, bytes]) -> None:
+    """Write every file or none: each to a hidden temporary file beside it (fsynced), then all renamed into place;
+    on any failure the temporaries are removed and no target is touched (a rename failing midway removes the ones
+    already made)."""
+    temps: list[tuple[Path, Path]] = []
+    done: list[Path] = []
+    try:
+        for path, content in files.items():
+            fd, name = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.partial', dir=path.parent)
+            temps.append((Path(name), path))
+            os.fchmod(fd, 0o666 & ~_umask())  # as open() would make it, not mkstemp's 0600
+            with os.fdopen(fd, 'wb') as f:
+                f.write(content)
+                f.flush()
+                os.fsync(f.fileno())
+        for tmp, path in temps:
+            os.replace(tmp, path)
+            done.append(path)
+    except BaseException as exc:
+        for tmp, _ in temps:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        for path in done:
+            with contextlib.suppress(OSError):
+                path.unlink()
+        if isinstance(exc, OSError):
+            raise CommandError(f'cannot write {exc.filename or "the outputs"}: {exc.strerror}') from None
+        raise
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def _summary(report: dict[str, Any], files: dict[Path, bytes]) -> str:
+    lines = [f'fourbar calibrate: {report["paired_readings"]} paired readings over '
+             f'[{math.degrees(report["tilt_span_rad"][0]):.2f}, {math.degrees(report["tilt_span_rad"][1]):.2f}] deg; '
+             f'residual RMS {report["residual_rms_before_rad"]:.3g} rad before, {report["residual_rms_rad"]:.3g} rad '
+             f'after (largest {report["largest_residual_rad"]:.3g} rad); the data determine '
+             f'{report["directions_determined_by_data"]} of {len(report["singular_values"])} directions']
+    for name, p in report['parameters'].items():
+        by = 'data' if p['determined_by_data'] else 'prior'
+        lines.append(f'  {name:<20} {p["value"]:.9g} {p["unit"]} (sd {p["sd"]:.2g}, prior {p["prior"]:.6g} sd '
+                     f'{p["prior_sd"]:.2g}; by the {by})')
+    load = report.get('load')
+    if isinstance(load, dict) and 'parameters' in load:
+        lines.append(f'  load from the measured effort ({load["readings"]} moving readings, residual RMS '
+                     f'{load["residual_rms_N_m"]:.3g} N m):')
+        for name, p in load['parameters'].items():
+            by = 'data' if p['determined_by_data'] else 'prior'
+            lines.append(f'  {name:<20} {p["value"]:.6g} {p["unit"]} (sd {p["sd"]:.2g}, prior {p["prior"]:.6g} '
+                         f'sd {p["prior_sd"]:.2g}; by the {by})'.replace('  (', ' ('))
+    elif isinstance(load, dict):
+        lines.append(f'  load model not fitted: {load["skipped"]}')
+    lines += [f'  wrote {path}' for path in files]
+    if files:
+        lines.append('  driven_joint_offset and sensor_offset are not node parameters: they are in the report only')
+    return '\n'.join(lines)
+

@@ -1,0 +1,83 @@
+"""A calibration recording read and paired (fourbar_ros.bags.calibration_data), from synthetic recordings written
+with the package's own bag writer: rates, stamps, the IMU's tilt and its sign, and the data problems."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from fourbar_ros.bags.calibration_data import imu_tilt, pair, read_calibration_data
+from fourbar_ros.bags.calibration_sweep import GRAVITY, Sweep, write_calibration_bag
+from fourbar_ros.bags.storage import JOINT_STATE
+from fourbar_ros.config.interface import Storage
+from fourbar_ros.core.calibration import CalibrationError
+
+TRUTH = {'frame_length': 0.1803, 'rocker_ab_length': 0.0598, 'coupler_length': 0.1021, 'rocker_cd_length': 0.0602,
+         'driven_joint_offset': -math.radians(0.7), 'sensor_offset': 0.004}
+JOINT = 'rocker_ab_joint'
+
+
+def test_imu_tilt_sign_follows_the_coupler_frame() -> None:
+    """theta > 0 tilts the antenna down: the coupler frame's x axis (along the antenna) turns toward -z, and the
+    accelerometer at rest reads (-g sin theta, 0, g cos theta)."""
+    for theta in (-0.1, 0.0, 0.05, 0.12):
+        ax, az = -GRAVITY * math.sin(theta), GRAVITY * math.cos(theta)
+        assert float(imu_tilt(np.array([ax]), np.array([az]))[0]) == pytest.approx(theta, abs=1e-15)
+
+
+@pytest.mark.parametrize('storage', list(Storage))
+def test_float64_sensor_paired_at_its_receive_times(tmp_path: Path, storage: Storage) -> None:
+    sweep = Sweep(TRUTH, duration=20.0, cycles=1.0, joint_rate=100.0, sensor_rate=50.0, sensor_noise=0.0)
+    bag = write_calibration_bag(tmp_path / 'rec', sweep, storage=storage)
+    data = read_calibration_data(bag, JOINT, '/antenna_inclinometer')
+    assert data.joint_topic == '/joint_state_broadcaster/joint_states'
+    assert data.joint_times.size == 2000 and data.sensor_times.size == 1000
+    # the joint states are timed by their header stamps (received 0.2-2 ms later), exactly every 10 ms
+    assert np.allclose(np.diff(data.joint_times), 0.01, rtol=0, atol=1e-9)
+    # every reading falls inside the encoder's span (the last at 19.9813 s, the encoder's last at 19.99 s)
+    assert data.times.size == 1000 and data.outside == 0
+    t = data.times + 0.0  # s from the first joint state, the recording's start
+    q_true = sweep.true_q(sweep.theta(t)) - TRUTH['driven_joint_offset']
+    count = 2.0 * math.pi / (4096 * 500)
+    assert np.max(np.abs(data.q - q_true)) < count + 1e-6  # counts + linear interpolation of a slow sweep
+    assert np.max(np.abs(data.theta - (sweep.theta(t) + TRUTH['sensor_offset']))) < 1e-12
+
+
+def test_imu_sensor_by_its_header_stamps(tmp_path: Path) -> None:
+    sweep = Sweep(TRUTH, duration=10.0, cycles=1.0, sensor='imu', sensor_rate=40.0, sensor_noise=0.0)
+    bag = write_calibration_bag(tmp_path / 'imu', sweep, angle_topic='/imu/data')
+    data = read_calibration_data(bag, JOINT, '/imu/data')
+    assert data.sensor_type == 'sensor_msgs/msg/Imu'
+    assert np.max(np.abs(data.theta - (sweep.theta(data.times) + TRUTH['sensor_offset']))) < 1e-12
+
+
+def test_pairing_stays_inside_the_encoder_span_and_out_of_its_gaps() -> None:
+    tj = np.array([0.0, 0.01, 0.02, 0.03, 1.03, 1.04])  # a 1 s gap
+    qj = np.arange(tj.size, dtype=float)
+    ts = np.array([-0.005, 0.005, 0.025, 0.5, 1.035, 1.05])
+    t, q, theta = pair(tj, qj, ts, ts * 10.0)
+    assert list(t) == [0.005, 0.025, 1.035]
+    assert q == pytest.approx([0.5, 2.5, 4.5])
+    assert theta == pytest.approx([0.05, 0.25, 10.35])
+
+
+def test_streams_that_do_not_overlap(tmp_path: Path) -> None:
+    sweep = Sweep(TRUTH, duration=5.0, sensor_clock_offset=3600.0)
+    bag = write_calibration_bag(tmp_path / 'apart', sweep)
+    with pytest.raises(CalibrationError, match=r'^the streams do not overlap in time: joint states \[0\.000, 4\.990\]'):
+        read_calibration_data(bag, JOINT, '/antenna_inclinometer')
+
+
+def test_a_sensor_topic_of_the_wrong_type(tmp_path: Path) -> None:
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, duration=2.0))
+    topic = '/joint_state_broadcaster/joint_states'
+    with pytest.raises(CalibrationError, match=f'sensor topic {topic} has type {JOINT_STATE}, expected '
+                       'std_msgs/msg/Float64 or sensor_msgs/msg/Imu$'):
+        read_calibration_data(bag, JOINT, topic)
+    with pytest.raises(CalibrationError, match='no sensor topic /nowhere'):
+        read_calibration_data(bag, JOINT, '/nowhere')
+    with pytest.raises(CalibrationError, match=r"no JointState on .* has the driven joint 'rocker_cd_joint'"):
+        read_calibration_data(bag, 'rocker_cd_joint', '/antenna_inclinometer')
