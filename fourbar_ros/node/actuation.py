@@ -160,7 +160,7 @@ class Actuation:
                                 f'command theta = {theta!r} rad not planned: {one_line(exc)}')
             return
         if points is not None:
-            if not self._send(cfg, points, outgoing_stamp(start, now_ns), now_ns, 'trajectory'):
+            if not self._send(cfg, points, outgoing_stamp(cfg, points, now_ns), now_ns, 'trajectory'):
                 self.counters.commands_not_planned += 1
                 return
             self.motion = Motion(now_ns, trajectory=points)

@@ -21,7 +21,8 @@ recorded message). No ROS: messages are read through the attributes they share w
   ``measured_range_tolerance``). A trajectory continuing a running motion is stamped with the node's time of its
   first point, the running motion's state at that time: the controller, taking it over at its first update after
   arrival, continues the reference it was following (no lead-in from the measured state, no step) and reaches the
-  new motion at the lead. One from the measured state starts at the takeover (``outgoing_stamp``). An antenna
+  new motion at the lead (``outgoing_stamp``: only a trajectory too short to arrive in time starts at the
+  takeover). An antenna
   trajectory is joined to the measured drive's start by a connecting segment, checked against the limits like
   every other and, for a zero stamp under ``limit_policy: retime``, given the time it needs (``connect``).
 """
@@ -399,15 +400,16 @@ def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: in
     if start.before is not None:
         joined = continued(cfg, start, joined)
     return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0,
-                     outgoing_stamp(start, now_ns) if stamp_ns == 0 else now_ns)
+                     outgoing_stamp(cfg, joined, now_ns) if stamp_ns == 0 else now_ns)
 
 
-def outgoing_stamp(start: Start, now_ns: int) -> int:
-    """The stamp (ns) of a trajectory starting at ``start`` whose time 0 is the node's ``now_ns``: that time when
-    it continues a running motion (so the controller continues it wherever it takes it over); 0 when it starts
-    from the measured state (the drive is there: starting it at the takeover adds no step, and a short motion
-    cannot end in the past on arrival)."""
-    return now_ns if start.before is not None else 0
+def outgoing_stamp(cfg: AntennaConfig, traj: DrivenTrajectory, now_ns: int) -> int:
+    """The stamp (ns) of a trajectory whose time 0 is the node's ``now_ns``: that time, so that the controller,
+    wherever it takes the trajectory over, is on it (continuing what it followed, or at the measured state the
+    trajectory starts from) and the node's model of the motion is the controller's. A trajectory ending within
+    ``takeover_lead`` could end before it arrives (the controller would refuse it): it goes out with stamp 0, to
+    start at the takeover (it is a step's worth of motion from where the drive is)."""
+    return now_ns if float(traj.times[-1]) > takeover_lead(cfg) else 0
 
 
 def _tail(traj: DrivenTrajectory, keep: int) -> DrivenTrajectory:
