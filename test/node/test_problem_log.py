@@ -18,23 +18,23 @@ def test_two_problems_from_one_line_are_both_logged() -> None:
     never logged. Here each kind has its own throttle."""
     lines: list[tuple[str, str]] = []
     clock = Clock()
-    log = ProblemLog(lambda level, line: lines.append((level, line)), 1.0, clock)
+    problems = ProblemLog(lambda level, line: lines.append((level, line)), 1.0, clock)
     for kind in ('antenna trajectory over_limits', 'antenna trajectory out_of_reach'):  # the same call site
-        assert log.warn(kind, f'refused: {kind}')
+        assert problems.warn(kind, f'refused: {kind}')
     assert [line for _, line in lines] == ['refused: antenna trajectory over_limits',
                                            'refused: antenna trajectory out_of_reach']
-    assert not log.warn('antenna trajectory over_limits', 'again')  # the same kind within the period: held
-    assert not log.warn('antenna trajectory over_limits', 'again')
+    assert not problems.warn('antenna trajectory over_limits', 'again')  # the same kind within the period: held
+    assert not problems.warn('antenna trajectory over_limits', 'again')
     clock.t = 1.5
-    assert log.error('antenna trajectory over_limits', 'later')
+    assert problems.error('antenna trajectory over_limits', 'later')
     assert lines[-1] == ('error', 'later (2 more of this kind held back)')
 
 
 def test_the_kinds_remembered_are_bounded() -> None:
-    log = ProblemLog(lambda level, line: None, 1.0, Clock())
+    problems = ProblemLog(lambda level, line: None, 1.0, Clock())
     for k in range(3 * MAX_KINDS):
-        log.warn(f'kind {k}', 'x')
-    assert len(log._kinds) == MAX_KINDS
+        problems.warn(f'kind {k}', 'x')
+    assert len(problems._kinds) == MAX_KINDS
 
 
 def test_an_exception_in_a_callback_is_counted_logged_once_per_kind_and_swallowed() -> None:

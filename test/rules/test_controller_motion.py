@@ -166,7 +166,7 @@ def test_each_update_commands_the_reference_one_period_ahead() -> None:
 def test_settings_that_change_the_motion_are_refused_naming_the_key(key: str, value: object) -> None:
     settings = replace(JTC, **{key: value})
     problem = motion_settings_problem(settings)
-    assert problem is not None and key.split('_scaling')[0] in problem
+    assert problem is not None and key.split('_scaling', maxsplit=1)[0] in problem
     assert motion_settings_problem(JTC) is None
 
 
@@ -244,7 +244,7 @@ def test_an_end_at_rest_to_rounding_is_accepted_and_sent_as_exactly_zero() -> No
     moving[-1] = 1e-3
     with pytest.raises(Exception, match='above float epsilon'):
         serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], antenna_points(list(t), list(theta), moving), 0, 0)
-    assert FLOAT_EPSILON == float(np.finfo(np.float32).eps)
+    assert float(np.finfo(np.float32).eps) == FLOAT_EPSILON
 
 
 def test_a_measured_start_just_outside_the_range_starts_at_its_end() -> None:
