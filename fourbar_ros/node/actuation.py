@@ -151,7 +151,7 @@ class Actuation:
             return
         try:
             plan = plan_command(cfg, start.state, theta)
-            points = (continued(cfg, start, planned_points(cfg, plan)) if self.mode == Mode.TRAJECTORY.value
+            points = (continued(start, planned_points(cfg, plan)) if self.mode == Mode.TRAJECTORY.value
                       else None)
             stream = planned_setpoints(cfg, plan) if points is None else None
         except FourBarError as exc:
@@ -160,10 +160,10 @@ class Actuation:
                                 f'command theta = {theta!r} rad not planned: {one_line(exc)}')
             return
         if points is not None:
-            if not self._send(cfg, points, outgoing_stamp(cfg, points, now_ns), now_ns, 'trajectory'):
+            if not self._send(cfg, points, outgoing_stamp(cfg, start, points, now_ns), now_ns, 'trajectory'):
                 self.counters.commands_not_planned += 1
                 return
-            self.motion = Motion(now_ns, trajectory=points)
+            self.motion = Motion(start.origin_ns, trajectory=points)
         else:
             self.motion = Motion(now_ns, plan=plan)
         self.counters.commands_planned += 1

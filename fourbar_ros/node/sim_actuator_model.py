@@ -30,7 +30,7 @@ Angles are the driven joint's (rad, joint side of the reducer), times in seconds
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -172,6 +172,8 @@ class TrajectoryFollower:
         self._path_tolerance, self._goal_tolerance = tol.trajectory, tol.goal
         self._velocity_state = 'velocity' in settings.state_interfaces
         self.holding_reason: str | None = None
+        #: called with each trajectory's reference as the controller takes it over (tests check its whole motion)
+        self.on_takeover: Callable[[Reference], None] | None = None
 
     def receive(self, joint_names: Sequence[str], points: Sequence[TrajectoryPointLike], stamp_ns: int,
                 now_ns: int) -> Refusal | None:
@@ -207,6 +209,8 @@ class TrajectoryFollower:
                 self._velocity_state, [ControllerPoint(*p) for p in points], stamp, 0.0, position, velocity,
                 self.period)
             self._trajectory = Trajectory(now, reference)
+            if self.on_takeover is not None:
+                self.on_takeover(reference)
             self.holding_reason = None
             self._check(now, position, first=True)
         elif self._trajectory is not None:

@@ -267,27 +267,37 @@ def serve_antenna_trajectory(cfg: AntennaConfig, allow_moving_end: bool, joint_n
 
 @dataclass(frozen=True)
 class Start:
-    """Where a new motion starts: the driven joint's ``state`` at ``lead`` s after the node's now. ``before``, when
-    the motion continues a running one, is that motion's state now: sent as a first point at 0, so that the
-    controller follows the old reference until it takes the new one over. ``from_measured``: a running motion was
-    left for the measured state; ``clamped``: the measured position lay outside the range by at most
-    ``measured_range_tolerance`` and was moved onto its nearest end."""
+    """Where a new motion starts: the driven joint's ``state`` at ``at`` s after ``origin_ns`` (node clock), the
+    time 0 of the trajectory sent. Continuing a running trajectory, ``before`` holds that trajectory's own points
+    from the one at or before now up to the one at ``at`` (excluded), times from ``origin_ns`` (its stamp): sent
+    first, they keep the controller on the very segments it follows until it takes the new trajectory over, and the
+    new motion starts at that trajectory's point ``at``; ``now_state`` is the running motion's state now. Else
+    ``origin_ns`` is now and ``at`` 0. ``from_measured``: a running motion was left for the measured state;
+    ``clamped``: the measured state was moved onto an end of the range (``motion_start``)."""
 
     state: JointMotionState
-    lead: float = 0.0
-    before: JointMotionState | None = None
+    origin_ns: int
+    at: float = 0.0
+    before: DrivenTrajectory | None = None
+    now_state: JointMotionState | None = None
     from_measured: bool = False
     clamped: bool = False
 
+    def here(self, now_ns: int) -> Start:
+        """The same start without the continuation: the running motion's state now."""
+        if self.before is None or self.now_state is None:
+            return self
+        return Start(self.now_state, now_ns)
 
-#: Trajectory mode: a continuing motion starts this many point spacings (1/control_rate) after the node's now, so
-#: that the controller, taking the trajectory over at its first update after arrival, is still on the old
-#: reference's part of it.
+
+#: Trajectory mode: a continuing motion starts at the running trajectory's first point at least this many point
+#: spacings (1/control_rate) after the node's now, so that the controller, taking the new trajectory over at its
+#: first update after arrival, is still on the running trajectory's own segments.
 TAKEOVER_SPACINGS = 2
 
 
 def takeover_lead(cfg: AntennaConfig) -> float:
-    """How far ahead (s) a continuing motion starts in trajectory mode."""
+    """How far ahead (s) of the node's now a continuing motion starts at least, in trajectory mode."""
     return TAKEOVER_SPACINGS / cfg.control_rate
 
 
@@ -299,7 +309,8 @@ def driven_range(cfg: AntennaConfig) -> tuple[float, float]:
 
 def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotionState | None, now_ns: int,
                  lead: float) -> Start | None:
-    """Where a new motion starts (``Start``), ``lead`` s after ``now_ns`` when it continues a running motion.
+    """Where a new motion starts (``Start``): continuing a running quintic trajectory at its first point ``lead``
+    s or more after ``now_ns`` (``lead`` > 0), else now.
 
     On the running motion while the measured driven position is within ``replan_tolerance`` of it now (or nothing
     is measured yet); else from the measured state (position rad, velocity within the planner's speed limit,
@@ -314,15 +325,28 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     if motion is not None and not motion.done(now_ns):
         now_state = motion.state_at(now_ns)
         if measured is None or abs(measured.position - now_state.position) <= cfg.replan_tolerance:
-            ahead = now_ns + round(lead * 1e9)
-            return Start(motion.state_at(ahead), lead, now_state) if lead > 0.0 else Start(now_state)
-        return _from_measured(cfg, measured, left=True)
+            traj = motion.trajectory
+            if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC:
+                return _continuing(motion, traj, now_ns, lead, now_state)
+            return Start(now_state, now_ns)
+        return _from_measured(cfg, measured, now_ns, left=True)
     if measured is not None:
-        return _from_measured(cfg, measured, left=False)
-    return None if motion is None else Start(motion.state_at(now_ns))
+        return _from_measured(cfg, measured, now_ns, left=False)
+    return None if motion is None else Start(motion.state_at(now_ns), now_ns)
 
 
-def _from_measured(cfg: AntennaConfig, measured: JointMotionState, left: bool) -> Start:
+def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float,
+                now_state: JointMotionState) -> Start:
+    t = motion.elapsed(now_ns)
+    times = traj.times
+    k0 = max(int(np.searchsorted(times, t, side='right')) - 1, 0)
+    k1 = min(int(np.searchsorted(times, t + lead, side='left')), len(traj) - 1)
+    assert traj.velocities is not None and traj.accelerations is not None
+    state = JointMotionState(float(traj.positions[k1]), float(traj.velocities[k1]), float(traj.accelerations[k1]))
+    return Start(state, motion.start_ns, float(times[k1]), _cut(traj, k0, k1), now_state)
+
+
+def _from_measured(cfg: AntennaConfig, measured: JointMotionState, now_ns: int, left: bool) -> Start:
     lower, upper = driven_range(cfg)
     q, v, tol = measured.position, measured.velocity, cfg.measured_range_tolerance
     # Within the tolerance of an end (inside or out), a speed outward is the drive pressing on the end or settling
@@ -330,17 +354,17 @@ def _from_measured(cfg: AntennaConfig, measured: JointMotionState, left: bool) -
     at_lower, at_upper = lower - tol <= q < lower + tol and v <= 0.0, upper - tol < q <= upper + tol and v >= 0.0
     if (at_lower or at_upper) and (not lower <= q <= upper or v != 0.0):
         clamped = JointMotionState(min(max(q, lower), upper), 0.0)
-        return Start(clamped, from_measured=left, clamped=True)
-    return Start(measured, from_measured=left)
+        return Start(clamped, now_ns, from_measured=left, clamped=True)
+    return Start(measured, now_ns, from_measured=left)
 
 
-def continued(cfg: AntennaConfig, start: Start, traj: DrivenTrajectory) -> DrivenTrajectory:
-    """A trajectory that starts at ``start.state`` (its time 0), sent as the node sends it: stamped at the node's
-    now, ``start.before`` first at 0 when it continues a running motion, ``traj`` from ``start.lead`` on."""
+def continued(start: Start, traj: DrivenTrajectory) -> DrivenTrajectory:
+    """A trajectory ``traj`` that starts at ``start.state`` (its time 0), as the node sends it: times from
+    ``start.origin_ns``, ``start.before`` first when it continues a running trajectory, ``traj`` from ``start.at``
+    on (its first point is the running trajectory's point there, to the bit)."""
     if start.before is None:
         return traj
-    head = _state_point(cfg, start.before, traj)
-    return _joined(head, traj, start.lead)
+    return _joined(start.before, traj, start.at)
 
 
 def _state_point(cfg: AntennaConfig, state: JointMotionState, like: DrivenTrajectory) -> DrivenTrajectory:
@@ -364,65 +388,71 @@ def _joined(head: DrivenTrajectory, tail: DrivenTrajectory, shift: float) -> Dri
 
 
 def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: int, now_ns: int) -> Converted:
-    """The converted antenna trajectory joined to the drive's ``start``, stamped at ``now_ns``: ``start``'s
-    points (``continued``), then a connecting segment to the first point still due after ``start.lead``, then the
-    rest. A zero stamp puts the trajectory's time 0 at the lead; a stamp puts it at the stamp. The connecting
-    segment is the controller's polynomial of the trajectory's kind; when it is over a limit or leaves the range,
-    a zero-stamped trajectory under ``limit_policy: retime`` is delayed by the least time that brings it within
-    them, and anything else is refused (CannotReachError). Points already due at the lead are dropped."""
+    """The converted antenna trajectory joined to the drive's ``start``: ``start``'s points (``continued``; only
+    for a quintic trajectory, else it starts at the running motion's state now), a connecting segment to the first
+    point still due after the start, then the rest; times from ``start.origin_ns``. A zero stamp puts the
+    trajectory's time 0 at the start; a stamp puts it at the stamp. The connecting segment is the controller's
+    polynomial of the trajectory's kind; when it is over a limit or leaves the range, a zero-stamped trajectory
+    under ``limit_policy: retime`` is delayed by the least time that brings it within them, and anything else is
+    refused (CannotReachError). Points already due at the start are dropped."""
     traj = converted.trajectory
-    lead = start.lead
-    origin = lead if stamp_ns == 0 else (stamp_ns - now_ns) * 1e-9
-    due = origin + traj.times < lead
+    if traj.kind is not SplineKind.QUINTIC:
+        start = start.here(now_ns)
+    at = start.at
+    offset = at if stamp_ns == 0 else (stamp_ns - start.origin_ns) * 1e-9  # the trajectory's time 0, from origin
+    due = offset + traj.times < at
     keep = int(np.argmin(due)) if not due.all() else len(traj)
     if keep == len(traj):
-        raise CannotReachError(f'every point is due before {lead:.6g} s, when the drive can take the trajectory over')
-    tail = _tail(traj, keep)
-    gap = origin + float(tail.times[0]) - lead
+        raise CannotReachError(f'every point is due before {at - (now_ns - start.origin_ns) * 1e-9:.6g} s from '
+                               'now, when the drive can take the trajectory over')
+    tail = _cut(traj, keep)
+    gap = offset + float(tail.times[0]) - at
     # How far the drive is from the first point, counting a step's worth of its speed.
     step = abs(float(tail.positions[0]) - start.state.position) + abs(start.state.velocity) / cfg.control_rate
-    if gap <= 0.0 and step <= cfg.measured_range_tolerance:
+    shift = 0.0
+    if gap <= 0.0 and step <= cfg.measured_range_tolerance and start.before is None:
         # The first point is where the drive rests, at the takeover: it stands for the start itself.
-        joined = _joined(_tail(tail, len(tail)), tail, origin - lead)
-        shift = 0.0
+        joined = _joined(_cut(tail, len(tail)), tail, offset)
     else:
         head = _state_point(cfg, start.state, traj)
         limits = JointLimits.from_config(cfg)
         lower, upper = driven_range(cfg)
         problem = _connection_problem(head, tail, gap, limits, lower, upper)
-        shift = 0.0
         if problem is not None:
             if stamp_ns != 0 or cfg.limit_policy != 'retime':
                 raise CannotReachError(f'from {float(start.state.position)!r} rad, the first point '
                                        f'{float(tail.positions[0])!r} rad in {gap:.6g} s: {problem}')
             shift = _least_gap(head, tail, gap, limits, lower, upper) - gap
-        joined = _joined(head, tail, origin - lead + shift)
-    if start.before is not None:
-        joined = continued(cfg, start, joined)
+        joined = continued(start, _joined(head, tail, offset - at + shift))
     return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0,
-                     outgoing_stamp(cfg, joined, now_ns) if stamp_ns == 0 else now_ns)
+                     outgoing_stamp(cfg, start, joined, now_ns) if stamp_ns == 0 else start.origin_ns)
 
 
-def outgoing_stamp(cfg: AntennaConfig, traj: DrivenTrajectory, now_ns: int) -> int:
-    """The stamp (ns) of a trajectory whose time 0 is the node's ``now_ns``: that time, so that the controller,
-    wherever it takes the trajectory over, is on it (continuing what it followed, or at the measured state the
-    trajectory starts from) and the node's model of the motion is the controller's. A trajectory ending within
-    ``takeover_lead`` could end before it arrives (the controller would refuse it): it goes out with stamp 0, to
-    start at the takeover (it is a step's worth of motion from where the drive is)."""
-    return now_ns if float(traj.times[-1]) > takeover_lead(cfg) else 0
+def outgoing_stamp(cfg: AntennaConfig, start: Start, traj: DrivenTrajectory, now_ns: int) -> int:
+    """The stamp (ns) of a trajectory ``traj`` starting at ``start`` (times from ``start.origin_ns``): that origin,
+    so that the controller, wherever it takes the trajectory over, is on it (continuing the segments it followed,
+    or at the measured state the trajectory starts from) and the node's model of the motion is the controller's.
+    A trajectory from the measured state ending within ``takeover_lead`` could end before it arrives (the
+    controller would refuse it): it goes out with stamp 0, to start at the takeover (it is a step's worth of motion
+    from where the drive is)."""
+    if start.before is None and float(traj.times[-1]) - (now_ns - start.origin_ns) * 1e-9 <= takeover_lead(cfg):
+        return 0
+    return start.origin_ns
 
 
-def _tail(traj: DrivenTrajectory, keep: int) -> DrivenTrajectory:
-    if keep == 0:
+def _cut(traj: DrivenTrajectory, first: int, end: int | None = None) -> DrivenTrajectory:
+    """Points ``first`` to ``end`` (excluded; None: the last included) of ``traj``."""
+    if first == 0 and end is None:
         return traj
+    keep = slice(first, end)
     a = traj.antenna
 
     def cut(x: FloatArray | None) -> FloatArray | None:
-        return None if x is None else x[keep:]
+        return None if x is None else x[keep]
 
-    antenna = AntennaTrajectory(a.times[keep:], a.theta[keep:], cut(a.theta_dot), cut(a.theta_ddot))
-    return DrivenTrajectory(traj.times[keep:], traj.positions[keep:], cut(traj.velocities),
-                            cut(traj.accelerations), traj.efforts[keep:], antenna)
+    antenna = AntennaTrajectory(a.times[keep], a.theta[keep], cut(a.theta_dot), cut(a.theta_ddot))
+    return DrivenTrajectory(traj.times[keep], traj.positions[keep], cut(traj.velocities),
+                            cut(traj.accelerations), traj.efforts[keep], antenna)
 
 
 def _connection_problem(head: DrivenTrajectory, tail: DrivenTrajectory, gap: float, limits: JointLimits,

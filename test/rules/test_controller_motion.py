@@ -192,7 +192,7 @@ def test_a_one_point_trajectory_is_given_the_time_its_whole_motion_needs() -> No
     refused under its own problem."""
     rest = JointMotionState(q_of(0.0))
     start = motion_start(RETIME, None, rest, 0, takeover_lead(RETIME))
-    assert start == Start(rest)
+    assert start == Start(rest, 0)
     points = antenna_points([0.05], [0.1], [0.0])
     as_is = controller_reference(True, [ControllerPoint(0.05, q_of(0.1), 0.0)], None, PERIOD, rest.position, 0.0,
                                  PERIOD)
@@ -204,7 +204,7 @@ def test_a_one_point_trajectory_is_given_the_time_its_whole_motion_needs() -> No
         ref = whole_motion(out.trajectory, stamp, takeover, rest)
         assert worst_ratio(ref) <= 1.0, takeover
     with pytest.raises(CannotReachError) as refused:
-        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, 0, 0, Start(rest))
+        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, 0, 0, Start(rest, 0))
     assert problem_of(refused.value) is TrajectoryProblem.CANNOT_REACH_IN_TIME
 
 
@@ -213,9 +213,9 @@ def test_a_stamped_trajectory_that_cannot_be_reached_in_time_is_refused_under_ei
     points = antenna_points([0.0, 1.0], [0.1, 0.1], [0.0, 0.0])
     for cfg in (CFG, RETIME):
         with pytest.raises(CannotReachError):
-            serve_antenna_trajectory(cfg, False, [ANTENNA_JOINT], points, 10**9 // 20, 0, Start(rest))
+            serve_antenna_trajectory(cfg, False, [ANTENNA_JOINT], points, 10**9 // 20, 0, Start(rest, 0))
     # Stamped far enough ahead, the same points are reached in time and nothing is retimed.
-    out = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, 30 * 10**9, 0, Start(rest))
+    out = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, 30 * 10**9, 0, Start(rest, 0))
     assert not out.retimed and worst_ratio(whole_motion(out.trajectory, 0.0, PERIOD, rest)) <= 1.0
 
 
@@ -278,7 +278,7 @@ def test_a_replan_continues_the_reference_the_controller_follows() -> None:
     q0 = q_of(CFG.theta_min)
     plan = plan_command(CFG, JointMotionState(q0), CFG.theta_max)
     first = planned_points(CFG, plan)
-    assert outgoing_stamp(CFG, first, 10**12) == 10**12  # stamped at the node's now (here time 0 of this test)
+    assert outgoing_stamp(CFG, Start(JointMotionState(q0), 10**12), first, 10**12) == 10**12  # at the node's now
     followed = controller_reference(True, controller_points(first), 0.0, 0.004, q0, 0.0, PERIOD)
     motion = Motion(0, trajectory=first)
     offsets = []
@@ -287,14 +287,14 @@ def test_a_replan_continues_the_reference_the_controller_follows() -> None:
         at_now = motion.state_at(now)
         start = motion_start(CFG, motion, at_now, now, takeover_lead(CFG))
         assert start is not None and start.before is not None
-        second = continued(CFG, start, planned_points(CFG, plan_command(CFG, start.state, 0.0)))
-        assert outgoing_stamp(CFG, second, now) == now
+        second = continued(start, planned_points(CFG, plan_command(CFG, start.state, 0.0)))
+        assert start.origin_ns == 0 and outgoing_stamp(CFG, start, second, now) == 0  # the running one's stamp
         for delay in DELAYS:
             takeover = now_s + delay
-            new = controller_reference(True, controller_points(second), 0.0, delay, 0.0, 0.0, PERIOD)
-            assert not new.lead_in
+            new = controller_reference(True, controller_points(second), 0.0, takeover, 0.0, 0.0, PERIOD)
+            assert not new.lead_in and worst_ratio(new) <= 1.0 + 1e-9
             old_p, old_v, old_a = followed.sample(takeover)
-            new_p, new_v, new_a = new.sample(delay)
+            new_p, new_v, new_a = new.sample(takeover)
             speed = abs(old_v)
             offsets.append(abs(new_p - old_p) / speed)  # s of motion at the current speed
             # Velocity and acceleration continuous: within the rounding of the quintics through the samples

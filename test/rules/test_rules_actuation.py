@@ -128,16 +128,26 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
     model = motion.state_at(now)
     tol = CFG.replan_tolerance
     near = JointMotionState(model.position + 0.5 * tol, 0.001)
-    assert motion_start(CFG, motion, near, now, 0.0) == Start(model)
-    # Trajectory mode starts a continuing motion a lead ahead, and sends the state now first.
+    assert motion_start(CFG, motion, near, now, 0.0) == Start(model, now)
+    # Trajectory mode continues a running trajectory at its first point a lead or more ahead, and sends the points
+    # before it (from the one at or before now) first: the controller stays on the very segments it follows.
     lead = takeover_lead(CFG)
-    assert motion_start(CFG, motion, near, now, lead) == Start(motion.state_at(now + round(lead * 1e9)), lead, model)
+    sent = Motion(start_ns, trajectory=planned_points(CFG, plan))
+    start = motion_start(CFG, sent, near, now, lead)
+    assert start is not None and start.before is not None and start.origin_ns == start_ns
+    t = (now - start_ns) * 1e-9
+    times = sent.trajectory.times  # type: ignore[union-attr]
+    assert start.before.times[0] <= t < start.before.times[1] and start.at >= t + lead > start.before.times[-1]
+    k = int(np.flatnonzero(times == start.at)[0])
+    assert start.state == JointMotionState(float(sent.trajectory.positions[k]),  # type: ignore[union-attr]
+                                           float(sent.trajectory.velocities[k]),  # type: ignore[union-attr, index]
+                                           float(sent.trajectory.accelerations[k]))  # type: ignore[union-attr, index]
     # Held at the start (a refused trajectory, or a hold after a tolerance violation): the measured state.
     held = JointMotionState(float(q[0]))
-    assert motion_start(CFG, motion, held, now, lead) == Start(held, from_measured=True)
-    assert motion_start(CFG, motion, None, now, 0.0) == Start(model)  # nothing measured: the motion
+    assert motion_start(CFG, motion, held, now, lead) == Start(held, now, from_measured=True)
+    assert motion_start(CFG, motion, None, now, 0.0) == Start(model, now)  # nothing measured: the motion
     done = start_ns + round(plan.duration * 1e9) + 1
-    assert motion_start(CFG, motion, held, done, lead) == Start(held)  # no motion running: the measurement
+    assert motion_start(CFG, motion, held, done, lead) == Start(held, done)  # no motion running: the measurement
     assert motion_start(CFG, None, None, now, lead) is None
     # The plan from the held state starts there: the drive is sent no step.
     assert plan_command(CFG, held, 0.0).state_at(0.0) == held

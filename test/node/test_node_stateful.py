@@ -1,0 +1,213 @@
+"""fourbar_node in trajectory mode and the simulated actuator over the real middleware, driven through random
+sequences (hypothesis): commands in and out of range, antenna trajectories of 1 to 5 points with random times and
+stamps (zero, past, future) ending at rest or not, measurements with NaN and jumps injected beside the drive's own,
+and parameter changes. After every step, both sides having handled it:
+
+- the node is up: no exception reached its callback boundary (``callback_errors`` 0);
+- every trajectory it sent passed the controller's contract (the node's own check and the strict simulated
+  controller refused none);
+- the whole motion the controller makes of each (``rules.controller_motion``, from the state measured at its
+  takeover, lead-in included) is within the motor's speed, acceleration and jerk limits.
+
+``make test`` runs a few short sequences (seconds); ``make test-stress`` many longer ones (minutes).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Duration, Time
+from hypothesis import HealthCheck, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, invariant, rule, run_state_machine_as_test
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from support.ros_support import RosSession, wait_for
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.interface import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES
+from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.node.fourbar_node import FourBarNode
+from fourbar_ros.node.sim_actuator import SimActuator
+from fourbar_ros.rules.controller_motion import Reference
+
+pytestmark = pytest.mark.ros
+
+CFG = default_config()
+LIMITS = JointLimits.from_config(CFG)
+JOINT = CFG.driven_joint
+NS = '/stateful'
+#: The motion's limits hold to rounding: the closed-form extremes of the quintics through the planned points.
+ROUNDING = 1e-9
+
+
+def worst_ratio(ref: Reference) -> float:
+    """The largest of the reference's motor speed, acceleration and jerk over the limits."""
+    return max(LIMITS.ratio * v / LIMITS.motor(order) for order, v in ref.extremes().items())
+
+
+class Rig:
+    """The node (trajectory mode, the drive's joint states as its measurement) and the simulated actuator."""
+
+    def __init__(self, ros: RosSession) -> None:
+        self.ros = ros
+        self.sim = SimActuator(context=ros.context, namespace=NS)
+        self.node = FourBarNode(context=ros.context, namespace=NS,
+                                parameter_overrides=[Parameter('mode', value='trajectory')],
+                                cli_args=['--ros-args', '-r', f'{MEASURED_JOINT_STATES.name}:='
+                                                              f'{BROADCASTER_JOINT_STATES.name}'])
+        self.references: list[Reference] = []
+        self.worst = 0.0
+        self.worst_reference: Reference | None = None
+        self.sim.follower.on_takeover = self._taken_over
+        #: every measured driven position the node's completion passed on to the actuation
+        self.seen: set[float] = set()
+        completion = self.node.completion
+        assert completion is not None and completion._on_measured is not None
+        passed_on = completion._on_measured
+
+        def note(position: float, velocity: float | None) -> None:
+            self.seen.add(position)
+            passed_on(position, velocity)
+        completion._on_measured = note
+        ros.add_node(self.sim)
+        ros.add_node(self.node)
+        self.cmd = ros.publisher(Float64, f'{NS}/antenna_angle_cmd', 10)
+        self.antenna = ros.publisher(JointTrajectory, f'{NS}/antenna_trajectory', 10)
+        self.fake = ros.publisher(JointState, f'{NS}/{BROADCASTER_JOINT_STATES.name}', 10)
+        ros.wait_subscribers(self.cmd)
+        ros.wait_subscribers(self.antenna)
+        ros.wait_subscribers(self.fake)  # the node's measured-joint subscription
+        ros.wait_subscribers(self.node.actuation._trajectory_pub)
+        wait_for(lambda: self.node.actuation.measured is not None, what='the measured driven joint at the node')
+
+    def _taken_over(self, ref: Reference) -> None:
+        self.references.append(ref)
+        ratio = worst_ratio(ref)
+        if ratio > self.worst:
+            self.worst, self.worst_reference = ratio, ref
+
+    def settled(self) -> None:
+        """Wait until the simulated controller has received every trajectory the node sent and taken over the
+        last one it accepted."""
+        node, follower = self.node.actuation.counters, self.sim.follower
+        wait_for(lambda: follower.counters.accepted + sum(follower.counters.refused.values())
+                 + follower.counters.refused_not_finite >= node.trajectories_sent and follower._pending is None,
+                 what=f'the sim to take over the node\'s {node.trajectories_sent} trajectories '
+                      f'(accepted {follower.counters.accepted}, refused {follower.counters.refused})')
+
+    def close(self) -> None:
+        self.ros.destroy(self.cmd, self.antenna, self.fake)
+        self.ros.remove_node(self.node)
+        self.ros.remove_node(self.sim)
+
+
+@pytest.fixture(scope='module')
+def rig(ros: RosSession) -> Iterator[Rig]:
+    r = Rig(ros)
+    yield r
+    r.close()
+
+
+def _duration(t: float) -> Duration:
+    ns = round(t * 1e9)
+    return Duration(sec=ns // 10**9, nanosec=ns % 10**9)
+
+
+angles = st.one_of(st.floats(CFG.theta_min, CFG.theta_max), st.floats(-0.5, 0.5),
+                   st.sampled_from([math.nan, math.inf, CFG.theta_min, CFG.theta_max]))
+
+
+class Sequences(RuleBasedStateMachine):
+    """Random steps against the rig of the module (``RIG``)."""
+
+    rig: Rig
+
+    @rule(theta=angles)
+    def command(self, theta: float) -> None:
+        counters = self.rig.node.counters
+        before = counters.commands_received
+        self.rig.cmd.publish(Float64(data=theta))
+        wait_for(lambda: counters.commands_received > before, what='the command received')
+
+    @rule(n=st.integers(1, 5), data=st.data(), stamp=st.sampled_from(['zero', 'past', 'future']),
+          at_rest=st.booleans(), fields=st.sampled_from([0, 1, 2]))
+    def antenna_trajectory(self, n: int, data: st.DataObject, stamp: str, at_rest: bool, fields: int) -> None:
+        steps = data.draw(st.lists(st.floats(0.001, 1.5), min_size=n, max_size=n))
+        times = list(np.cumsum(steps) - (steps[0] if data.draw(st.booleans()) else 0.0))
+        theta = data.draw(st.lists(st.floats(CFG.theta_min, CFG.theta_max), min_size=n, max_size=n))
+        rates = data.draw(st.lists(st.floats(-0.05, 0.05), min_size=n, max_size=n))
+        if at_rest:
+            rates[-1] = 0.0
+        pts = [JointTrajectoryPoint(positions=[theta[i]], velocities=[rates[i]] if fields else [],
+                                    accelerations=[0.0] if fields == 2 else [], time_from_start=_duration(t))
+               for i, t in enumerate(times)]
+        msg = JointTrajectory(joint_names=[ANTENNA_JOINT], points=pts)
+        now = self.rig.node.get_clock().now().nanoseconds
+        at = {'zero': 0, 'past': now - 500_000_000, 'future': now + 300_000_000}[stamp]
+        msg.header.stamp = Time(sec=at // 10**9, nanosec=at % 10**9)
+        counters = self.rig.node.actuation.counters
+        before = counters.trajectories_received
+        self.rig.antenna.publish(msg)
+        wait_for(lambda: counters.trajectories_received > before, what='the antenna trajectory received')
+
+    @rule(kind=st.sampled_from(['nan', 'jump', 'gap']), jump=st.floats(-0.2, 0.2))
+    def measurement(self, kind: str, jump: float) -> None:
+        """A bad or jumping measurement beside the drive's own (as a faulty encoder gives); 'gap': none for a
+        while (the drive's own go on: the node sees the next)."""
+        if kind == 'gap':
+            return
+        measured = self.rig.node.actuation.measured
+        q = math.nan if kind == 'nan' else (measured.position if measured else 0.86) + jump
+        completion = self.rig.node.completion
+        assert completion is not None
+        counters = completion.counters
+        refused, out = counters.measurements_refused_not_finite, counters.measurements_out_of_range
+        self.rig.fake.publish(JointState(name=[JOINT], position=[q], velocity=[0.0], effort=[0.0]))
+        seen = self.rig.seen
+
+        def handled() -> bool:
+            if kind == 'nan':
+                return counters.measurements_refused_not_finite > refused
+            return counters.measurements_out_of_range > out or q in seen
+        wait_for(handled, what=f'the {kind} measurement {q!r} rad handled')
+
+    @rule(policy=st.sampled_from(['reject', 'retime']), tolerance=st.sampled_from([0.0, 0.002, 0.02, 0.05]))
+    def parameters(self, policy: str, tolerance: float) -> None:
+        results = self.rig.node.set_parameters([Parameter('limit_policy', value=policy),
+                                                Parameter('replan_tolerance', value=tolerance)])
+        assert all(r.successful for r in results), [r.reason for r in results]
+
+    @invariant()
+    def nothing_broke(self) -> None:
+        rig = self.rig
+        rig.settled()
+        node = rig.node
+        assert node.guard.total == 0, node.guard.errors
+        assert sum(node.actuation.counters.refused.values()) == 0, node.actuation.counters.refused
+        follower = rig.sim.follower.counters
+        assert sum(follower.refused.values()) + follower.refused_not_finite == 0, follower
+        assert rig.worst <= 1.0 + ROUNDING, (rig.worst, rig.worst_reference)
+
+
+def _run(rig: Rig, examples: int, steps: int) -> None:
+    Sequences.rig = rig
+    run_state_machine_as_test(Sequences, settings=settings(
+        max_examples=examples, stateful_step_count=steps, deadline=None, derandomize=True,
+        suppress_health_check=list(HealthCheck)))
+    print(f'stateful: {len(rig.references)} trajectories taken over; the worst whole-motion limit ratio '
+          f'{rig.worst:.6f}; node counters {rig.node.actuation.counters.as_dict()}')
+
+
+def test_random_sequences_never_stop_the_node_nor_break_the_contract_or_the_limits(rig: Rig) -> None:
+    _run(rig, examples=4, steps=12)
+
+
+@pytest.mark.stress
+def test_random_sequences_many_and_long(rig: Rig) -> None:
+    _run(rig, examples=60, steps=30)
