@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 import pytest
@@ -75,6 +76,16 @@ class Rig:
             self.seen.add(position)
             passed_on(position, velocity)
         completion._on_measured = note
+        #: (rule, reason) of every trajectory the simulated controller refused
+        self.refusals: list[tuple[str, str]] = []
+        receive = self.sim.follower.receive
+
+        def received(*args: Any) -> Any:
+            refusal = receive(*args)
+            if refusal is not None:
+                self.refusals.append((refusal.rule.value, refusal.reason))
+            return refusal
+        self.sim.follower.receive = received  # type: ignore[method-assign]
         ros.add_node(self.sim)
         ros.add_node(self.node)
         self.cmd = ros.publisher(Float64, f'{NS}/antenna_angle_cmd', 10)
@@ -191,7 +202,7 @@ class Sequences(RuleBasedStateMachine):
         assert node.guard.total == 0, node.guard.errors
         assert sum(node.actuation.counters.refused.values()) == 0, node.actuation.counters.refused
         follower = rig.sim.follower.counters
-        assert sum(follower.refused.values()) + follower.refused_not_finite == 0, follower
+        assert sum(follower.refused.values()) + follower.refused_not_finite == 0, rig.refusals
         assert rig.worst <= 1.0 + ROUNDING, (rig.worst, rig.worst_reference)
 
 
@@ -210,4 +221,4 @@ def test_random_sequences_never_stop_the_node_nor_break_the_contract_or_the_limi
 
 @pytest.mark.stress
 def test_random_sequences_many_and_long(rig: Rig) -> None:
-    _run(rig, examples=60, steps=30)
+    _run(rig, examples=200, steps=40)
