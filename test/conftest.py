@@ -131,7 +131,7 @@ def ros_session() -> Iterator[RosSession]:
     """The one rclpy session of this run (use ``ros``, which also cleans up after each module)."""
     from support.ros_support import RosSession
 
-    with RosSession() as session:
+    with RosSession(lease=isolation.process_lease()) as session:  # None (a domain of its own) without one
         yield session
 
 

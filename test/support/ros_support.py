@@ -3,8 +3,9 @@
 - ``DomainLease``/``lease_domain_id()``, ``node_command``: fourbar_ros.live.node_process, the domain leases the
   tools use (re-exported here for the tests); ``NodeProcess``: its node process, here also ending whatever is left
   of the process group and remembered for failure messages (the last lines each node wrote).
-- ``RosSession``: an rclpy Context on the test process's leased domain id (support.isolation: discovery limited to
-  this host), a client node and an executor spinning in a thread; what a test created is destroyed through it
+- ``RosSession``: an rclpy Context on a leased domain id (its own, or the one it is given: conftest's session
+  fixture gives it the test process's; discovery limited to this host), a client node and an executor spinning in
+  a thread; what a test created is destroyed through it
   (``destroy``, ``uncollect``, ``remove_node``), with the thread paused.
 - ``Collector``: a subscription that stores messages and lets a test wait for them with a deadline (each message
   looked at once per wait, outside the lock).
@@ -43,7 +44,7 @@ from rclpy.timer import Timer
 
 from fourbar_ros.live.node_process import DomainLease, lease_domain_id, node_command
 from fourbar_ros.live.node_process import NodeProcess as _NodeProcess
-from support.isolation import isolated_env, kill_group, process_lease
+from support.isolation import DISCOVERY_RANGE, isolated_env, kill_group
 
 __all__ = ['TIMEOUT', 'Collector', 'DomainLease', 'NodeProcess', 'RosSession', 'Ticker', 'lease_domain_id',
            'node_command', 'node_logs', 'sync_probe', 'wait_for', 'wait_future']
@@ -247,13 +248,12 @@ class RosSession:
         return self.lease.domain_id
 
     def __enter__(self) -> RosSession:
-        if self.lease is None:
-            self.lease = process_lease()  # the test process's own domain (conftest: support.isolation)
-        if self.lease is None:
+        if self.lease is None:  # a domain of its own (conftest's session passes the test process's domain)
             self.lease = lease_domain_id()
             self._owned_lease = True
-        # rcl reads the discovery range from the environment when the context is initialized.
-        os.environ.update(isolated_env({}, self.lease.domain_id))
+        # rcl reads the discovery range from the environment when the context is initialized (the test process
+        # has it already: support.isolation); the domain id is given to rclpy, not written there.
+        os.environ.update(DISCOVERY_RANGE)
         os.environ.pop('ROS_LOCALHOST_ONLY', None)
         try:
             rclpy.init(context=self.context, domain_id=self.lease.domain_id)
