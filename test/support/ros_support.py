@@ -158,6 +158,16 @@ class Collector(Generic[M]):
         raise AssertionError(f'timed out after {timeout} s waiting for a matching message on {self.topic}: '
                              f'{checked} looked at, none matched; {side}; last: {last}{_report([self.topic])}')
 
+    def drop_while(self, predicate: Callable[[M], bool]) -> int:
+        """Forget the leading messages that satisfy ``predicate``; how many."""
+        with self._cond:
+            n = 0
+            while n < len(self.messages) and predicate(self.messages[n]):
+                n += 1
+            del self.messages[:n]
+            self._dropped += n
+            return n
+
     def clear(self) -> None:
         """Forget the messages received so far."""
         with self._cond:
@@ -373,7 +383,10 @@ class RosSession:
 
     def wait_subscribers(self, publisher: Any, count: int = 1, timeout: float = TIMEOUT) -> None:
         """Wait until ``publisher`` is matched with ``count`` subscriptions (this side's match: whether the other
-        side has matched this publisher shows only in what it does, see ``sync_probe``)."""
+        side has matched this publisher shows only in what it does, see ``sync_probe``). Enough for a reliable
+        topic (the node's commands): a reliable writer keeps what it sent for a reader it has matched until that
+        reader, once it has matched the writer too, acknowledges it. Not for a best-effort one (/clock): samples
+        sent before the reader's match are lost (``sync_probe``'s ``ready``)."""
         try:
             wait_for(lambda: publisher.get_subscription_count() >= count, timeout,
                      f'{count} subscriber(s) on {publisher.topic_name}')
@@ -453,7 +466,8 @@ ONE_JOINT_STATE_PER_COMMAND: tuple[str, ...] = ('-p', 'joint_state_rate:=0.0')
 
 def sync_probe(publish: Callable[[float], None], collectors: Sequence[Collector[Any]],
                probes: Sequence[float], matches: Callable[[Collector[Any], Any, float], bool],
-               timeout: float = TIMEOUT, interval: float = 0.05) -> None:
+               timeout: float = TIMEOUT, interval: float = 0.05,
+               ready: Callable[[Any], bool] | None = None) -> None:
     """Send probe commands until every collector has answered, then wait for the answers still in flight.
 
     Every collector must carry exactly one message per served command: ``input_torque``, or ``joint_states``
@@ -465,6 +479,10 @@ def sync_probe(publish: Callable[[float], None], collectors: Sequence[Collector[
     (``interval`` s apart) until each collector received an answer; ``matches(collector, msg, probe)``
     says which probe a message answers. Answers come in order, so once a collector's first answer is to
     probe j, it will also answer every later probe: wait for exactly those, then clear all collectors.
+
+    ``ready(msg)``, if given, says an answer shows the node fully connected on another input too, and earlier
+    answers are dropped: e.g. a sim-time node's answer stamped on the test's /clock (best effort: the node's clock
+    subscription takes samples only once it has matched the test's publisher, which this side cannot see).
     """
     deadline = time.monotonic() + timeout
     sent = 0
@@ -489,7 +507,11 @@ def sync_probe(publish: Callable[[float], None], collectors: Sequence[Collector[
             while len(first) < len(collectors):
                 arrived.clear()  # before looking: an answer arriving after the look sets it again
                 for idx, col in enumerate(collectors):
-                    if idx in first or not len(col):
+                    if idx in first:
+                        continue
+                    if ready is not None:
+                        col.drop_while(lambda m: not ready(m))
+                    if not len(col):
                         continue
                     msg = col.messages[0]
                     answered = [j for j in range(sent) if matches(col, msg, probes[j])]
