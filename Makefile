@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 # pytest-xdist workers: one per CPU, at most 4; each test file runs whole on one worker (its shared node processes).
 PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile
 
-.PHONY: setup demo test test-jitter test-stress lint bench-deps bench bench-quick clean
+.PHONY: setup demo test test-jitter test-stress test-repeat lint bench-deps bench bench-quick clean
 
 setup:
 	@PYTHON=$(PYTHON) VENV=$(VENV) ./scripts/bootstrap.sh
@@ -24,6 +24,13 @@ test: lint
 # The statistical repeats: each stop case 20 times, the soaks and long bursts.
 test-stress: setup
 	$(BIN)/python -m pytest -m stress
+
+# The ROS layers N times in a row (default 5), then every failure of every run (test id, first message line);
+# nonzero if any run failed. REPEAT_PATHS chooses other tests; the reports stay in REPEAT_KEEP if set.
+N ?= 5
+REPEAT_PATHS ?= test/node test/live test/package test/commands
+test-repeat: setup
+	$(BIN)/python scripts/test_repeat.py $(N) $(if $(REPEAT_KEEP),--keep $(REPEAT_KEEP)) -- $(PARALLEL) $(REPEAT_PATHS)
 
 # The pure (non-ROS) tests as if on another CPU (test/support/ulp_jitter.py): every transcendental result of numpy
 # moved by one ulp, up or down by a hash (two seeds), then all up, then all down.

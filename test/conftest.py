@@ -13,13 +13,19 @@ affected, not the processes a test starts.
 ``stress`` marks the statistical repeats (a stop case 20 times, soaks, long bursts): a run leaves them out unless
 its ``-m`` expression names the marker (``make test-stress`` is ``-m stress``); every case also runs once without it.
 
-Session fixtures (built once, shared by every module that asks):
-- ``ros``: one rclpy context, client node and executor on one leased domain id (support.ros_support.RosSession).
+Every test process (each pytest-xdist worker, or the lone pytest process) leases a ROS_DOMAIN_ID of its own at
+start and runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (support.isolation): its rclpy session and every child
+started from its environment use that domain. A module's processes must end with it: what is left running at
+its end is killed and reported as an error (``no_process_outlives_its_module``).
+
+Fixtures:
+- ``ros``: one rclpy context, client node and executor on the process's domain id (support.ros_support.RosSession).
   Whatever a module created on the client node (subscriptions, publishers, clients, timers, extra nodes) is
   destroyed when the module ends, so the next module starts from the same graph.
 - ``colcon_install``: the install base of one colcon build of the package (support.colcon_support).
-- ``ros2_cli``: an environment that sources that install, on its own leased domain id limited to this host,
-  with the ros2 daemon started once for it (and stopped at the end).
+- ``ros2_cli`` (per module): an environment that sources that install, on its own leased domain id limited to this
+  host, with the ros2 daemon started for it (and stopped at the module's end).
+- ``lease``: a domain id of one test's own, for processes that must not share the module's domain.
 """
 
 from __future__ import annotations
@@ -35,7 +41,7 @@ from hypothesis import settings
 
 sys.path.insert(0, str(Path(__file__).parent))  # test/: the helpers' package ``support``
 
-from support import ulp_jitter  # found through the path above
+from support import isolation, ulp_jitter  # found through the path above
 
 if TYPE_CHECKING:
     from support.colcon_support import CliEnv
@@ -69,6 +75,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    # Every process that runs tests (each pytest-xdist worker, or the lone pytest process; not xdist's controller)
+    # on a ROS domain of its own, discovery limited to this host, before any rclpy context exists.
+    if not (getattr(config.option, 'numprocesses', None) and not hasattr(config, 'workerinput')):
+        isolation.isolate_process()
     if config.getoption('--ulp-jitter'):
         _undo_jitter.append(ulp_jitter.install(config.getoption('--ulp-jitter-share'),
                                                config.getoption('--ulp-jitter-seed'),
@@ -80,6 +90,7 @@ def pytest_configure(config: pytest.Config) -> None:
 def pytest_unconfigure(config: pytest.Config) -> None:
     while _undo_jitter:
         _undo_jitter.pop()()
+    isolation.release_process()
 
 
 def pytest_report_header(config: pytest.Config) -> str | None:
@@ -103,12 +114,24 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
         items[:] = kept
 
 
+@pytest.fixture(scope='module', autouse=True)
+def no_process_outlives_its_module() -> Iterator[None]:
+    """Every process a module started (node, ros2 command, launch) has ended with it: what is left is killed
+    (its process group first) and the module's last test errors, naming it."""
+    leftovers = isolation.Leftovers()
+    yield
+    left = leftovers.end()
+    if left:
+        pytest.fail(f'processes started by this module were still running at its end (killed now): {left}',
+                    pytrace=False)
+
+
 @pytest.fixture(scope='session')
 def ros_session() -> Iterator[RosSession]:
     """The one rclpy session of this run (use ``ros``, which also cleans up after each module)."""
     from support.ros_support import RosSession
 
-    with RosSession() as session:
+    with RosSession(lease=isolation.process_lease()) as session:  # None (a domain of its own) without one
         yield session
 
 
@@ -140,9 +163,10 @@ def colcon_install(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_once(tmp_path_factory)
 
 
-@pytest.fixture(scope='session')
+@pytest.fixture(scope='module')
 def ros2_cli(colcon_install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[CliEnv]:
-    """The sourced install's environment for the ros2 command line, with its daemon; skips without ros2."""
+    """The sourced install's environment for the ros2 command line, on a domain of this module's own, with its
+    daemon (stopped when the module ends); skips without ros2."""
     from support.colcon_support import cli_env
 
     with cli_env(colcon_install, tmp_path_factory) as env:

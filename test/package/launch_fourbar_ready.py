@@ -70,8 +70,14 @@ class TestCommandIsAnswered(unittest.TestCase):
                     status.clear()
                     status.update((kv.key, kv.value) for kv in entry.values)
 
+        def graph(topic: str) -> str:
+            def names(infos: Any) -> list[str]:
+                return sorted(f'{i.node_namespace.rstrip("/")}/{i.node_name}' for i in infos)
+            return (f'{topic}: publishers {names(node.get_publishers_info_by_topic(topic))}, subscriptions '
+                    f'{names(node.get_subscriptions_info_by_topic(topic))}')
+
         try:
-            node.create_subscription(JointState, f'/{NAMESPACE}/joint_states', on_joint_states, 10)
+            sub = node.create_subscription(JointState, f'/{NAMESPACE}/joint_states', on_joint_states, 10)
             node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
             pub = node.create_publisher(Float64, f'/{NAMESPACE}/antenna_angle_cmd', 10)
             deadline = time.monotonic() + TIMEOUT
@@ -79,12 +85,14 @@ class TestCommandIsAnswered(unittest.TestCase):
             # Publish until answered: the node skips outputs until it has discovered this subscription.
             while not done.is_set():
                 if time.monotonic() >= deadline:
-                    seen = {k: status.get(k) for k in ('commands_received', 'joint_states_published')}
-                    self.fail(f'no joint_states answer in {TIMEOUT} s: {published} commands published; matched '
-                              f'subscriptions of the command publisher: {pub.get_subscription_count()}; '
-                              'joint_states publishers seen: '
-                              f'{node.count_publishers(f"/{NAMESPACE}/joint_states")}; the node\'s diagnostics: '
-                              f'{seen if status else "none received"}')
+                    # This side: its own matches and graph; the node's side: its diagnostics (what it took and
+                    # published, what it skipped for want of a subscriber); its log is in launch_test's output.
+                    self.fail(f'no joint_states answer in {TIMEOUT} s: {published} commands published; this side: '
+                              f'the command publisher matched {pub.get_subscription_count()} subscription(s), the '
+                              f'joint_states subscription {sub.get_publisher_count()} publisher(s); graph of '
+                              f'{graph(f"/{NAMESPACE}/antenna_angle_cmd")}; graph of '
+                              f'{graph(f"/{NAMESPACE}/joint_states")}; the node\'s side (its diagnostics): '
+                              f'{dict(status) if status else "none received"}')
                 if pub.get_subscription_count() > 0:
                     pub.publish(Float64(data=0.05))
                     published += 1

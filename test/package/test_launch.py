@@ -1,6 +1,6 @@
 """``ros2 launch fourbar_ros fourbar.launch.py`` over a colcon-built install: the node in the given namespace
 answers commands, arguments reach the node, robot_state_publisher / RViz start only where installed (else one log
-line), SIGINT ends everything with status 0; and one launch_testing test (``launch_test``).
+line), SIGINT ends everything with status 0; and one launch_testing test (``launch_test``, on a domain of its own).
 
 Runs where the ros2 command line and launch_ros are importable; skipped elsewhere with the reason.
 """
@@ -13,6 +13,7 @@ from pathlib import Path
 import pytest
 import yaml
 from support.colcon_support import BIN, CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.isolation import isolated_env
 from support.paths import REPO
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
@@ -21,6 +22,7 @@ if (_why := ros2_cli_missing() or launch_missing()) is not None:
 from support.ros_cli_support import Background, echo_once, publish_until_echoed, run, wait_node  # psutil: with ros2cli
 
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.live.node_process import DomainLease
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -119,11 +121,12 @@ def test_sim_actuator_argument_starts_the_simulated_drive(install: CliEnv) -> No
         launch.kill()
 
 
-def test_launch_testing_test_passes(install: CliEnv) -> None:
+def test_launch_testing_test_passes(install: CliEnv, lease: DomainLease) -> None:
+    # On a domain of its own: not the one of this module's ros2 daemon and command-line processes.
     launch_test = BIN / 'launch_test'
     exe = str(launch_test) if launch_test.exists() else 'launch_test'
     ready = REPO / 'test' / 'package' / 'launch_fourbar_ready.py'
-    out = run([exe, str(ready)], install.env, timeout=180, cwd=install.cwd)
+    out = run([exe, str(ready)], isolated_env(install.env, lease.domain_id), timeout=180, cwd=install.cwd)
     text = out.stdout + out.stderr
     assert out.returncode == 0, text[-4000:]
     assert 'test_joint_states_answer_a_command' in text and 'test_exit_codes' in text, text[-4000:]

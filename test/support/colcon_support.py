@@ -21,6 +21,7 @@ from pathlib import Path
 
 import pytest
 
+from support.isolation import isolated_env
 from support.paths import REPO
 
 #: What a source checkout of the package contains that its build reads.
@@ -79,8 +80,8 @@ def _build(colcon: Path, ws: Path) -> str | None:
 def sourced_env(base: dict[str, str], prefix: Path, domain_id: int, localhost: bool = True) -> dict[str, str]:
     """``base`` plus what sourcing ``install/setup.sh`` sets for this package (PYTHONPATH, AMENT_PREFIX_PATH,
     PATH with this venv's ``ros2``), on ``domain_id``; with ``localhost``, discovery limited to this host (all
-    processes that must see each other need the same setting: leave it off when this pytest process talks to
-    the children through rclpy)."""
+    processes that must see each other need the same setting: every test process has it (support.isolation), so
+    ``localhost=False`` only keeps what ``base`` says)."""
     site = prefix / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / 'site-packages'
     env = dict(base)
     env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(site), env.get('PYTHONPATH', '')]))
@@ -88,8 +89,7 @@ def sourced_env(base: dict[str, str], prefix: Path, domain_id: int, localhost: b
     env['PATH'] = os.pathsep.join(filter(None, [str(BIN), env.get('PATH', '')]))
     env['ROS_DOMAIN_ID'] = str(domain_id)
     if localhost:
-        env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-        env.pop('ROS_LOCALHOST_ONLY', None)  # deprecated in Jazzy; it would override the range with a warning
+        env = isolated_env(env, domain_id)  # also drops ROS_LOCALHOST_ONLY (deprecated in Jazzy; it would override)
     env.setdefault('PYTHONUNBUFFERED', '1')
     env['RCUTILS_COLORIZED_OUTPUT'] = '0'
     return env
@@ -131,8 +131,9 @@ class CliEnv:
 
 @contextmanager
 def cli_env(install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator[CliEnv]:
-    """``CliEnv`` over ``install`` on a leased domain id, with the ros2 daemon started once for it; the daemon is
-    stopped and the id given back on leaving. Skips where the ros2 command line is missing."""
+    """``CliEnv`` over ``install`` on a leased domain id (a module's own: conftest's ``ros2_cli``), with the ros2
+    daemon started for it; the daemon is stopped and the id given back on leaving. Skips where the ros2 command line
+    is missing."""
     if (why := ros2_cli_missing()) is not None:
         pytest.skip(why)
     from support.ros_support import lease_domain_id

@@ -17,15 +17,29 @@ from typing import Any
 
 import psutil
 
+from support.isolation import kill_group
+
 #: Deadline (s) for a one-shot command and for waits; generous because the machine is shared.
 TIMEOUT = 60.0
 
 
 def run(cmd: Sequence[str], env: dict[str, str], timeout: float = TIMEOUT, cwd: Path | None = None
         ) -> subprocess.CompletedProcess[str]:
-    """A one-shot command; its output, never raising on a non-zero status."""
-    return subprocess.run(list(cmd), env=env, cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          check=False, stdin=subprocess.DEVNULL)
+    """A one-shot command in a process group of its own; its output, never raising on a non-zero status. Whatever
+    is left of the group when the command has exited (or at the deadline: TimeoutExpired, with the output so far)
+    is killed, so nothing it started outlives it (a ros2 daemon it spawned by itself too, which stays in its group
+    on Linux: ``cli_env`` starts the daemon apart, before the commands)."""
+    with subprocess.Popen(list(cmd), env=env, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          stdin=subprocess.DEVNULL, start_new_session=True) as proc:
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            kill_group(proc.pid)
+            out, err = proc.communicate()
+            raise subprocess.TimeoutExpired(proc.args, timeout, out, err) from None
+        finally:
+            kill_group(proc.pid)
+    return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
 class Background:

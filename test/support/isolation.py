@@ -1,0 +1,112 @@
+"""Each test process on a ROS domain of its own, limited to this host; and no process a test module started left
+behind when the module ends. No rclpy here (conftest.py uses it for every run, ROS or not).
+
+- ``isolate_process()``: lease a ROS_DOMAIN_ID for this process (one per pytest-xdist worker, or the lone pytest
+  process) and write it, with ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, into ``os.environ`` before any rclpy
+  context exists: the session's rclpy context and every child started from ``os.environ`` use that domain and
+  discover only on this host. ``release_process()`` gives the id back.
+- ``isolated_env(base, domain_id)``: an environment for a child process on ``domain_id``, limited to this host
+  (all processes that must see each other need the same range: the harness sets it everywhere).
+- ``kill_group(pid)``: SIGKILL to what is left of a process group (a child started with ``start_new_session``).
+- ``Leftovers``: the descendants of this process a module started and left running, ended and named.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import signal
+from collections.abc import Mapping
+from typing import Any
+
+from fourbar_ros.live.node_process import DomainLease, lease_domain_id
+
+#: What limits discovery to this host (Jazzy; the older ROS_LOCALHOST_ONLY would override it with a warning).
+DISCOVERY_RANGE = {'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
+#: Variables that would widen or redirect discovery, dropped from every test environment.
+DROPPED = ('ROS_LOCALHOST_ONLY', 'ROS_STATIC_PEERS', 'ROS_DISCOVERY_SERVER', 'FASTRTPS_DEFAULT_PROFILES_FILE',
+           'FASTDDS_DEFAULT_PROFILES_FILE')
+
+_LEASE: list[DomainLease] = []  # this process's lease, once taken
+
+
+def isolated_env(base: Mapping[str, str], domain_id: int, **extra: str) -> dict[str, str]:
+    """``base`` on ``domain_id``, discovery limited to this host, plus ``extra``."""
+    env = {k: v for k, v in base.items() if k not in DROPPED}
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    env.update(DISCOVERY_RANGE)
+    env.update(extra)
+    return env
+
+
+def isolate_process() -> DomainLease:
+    """Lease this process's domain id and put it (and the discovery range) in ``os.environ``; idempotent."""
+    if not _LEASE:
+        _LEASE.append(lease_domain_id())
+        for name in DROPPED:
+            os.environ.pop(name, None)
+        os.environ['ROS_DOMAIN_ID'] = str(_LEASE[0].domain_id)
+        os.environ.update(DISCOVERY_RANGE)
+    return _LEASE[0]
+
+
+def process_lease() -> DomainLease | None:
+    """This process's lease (``isolate_process``), or None when it has none."""
+    return _LEASE[0] if _LEASE else None
+
+
+def release_process() -> None:
+    """Give this process's domain id back (at the end of the run)."""
+    while _LEASE:
+        _LEASE.pop().release()
+
+
+def kill_group(pid: int) -> None:
+    """SIGKILL whatever still runs in the process group led by ``pid`` (nothing if the group is gone)."""
+    with contextlib.suppress(ProcessLookupError, PermissionError):
+        os.killpg(pid, signal.SIGKILL)
+
+
+class Leftovers:
+    """The descendants of this process at ``__init__`` are known; ``end()`` kills every later one still running
+    (its process group first) and returns their descriptions (empty: nothing was left behind). Without psutil
+    (installed with the ros2 command line) it sees nothing."""
+
+    def __init__(self) -> None:
+        try:
+            import psutil
+        except ImportError:
+            self._psutil: Any = None
+        else:
+            self._psutil = psutil
+        self._before = {p.pid for p in self._children()}
+
+    def _children(self) -> list[Any]:
+        if self._psutil is None:
+            return []
+        try:
+            return list(self._psutil.Process().children(recursive=True))
+        except self._psutil.Error:
+            return []
+
+    def end(self) -> list[str]:
+        psutil = self._psutil
+        left: list[tuple[Any, str]] = []
+        for proc in self._children():
+            if proc.pid in self._before:
+                continue
+            try:
+                if proc.status() != psutil.STATUS_ZOMBIE:
+                    left.append((proc, f'pid {proc.pid}: {" ".join(proc.cmdline()[:4])}'))
+            except psutil.Error:
+                continue
+        own_group = os.getpgid(0)
+        for proc, _ in left:
+            with contextlib.suppress(psutil.Error, ProcessLookupError):
+                pgid = os.getpgid(proc.pid)
+                if pgid != own_group:
+                    kill_group(pgid)
+                proc.kill()
+        if left:
+            psutil.wait_procs([p for p, _ in left], timeout=10)
+        return [what for _, what in left]
