@@ -67,8 +67,12 @@ def test_sim_time_velocity_is_unbiased_with_a_40_hz_clock() -> None:
                 ros.wait_publishers(js)
                 ros.wait_subscribers(clock_pub)
                 probes = [LO + (HI - LO) * (i + 0.5) / 600 for i in range(600)]
+                # /clock is best effort: answers count only once stamped on the test's clock (the node's clock
+                # subscription matched), so the ramp starts with the node on sim time.
                 sync_probe(lambda t: pub.publish(Float64(data=t)), [js], probes,
-                           lambda col, msg, p: bool(msg.position[0] == state(p).gamma))
+                           lambda col, msg, p: bool(msg.position[0] == state(p).gamma),
+                           ready=lambda msg: msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+                           > SIM_T0_S * 1_000_000_000)
                 thetas: list[float] = []
                 theta0 = LO + 0.02
                 ramp_t0 = time.monotonic()

@@ -2,8 +2,8 @@
 ``ros2 run fourbar_ros fourbar_node --ros-args --params-file ... -r __ns:=...``, ``ros2 topic pub --once`` /
 ``ros2 topic echo --once``, ``ros2 param set`` (accepted and refused) and Ctrl-C.
 
-Every process shares the run's leased ROS_DOMAIN_ID for the command line (conftest's ``ros2_cli``), discovery
-limited to this host, and the ros2 daemon started once for it.
+Every process shares the module's leased ROS_DOMAIN_ID for the command line (conftest's ``ros2_cli``), discovery
+limited to this host, and the ros2 daemon started once for the module.
 Runs where the ros2 command line is importable (a sourced Jazzy install, or scripts/install_ros_cli.sh);
 skipped elsewhere with the reason.
 """
