@@ -358,7 +358,8 @@ def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
     torque = np.concatenate([rec.input_torque.value, rec.planned_effort, rec.measured.effort])
     position, velocity, paired, unpaired = completion_deviation(rec, cfg)
     return Summary(
-        final_error=float(rec.command.value[-1] - rec.antenna.value[-1]), worst_error=float(error[worst]), worst_error_t=float(t[worst]),
+        final_error=float(rec.command.value[-1] - rec.antenna.value[-1]),  # the last served, once settled
+        worst_error=float(error[worst]), worst_error_t=float(t[worst]),
         speed_limit=cfg.motor_speed_limit / cfg.reducer_ratio,
         peak_speed_measured=_peak(rec.measured.velocity), peak_speed_planned=_peak(rec.planned_velocity),
         torque_limit=cfg.motor_torque_limit, peak_motor_torque=abs(motor_torque(cfg, _peak(torque))),
