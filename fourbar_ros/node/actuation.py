@@ -1,7 +1,7 @@
 """The actuator modes of fourbar_node: served commands and antenna trajectories become motion of the driven joint.
 
 Topics per mode: docs/reference/topics.md. Served commands (after the node's accept/clamp/reject policy) are
-planned from where ``rules.actuation.replan_start`` says (the motion being followed, or the measured state);
+planned from where ``rules.actuation.motion_start`` says (the motion being followed, or the measured state);
 antenna trajectories are served by ``rules.actuation.serve_antenna_trajectory``: trajectory mode sends the driven
 joint's trajectory, forward mode streams its spline as setpoints. Nothing leaves before the controller's contract
 accepts it (``rules.controller_contract``, with the controller's settings from ``controllers_file``). What a message
