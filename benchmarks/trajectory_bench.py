@@ -5,6 +5,10 @@
   position solve's (``benchmarks.sweep.floor_ufuncs``), then sin(gamma + delta), sin(delta - theta),
   sin(gamma + theta), cos(gamma + delta), cos(delta - theta) (the rates and second derivatives). CPU-time medians of
   interleaved rounds. Target: ratio <= 2.
+- whole motion: serving a 10,000-point antenna trajectory message the way the node does, joined to a measured
+  start (``serve_antenna_trajectory`` with a ``Start``: the connecting segment's check included), against
+  ``convert`` of the same message alone; CPU-time medians of interleaved rounds. Target: the join adds at most 1x
+  the conversion's own time (ratio <= 2).
 - replanning: one ``plan_motion`` call (ruckig) from a mid-motion state, median microseconds, beside sampling that
   plan every 0.05 s; compare with the node's per-command callback (``benchmarks.node_bench``, ~150 us).
 """
@@ -22,9 +26,18 @@ from benchmarks.cases import TURNANTENNA
 from benchmarks.sweep import floor_inputs, floor_ufuncs
 from benchmarks.timing import Case, interleaved
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.config.interface import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_motion, trajectory_points
 from fourbar_ros.motion.trajectory import antenna_trajectory, to_driven
+from fourbar_ros.rules.actuation import (
+    DurationFields,
+    PointFields,
+    Start,
+    convert,
+    duration_parts,
+    serve_antenna_trajectory,
+)
 
 POINTS = 10_000
 
@@ -51,6 +64,24 @@ def conversion(rounds: int) -> dict[str, Any]:
             'conversion_wall_s': times['conversion'][1], 'floor_wall_s': times['floor'][1]}
 
 
+def whole_motion(rounds: int) -> dict[str, Any]:
+    """CPU seconds of serving a 10,000-point antenna trajectory joined to a measured start, and of converting it
+    alone, and their ratio."""
+    cfg = default_config()
+    t = np.linspace(0.5, 20.5, POINTS)  # a half-cosine sweep over most of the tilt range, at rest at both ends
+    low, span, w = cfg.theta_min + 0.01, cfg.theta_max - cfg.theta_min - 0.02, np.pi / 20.0
+    theta, theta_dot = low + 0.5 * span * (1.0 - np.cos(w * (t - 0.5))), 0.5 * span * w * np.sin(w * (t - 0.5))
+    mid = float(theta[0])
+    points = [PointFields([float(theta[i])], [float(theta_dot[i])], [], [], DurationFields(*duration_parts(ti)))
+              for i, ti in enumerate(t.tolist())]
+    start = Start(JointMotionState(float(driven_angles(cfg, np.array([mid]))[0])), 0)
+    names = [ANTENNA_JOINT]
+    times = interleaved([Case('serve', lambda: serve_antenna_trajectory(cfg, False, names, points, 0, 0, start), 1),
+                         Case('convert', lambda: convert(cfg, names, points, False), 1)], rounds)
+    serve, conv = times['serve'][0], times['convert'][0]
+    return {'points': POINTS, 'serve_s': serve, 'convert_s': conv, 'ratio': serve / conv, 'ratio_target': 2.0}
+
+
 def replanning(calls: int) -> dict[str, Any]:
     """Median microseconds of one plan_motion call from a moving state, and of sampling that plan."""
     cfg = default_config()
@@ -74,7 +105,8 @@ def replanning(calls: int) -> dict[str, Any]:
 
 def run(quick: bool) -> dict[str, Any]:
     """For ``python -m benchmarks.run``."""
-    return {'conversion': conversion(7 if quick else 21), 'replanning': replanning(200 if quick else 2000)}
+    return {'conversion': conversion(7 if quick else 21), 'whole_motion': whole_motion(5 if quick else 15),
+            'replanning': replanning(200 if quick else 2000)}
 
 
 if __name__ == '__main__':
