@@ -84,8 +84,7 @@ class FourBarNode(Node):
         self.info: Callable[..., object] = logger.info
         self._error: Callable[..., object] = logger.error
         self._debug: Callable[..., object] = logger.debug
-        self.problems = ProblemLog(lambda level, line: (self._warn if level == 'warn' else self._error)(line),
-                                   WARN_THROTTLE_S)
+        self.problems = ProblemLog(self._log_problem, WARN_THROTTLE_S)
         self.guard = CallbackGuard(self.problems)
         try:
             self._config = self._validated_overrides()
@@ -154,6 +153,13 @@ class FourBarNode(Node):
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     # ------------------------------------------------------------------ the callback boundary
+
+    def _log_problem(self, level: str, line: str) -> None:
+        # rclpy's logger refuses two severities from one call site: one call per severity.
+        if level == 'warn':
+            self._warn(line)
+        else:
+            self._error(line)
 
     def create_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any], *args: Any,
                             **kwargs: Any) -> Any:

@@ -9,6 +9,7 @@ held back since. ``CallbackGuard`` wraps a node's callbacks: an exception is cou
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import time
 from collections.abc import Callable
@@ -73,9 +74,10 @@ class CallbackGuard:
                 return callback(*args, **kwargs)
             except Exception as exc:  # the boundary: nothing may stop the node
                 self.errors[name] = self.errors.get(name, 0) + 1
-                self._problems.error(f'callback {name} {type(exc).__name__}',
-                                     f'callback {name} failed ({self.errors[name]} so far): '
-                                     f'{type(exc).__name__}: {one_line(exc)}')
+                with contextlib.suppress(Exception):  # a failing logger must not carry it past the boundary
+                    self._problems.error(f'callback {name} {type(exc).__name__}',
+                                         f'callback {name} failed ({self.errors[name]} so far): '
+                                         f'{type(exc).__name__}: {one_line(exc)}')
                 return None
         return guarded  # type: ignore[return-value]
 

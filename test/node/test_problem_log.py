@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import pytest
+from support.ros_support import RosSession
+
+from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.problem_log import MAX_KINDS, CallbackGuard, ProblemLog
 
 
@@ -53,3 +57,16 @@ def test_an_exception_in_a_callback_is_counted_logged_once_per_kind_and_swallowe
     assert ('callback_errors_sub_antenna_trajectory', '3') in guard.diagnostic_values()
     import inspect
     assert list(inspect.signature(wrapped).parameters) == ['msg', 'info']  # rclpy reads it to pass message info
+
+
+@pytest.mark.ros
+def test_the_node_logs_both_severities_through_its_problem_log(ros: RosSession) -> None:
+    """rclpy's logger refuses a second severity from one call site (ValueError): the node's problem log writes
+    warnings and errors from separate calls, so both reach the log."""
+    node = FourBarNode(context=ros.context, namespace='/problem_log')
+    try:
+        assert node.problems.warn('a warning', 'a warning line')
+        assert node.problems.error('an error', 'an error line')
+        assert node.problems.warn('another warning', 'another warning line')
+    finally:
+        node.destroy_node()
