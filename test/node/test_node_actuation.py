@@ -29,7 +29,7 @@ from fourbar_ros.motion.planner import PLAN_SHRINK, driven_angles
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
-from fourbar_ros.rules.actuation import Motion, TrajectoryProblem
+from fourbar_ros.rules.actuation import TrajectoryProblem, takeover_lead
 
 pytestmark = pytest.mark.ros
 
@@ -88,6 +88,9 @@ class Pair:
             JointTrajectory, f'{self.ns}/joint_trajectory_controller/joint_trajectory', 10)
         self.setpoints: Collector[Float64MultiArray] = ros.collect(
             Float64MultiArray, f'{self.ns}/forward_position_controller/commands', 10)
+        #: the simulated controller's reference of every trajectory it took over
+        self.taken_over: list[Any] = []
+        self.sim.follower.on_takeover = self.taken_over.append
         self.cmd = ros.publisher(Float64, f'{self.ns}/antenna_angle_cmd', 10)
         self.antenna = ros.publisher(JointTrajectory, f'{self.ns}/antenna_trajectory', 10)
         ros.wait_subscribers(self.cmd)
@@ -135,9 +138,9 @@ def traj(ros: RosSession) -> Iterator[Pair]:
     # extremes, not only the points).
     for msg in pair.trajectories.messages:
         assert msg.joint_names == [JOINT] and all(len(p.effort) == 0 for p in msg.points)
-        assert stamp_ns(msg.points[0].time_from_start) == 0
         assert worst_violation(as_driven(msg), LIMITS, CFG) is None
     assert sum(pair.sim.follower.counters.refused.values()) == 0
+    assert not any(ref.lead_in for ref in pair.taken_over), 'a trajectory left the controller a lead-in'
     assert sum(pair.actuation.counters.refused.values()) == 0
     pair.close()
 
@@ -164,22 +167,25 @@ def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     before = len(traj.trajectories)
     traj.command(CFG.theta_max)  # a motion of seconds ...
     first = traj.trajectories.wait_count(before + 1)[-1]
-    first_start = traj.actuation.motion.start_ns  # its stamp on the wire: the node's start of the motion
     traj.command(CFG.theta_min)  # ... interrupted by a command the other way
     second = traj.trajectories.wait_count(before + 2)[-1]
     a, b = as_driven(first), as_driven(second)
-    at = traj.actuation.motion.start_ns
-    assert at > first_start and traj.actuation.counters.commands_replanned_from_measured == 0
-    state = Motion(first_start, trajectory=a).state_at(at)
-    assert state.velocity > 0.0  # it was moving when replanned
-    # The new motion starts at the running plan's state at its stamp: the quintic segments sent for the first plan
-    # reproduce its cubic pieces (phase boundaries are points), so the two agree to rounding (~1e-15 relative);
-    # a jump would be of the order of the motion itself (1e-2 rad, 1e-2 rad/s).
-    assert b.positions[0] == pytest.approx(state.position, abs=1e-9)
+    assert traj.actuation.counters.commands_replanned_from_measured == 0
+    # The second carries the first's stamp and repeats its points, bit for bit, from the one the node's now fell in
+    # up to the first at least takeover_lead ahead, where the new motion starts: wherever the controller takes it
+    # over, it is on the segments it was following.
+    assert stamp_ns(second.header.stamp) == stamp_ns(first.header.stamp) > 0
+    k0 = int(np.flatnonzero(a.times == b.times[0])[0])
+    n = min(len(b), len(a) - k0)
     assert b.velocities is not None and b.accelerations is not None
-    assert b.velocities[0] == pytest.approx(state.velocity, abs=1e-9)
-    assert b.accelerations[0] == pytest.approx(state.acceleration, abs=1e-7)
-    assert b.times[0] == 0.0
+    assert a.velocities is not None and a.accelerations is not None
+    differs = ((b.positions[:n] != a.positions[k0:k0 + n]) | (b.velocities[:n] != a.velocities[k0:k0 + n])
+               | (b.accelerations[:n] != a.accelerations[k0:k0 + n]))
+    k1 = int(np.flatnonzero(differs)[0])  # where they part: the new plan's second point
+    assert k1 >= 2 and b.times[k1 - 1] - b.times[0] >= takeover_lead(CFG)
+    for field in ('times', 'positions', 'velocities', 'accelerations'):
+        assert np.array_equal(getattr(b, field)[:k1], getattr(a, field)[k0:k0 + k1]), field
+    assert b.velocities[k1 - 1] > 0.0  # it was moving when replanned
     traj.settle_at(CFG.theta_min)
 
 
