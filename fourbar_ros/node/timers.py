@@ -14,6 +14,7 @@ running node does not move its timers to the other clock.
 
 from __future__ import annotations
 
+import weakref
 from collections.abc import Callable
 from typing import Any
 
@@ -22,14 +23,20 @@ from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.timer import Timer
 
+#: One steady clock per node: the EventsExecutor runs a thread per clock that has timers.
+_STEADY: weakref.WeakKeyDictionary[Node, Clock] = weakref.WeakKeyDictionary()
+
 
 def work_clock(node: Node) -> Clock:
-    """The node's ROS clock while it runs on sim time, else a steady clock."""
+    """The node's ROS clock while it runs on sim time, else the node's steady clock (one per node)."""
     get_clock: Callable[[], Clock] = node.get_clock  # rclpy's accessor is unannotated
     clock = get_clock()
     if isinstance(clock, ROSClock) and clock.ros_time_is_active:
         return clock
-    return Clock(clock_type=ClockType.STEADY_TIME)
+    steady = _STEADY.get(node)
+    if steady is None:
+        steady = _STEADY[node] = Clock(clock_type=ClockType.STEADY_TIME)
+    return steady
 
 
 def periodic_timer(node: Node, period_s: float, callback: Callable[[], Any]) -> Timer:
