@@ -20,10 +20,13 @@ from pathlib import Path
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.clock_type import ClockType
+from rclpy.node import Node
 from support.paths import REPO
-from support.ros_support import Collector, NodeProcess, RosSession
+from support.ros_support import Collector, NodeProcess, RosSession, wait_for
 
-from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
+from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS, StallWatch, create_executor
+from fourbar_ros.node.timers import periodic_timer, work_clock
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -110,3 +113,27 @@ def test_timers_keep_their_rate_across_realtime_steps(ros: RosSession, shim: Pat
             assert node.stop(signal.SIGINT) == 0, node.stderr
     finally:
         ros.uncollect(diag)
+
+
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_the_stall_watch_restarts_an_overdue_steady_timer(ros: RosSession, executor: str) -> None:
+    """A steady timer whose call is overdue by more than the check interval (nothing spins here) is found stalled;
+    on the EventsExecutor it is reset (its next call is then in the future)."""
+    node = Node('stall_watch_probe', context=ros.context)
+    spinner = create_executor(executor, context=ros.context)
+    try:
+        spinner.add_node(node)
+        timer = periodic_timer(node, 0.001, lambda: None)
+        assert timer.clock.clock_type == ClockType.STEADY_TIME
+        assert work_clock(node) is timer.clock  # one steady clock per node
+        watch = StallWatch(spinner, check_s=0.05)
+        assert watch.check() == 0
+        wait_for(lambda: (timer.time_until_next_call() or 0) < -100_000_000, what='the timer to be overdue')
+        assert watch.check() == 1
+        if executor == 'events':
+            assert timer.time_until_next_call() > 0
+        with watch.running():
+            pass  # the thread starts and ends with the block
+    finally:
+        spinner.shutdown(timeout_sec=1.0)
+        node.destroy_node()
