@@ -34,6 +34,7 @@ from fourbar_ros.motion.planner import JointMotionState, Setpoints
 from fourbar_ros.motion.trajectory import DrivenTrajectory
 from fourbar_ros.node.problem_log import ProblemLog
 from fourbar_ros.node.qos import qos
+from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.actuation import (
     ActuationCounters,
     Motion,
@@ -96,7 +97,7 @@ class Actuation:
             out = forward_topic(cfg.forward_controller)
             self._setpoint_pub = node.create_publisher(Float64MultiArray, out.name, qos(out))
             self._setpoint_msg = Float64MultiArray()
-            node.create_timer(1.0 / cfg.control_rate, self._on_control_timer)
+            periodic_timer(node, 1.0 / cfg.control_rate, self._on_control_timer)
         else:
             raise ValueError(f'mode {self.mode!r} is not an actuator mode')
         node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name, self._on_antenna_trajectory,

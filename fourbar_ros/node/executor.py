@@ -12,15 +12,24 @@ time, ``pthread_cond_timedwait`` fails at once (EINVAL) without releasing the qu
 loop retries forever. One core stays busy, the middleware threads that enqueue new messages and rclpy's
 signal thread block on that mutex: no callback runs and SIGINT/SIGTERM are never seen. Any finite timeout
 (below about 7.4e9 s) waits correctly, so everything here spins in bounded slices.
+
+The same conversion makes a backward step of the system clock (NTP, a virtual machine resumed) stall timers, also
+timers on the steady clock and with either executor: a wait for a steady deadline is turned into a system-clock
+deadline when it starts, and the kernel ends it when the system clock reaches that deadline, the step later. The
+SingleThreadedExecutor waits so in the middleware's wait set (librmw_fastrtps_shared_cpp), the EventsExecutor in
+the thread that waits for its next timer. ``StallWatch`` ends such waits (see there).
 """
 
 from __future__ import annotations
 
+import contextlib
 import inspect
 import os
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 from typing import Any
 
+from rclpy.clock_type import ClockType
 from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
 from rclpy.task import Future
@@ -32,6 +41,8 @@ DEFAULT_EXECUTOR = EXECUTORS[0]
 EXECUTOR_ENV = 'FOURBAR_EXECUTOR'
 #: Longest single wait (s): how late a stop request or a ``done()`` condition may be noticed when idle.
 SLICE_S = 0.1
+#: How often (s, steady) ``StallWatch`` looks for stalled timers; also how overdue a call must be to count as stalled.
+STALL_CHECK_S = 0.5
 
 
 class ExecutorChoiceError(ValueError):
@@ -100,8 +111,65 @@ class Spinner:
     def spin(self) -> None:
         """Until request_stop() or the context shuts down."""
         context_ok: Callable[[], bool] = self.executor.context.ok
-        while not self.stopped and context_ok():
-            self.spin_slice()
+        with StallWatch(self.executor).running():
+            while not self.stopped and context_ok():
+                self.spin_slice()
+
+
+class StallWatch:
+    """Restarts the executor's waits that a backward step of the system clock stalled (see the module docstring).
+
+    Every ``STALL_CHECK_S`` s of a steady wait (Python's own waits use the monotonic clock), a thread looks at the
+    steady-clock timers of the executor's nodes. One whose call is overdue by more than ``STALL_CHECK_S`` is
+    stalled, not merely late behind other callbacks (those take milliseconds): the SingleThreadedExecutor is woken (its
+    next wait is computed anew), the EventsExecutor's timer is reset (its timer thread then computes its wait anew;
+    the timer's next call is one period after the reset). A stall thus lasts one to two checks (plus a period on the
+    EventsExecutor) instead of the step. ROS-clock timers are left alone: under sim time they follow /clock by design.
+    """
+
+    def __init__(self, executor: Executor, check_s: float = STALL_CHECK_S) -> None:
+        self.executor = executor
+        self.check_s = check_s
+        self.restarts = 0  # timers found stalled
+        self._events = is_events(executor)
+        self._done = threading.Event()
+
+    def check(self) -> int:
+        """Restart the stalled timers' waits now; the number of stalled timers."""
+        stalled = 0
+        slack_ns = round(self.check_s * 1e9)
+        for node in self.executor.get_nodes():
+            for timer in list(node.timers):
+                if timer.clock.clock_type != ClockType.STEADY_TIME:
+                    continue
+                until_next: Callable[[], int | None] = timer.time_until_next_call  # rclpy's are unannotated
+                left = until_next()
+                if left is None or -left <= slack_ns:
+                    continue
+                stalled += 1
+                if self._events:
+                    reset: Callable[[], None] = timer.reset
+                    reset()
+        if stalled and not self._events:
+            self.executor.wake()
+        self.restarts += stalled
+        return stalled
+
+    def _run(self) -> None:
+        while not self._done.wait(self.check_s):
+            with contextlib.suppress(Exception):  # a node or timer destroyed meanwhile: the next check sees it
+                self.check()
+
+    @contextlib.contextmanager
+    def running(self) -> Iterator[StallWatch]:
+        """Watch in a thread while the block runs (the thread has ended when it returns)."""
+        thread = threading.Thread(target=self._run, name='stall-watch', daemon=True)
+        thread.start()
+        try:
+            yield self
+        finally:
+            self._done.set()
+            thread.join()
 
 
 class MessageInfoCallback:

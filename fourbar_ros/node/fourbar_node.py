@@ -59,6 +59,7 @@ from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.problem_log import CallbackGuard, ProblemLog
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.state_cache import StateCache
+from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.actuation import actuation_contract
 from fourbar_ros.rules.outputs import JointStateRule
 from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
@@ -130,8 +131,8 @@ class FourBarNode(Node):
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
         self._command_sub = self.create_subscription(Float64, COMMAND.name, MessageInfoCallback(self._on_command),
                                                      qos(COMMAND), qos_overriding_options=qos_options, raw=True)
-        self._diag_timer = self.create_timer(self._config.diagnostics_period, self._on_diagnostics_timer)
-        self._marker_timer = self.create_timer(self._config.marker_period, self._on_marker_timer)
+        self._diag_timer = periodic_timer(self, self._config.diagnostics_period, self._on_diagnostics_timer)
+        self._marker_timer = periodic_timer(self, self._config.marker_period, self._on_marker_timer)
         # Actuator modes: served commands become motion (node/actuation.py); joint_states carries the measured
         # state, completed here (node/completion.py), never the commanded pose. One subscription to the measured
         # joint: the completion passes each good measurement on to the motion's start state.
@@ -144,10 +145,10 @@ class FourBarNode(Node):
             self.completion = MeasuredCompletion(self, self._config, self._joint_pub, qos, self.problems,
                                                  on_measured=self.actuation.note_measured)
         if self._config.joint_state_rate > 0.0 and self._publishes_pose:
-            self._joint_state_timer = self.create_timer(1.0 / self._config.joint_state_rate,
-                                                        self._on_joint_state_timer)
-        # The timers above run on the ROS clock, which stands still at 0 under sim time until /clock runs;
-        # this one runs on the steady clock so that case is reported, once per episode.
+            self._joint_state_timer = periodic_timer(self, 1.0 / self._config.joint_state_rate,
+                                                     self._on_joint_state_timer)
+        # Under sim time the timers above run on the ROS clock (fourbar_ros.node.timers), which stands still at 0
+        # until /clock runs; this one runs on the steady clock so that case is reported, once per episode.
         self._clock_warned = False
         self._clock_check = self.create_timer(NO_CLOCK_WARN_S, self._check_sim_clock,
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))

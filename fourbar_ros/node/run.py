@@ -144,15 +144,17 @@ def spin_until_stopped(executor: Executor, stop: Stop = STOP, poll_s: float = ST
     """Run callbacks until ``stop`` is requested or the context ends.
 
     Spins in slices of at most ``poll_s`` s (an EventsExecutor must never wait without a deadline, see
-    fourbar_ros.node.executor); a stop also ends the running slice, after the callback in progress.
+    fourbar_ros.node.executor); a stop also ends the running slice, after the callback in progress. A
+    ``StallWatch`` restarts the timers that a backward step of the system clock stalled.
     """
-    from fourbar_ros.node.executor import Spinner
+    from fourbar_ros.node.executor import Spinner, StallWatch
 
     spinner = Spinner(executor, poll_s)
     stop.on_request(spinner.request_stop)
     context_ok: Callable[[], bool] = executor.context.ok
-    while not stop.requested and context_ok():
-        spinner.spin_slice()
+    with StallWatch(executor).running():  # timers stalled by a step of the system clock
+        while not stop.requested and context_ok():
+            spinner.spin_slice()
 
 
 # --------------------------------------------------------------------------- fourbar_node's command line

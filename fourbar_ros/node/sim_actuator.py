@@ -39,6 +39,7 @@ from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.sim_actuator_model import DriveLimits, Encoder, LagActuator, TrajectoryFollower, effort_at
+from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.controller_contract import check_forward_command
 
 WARN_THROTTLE_S = 1.0
@@ -95,7 +96,7 @@ class SimActuator(Node):
         jt, fw = trajectory_topic(cfg.trajectory_controller), forward_topic(cfg.forward_controller)
         self.create_subscription(JointTrajectory, jt.name, self._on_trajectory, qos(jt))
         self.create_subscription(Float64MultiArray, fw.name, self._on_forward, qos(fw))
-        self.create_timer(1.0 / s.publish_rate, self._on_tick)
+        self._tick_clock: Any = periodic_timer(self, 1.0 / s.publish_rate, self._on_tick).clock
 
     def _refuse(self, kind: str, why: str) -> None:
         self._warn(f'{kind} refused: {why}', throttle_duration_sec=WARN_THROTTLE_S)
@@ -135,8 +136,9 @@ class SimActuator(Node):
     def _on_tick(self) -> None:
         now = self._clock.now()
         ns = now.nanoseconds
-        last, self._last_tick_ns = self._last_tick_ns, ns
-        dt = 0.0 if last is None or ns < last else (ns - last) * 1e-9  # a clock jumping back restarts the steps
+        tick_ns: int = self._tick_clock.now().nanoseconds  # the drive's steps: the timer's clock, not the stamps'
+        last, self._last_tick_ns = self._last_tick_ns, tick_ns
+        dt = 0.0 if last is None or tick_ns < last else (tick_ns - last) * 1e-9  # sim time jumping back restarts
         drive = self.drive
         drive.advance(dt, self._reference)  # the position command of the last update, held over the interval
         try:

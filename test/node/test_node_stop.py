@@ -22,6 +22,7 @@ from support.ros_support import NodeProcess, RosSession, Ticker, sync_probe, wai
 from support.stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.live.node_process import NodeStopError
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -33,6 +34,8 @@ REPEATS = 20
 STREAM_HZ = 1000.0
 #: Answers seen after a restart before the signal is sent under load (the stream is really being served).
 SERVED_BEFORE_SIGNAL = 50
+#: Characters of a failing run's stderr and stdout kept in the report (the end of each).
+KEPT_OUTPUT = 8000
 #: A normal rcutils log line (anything else on stderr, e.g. a traceback, is a failure).
 LOG_LINE = re.compile(r'^\[(DEBUG|INFO|WARN|ERROR|FATAL)\] \[\d+\.\d+\] \[')
 
@@ -58,7 +61,8 @@ class Stream(Ticker):
 
 
 def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, repeats: int) -> list[str]:
-    """Start and signal the node ``repeats`` times; return one line per failure (status, stderr tail)."""
+    """Start and signal the node ``repeats`` times; return one entry per failure: its status and the process's
+    whole output (the last ``KEPT_OUTPUT`` characters of stderr and of stdout), so a rare failure can be read."""
     pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
     js = ros.collect(JointState, f'{ns}/joint_states')
     tq = ros.collect(Float64, f'{ns}/input_torque')
@@ -69,6 +73,7 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, r
             proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'],
                                ros.env(**{EXECUTOR_ENV: executor}))
             proc.start()
+            status: int | str
             try:
                 ros.wait_subscribers(pub)
                 ros.wait_publishers(js)
@@ -81,12 +86,14 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, r
                     sync_probe(lambda t: pub.publish(Float64(data=t)), [tq], probes,
                                lambda col, msg, p: bool(msg.data == torque(p)))
                     status = proc.stop(sig)
+            except NodeStopError as exc:  # killed after the deadline: reported with its output like the others
+                status = str(exc)
             finally:
                 proc.kill()
             odd = [line for line in proc.stderr.splitlines() if line.strip() and not LOG_LINE.match(line)]
             if status != 0 or odd or 'Traceback' in proc.stdout:
-                tail = ' | '.join((odd or proc.stderr.strip().splitlines())[-2:])
-                failures.append(f'run {i}: status {status}: {tail}')
+                failures.append(f'run {i}: status {status}, odd stderr lines {odd}\n--- stderr\n'
+                                f'{proc.stderr[-KEPT_OUTPUT:]}\n--- stdout\n{proc.stdout[-KEPT_OUTPUT:]}')
             # The next node must not match this one's endpoints: wait until they are gone.
             wait_for(lambda: pub.get_subscription_count() == 0, what='the stopped node to leave the graph')
             js.clear()
