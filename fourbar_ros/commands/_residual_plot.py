@@ -1,7 +1,9 @@
 """The residual plot of `fourbar calibrate`, drawn by a worker process that imports matplotlib while the command
 reads the recording and fits (the import alone costs about as much as reading a 10-minute recording).
 
-``PlotWorker`` starts ``python -m fourbar_ros.commands._residual_plot`` at once; ``render`` sends it the arrays
+``PlotWorker`` starts this file in a fresh interpreter at once (``python -S``, the command's ``sys.path`` given
+as PYTHONPATH, and run by path: the worker imports neither the site hooks nor the package, only numpy and
+matplotlib); ``render`` sends it the arrays
 (``numpy.save`` on its stdin) and reads the PNG from its stdout. Should the worker fail, the plot is drawn in this
 process instead; ``close`` ends a worker not used. Not a subcommand (the leading underscore).
 """
@@ -65,8 +67,8 @@ class PlotWorker:
         env = {**os.environ, 'PYTHONPATH': os.pathsep.join(p for p in sys.path if p)}
         try:
             self.proc: subprocess.Popen[bytes] | None = subprocess.Popen(
-                [sys.executable, '-m', __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                stderr=subprocess.DEVNULL, env=env)
+                [sys.executable, '-S', '-c', f'import runpy; runpy.run_path({__file__!r}, run_name="__main__")'],
+                stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env)
         except OSError:
             self.proc = None
 
