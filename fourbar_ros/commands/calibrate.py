@@ -55,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from fourbar_ros.bags.calibration_data import read_calibration_data
-    from fourbar_ros.commands._residual_plot import PlotWorker
+    from fourbar_ros.commands._residual_plot import draw
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, calibrate
 
@@ -66,7 +66,6 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f'{out}: directory {out.parent} does not exist')
     cfg = load_config(args.params)  # ConfigError: exit 2
     plot = _plot_path(args.output, args.report)
-    worker = PlotWorker() if plot is not None else None
     try:
         data = read_calibration_data(args.bag, cfg.driven_joint, args.angle_topic, args.measured_topic)
         _check_span(cfg, data)
@@ -84,19 +83,16 @@ def run(args: argparse.Namespace) -> int:
         report['load'] = load
         if args.report is not None:
             files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
-        if plot is not None and worker is not None:
+        if plot is not None:
             # x: the calibrated model's angle (from the encoder), not the noisy reading, which would bias the bins
             theta = np.degrees(data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)
             title = f'fourbar calibrate: {data.path.name}, {data.times.size} readings, {cfg.driven_joint}'
-            files[plot] = worker.render(theta, fit.residuals_before, fit.residuals_after, title)
+            files[plot] = draw(theta, fit.residuals_before, fit.residuals_after, title)
             report['plot'] = str(plot)
             if args.report is not None:
                 files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
     except CalibrationError as exc:
         raise CommandError(str(exc), status=1) from None
-    finally:
-        if worker is not None:
-            worker.close()
     write_atomically(files)
     print(_summary(report, files))
     return 0
