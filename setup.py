@@ -23,7 +23,7 @@ setup(
     install_requires=['setuptools', 'numpy', 'PyYAML', 'ruckig'],  # ruckig: jerk-limited motion planning
     extras_require={
         'bags': ['rosbags', 'mcap', 'mcap-ros2-support'],
-        'plot': ['matplotlib'],
+        'plot': ['matplotlib', 'pillow'],
         'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
                  'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py', 'pytest-codeblocks',
                  'pytest-xdist', 'lxml', 'mujoco'],  # mujoco: the torque witness (test/core/test_torque_witness.py)

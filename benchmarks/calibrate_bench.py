@@ -10,8 +10,7 @@
   config/antenna.yaml --angle-topic /antenna_inclinometer -o OUT.yaml --report OUT.json`` (start-up, the CLI, the
   read, the pairing, the fit, the plot and the atomic writes);
 - ratio calibrate/read from the medians over ``--rounds`` interleaved rounds, every round listed, of the wall
-  time (target: <= 3) and of the CPU time (the process and its children: the command draws its plot in a worker
-  process while it reads and fits, which shortens the wall time on an idle machine only).
+  time (target: <= 3) and of the CPU time (the process and its children).
   Also in-process: the rosbags read alone (warm) and the command's ``main`` in this process.
 
 Figures printed as JSON. No figure is asserted by a test.

@@ -31,7 +31,7 @@ from fourbar_ros.config.interface import (  # noqa: E402
     Direction,
     Mode,
     Topic,
-    endpoints,
+    every_endpoint,
     qos_override_parameters,
 )
 from fourbar_ros.config.params import PARAMETERS, ParamSpec  # noqa: E402
@@ -48,9 +48,10 @@ def topics_table() -> str:
     out: list[str] = []
     for mode in Mode:
         out += [f'### `mode: {mode.value}`', '', '| Topic | Type | Dir | QoS | Content |', '|---|---|---|---|---|']
-        for e in endpoints(mode):
+        for e in every_endpoint(mode):
+            content = f'only with `{e.optional}`: {e.content}' if e.optional else e.content
             out.append(f'| `{e.topic.name}` | `{e.topic.msgtype}` | {e.direction.value} | {_qos(e.topic)} '
-                       f'| {e.content} |')
+                       f'| {content} |')
         out.append('')
     return '\n'.join(out)
 

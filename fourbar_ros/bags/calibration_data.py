@@ -7,7 +7,7 @@ The recording holds
   ``/measured_joint_states``, else the one such topic in a namespace: ``process_measured.measured_topic``), the
   driven joint found by its name (``gamma_joint`` or ``delta_joint`` of the parameter file);
 - the antenna angle sensor on ``angle_topic``: ``std_msgs/msg/Float64`` (rad, in theta's sense: positive tilts the
-  antenna down), or ``sensor_msgs/msg/Imu``, whose tilt is taken from gravity (``imu_tilt``).
+  antenna down), or ``sensor_msgs/msg/Imu``, whose tilt is taken from gravity (``core.calibration.imu_tilt``).
 
 Each message is timed by its header stamp when it has one (a JointState's or an Imu's, unless zero), else by the
 recording's receive time (a Float64's). The encoder is interpolated linearly at the sensor's times, only inside its
@@ -35,13 +35,13 @@ from fourbar_ros.config.cdr import (
     read_joint_state_arrays,
     read_joint_state_head,
 )
-from fourbar_ros.core.calibration import CalibrationError
+from fourbar_ros.config.interface import IMU
+from fourbar_ros.core.calibration import CalibrationError, imu_tilt
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.core.numeric import FloatArray
 
 __all__ = ['IMU', 'SENSOR_TYPES', 'CalibrationData', 'imu_tilt', 'pair', 'read_calibration_data']
 
-IMU = 'sensor_msgs/msg/Imu'
 #: The antenna angle sensors read.
 SENSOR_TYPES = (FLOAT64, IMU)
 #: The encoder is not interpolated across a gap longer than this many of its median intervals.
@@ -52,19 +52,6 @@ _ACCEL = struct.Struct('<3d')
 #: Bytes from the (8-aligned) orientation to linear_acceleration in an Imu: orientation (4 doubles), its covariance
 #: (9), angular_velocity (3) and its covariance (9).
 _ACCEL_AT = 8 * (4 + 9 + 3 + 9)
-
-
-def imu_tilt(ax: FloatArray, az: FloatArray) -> FloatArray:
-    """The antenna angle theta (rad) from an accelerometer at rest on the antenna: ``atan2(-a_x, a_z)``.
-
-    The IMU's axes are the robot model's coupler frame (REP-103): x along the antenna (B -> C), y along the joint
-    axes (the model's +y), z up when theta = 0. The coupler frame is the root turned by theta about +y, so at rest
-    the measured specific force (gravity's reaction, +9.8 m/s^2 up) reads (-g sin theta, 0, g cos theta): positive
-    theta (the antenna tilted down, x toward -z) gives a negative a_x. A small mounting error about y is the
-    calibration's sensor offset; a mount turned about z or x changes the sign or the axis and must be undone first.
-    """
-    tilt: FloatArray = np.arctan2(-np.asarray(ax, dtype=np.float64), np.asarray(az, dtype=np.float64))
-    return tilt
 
 
 @dataclass(frozen=True)

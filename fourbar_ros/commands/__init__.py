@@ -79,18 +79,32 @@ def add_storage_argument(parser: argparse.ArgumentParser, help: str, default: St
                         help=help)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The top-level parser with every discovered subcommand."""
+def command_names() -> list[str]:
+    """The subcommands: the modules of this package not starting with '_' (found without importing them)."""
+    return sorted(info.name for info in pkgutil.iter_modules(__path__) if not info.name.startswith('_'))
+
+
+def build_parser(only: str | None = None) -> argparse.ArgumentParser:
+    """The top-level parser with every discovered subcommand; with ``only``, that command's module alone is
+    imported (each imports the package's core, so importing all costs a start-up), the others are placeholders
+    without options (enough to parse a command line naming ``only``)."""
     parser = Parser(prog='fourbar', description=__doc__.splitlines()[0] if __doc__ else None)
     sub = parser.add_subparsers(dest='command', metavar='COMMAND', required=True)
-    for info in sorted(pkgutil.iter_modules(__path__), key=lambda m: m.name):
-        if info.name.startswith('_'):
+    for name in command_names():
+        if only is not None and name != only:
+            sub.add_parser(name)
             continue
-        module = importlib.import_module(f'{__name__}.{info.name}')
-        p = sub.add_parser(info.name, help=module.HELP, description=module.HELP)
+        module = importlib.import_module(f'{__name__}.{name}')
+        p = sub.add_parser(name, help=module.HELP, description=module.HELP)
         module.add_arguments(p)
-        p.set_defaults(_run=module.run, _prog=f'fourbar {info.name}', _parser=p)
+        p.set_defaults(_run=module.run, _prog=f'fourbar {name}', _parser=p)
     return parser
+
+
+def _chosen(argv: Sequence[str]) -> str | None:
+    """The subcommand ``argv`` names (its first token, when that is one); None otherwise (``--help``, a typo),
+    where the whole parser is built for its listing and messages."""
+    return argv[0] if argv and argv[0] in command_names() else None
 
 
 def _stop_held() -> contextlib.AbstractContextManager[object]:
@@ -105,7 +119,8 @@ def _stop_held() -> contextlib.AbstractContextManager[object]:
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the `fourbar` console script; returns the exit status."""
-    args = build_parser().parse_args(argv)
+    tokens = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(_chosen(tokens)).parse_args(tokens)
     try:
         with _stop_held():
             return int(args._run(args))

@@ -1,20 +1,16 @@
-"""The residual plot of `fourbar calibrate`, drawn by a worker process that imports matplotlib while the command
-reads the recording and fits (the import alone costs about as much as reading a 10-minute recording).
+"""The residual plot of `fourbar calibrate`, drawn with Pillow in the command's process.
 
-``PlotWorker`` starts ``python -m fourbar_ros.commands._residual_plot`` at once; ``render`` sends it the arrays
-(``numpy.save`` on its stdin) and reads the PNG from its stdout. Should the worker fail, the plot is drawn in this
-process instead; ``close`` ends a worker not used. Not a subcommand (the leading underscore).
+Two panels, before and after the fit: the residuals (sensor minus model, drawn in mrad) against the antenna angle
+(deg), a sample of the readings as dots and their mean per bin as a line, each panel titled with its RMS. Pillow
+(matplotlib's own image library) rather than matplotlib: importing matplotlib alone costs more CPU than reading a
+10-minute recording, Pillow a twentieth of it. Not a subcommand (the leading underscore).
 """
 
 from __future__ import annotations
 
-import contextlib
 import io
-import json
 import math
-import os
-import subprocess
-import sys
+from typing import Any
 
 import numpy as np
 import numpy.typing as npt
@@ -22,113 +18,116 @@ import numpy.typing as npt
 #: Points per series drawn (every k-th reading beyond that); the mean per bin uses them all.
 PLOT_POINTS = 4000
 BINS = 40
+#: Image size (px), font size (px) and the colours (as matplotlib's tab:blue and tab:red).
+WIDTH, HEIGHT = 800, 600
+FONT_PX = 13
+BLUE, RED, GREY, BLACK, WHITE = (31, 119, 180), (214, 39, 40), (200, 200, 200), (0, 0, 0), (255, 255, 255)
+#: Plot area of a panel: left and right margins, and per panel its top and bottom (px).
+LEFT, RIGHT = 80, WIDTH - 24
+PANELS = ((70, 290), (345, 545))
+
+
+def ticks(lo: float, hi: float, count: int = 6) -> list[float]:
+    """Round tick values (1, 2 or 5 times a power of ten apart) covering [lo, hi] with about ``count`` of them."""
+    span = hi - lo if hi > lo else max(abs(hi), 1.0)
+    raw = span / count
+    power = 10.0 ** math.floor(math.log10(raw))
+    step = next(m * power for m in (1.0, 2.0, 5.0, 10.0) if m * power >= raw)
+    first = math.ceil(lo / step - 1e-9)
+    values = []
+    k = first
+    while k * step <= hi + 1e-9 * step:
+        values.append(round(k * step, 12))
+        k += 1
+    return values
+
+
+def _label(value: float, values: list[float]) -> str:
+    step = values[1] - values[0] if len(values) > 1 else 1.0
+    decimals = max(0, -math.floor(math.log10(step) + 1e-9))
+    text = f'{value:.{decimals}f}'
+    return '0' if float(text) == 0.0 else text
+
+
+def _font(size: int) -> Any:
+    from PIL import ImageFont
+
+    try:
+        return ImageFont.load_default(size=size)
+    except (TypeError, OSError, ImportError):  # a Pillow without FreeType: its bitmap font
+        return ImageFont.load_default()
 
 
 def draw(theta_deg: npt.NDArray[np.float64], before: npt.NDArray[np.float64], after: npt.NDArray[np.float64],
          title: str) -> bytes:
     """PNG bytes: the residuals (rad, drawn in mrad) against the antenna angle (deg), before and after."""
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib.figure import Figure
+    from PIL import Image, ImageDraw
 
     step = max(1, theta_deg.size // PLOT_POINTS)
-    edges = np.linspace(float(theta_deg.min()), float(theta_deg.max()), BINS + 1)
+    x_lo, x_hi = float(theta_deg.min()), float(theta_deg.max())
+    edges = np.linspace(x_lo, x_hi, BINS + 1)
     which = np.clip(np.searchsorted(edges, theta_deg, side='right') - 1, 0, BINS - 1)
     counts = np.bincount(which, minlength=BINS)
     centres = 0.5 * (edges[1:] + edges[:-1])
-    fig = Figure(figsize=(8, 6))
-    axes = fig.subplots(2, 1, sharex=True)
-    for ax, residuals, label in ((axes[0], before, 'before: the given lengths, zero offsets'),
-                                 (axes[1], after, 'after: the calibrated lengths and offsets')):
+    if x_hi <= x_lo:
+        x_lo, x_hi = x_lo - 0.5, x_hi + 0.5
+    x_ticks = [t for t in ticks(x_lo, x_hi) if x_lo <= t <= x_hi]
+
+    def px(x: npt.NDArray[np.float64] | float) -> Any:
+        return LEFT + (np.asarray(x) - x_lo) * ((RIGHT - LEFT) / (x_hi - x_lo))
+
+    image = Image.new('RGB', (WIDTH, HEIGHT), WHITE)
+    pen = ImageDraw.Draw(image)
+    font, big = _font(FONT_PX), _font(FONT_PX + 3)
+    pen.text((WIDTH / 2, 12), title, fill=BLACK, font=big, anchor='mt')
+    for (top, bottom), residuals, label in ((PANELS[0], before, 'before: the given lengths, zero offsets'),
+                                            (PANELS[1], after, 'after: the calibrated lengths and offsets')):
         r = residuals * 1e3
-        ax.plot(theta_deg[::step], r[::step], ',', color='tab:blue', alpha=0.6, label='readings (a sample)')
         with np.errstate(invalid='ignore', divide='ignore'):
             mean = np.bincount(which, weights=r, minlength=BINS) / counts
-        ax.plot(centres, mean, '-', color='tab:red', linewidth=1.5, label='mean per bin')
-        ax.axhline(0.0, color='k', linewidth=0.5)
+        shown = r[::step]
+        finite = np.concatenate((shown, mean[np.isfinite(mean)], [0.0]))
+        y_lo, y_hi = float(finite.min()), float(finite.max())
+        pad = 0.05 * (y_hi - y_lo) if y_hi > y_lo else 0.5
+        y_lo, y_hi = y_lo - pad, y_hi + pad
+
+        def py(y: Any, top: int = top, bottom: int = bottom, y_lo: float = y_lo, y_hi: float = y_hi) -> Any:
+            return bottom - (np.asarray(y) - y_lo) * ((bottom - top) / (y_hi - y_lo))
+
+        y_ticks = [t for t in ticks(y_lo, y_hi) if y_lo <= t <= y_hi]
+        for t in y_ticks:
+            y = float(py(t))
+            pen.line([(LEFT, y), (RIGHT, y)], fill=GREY)
+            pen.text((LEFT - 6, y), _label(t, y_ticks), fill=BLACK, font=font, anchor='rm')
+        for t in x_ticks:
+            x = float(px(t))
+            pen.line([(x, top), (x, bottom)], fill=GREY)
+            pen.text((x, bottom + 4), _label(t, x_ticks), fill=BLACK, font=font, anchor='mt')
+        zero = float(py(0.0))
+        pen.line([(LEFT, zero), (RIGHT, zero)], fill=BLACK)
+        pen.point(list(zip(px(theta_deg[::step]).tolist(), py(shown).tolist(), strict=True)), fill=BLUE)
+        ok = np.isfinite(mean)
+        line = list(zip(px(centres[ok]).tolist(), py(mean[ok]).tolist(), strict=True))
+        if len(line) > 1:
+            pen.line(line, fill=RED, width=2)
+        pen.rectangle([LEFT, top, RIGHT, bottom], outline=BLACK)
         rms = math.sqrt(float(np.mean(residuals * residuals))) * 1e3
-        ax.set_title(f'{label}: RMS {rms:.3g} mrad', fontsize=10)
-        ax.set_ylabel('sensor - model (mrad)')
-    axes[0].legend(loc='best', fontsize=8)
-    axes[1].set_xlabel('antenna angle theta (deg): the calibrated model at the measured joint')
-    fig.suptitle(title)
-    fig.subplots_adjust(left=0.1, right=0.97, top=0.88, bottom=0.09, hspace=0.3)
+        pen.text(((LEFT + RIGHT) / 2, top - 6), f'{label}: RMS {rms:.3g} mrad', fill=BLACK, font=font, anchor='md')
+        ylabel = 'sensor - model (mrad)'
+        box = pen.textbbox((0, 0), ylabel, font=font)
+        strip = Image.new('RGB', (int(box[2] - box[0]) + 4, int(box[3] - box[1]) + 4), WHITE)
+        ImageDraw.Draw(strip).text((2 - box[0], 2 - box[1]), ylabel, fill=BLACK, font=font)
+        strip = strip.rotate(90, expand=True)
+        image.paste(strip, (8, int((top + bottom - strip.height) / 2)))
+    # The legend, in the top panel's upper right corner.
+    lx, ly = RIGHT - 170, PANELS[0][0] + 8
+    pen.rectangle([lx - 6, ly - 4, RIGHT - 6, ly + 36], fill=WHITE, outline=GREY)
+    pen.ellipse([lx + 8, ly + 4, lx + 12, ly + 8], fill=BLUE)
+    pen.text((lx + 26, ly + 6), 'readings (a sample)', fill=BLACK, font=font, anchor='lm')
+    pen.line([(lx, ly + 24), (lx + 20, ly + 24)], fill=RED, width=2)
+    pen.text((lx + 26, ly + 24), 'mean per bin', fill=BLACK, font=font, anchor='lm')
+    pen.text(((LEFT + RIGHT) / 2, HEIGHT - 14), 'antenna angle theta (deg): the calibrated model at the measured '
+             'joint', fill=BLACK, font=font, anchor='md')
     buf = io.BytesIO()
-    fig.savefig(buf, format='png', dpi=80)
+    image.save(buf, format='PNG', optimize=False, compress_level=6)
     return buf.getvalue()
-
-
-class PlotWorker:
-    """A worker process drawing one plot (see the module docstring)."""
-
-    def __init__(self) -> None:
-        env = {**os.environ, 'PYTHONPATH': os.pathsep.join(p for p in sys.path if p)}
-        try:
-            self.proc: subprocess.Popen[bytes] | None = subprocess.Popen(
-                [sys.executable, '-m', __name__], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                stderr=subprocess.DEVNULL, env=env)
-        except OSError:
-            self.proc = None
-
-    def render(self, theta_deg: npt.NDArray[np.float64], before: npt.NDArray[np.float64],
-               after: npt.NDArray[np.float64], title: str) -> bytes:
-        """The PNG, from the worker, else drawn here."""
-        proc, self.proc = self.proc, None
-        if proc is not None:
-            buf = io.BytesIO()
-            head = json.dumps({'title': title}).encode()
-            buf.write(len(head).to_bytes(4, 'little') + head)
-            for a in (theta_deg, before, after):
-                np.save(buf, np.ascontiguousarray(a, dtype=np.float64), allow_pickle=False)
-            try:
-                png, _ = proc.communicate(buf.getvalue(), timeout=120)
-            except (OSError, subprocess.TimeoutExpired):
-                png = b''
-            finally:
-                _end(proc)
-            if proc.returncode == 0 and png.startswith(b'\x89PNG'):
-                return png
-        return draw(theta_deg, before, after, title)
-
-    def close(self) -> None:
-        """End the worker if it was not used."""
-        proc, self.proc = self.proc, None
-        if proc is not None:
-            _end(proc)
-
-
-def _end(proc: subprocess.Popen[bytes]) -> None:
-    if proc.poll() is None:
-        with contextlib.suppress(OSError):
-            proc.kill()
-    with contextlib.suppress(Exception):
-        proc.wait(timeout=10)
-    for stream in (proc.stdin, proc.stdout):
-        if stream is not None:
-            with contextlib.suppress(OSError):
-                stream.close()
-
-
-def _serve() -> int:
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.figure  # imported while the command reads and fits
-    del matplotlib.figure
-
-    data = sys.stdin.buffer.read()
-    if len(data) < 4:
-        return 1  # the command did not need a plot after all
-    size = int.from_bytes(data[:4], 'little')
-    head = json.loads(data[4:4 + size])
-    buf = io.BytesIO(data[4 + size:])
-    theta, before, after = (np.load(buf, allow_pickle=False) for _ in range(3))
-    sys.stdout.buffer.write(draw(theta, before, after, str(head['title'])))
-    sys.stdout.buffer.flush()
-    return 0
-
-
-if __name__ == '__main__':
-    try:
-        sys.exit(_serve())
-    except KeyboardInterrupt:
-        sys.exit(130)

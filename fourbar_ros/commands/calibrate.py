@@ -42,7 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         '/joint_state_broadcaster/joint_states or /measured_joint_states, else the one such topic '
                         'in a namespace)')
     parser.add_argument('-o', '--output', type=Path, metavar='OUT.yaml',
-                        help='write the parameter file with the calibrated lengths (and OUT.png, the residuals)')
+                        help='write the parameter file with the calibrated lengths, driven_joint_offset and '
+                        'antenna_sensor_offset (and OUT.png, the residuals)')
     parser.add_argument('--report', type=Path, metavar='OUT.json', help='write the report as JSON')
     parser.add_argument('--length-tolerance', type=float, default=5e-4, metavar='M',
                         help='standard deviation of each given length, the prior (m, default 0.0005)')
@@ -54,7 +55,7 @@ def run(args: argparse.Namespace) -> int:
     import numpy as np
 
     from fourbar_ros.bags.calibration_data import read_calibration_data
-    from fourbar_ros.commands._residual_plot import PlotWorker
+    from fourbar_ros.commands._residual_plot import draw
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, calibrate
 
@@ -65,7 +66,6 @@ def run(args: argparse.Namespace) -> int:
             raise CommandError(f'{out}: directory {out.parent} does not exist')
     cfg = load_config(args.params)  # ConfigError: exit 2
     plot = _plot_path(args.output, args.report)
-    worker = PlotWorker() if plot is not None else None
     try:
         data = read_calibration_data(args.bag, cfg.driven_joint, args.angle_topic, args.measured_topic)
         _check_span(cfg, data)
@@ -73,6 +73,7 @@ def run(args: argparse.Namespace) -> int:
         fit = calibrate(data.q, data.theta, lengths, cfg.driven, cfg.measured_branch, args.length_tolerance)
         load = _load(cfg, data, fit)
         values = {name: fit.parameter(name).value for name in LENGTH_NAMES}
+        values.update(_offsets(cfg, fit))
         if isinstance(load, dict):
             values.update(load['written_to_parameter_file'])
         files: dict[Path, bytes] = {}
@@ -82,22 +83,28 @@ def run(args: argparse.Namespace) -> int:
         report['load'] = load
         if args.report is not None:
             files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
-        if plot is not None and worker is not None:
+        if plot is not None:
             # x: the calibrated model's angle (from the encoder), not the noisy reading, which would bias the bins
             theta = np.degrees(data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)
             title = f'fourbar calibrate: {data.path.name}, {data.times.size} readings, {cfg.driven_joint}'
-            files[plot] = worker.render(theta, fit.residuals_before, fit.residuals_after, title)
+            files[plot] = draw(theta, fit.residuals_before, fit.residuals_after, title)
             report['plot'] = str(plot)
             if args.report is not None:
                 files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
     except CalibrationError as exc:
         raise CommandError(str(exc), status=1) from None
-    finally:
-        if worker is not None:
-            worker.close()
     write_atomically(files)
     print(_summary(report, files))
     return 0
+
+
+def _offsets(cfg: AntennaConfig, fit: Calibration) -> dict[str, float]:
+    """The node's parameters for the fitted offsets: ``driven_joint_offset`` (rad), the URDF transmission's
+    ``<offset>`` (joint = actuator / reduction + offset), is the file's, in effect while recording, plus the fitted
+    correction (the true rocker angle is the measured joint plus it); ``antenna_sensor_offset`` (rad) is the fitted
+    sensor_offset itself (the recording holds the sensor's raw readings)."""
+    return {'driven_joint_offset': cfg.driven_joint_offset + fit.parameter('driven_joint_offset').value,
+            'antenna_sensor_offset': fit.parameter('sensor_offset').value}
 
 
 #: The load parameters that are node parameters (written to OUT.yaml when the data determined them).
@@ -200,11 +207,13 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
                  f'determined by the data when its singular value (of J diag(prior sd) / noise sd) exceeds '
                  f'{math.sqrt(DETERMINED_RATIO ** -2 - 1.0):.4g}'),
         'conventions': ('lengths m, angles rad; sensor = theta(q_measured + driven_joint_offset) + sensor_offset; '
-                        'driven_joint_offset is the ros2_control transmission <offset> (joint = actuator / '
-                        'reduction + offset) that makes the measured joint the true rocker angle, for a recording '
-                        'made with <offset> 0.0 (else add the offset in effect); sensor_offset is the sensor\'s '
-                        'reading at theta = 0'),
-        'not_in_parameter_file': ['driven_joint_offset', 'sensor_offset'],
+                        'driven_joint_offset here is the correction of the measured joint: the true rocker angle is '
+                        'the measured joint plus it; the parameter file\'s driven_joint_offset, the ros2_control '
+                        'transmission <offset> (joint = actuator / reduction + offset), becomes the one in effect '
+                        'while recording (the file\'s) plus it; sensor_offset is the sensor\'s reading at theta = 0, '
+                        'the node\'s antenna_sensor_offset'),
+        'driven_joint_offset_recorded_rad': cfg.driven_joint_offset,
+        'offsets_in_parameter_file': _offsets(cfg, fit),
         'iterations': fit.iterations,
     }
 
@@ -213,9 +222,9 @@ _NUMBER_LINE = r'^(?P<head>[ \t]*{key}[ \t]*:[ \t]*)(?P<value>[^#\n]*?)(?P<tail>
 
 
 def _calibrated_yaml(params: Path, bag: Path, values: dict[str, float]) -> str:
-    """The parameter file's text with ``values`` (node parameters: the four lengths, and the load's parameters the
-    data determined) replacing the file's (comments kept), checked by reading it back with the node's own reader
-    and validation."""
+    """The parameter file's text with ``values`` (node parameters: the four lengths, the two offsets, and the load's
+    parameters the data determined) replacing the file's (comments kept), checked by reading it back with the
+    node's own reader and validation."""
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.config.rcl_yaml import read_text
     from fourbar_ros.core.calibration import CalibrationError
@@ -323,8 +332,11 @@ def _summary(report: dict[str, Any], files: dict[Path, bytes]) -> str:
                          f'sd {p["prior_sd"]:.2g}; by the {by})'.replace('  (', ' ('))
     elif isinstance(load, dict):
         lines.append(f'  load model not fitted: {load["skipped"]}')
+    offsets = report['offsets_in_parameter_file']
+    if any(path.suffix == '.yaml' for path in files):
+        lines.append(f'  to the parameter file: driven_joint_offset {offsets["driven_joint_offset"]:.9g} rad (the '
+                     f'file\'s {report["driven_joint_offset_recorded_rad"]:.9g} plus the fitted), '
+                     f'antenna_sensor_offset {offsets["antenna_sensor_offset"]:.9g} rad')
     lines += [f'  wrote {path}' for path in files]
-    if files:
-        lines.append('  driven_joint_offset and sensor_offset are not node parameters: they are in the report only')
     return '\n'.join(lines)
 

@@ -92,6 +92,10 @@ class AntennaConfig:
     measured_range_tolerance: float
     measurement_timeout: float
     tracking_window: float
+    antenna_sensor_type: str
+    antenna_sensor_offset: float
+    model_mismatch_warn: float
+    model_mismatch_error: float
     gamma_joint: str
     delta_joint: str
     coupler_joint: str
@@ -267,6 +271,10 @@ def config_from_values(values: Mapping[str, object], changed: Collection[str] | 
     except FourBarError as exc:
         raise _fault(f'the lengths do not form a linkage: {exc}', _LENGTHS, _LENGTHS, changed) from None
     _check_tilt_range(linkage, v['theta_min'], v['theta_max'], driven, branch, changed)
+    if not v['model_mismatch_warn'] < v['model_mismatch_error']:
+        mismatch = ('model_mismatch_warn', 'model_mismatch_error')
+        raise _fault(f"model_mismatch_warn {v['model_mismatch_warn']!r} rad must be below model_mismatch_error "
+                     f"{v['model_mismatch_error']!r} rad", mismatch, mismatch, changed)
     joints = ('gamma_joint', 'delta_joint', 'coupler_joint')
     for i, first in enumerate(joints):
         for second in joints[i + 1:]:

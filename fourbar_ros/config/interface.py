@@ -22,6 +22,7 @@ DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
 JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 FLOAT64_MULTI_ARRAY = 'std_msgs/msg/Float64MultiArray'
+IMU = 'sensor_msgs/msg/Imu'
 
 #: Keep-last depth of the command subscription and the per-command outputs: how far a burst may run ahead.
 STREAM_DEPTH = 1000
@@ -68,6 +69,14 @@ ANTENNA_RATE = Topic('antenna_rate', FLOAT64, STREAM_DEPTH)
 #: Actuator modes: the load torque on the antenna the measured effort holds (N m about theta, + in the sense of
 #: increasing theta), when the measurement has an effort.
 LOAD_TORQUE = Topic('load_torque', FLOAT64, STREAM_DEPTH)
+#: Actuator modes, optional (``antenna_sensor_type``): an antenna angle sensor strapped to the antenna, read for the
+#: live model check (node.model_check). Best effort: it matches a sensor publishing either way (sensor drivers
+#: commonly publish best effort), and a reading lost is only one comparison fewer.
+ANTENNA_SENSOR_FLOAT64 = Topic('antenna_angle_sensor', FLOAT64, 100, Reliability.BEST_EFFORT)
+ANTENNA_SENSOR_IMU = Topic('antenna_angle_sensor', IMU, 100, Reliability.BEST_EFFORT)
+#: ``antenna_sensor_type`` -> the sensor's topic (``none``: no subscription).
+ANTENNA_SENSORS: dict[str, Topic] = {'float64': ANTENNA_SENSOR_FLOAT64, 'imu': ANTENNA_SENSOR_IMU}
+SENSOR_NONE = 'none'
 #: What the node publishes for each measurement (actuator modes), in publishing order.
 PER_MEASUREMENT_OUTPUTS = (JOINT_STATES, ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE)
 #: The linkage drawing, every marker_period s when subscribed and changed.
@@ -113,11 +122,13 @@ class Direction(enum.Enum):
 
 @dataclass(frozen=True)
 class Endpoint:
-    """One topic of the node in one mode: the topic, its direction, and what it carries and when."""
+    """One topic of the node in one mode: the topic, its direction, and what it carries and when; ``optional``: the
+    parameter value that creates it (empty: always there)."""
 
     topic: Topic
     direction: Direction
     content: str
+    optional: str = ''
 
 
 #: Where the defaults of the ``trajectory_controller`` and ``forward_controller`` parameters send (config.params).
@@ -149,9 +160,29 @@ _MEASURED = (
 )
 
 
+_SENSOR_CONTENT = {
+    'float64': 'the antenna angle from a sensor on the antenna (an inclinometer), rad in theta\'s sense, '
+               'timed by its arrival; compared with the angle completed from the measured joint (`model_mismatch_*` '
+               'in diagnostics)',
+    'imu': 'an IMU on the antenna, axes as the coupler frame; the tilt from gravity, atan2(-a_x, a_z) of '
+           '`linear_acceleration` (as `fourbar calibrate`), timed by its header stamp; compared as the Float64 form',
+}
+
+
+def sensor_endpoint(antenna_sensor_type: str) -> Endpoint | None:
+    """The antenna angle sensor's endpoint for the ``antenna_sensor_type`` parameter's value (None for ``none``)."""
+    topic = ANTENNA_SENSORS.get(antenna_sensor_type)
+    if topic is None:
+        return None
+    return Endpoint(topic, Direction.IN, _SENSOR_CONTENT[antenna_sensor_type],
+                    optional=f'antenna_sensor_type: {antenna_sensor_type}')
+
+
 def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
-              forward_controller: str = DEFAULT_FORWARD_CONTROLLER) -> tuple[Endpoint, ...]:
-    """Every topic fourbar_node reads or writes in ``mode`` (the controller names as its parameters give them)."""
+              forward_controller: str = DEFAULT_FORWARD_CONTROLLER,
+              antenna_sensor_type: str = SENSOR_NONE) -> tuple[Endpoint, ...]:
+    """Every topic fourbar_node reads or writes in ``mode`` (the controller names and the antenna sensor's type as
+    its parameters give them; the sensor only in the actuator modes)."""
     if mode is Mode.OPEN_LOOP:
         pose = Endpoint(JOINT_STATES, Direction.OUT, 'per served command, the commanded pose: joints [`gamma_joint`, '
                         '`delta_joint`, `coupler_joint`], positions [gamma, delta, gamma + theta] rad, velocities '
@@ -166,7 +197,19 @@ def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTRO
     else:
         out = Endpoint(forward_topic(forward_controller), Direction.OUT, 'driven-joint setpoints for '
                        'forward_command_controller: one position rad per message, at `control_rate` while moving')
-    return (_COMMAND_IN, *_MEASURED, out, _TORQUE_OUT, *_STATUS_OUT)
+    sensor = sensor_endpoint(antenna_sensor_type)
+    return (_COMMAND_IN, *_MEASURED, *((sensor,) if sensor is not None else ()), out, _TORQUE_OUT, *_STATUS_OUT)
+
+
+def every_endpoint(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
+                   forward_controller: str = DEFAULT_FORWARD_CONTROLLER) -> tuple[Endpoint, ...]:
+    """``endpoints`` with every optional one (each form of the antenna sensor): the reference tables and the
+    security policy, which must allow what a parameter may turn on."""
+    out = list(endpoints(mode, trajectory_controller, forward_controller))
+    if mode is not Mode.OPEN_LOOP:
+        at = 1 + len(_MEASURED)  # where endpoints() puts the sensor: after the command and the measured ones
+        out[at:at] = [e for e in map(sensor_endpoint, ANTENNA_SENSORS) if e is not None]
+    return tuple(out)
 
 
 #: The endpoints whose QoS parameters may override, in every mode: (topic, direction). The node creates them with

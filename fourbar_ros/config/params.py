@@ -191,7 +191,20 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Actuator modes: no measured driven joint for this long makes the diagnostics WARN.', 0.001, 3600.0),
     ParamSpec('tracking_window', float, 5.0, 's',
               'Actuator modes: the window over which diagnostics report the worst commanded-minus-measured '
-              'antenna angle.', 0.001, 3600.0),
+              'antenna angle, and the RMS of the model mismatch (antenna_sensor_type).', 0.001, 3600.0),
+    ParamSpec('antenna_sensor_type', str, 'none', '',
+              'Actuator modes: an antenna angle sensor on antenna_angle_sensor for a live check of the model: '
+              'float64 (std_msgs/Float64, rad in theta\'s sense) or imu (sensor_msgs/Imu, the tilt from gravity as '
+              '`fourbar calibrate` takes it); each reading is compared with the angle completed from the measured '
+              'driven joint at its time. none: no subscription.', choices=('none', 'float64', 'imu'), read_only=True),
+    ParamSpec('antenna_sensor_offset', float, 0.0, 'rad',
+              'The antenna sensor\'s reading when the antenna is level (its mounting error; `fourbar calibrate`\'s '
+              'sensor_offset): subtracted from its readings.', -math.pi, math.pi),
+    ParamSpec('model_mismatch_warn', float, 0.005, 'rad',
+              'Actuator modes, with an antenna sensor: diagnostics WARN when the RMS of sensor minus model over '
+              'tracking_window exceeds this (must be below model_mismatch_error).', 0.0, math.pi),
+    ParamSpec('model_mismatch_error', float, 0.02, 'rad',
+              'Actuator modes, with an antenna sensor: diagnostics ERROR when that RMS exceeds this.', 0.0, math.pi),
     ParamSpec('gamma_joint', str, 'rocker_ab_joint', '',
               'JointState name of the rocker AB joint (gamma).'),
     ParamSpec('delta_joint', str, 'rocker_cd_joint', '',

@@ -1,11 +1,12 @@
 """The SROS2 permissions policy of the package's nodes: who may move the antenna.
 
-Generated from the interface table (``interface.endpoints``), so the policy and the topics the nodes use cannot
-drift apart. One enclave per node and mode: ``fourbar_node`` in ``open_loop`` may not write to any controller, in
-``trajectory`` only to ``<trajectory_controller>/joint_trajectory``, in ``forward`` only to
-``<forward_controller>/commands``; ``sim_actuator`` reads both controllers' topics and writes the broadcaster's
-joint states. Besides a node's own topics, each profile allows what every rclpy node needs: its parameter and
-type-description services, ``/rosout``, ``/parameter_events`` (publish) and ``/clock`` (``use_sim_time``).
+Generated from the interface table (``interface.every_endpoint``: with what a parameter may turn on), so the policy
+and the topics the nodes use cannot drift apart. One enclave per node and mode: ``fourbar_node`` in ``open_loop``
+may not write to any controller, in ``trajectory`` only to ``<trajectory_controller>/joint_trajectory``, in
+``forward`` only to ``<forward_controller>/commands``; ``sim_actuator`` reads both controllers' topics and writes
+the broadcaster's joint states. Besides a node's own topics, each profile allows what every rclpy node needs: its
+parameter and type-description services, ``/rosout``, ``/parameter_events`` (publish) and ``/clock``
+(``use_sim_time``).
 
 Topic names are as the launch file remaps them (``measured_joint_states`` is read on
 ``joint_state_broadcaster/joint_states``). ``config/security/policy.xml`` is ``policy_xml()`` for the root
@@ -33,7 +34,7 @@ from fourbar_ros.config.interface import (
     NODE_NAME,
     Direction,
     Mode,
-    endpoints,
+    every_endpoint,
     forward_topic,
     trajectory_topic,
 )
@@ -84,7 +85,7 @@ def profiles(trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
     out = []
     for mode in Mode:
         publish, subscribe = set(RCLPY_PUBLISH), set(RCLPY_SUBSCRIBE)
-        for e in endpoints(mode, trajectory_controller, forward_controller):
+        for e in every_endpoint(mode, trajectory_controller, forward_controller):
             name = LAUNCH_REMAPPINGS.get(e.topic.name, e.topic.name)
             (publish if e.direction is Direction.OUT else subscribe).add(name)
         out.append(Profile(enclave(mode), NODE_NAME, tuple(sorted(publish)), tuple(sorted(subscribe))))

@@ -53,7 +53,7 @@ from fourbar_ros.core.numeric import ArrayLike, FloatArray
 
 __all__ = [
     'DETERMINED_RATIO', 'LENGTH_NAMES', 'OFFSET_SD', 'PARAMETER_NAMES', 'Calibration', 'CalibrationError',
-    'FittedParameter', 'MapFit', 'calibrate', 'map_fit', 'model_jacobian', 'model_mismatch', 'predict',
+    'FittedParameter', 'MapFit', 'calibrate', 'imu_tilt', 'map_fit', 'model_jacobian', 'model_mismatch', 'predict',
 ]
 
 #: The fitted parameters, in order: the four lengths (m, named as the node's parameters), then the offsets (rad).
@@ -134,6 +134,19 @@ def model_mismatch(link: AntennaLinkage, q_measured: ArrayLike, sensor_theta: Ar
                                on_invalid='nan').theta
     out: FloatArray = np.asarray(sensor_theta, dtype=np.float64) - sensor_offset - np.asarray(theta_a)
     return out
+
+
+def imu_tilt(ax: FloatArray, az: FloatArray) -> FloatArray:
+    """The antenna angle theta (rad) from an accelerometer at rest on the antenna: ``atan2(-a_x, a_z)``.
+
+    The IMU's axes are the robot model's coupler frame (REP-103): x along the antenna (B -> C), y along the joint
+    axes (the model's +y), z up when theta = 0. The coupler frame is the root turned by theta about +y, so at rest
+    the measured specific force (gravity's reaction, +9.8 m/s^2 up) reads (-g sin theta, 0, g cos theta): positive
+    theta (the antenna tilted down, x toward -z) gives a negative a_x. A small mounting error about y is the
+    calibration's sensor offset; a mount turned about z or x changes the sign or the axis and must be undone first.
+    """
+    tilt: FloatArray = np.arctan2(-np.asarray(ax, dtype=np.float64), np.asarray(az, dtype=np.float64))
+    return tilt
 
 
 @dataclass(frozen=True)

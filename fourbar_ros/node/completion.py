@@ -60,12 +60,15 @@ class MeasuredCompletion:
 
     def __init__(self, node: Node, cfg: AntennaConfig, joint_pub: Any, qos: Callable[[Topic], QoSProfile],
                  problems: ProblemLog,
-                 on_measured: Callable[[float, float | None], None] | None = None) -> None:
+                 on_measured: Callable[[float, float | None], None] | None = None,
+                 on_completed: Callable[[int, int, float], None] | None = None) -> None:
         """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic;
         ``problems``: the node's log by problem kind;
         ``on_measured``: called with each measured driven joint that is finite and within reach: position rad,
-        velocity rad/s (None: not measured)."""
+        velocity rad/s (None: not measured); ``on_completed``: with each one completed: its stamp (sec, nanosec)
+        and position rad."""
         self._on_measured = on_measured
+        self._on_completed = on_completed
         self.rule = CompletionRule(cfg)
         self.counters = MeasurementCounters()
         self._problems = problems
@@ -156,6 +159,8 @@ class MeasuredCompletion:
             self._load_pub.publish(number)
         counters.measurements_completed += 1
         self.theta = done.theta
+        if self._on_completed is not None:
+            self._on_completed(sec, nanosec, q)
         if self._commanded is not None:
             tracking = self._tracking
             tracking.append((now, abs(self._commanded - done.theta)))

@@ -41,6 +41,7 @@ from fourbar_ros.config.interface import (
     JOINT_STATES,
     MARKERS,
     NODE_NAME,
+    SENSOR_NONE,
     Mode,
 )
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
@@ -55,6 +56,7 @@ from fourbar_ros.node.executor import (
 )
 from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
+from fourbar_ros.node.model_check import LiveModelCheck
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.problem_log import CallbackGuard, ProblemLog
 from fourbar_ros.node.qos import qos
@@ -139,11 +141,15 @@ class FourBarNode(Node):
         self._publishes_pose = self._config.mode == Mode.OPEN_LOOP.value
         self.actuation: Actuation | None = None
         self.completion: MeasuredCompletion | None = None
+        self.model_check: LiveModelCheck | None = None  # an antenna sensor against the completed angle
         if not self._publishes_pose:
             assert contract is not None
             self.actuation = Actuation(self, lambda: self._config, self.problems, contract, subscribe_measured=False)
-            self.completion = MeasuredCompletion(self, self._config, self._joint_pub, qos, self.problems,
-                                                 on_measured=self.actuation.note_measured)
+            if self._config.antenna_sensor_type != SENSOR_NONE:
+                self.model_check = LiveModelCheck(self, self._config, lambda: self._config, qos, self.problems)
+            self.completion = MeasuredCompletion(
+                self, self._config, self._joint_pub, qos, self.problems, on_measured=self.actuation.note_measured,
+                on_completed=self.model_check.on_completed if self.model_check is not None else None)
         if self._config.joint_state_rate > 0.0 and self._publishes_pose:
             self._joint_state_timer = periodic_timer(self, 1.0 / self._config.joint_state_rate,
                                                      self._on_joint_state_timer)
@@ -419,6 +425,11 @@ class FourBarNode(Node):
             values += measured_values
             if measured_level > level:
                 level, message = measured_level, measured_message
+        if self.model_check is not None:
+            check_level, check_message, check_values = self.model_check.diagnostics()
+            values += check_values
+            if check_level > level:
+                level, message = check_level, check_message
         if self.actuation is not None:
             values += self.actuation.diagnostic_values()
         values += self.guard.diagnostic_values()

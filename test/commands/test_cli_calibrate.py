@@ -51,12 +51,18 @@ def test_calibrates_and_writes_what_the_node_loads(tmp_path: Path, out: Path,
     assert report['residual_rms_rad'] == pytest.approx(1e-3, rel=0.1)
     assert report['residual_rms_before_rad'] > 5e-3
     assert report['largest_residual_rad'] < 6e-3
-    # The node's own reader and validation accept the file; only the lengths changed.
+    # The node's own reader and validation accept the file; only the lengths and the offsets changed: the
+    # transmission offset is the file's (0.0) plus the fitted correction, the sensor's the fitted one.
     cfg, before = load_config(out / 'calibrated.yaml'), load_config(CONFIG)
     for name in calibration.LENGTH_NAMES:
         assert getattr(cfg, name) == params[name]['value']
+    assert before.driven_joint_offset == 0.0
+    assert cfg.driven_joint_offset == params['driven_joint_offset']['value']
+    assert cfg.antenna_sensor_offset == params['sensor_offset']['value']
+    assert report['offsets_in_parameter_file'] == {'driven_joint_offset': cfg.driven_joint_offset,
+                                                   'antenna_sensor_offset': cfg.antenna_sensor_offset}
     changed = {k for k, v in cfg.as_values().items() if before.as_values()[k] != v}
-    assert changed == set(calibration.LENGTH_NAMES)
+    assert changed == {*calibration.LENGTH_NAMES, 'driven_joint_offset', 'antenna_sensor_offset'}
     # The calibrated model predicts the noiseless reading within 1e-4 rad over the swept range.
     values = np.array([params[n]['value'] for n in PARAMETER_NAMES])
     truth = np.array([TRUTH[n] for n in PARAMETER_NAMES])
@@ -67,7 +73,26 @@ def test_calibrates_and_writes_what_the_node_loads(tmp_path: Path, out: Path,
     assert (out / 'calibrated.png').read_bytes().startswith(b'\x89PNG')
     printed = capsys.readouterr().out
     assert 'the data determine 3 of 6 directions' in printed
-    assert 'driven_joint_offset and sensor_offset are not node parameters' in printed
+    assert (f"to the parameter file: driven_joint_offset {cfg.driven_joint_offset:.9g} rad (the file's 0 plus the "
+            f"fitted), antenna_sensor_offset {cfg.antenna_sensor_offset:.9g} rad") in printed
+
+
+def test_the_transmission_offset_in_effect_is_added_to(tmp_path: Path, out: Path) -> None:
+    """Recorded with the transmission's <offset> at 0.1 rad (the parameter file's driven_joint_offset): the joint
+    the drive reports is the actuator's plus 0.1 rad, the fitted correction is the same as with 0.0 (the recording
+    is the same), and the file gets 0.1 rad plus it."""
+    params = tmp_path / 'antenna.yaml'
+    params.write_text(CONFIG.read_text(encoding='utf-8').replace('driven_joint_offset: 0.0 ',
+                                                                 'driven_joint_offset: 0.1 ', 1), encoding='utf-8')
+    assert load_config(params).driven_joint_offset == 0.1
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, duration=60.0, cycles=1.0))
+    assert main(['calibrate', str(bag), '--params', str(params), '--angle-topic', '/antenna_inclinometer',
+                 '-o', str(out / 'calibrated.yaml'), '--report', str(out / 'report.json')]) == 0
+    report = json.loads((out / 'report.json').read_text())
+    correction = report['parameters']['driven_joint_offset']['value']
+    assert abs(correction - TRUTH['driven_joint_offset']) <= 4.0 * report['parameters']['driven_joint_offset']['sd']
+    assert report['driven_joint_offset_recorded_rad'] == 0.1
+    assert load_config(out / 'calibrated.yaml').driven_joint_offset == 0.1 + correction
 
 
 def test_imu_recording(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:

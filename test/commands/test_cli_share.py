@@ -87,7 +87,7 @@ class _Parser:
 @pytest.mark.parametrize('status', [1, 2, 3])
 def test_main_alone_prints_the_error_and_returns_its_status(status: int, capsys: pytest.CaptureFixture[str],
                                                             monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr('fourbar_ros.commands.build_parser', lambda: _Parser(status))
+    monkeypatch.setattr('fourbar_ros.commands.build_parser', lambda only=None: _Parser(status))
     assert main([]) == status
     captured = capsys.readouterr()
     assert captured.out == '' and captured.err == 'fourbar replay: error: the node went away\n'

@@ -3,12 +3,14 @@ stderr in the form of every other error, `fourbar <command>: error: ...`, with a
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
 import pytest
+from support.paths import REPO
 
-from fourbar_ros.commands import build_parser
+from fourbar_ros.commands import build_parser, command_names
 from fourbar_ros.commands import main as cli_main
 
 
@@ -65,3 +67,18 @@ def test_the_console_script_prints_the_same_line() -> None:
                          capture_output=True, text=True, timeout=60, check=False)
     assert (out.returncode, out.stdout) == (2, '')
     assert out.stderr == 'fourbar solve: error: unrecognized arguments: --rte 2 (see fourbar solve --help)\n'
+
+
+def test_only_the_chosen_command_is_imported() -> None:
+    """`fourbar calibrate` imports the calibrate module alone (each command imports what it needs: a command line is
+    not slowed by the others'); `fourbar --help` lists them all."""
+    probe = ('import sys\nfrom fourbar_ros.commands import build_parser\n'
+             'argv = ["calibrate", "BAG", "--params", "P.yaml", "--angle-topic", "/a"]\n'
+             'args = build_parser("calibrate").parse_args(argv)\n'
+             'print(args._prog, sorted(m for m in sys.modules if m.startswith("fourbar_ros.commands.")))\n')
+    path = os.pathsep.join(filter(None, (str(REPO), os.environ.get('PYTHONPATH'))))
+    out = subprocess.run([sys.executable, '-c', probe], capture_output=True, text=True, timeout=120, check=True,
+                         env={**os.environ, 'PYTHONPATH': path})
+    assert out.stdout == "fourbar calibrate ['fourbar_ros.commands.calibrate']\n"
+    listing = build_parser().format_help()
+    assert all(name in listing for name in command_names())

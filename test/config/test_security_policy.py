@@ -22,6 +22,7 @@ from fourbar_ros.config.interface import (
     Direction,
     Mode,
     endpoints,
+    every_endpoint,
     forward_topic,
     trajectory_topic,
 )
@@ -93,7 +94,7 @@ def test_every_endpoint_of_the_mode_is_allowed_in_its_direction_and_nothing_else
     allowed = rules(POLICY.read_text(encoding='utf-8'))[enclave(mode)]
     assert allowed.pop('node') == {NODE_NAME}
     publish, subscribe = set(RCLPY_PUBLISH), set(RCLPY_SUBSCRIBE)
-    for e in endpoints(mode):
+    for e in every_endpoint(mode):
         # The launch file remaps the measured joint to the broadcaster's topic: the name on the wire.
         name = BROADCASTER_JOINT_STATES.name if e.topic == MEASURED_JOINT_STATES else e.topic.name
         (publish if e.direction is Direction.OUT else subscribe).add(name)
@@ -154,7 +155,8 @@ def _used(node: object) -> dict[str, set[str]]:
 @pytest.fixture(params=[*Mode, None], ids=lambda m: 'sim_actuator' if m is None else m.value)
 def created(request: pytest.FixtureRequest, ros: object) -> Iterator[tuple[Mode | None, object]]:
     """fourbar_node in a mode (None: the simulated actuator) as the launch file starts it: the measured joint
-    remapped, on sim time (so the /clock subscription exists too)."""
+    remapped, on sim time (so the /clock subscription exists too); in the actuator modes with the optional antenna
+    sensor on (the policy allows what a parameter may turn on)."""
     from rclpy.parameter import Parameter
 
     from fourbar_ros.node.fourbar_node import FourBarNode
@@ -168,7 +170,9 @@ def created(request: pytest.FixtureRequest, ros: object) -> Iterator[tuple[Mode 
                            cli_args=[*args, '--params-file', str(REPO / 'config' / 'antenna.yaml')])
     else:
         node = FourBarNode(context=ros.context, namespace=ns,  # type: ignore[attr-defined]
-                           parameter_overrides=[Parameter('mode', value=mode.value)],
+                           parameter_overrides=[Parameter('mode', value=mode.value),
+                                                Parameter('antenna_sensor_type',
+                                                          value='none' if mode is Mode.OPEN_LOOP else 'float64')],
                            cli_args=[*args, '-r', f'{MEASURED_JOINT_STATES.name}:={BROADCASTER_JOINT_STATES.name}'])
     try:
         yield mode, node

@@ -2,7 +2,8 @@
 reference docs are generated from): names resolved in the node's namespace, message types, directions, keep-last
 depths and reliability. rclpy's own endpoints (``/rosout``, ``/parameter_events``) are left out.
 
-The keys of its diagnostics status, in every mode, are exactly those the diagnostics reference lists."""
+The keys of its diagnostics status, in every mode (and with an antenna sensor), are exactly those the diagnostics
+reference lists."""
 
 from __future__ import annotations
 
@@ -14,11 +15,12 @@ from rclpy.parameter import Parameter
 from rclpy.qos import ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 from support.paths import REPO
 from support.ros_support import RosSession
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import DIAGNOSTICS, Direction, Mode, endpoints
+from fourbar_ros.config.interface import DIAGNOSTICS, SENSOR_NONE, Direction, Mode, endpoints
 from fourbar_ros.node.diagnostic_values import Counters, summarize
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.rules.policy import decide
@@ -37,11 +39,16 @@ def _type_name(msg_type: type) -> str:
     return f'{package}/msg/{msg_type.__name__}'
 
 
-@pytest.fixture(params=list(Mode), ids=lambda m: m.value)
+#: (mode, antenna_sensor_type): every mode without the optional sensor, and each sensor form in an actuator mode.
+CASES = [*((m, SENSOR_NONE) for m in Mode), (Mode.TRAJECTORY, 'float64'), (Mode.FORWARD, 'imu')]
+
+
+@pytest.fixture(params=CASES, ids=lambda c: f'{c[0].value}-{c[1]}')
 def node(request: pytest.FixtureRequest, ros: RosSession) -> Iterator[FourBarNode]:
-    mode: Mode = request.param
-    created = FourBarNode(context=ros.context, namespace=f'/interface_{mode.value}',
-                          parameter_overrides=[Parameter('mode', value=mode.value)])
+    mode, sensor = request.param
+    created = FourBarNode(context=ros.context, namespace=f'/interface_{mode.value}_{sensor}',
+                          parameter_overrides=[Parameter('mode', value=mode.value),
+                                               Parameter('antenna_sensor_type', value=sensor)])
     try:
         yield created
     finally:
@@ -52,7 +59,7 @@ def test_the_node_creates_exactly_the_documented_topics(node: FourBarNode) -> No
     mode = Mode(node.get_parameter('mode').value)
     ns = node.get_namespace()
     want: set[Row] = set()
-    for e in endpoints(mode):
+    for e in endpoints(mode, antenna_sensor_type=node.get_parameter('antenna_sensor_type').value):
         name = e.topic.name if e.topic.name.startswith('/') else f'{ns}/{e.topic.name}'
         want.add((name, e.topic.msgtype, e.direction, e.topic.depth, e.topic.reliability.value))
     got: set[Row] = set()
@@ -95,13 +102,16 @@ def test_the_status_keys_are_exactly_the_documented_ones(ros: RosSession) -> Non
                                                position=[gamma if cfg.driven_joint == cfg.gamma_joint else delta]))
     documented, prefixes = _documented_keys()
     given: set[str] = {k for k, _ in served.values}  # what only a served command adds (node-independent)
-    for mode in Mode:
-        node = FourBarNode(context=ros.context, namespace=f'/status_{mode.value}',
-                           parameter_overrides=[Parameter('mode', value=mode.value)])
+    for mode, sensor in CASES:
+        node = FourBarNode(context=ros.context, namespace=f'/status_{mode.value}_{sensor}',
+                           parameter_overrides=[Parameter('mode', value=mode.value),
+                                                Parameter('antenna_sensor_type', value=sensor)])
         try:
             if node.completion is not None:
                 node.completion.on_measurement(measurement)
                 node.completion.set_commanded(theta)
+            if node.model_check is not None:
+                node.model_check.on_float64(Float64(data=theta))  # a reading, timed by its arrival
             node.guard.wrap('probe', lambda: 1 / 0)()  # a callback that raises: counted under its name
             keys = {kv.key for kv in node.diagnostic_status().values}
         finally:

@@ -21,7 +21,7 @@ PACKAGE_DIR = Path(fourbar_ros.__file__).parent
 #: Lowest first; a module may import only its own layer and the layers before it.
 LAYERS = ('core', 'config', 'motion', 'rules', 'node', 'bags', 'live', 'commands')
 #: Third-party modules the core must never import (ROS, YAML, bags, plotting).
-IMPURE = ('rclpy', 'rosbags', 'mcap', 'mcap_ros2', 'yaml', 'ruamel', 'matplotlib', 'std_msgs', 'sensor_msgs',
+IMPURE = ('rclpy', 'rosbags', 'mcap', 'mcap_ros2', 'yaml', 'ruamel', 'matplotlib', 'PIL', 'std_msgs', 'sensor_msgs',
           'diagnostic_msgs', 'visualization_msgs', 'geometry_msgs', 'rcl_interfaces', 'builtin_interfaces',
           'rosgraph_msgs', 'ament_index_python')
 
@@ -157,7 +157,7 @@ print(AntennaLinkage(0.180, 0.060, 0.102).rocker_angles(0.0, Branch.UPPER).gamma
 
 #: What the motion and rules layers may not import: ROS (they run without rclpy; the node wires them in).
 ROS_FREE_LAYERS = (LAYERS.index('motion'), LAYERS.index('rules'))
-ROS = tuple(m for m in IMPURE if m not in ('yaml', 'ruamel', 'matplotlib', 'rosbags', 'mcap', 'mcap_ros2'))
+ROS = tuple(m for m in IMPURE if m not in ('yaml', 'ruamel', 'matplotlib', 'PIL', 'rosbags', 'mcap', 'mcap_ros2'))
 
 
 @pytest.mark.parametrize('name', sorted(n for n in MODULES if _layer(n) in ROS_FREE_LAYERS))

@@ -25,6 +25,7 @@ IMPORT_KEYS: dict[str, str | None] = {
     'rosbags': 'python3-rosbags-pip',
     'ruamel': 'python3-ruamel.yaml',
     'matplotlib': 'python3-matplotlib',
+    'PIL': 'python3-pil',
     'mcap': 'mcap-ros2-support',      # the pip package mcap comes with mcap-ros2-support; no key of its own
     'mcap_ros2': 'mcap-ros2-support',
     'ruckig': 'python3-ruckig-pip',   # the package's own key (rosdep/fourbar_ros.yaml)

@@ -1,0 +1,74 @@
+"""The actuator modes' live check of the model (fourbar_node composes it when ``antenna_sensor_type`` is not
+``none``): an antenna angle sensor on ``antenna_angle_sensor`` against the angle completed from the measured driven
+joint at the reading's time. What is compared and when a reading is skipped: ``fourbar_ros.rules.model_check``.
+
+A ``float64`` sensor (std_msgs/Float64, rad in theta's sense) has no stamp: it is timed by its arrival on the
+node's clock. An ``imu`` (sensor_msgs/Imu, axes as the coupler frame) is timed by its header stamp (its arrival if
+zero) and read as ``fourbar calibrate`` reads it (``core.calibration.imu_tilt``). The measured joints' stamps are
+their header stamps (their arrival if zero), so the sensor and the drive must stamp from the same clock.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from sensor_msgs.msg import Imu
+from std_msgs.msg import Float64
+
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.interface import ANTENNA_SENSORS, Topic
+from fourbar_ros.node.diagnostic_values import Level
+from fourbar_ros.node.problem_log import ProblemLog
+from fourbar_ros.rules.model_check import ModelCheck, SensorSkipped, imu_theta
+
+
+class LiveModelCheck:
+    """The sensor's subscription and the model check's diagnostics."""
+
+    def __init__(self, node: Node, cfg: AntennaConfig, config: Callable[[], AntennaConfig],
+                 qos: Callable[[Topic], QoSProfile], problems: ProblemLog) -> None:
+        """``cfg``: the configuration the completion was built with (its geometry); ``config``: the running one
+        (the sensor's offset, the thresholds, the window); ``qos``: the profile of a topic."""
+        self.check = ModelCheck(cfg)
+        self._config = config
+        self._problems = problems
+        self._clock = node.get_clock()
+        self.sensor_type = cfg.antenna_sensor_type
+        topic = ANTENNA_SENSORS[self.sensor_type]
+        if self.sensor_type == 'imu':
+            self._sub = node.create_subscription(Imu, topic.name, self.on_imu, qos(topic))
+        else:
+            self._sub = node.create_subscription(Float64, topic.name, self.on_float64, qos(topic))
+
+    def _now_ns(self) -> int:
+        ns: int = self._clock.now().nanoseconds
+        return ns
+
+    def on_completed(self, sec: int, nanosec: int, q: float) -> None:
+        """A completed measurement of the driven joint (rad) and its header stamp."""
+        stamp = sec * 1_000_000_000 + nanosec
+        self.check.note_measured(stamp if stamp else self._now_ns(), q)
+
+    def on_float64(self, msg: Float64) -> None:
+        self._compare(self._now_ns(), float(msg.data))
+
+    def on_imu(self, msg: Imu) -> None:
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        a = msg.linear_acceleration
+        self._compare(stamp if stamp else self._now_ns(), imu_theta(float(a.x), float(a.z)))
+
+    def _compare(self, stamp_ns: int, theta: float | SensorSkipped) -> None:
+        outcome = self.check.compare(self._config(), stamp_ns, theta, time.monotonic())
+        if isinstance(outcome, SensorSkipped):
+            shown = f' ({theta!r} rad)' if isinstance(theta, float) else ''
+            self._problems.warn(f'antenna sensor {outcome.value}', f'antenna_angle_sensor reading at {stamp_ns} ns'
+                                f'{shown} skipped: {outcome.value.replace("_", " ")}')
+
+    def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
+        """(level, message, key/value pairs) of the check: WARN or ERROR from the mismatch's RMS over
+        tracking_window against model_mismatch_warn and model_mismatch_error."""
+        level, message, values = self.check.diagnostics(self._config(), time.monotonic())
+        return Level(level), message, [('antenna_sensor_type', self.sensor_type), *values]
