@@ -106,9 +106,10 @@ def test_demo_runs_to_the_end_on_the_exported_domain(demo_run: DemoRun) -> None:
 
 
 def test_demo_records_each_trajectory_when_it_was_sent(demo_run: DemoRun) -> None:
-    """Each actuator trajectory that continues a running motion carries the node's time of sending in its stamp;
-    the recording's receive time (log time) of it lags that by at most LAG_PERIODS pacing periods. The demo records
-    on the executor that replays: one that stopped running callbacks while the replay waited for the last commands'
+    """Each stamped actuator trajectory's first point is due at or before the node's time of sending it, within one
+    point spacing (it starts at the running motion's point the node's now fell in, or at the measured state now):
+    the recording's receive time (log time) lags that by at most LAG_PERIODS pacing periods. The demo records on
+    the executor that replays: one that stopped running callbacks while the replay waited for the last commands'
     acknowledgements (a heartbeat period of the middleware, up to seconds) stamped the last commands, and the
     motion planned for them, that late."""
     cfg = load_config(CONFIG)
@@ -118,7 +119,8 @@ def test_demo_records_each_trajectory_when_it_was_sent(demo_run: DemoRun) -> Non
     for log, msg in read_messages(demo_run.out / 'outputs', [topic])[topic]:
         stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
         if stamp:
-            lags.append((log - stamp) * 1e-9)
+            first = msg.points[0].time_from_start
+            lags.append((log - stamp - first.sec * 10**9 - first.nanosec) * 1e-9)
     assert len(lags) > 100, f'{len(lags)} stamped trajectories recorded'
     worst = max(range(len(lags)), key=lags.__getitem__)
     assert lags[worst] <= LAG_PERIODS * period, (
