@@ -9,6 +9,10 @@
   start (``serve_antenna_trajectory`` with a ``Start``: the connecting segment's check included), against
   ``convert`` of the same message alone; CPU-time medians of interleaved rounds. Target: the join adds at most 1x
   the conversion's own time (ratio <= 2).
+- replan continuity: mid-motion replans as the node sends them (the running trajectory's own points first), taken
+  over by the controller model 0.3 to 40 ms after the node's now; the new reference's offset from the one being
+  followed at the takeover, in position (as seconds of motion at the current speed), velocity and acceleration
+  (relative to their limits); median and worst.
 - replanning: one ``plan_motion`` call (ruckig) from a mid-motion state, median microseconds, beside sampling that
   plan every 0.05 s; compare with the node's per-command callback (``benchmarks.node_bench``, ~150 us).
 """
@@ -32,12 +36,19 @@ from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_mot
 from fourbar_ros.motion.trajectory import antenna_trajectory, to_driven
 from fourbar_ros.rules.actuation import (
     DurationFields,
+    Motion,
     PointFields,
     Start,
+    continued,
     convert,
     duration_parts,
+    motion_start,
+    plan_command,
+    planned_points,
     serve_antenna_trajectory,
+    takeover_lead,
 )
+from fourbar_ros.rules.controller_motion import ControllerPoint, controller_reference
 
 POINTS = 10_000
 
@@ -82,6 +93,40 @@ def whole_motion(rounds: int) -> dict[str, Any]:
     return {'points': POINTS, 'serve_s': serve, 'convert_s': conv, 'ratio': serve / conv, 'ratio_target': 2.0}
 
 
+def replan_continuity(replans: int) -> dict[str, Any]:
+    """Offsets of the new reference from the followed one at the controller's takeover, per takeover delay."""
+    cfg = default_config()
+    limits = JointLimits.from_config(cfg)
+    q0 = float(driven_angles(cfg, np.array([cfg.theta_min]))[0])
+    plan = plan_command(cfg, JointMotionState(q0), cfg.theta_max)
+    first = planned_points(cfg, plan)
+
+    def reference(traj: Any, takeover: float) -> Any:
+        pts = [ControllerPoint(float(t), float(traj.positions[i]), float(traj.velocities[i]),
+                               float(traj.accelerations[i])) for i, t in enumerate(traj.times)]
+        return controller_reference(True, pts, 0.0, takeover, 0.0, 0.0, 1.0 / cfg.control_rate)
+
+    followed = reference(first, 0.0)
+    motion = Motion(0, trajectory=first)
+    out: dict[str, Any] = {'lead_s': takeover_lead(cfg)}
+    for delay in (0.0003, 0.003, 0.013, 0.025, 0.040):
+        pos, vel, acc = [], [], []
+        for now_s in np.linspace(0.3, 0.9 * plan.duration, replans):
+            now = round(float(now_s) * 1e9)
+            start = motion_start(cfg, motion, motion.state_at(now), now, takeover_lead(cfg))
+            assert start is not None
+            second = continued(start, planned_points(cfg, plan_command(cfg, start.state, 0.0)))
+            t = float(now_s) + delay
+            (p0, v0, a0), (p1, v1, a1) = followed.sample(t), reference(second, t).sample(t)
+            pos.append(abs(p1 - p0) / max(abs(v0), 1e-12))
+            vel.append(abs(v1 - v0) / limits.at_rocker(1))
+            acc.append(abs(a1 - a0) / limits.at_rocker(2))
+        out[f'takeover_{delay * 1e3:g}ms'] = {
+            'position_offset_s_of_motion_median': statistics.median(pos), 'position_offset_s_of_motion_max': max(pos),
+            'velocity_offset_of_limit_max': max(vel), 'acceleration_offset_of_limit_max': max(acc)}
+    return out
+
+
 def replanning(calls: int) -> dict[str, Any]:
     """Median microseconds of one plan_motion call from a moving state, and of sampling that plan."""
     cfg = default_config()
@@ -106,6 +151,7 @@ def replanning(calls: int) -> dict[str, Any]:
 def run(quick: bool) -> dict[str, Any]:
     """For ``python -m benchmarks.run``."""
     return {'conversion': conversion(7 if quick else 21), 'whole_motion': whole_motion(5 if quick else 15),
+            'replan_continuity': replan_continuity(7 if quick else 25),
             'replanning': replanning(200 if quick else 2000)}
 
 

@@ -212,7 +212,7 @@ def _run(rig: Rig, examples: int, steps: int) -> None:
         max_examples=examples, stateful_step_count=steps, deadline=None, derandomize=True,
         suppress_health_check=list(HealthCheck)))
     print(f'stateful: {len(rig.references)} trajectories taken over; the worst whole-motion limit ratio '
-          f'{rig.worst:.6f}; node counters {rig.node.actuation.counters.as_dict()}')
+          f'{rig.worst:.9f}; node counters {rig.node.actuation.counters.as_dict()}')
 
 
 def test_random_sequences_never_stop_the_node_nor_break_the_contract_or_the_limits(rig: Rig) -> None:
