@@ -250,15 +250,18 @@ def serve_antenna_trajectory(cfg: AntennaConfig, allow_moving_end: bool, joint_n
                              points: Sequence[PointLike], stamp_ns: int, now_ns: int,
                              start: Start | None = None) -> Converted:
     """``convert``, after the refusal a controller would make of the result whatever the conversion does: a
-    stamped trajectory (``stamp_ns`` != 0) whose last point's time is before ``now_ns`` (EndsInPastError); then,
-    given the drive's ``start`` (``motion_start`` at ``now_ns``), joined to it (``connect``) and stamped at
-    ``now_ns``. Without a start (nothing measured or followed yet) it goes out as given, and the controller's own
-    lead-in from the measured state is not checked. Stamps and times in ns on the receiver's clock."""
+    stamped trajectory (``stamp_ns`` != 0) whose last point's time is before ``now_ns`` plus ``takeover_lead``
+    (EndsInPastError: it would end before the controller takes it over); then, given the drive's ``start``
+    (``motion_start`` at ``now_ns``), joined to it (``connect``). Without a start (nothing measured yet) it goes out
+    as given, and the controller's own lead-in from the measured state is not checked. Stamps and times in ns on
+    the receiver's clock."""
     if points:
         last = points[-1]
-        if stamp_ns != 0 and stamp_ns + duration_ns(last.time_from_start) < now_ns:
+        end_ns = stamp_ns + duration_ns(last.time_from_start)
+        if stamp_ns != 0 and end_ns < now_ns + round(takeover_lead(cfg) * 1e9):
+            when = 'past' if end_ns < now_ns else 'ahead, before the controller can take it over'
             raise EndsInPastError(f'stamped to start at {stamp_ns * 1e-9:.9f} s, its last point is '
-                                  f'{(now_ns - stamp_ns - duration_ns(last.time_from_start)) * 1e-9:.6g} s past')
+                                  f'{abs(now_ns - end_ns) * 1e-9:.6g} s {when}')
     converted = convert(cfg, joint_names, points, allow_moving_end)
     if start is None:
         return replace(converted, stamp_ns=stamp_ns)

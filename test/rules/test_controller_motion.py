@@ -303,3 +303,19 @@ def test_a_replan_continues_the_reference_the_controller_follows() -> None:
             assert abs(new_a - old_a) <= 1e-6 * LIMITS.at_rocker(2), (now_s, delay)
     assert statistics.median(offsets) <= 0.002  # at most 2 ms of motion (it is ~0: the same reference)
     assert max(offsets) <= 1e-6, max(offsets)
+
+
+def test_a_stamped_trajectory_ending_before_the_takeover_is_refused() -> None:
+    """A stamped trajectory ending within takeover_lead of the node's now would end before the controller takes it
+    over (the controller refuses a trajectory whose end is past on arrival): refused as ends_in_past."""
+    now = 10**12
+    points = antenna_points([0.0, 0.5], [0.0, 0.0], [0.0, 0.0])
+    soon = now - 500_000_000 + round(0.5 * takeover_lead(CFG) * 1e9)  # ends half a lead from now
+    with pytest.raises(Exception) as refused:
+        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, soon, now,
+                                 Start(JointMotionState(q_of(0.0)), now))
+    assert problem_of(refused.value) is TrajectoryProblem.ENDS_IN_PAST  # type: ignore[arg-type]
+    later = now - 500_000_000 + round(2.0 * takeover_lead(CFG) * 1e9)
+    out = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, later, now,
+                                   Start(JointMotionState(q_of(0.0)), now))
+    assert out.stamp_ns == now
