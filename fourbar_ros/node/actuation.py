@@ -41,6 +41,7 @@ from fourbar_ros.rules.actuation import (
     PointFields,
     Start,
     continued,
+    ends_soon,
     motion_start,
     outgoing_refusal,
     outgoing_stamp,
@@ -152,6 +153,9 @@ class Actuation:
             return
         try:
             plan = plan_command(cfg, start.state, theta)
+            if start.before is not None and ends_soon(start, plan.duration, now_ns):
+                start = start.here(now_ns)  # too short to stamp (``outgoing_stamp``): from the motion's state now
+                plan = plan_command(cfg, start.state, theta)
             points = (continued(start, planned_points(cfg, plan)) if self.mode == Mode.TRAJECTORY.value
                       else None)
             stream = planned_setpoints(cfg, plan) if points is None else None

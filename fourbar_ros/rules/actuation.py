@@ -90,12 +90,12 @@ from fourbar_ros.rules.controller_contract import (
 )
 from fourbar_ros.rules.controller_motion import ControllerPoint, motion_settings_problem, segment_coefficients
 
-__all__ = ['TAKEOVER_SPACINGS', 'ActuationCounters', 'CannotReachError', 'Converted', 'DurationFields',
-           'EndMovingError', 'EndsInPastError', 'Motion', 'PointFields', 'PointLike', 'Start', 'TrajectoryProblem',
-           'actuation_contract', 'antenna_arrays', 'at_rest_end', 'connect', 'continued', 'convert', 'driven_range',
-           'duration_parts', 'motion_start', 'outgoing_refusal', 'outgoing_stamp', 'plan_command', 'planned_points',
-           'planned_setpoints', 'point_fields', 'problem_of', 'serve_antenna_trajectory', 'takeover_lead',
-           'trajectory_setpoints']
+__all__ = ['ARRIVAL_MARGIN_S', 'TAKEOVER_SPACINGS', 'ActuationCounters', 'CannotReachError', 'Converted',
+           'DurationFields', 'EndMovingError', 'EndsInPastError', 'Motion', 'PointFields', 'PointLike', 'Start',
+           'TrajectoryProblem', 'actuation_contract', 'antenna_arrays', 'at_rest_end', 'connect', 'continued',
+           'convert', 'driven_range', 'duration_parts', 'ends_soon', 'motion_start', 'outgoing_refusal',
+           'outgoing_stamp', 'plan_command', 'planned_points', 'planned_setpoints', 'point_fields', 'problem_of',
+           'serve_antenna_trajectory', 'takeover_lead', 'trajectory_setpoints']
 
 
 class TrajectoryProblem(enum.Enum):
@@ -250,15 +250,15 @@ def serve_antenna_trajectory(cfg: AntennaConfig, allow_moving_end: bool, joint_n
                              points: Sequence[PointLike], stamp_ns: int, now_ns: int,
                              start: Start | None = None) -> Converted:
     """``convert``, after the refusal a controller would make of the result whatever the conversion does: a
-    stamped trajectory (``stamp_ns`` != 0) whose last point's time is before ``now_ns`` plus ``takeover_lead``
-    (EndsInPastError: it would end before the controller takes it over); then, given the drive's ``start``
+    stamped trajectory (``stamp_ns`` != 0) whose last point's time is before ``now_ns`` plus ``ARRIVAL_MARGIN_S``
+    (EndsInPastError: it could end before the controller takes it over); then, given the drive's ``start``
     (``motion_start`` at ``now_ns``), joined to it (``connect``). Without a start (nothing measured yet) it goes out
     as given, and the controller's own lead-in from the measured state is not checked. Stamps and times in ns on
     the receiver's clock."""
     if points:
         last = points[-1]
         end_ns = stamp_ns + duration_ns(last.time_from_start)
-        if stamp_ns != 0 and end_ns < now_ns + round(takeover_lead(cfg) * 1e9):
+        if stamp_ns != 0 and end_ns < now_ns + round(ARRIVAL_MARGIN_S * 1e9):
             when = 'past' if end_ns < now_ns else 'ahead, before the controller can take it over'
             raise EndsInPastError(f'stamped to start at {stamp_ns * 1e-9:.9f} s, its last point is '
                                   f'{abs(now_ns - end_ns) * 1e-9:.6g} s {when}')
@@ -297,6 +297,11 @@ class Start:
 #: spacings (1/control_rate) after the node's now, so that the controller, taking the new trajectory over at its
 #: first update after arrival, is still on the running trajectory's own segments.
 TAKEOVER_SPACINGS = 2
+
+
+#: The longest (s) a trajectory may take to reach the controller and be taken over: one stamped to end sooner after
+#: the node's now could end before it arrives, and the controller would refuse it.
+ARRIVAL_MARGIN_S = 0.5
 
 
 def takeover_lead(cfg: AntennaConfig) -> float:
@@ -427,6 +432,8 @@ def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: in
                                        f'{float(tail.positions[0])!r} rad in {gap:.6g} s: {problem}')
             shift = _least_gap(head, tail, gap, limits, lower, upper) - gap
         joined = continued(start, _joined(head, tail, offset - at + shift))
+    if stamp_ns == 0 and start.before is not None and _ends_soon(joined, start, now_ns):
+        return connect(cfg, converted, start.here(now_ns), stamp_ns, now_ns)
     return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0,
                      outgoing_stamp(cfg, start, joined, now_ns) if stamp_ns == 0 else start.origin_ns)
 
@@ -435,12 +442,21 @@ def outgoing_stamp(cfg: AntennaConfig, start: Start, traj: DrivenTrajectory, now
     """The stamp (ns) of a trajectory ``traj`` starting at ``start`` (times from ``start.origin_ns``): that origin,
     so that the controller, wherever it takes the trajectory over, is on it (continuing the segments it followed,
     or at the measured state the trajectory starts from) and the node's model of the motion is the controller's.
-    A trajectory from the measured state ending within ``takeover_lead`` could end before it arrives (the
-    controller would refuse it): it goes out with stamp 0, to start at the takeover (it is a step's worth of motion
-    from where the drive is)."""
-    if start.before is None and float(traj.times[-1]) - (now_ns - start.origin_ns) * 1e-9 <= takeover_lead(cfg):
+    One starting now that ends within ``ARRIVAL_MARGIN_S`` could end before it arrives (the controller would
+    refuse it): it goes out with stamp 0, to start at the takeover, a short motion shifted by the arrival's delay.
+    (A continuing one that would end that soon is planned from ``Start.here`` instead: ``ends_soon``.)"""
+    if start.before is None and _ends_soon(traj, start, now_ns):
         return 0
     return start.origin_ns
+
+
+def ends_soon(start: Start, duration: float, now_ns: int) -> bool:
+    """Whether a motion of ``duration`` s from ``start`` would end within ``ARRIVAL_MARGIN_S`` of ``now_ns``."""
+    return start.at + duration - (now_ns - start.origin_ns) * 1e-9 <= ARRIVAL_MARGIN_S
+
+
+def _ends_soon(traj: DrivenTrajectory, start: Start, now_ns: int) -> bool:
+    return float(traj.times[-1]) - (now_ns - start.origin_ns) * 1e-9 <= ARRIVAL_MARGIN_S
 
 
 def _cut(traj: DrivenTrajectory, first: int, end: int | None = None) -> DrivenTrajectory:

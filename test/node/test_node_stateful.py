@@ -77,13 +77,16 @@ class Rig:
             passed_on(position, velocity)
         completion._on_measured = note
         #: (rule, reason) of every trajectory the simulated controller refused
-        self.refusals: list[tuple[str, str]] = []
+        self.refusals: list[tuple[str, ...]] = []
         receive = self.sim.follower.receive
 
         def received(*args: Any) -> Any:
             refusal = receive(*args)
             if refusal is not None:
-                self.refusals.append((refusal.rule.value, refusal.reason))
+                _names, points, stamp, now = args
+                last = points[-1].time_from_start if points else None
+                self.refusals.append((refusal.rule.value, refusal.reason, f'{len(points)} points, stamp {stamp}, '
+                                      f'last at {last}, arrived {now}'))
             return refusal
         self.sim.follower.receive = received  # type: ignore[method-assign]
         ros.add_node(self.sim)

@@ -27,6 +27,7 @@ from fourbar_ros.config.controllers import (
 from fourbar_ros.config.interface import ANTENNA_JOINT
 from fourbar_ros.motion.planner import JointMotionState
 from fourbar_ros.rules.actuation import (
+    ARRIVAL_MARGIN_S,
     EndMovingError,
     EndsInPastError,
     actuation_contract,
@@ -36,7 +37,6 @@ from fourbar_ros.rules.actuation import (
     planned_points,
     point_fields,
     serve_antenna_trajectory,
-    takeover_lead,
 )
 from fourbar_ros.rules.controller_contract import (
     FLOAT_EPSILON,
@@ -228,12 +228,12 @@ def test_an_antenna_trajectory_ending_in_motion_is_refused_unless_the_controller
 
 def test_an_antenna_trajectory_ending_in_the_past_is_refused_and_stamp_0_starts_on_arrival() -> None:
     rest = antenna([0.0, 1.0, 2.0], [0.0, 0.01, 0.02], [0.0, 0.01, 0.0])
-    # Ending in the past, or now: before the controller can take it over (within takeover_lead), it would arrive
-    # ended, and the controller would refuse it.
+    # Ending in the past, or now: it could arrive ended (within ARRIVAL_MARGIN_S), and the controller would refuse
+    # it.
     for stamp in (NOW - 3 * 10**9, NOW - 2 * 10**9):
         with pytest.raises(EndsInPastError):
             serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], rest, stamp, NOW)
-    lead = round(takeover_lead(CFG) * 1e9)
+    lead = round(ARRIVAL_MARGIN_S * 1e9)
     for stamp in (0, NOW - 2 * 10**9 + lead, NOW + 10**9):  # on arrival; ending a lead from now; in the future
         converted = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], rest, stamp, NOW)
         assert outgoing_refusal(JTC, JOINT, point_fields(converted.trajectory, False), stamp, NOW) is None

@@ -19,6 +19,7 @@ from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles
 from fourbar_ros.motion.trajectory import DrivenTrajectory
 from fourbar_ros.rules.actuation import (
+    ARRIVAL_MARGIN_S,
     CannotReachError,
     Motion,
     Start,
@@ -306,16 +307,16 @@ def test_a_replan_continues_the_reference_the_controller_follows() -> None:
 
 
 def test_a_stamped_trajectory_ending_before_the_takeover_is_refused() -> None:
-    """A stamped trajectory ending within takeover_lead of the node's now would end before the controller takes it
-    over (the controller refuses a trajectory whose end is past on arrival): refused as ends_in_past."""
+    """A stamped trajectory ending within ARRIVAL_MARGIN_S of the node's now could end before the controller takes
+    it over (the controller refuses a trajectory whose end is past on arrival): refused as ends_in_past."""
     now = 10**12
     points = antenna_points([0.0, 0.5], [0.0, 0.0], [0.0, 0.0])
-    soon = now - 500_000_000 + round(0.5 * takeover_lead(CFG) * 1e9)  # ends half a lead from now
+    soon = now - 500_000_000 + round(0.5 * ARRIVAL_MARGIN_S * 1e9)  # ends half the margin from now
     with pytest.raises(Exception) as refused:
         serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, soon, now,
                                  Start(JointMotionState(q_of(0.0)), now))
     assert problem_of(refused.value) is TrajectoryProblem.ENDS_IN_PAST  # type: ignore[arg-type]
-    later = now - 500_000_000 + round(2.0 * takeover_lead(CFG) * 1e9)
+    later = now - 500_000_000 + round(2.0 * ARRIVAL_MARGIN_S * 1e9)
     out = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, later, now,
                                    Start(JointMotionState(q_of(0.0)), now))
     assert out.stamp_ns == now
