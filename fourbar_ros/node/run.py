@@ -51,6 +51,8 @@ class Stop:
         self._wakers: list[Callable[[], None]] = []
         self._in_callbacks = False
         self._pending = False
+        self._raised: BaseException | None = None  # the last exception the handler raised, until it is seen
+        self._next_unraisable_hook: Callable[[Any], object] | None = None
 
     def reset(self, raises: Callable[[], BaseException] | None = None) -> None:
         """Forget earlier signals and wakers; raise ``raises()`` on the next one (None: only note it)."""
@@ -67,7 +69,18 @@ class Stop:
             if self._in_callbacks:
                 self._pending = True
             else:
-                raise self.raises()
+                self._raised = exc = self.raises()
+                raise exc
+
+    def _unraisable(self, unraisable: Any) -> None:
+        """``sys.unraisablehook`` while installed: an exception the handler raised that Python swallowed (it landed
+        in a weakref callback or ``__del__``, e.g. importlib's module-lock cleanup) is raised again at the end of
+        the next ``deferred`` block (each spin), so the stop is not lost."""
+        if self._raised is not None and unraisable.exc_value is self._raised:
+            self._raised = None
+            self._pending = True
+        if self._next_unraisable_hook is not None:
+            self._next_unraisable_hook(unraisable)
 
     @property
     def requested(self) -> bool:
@@ -83,6 +96,9 @@ class Stop:
         self.reset(raises)
         for signum in STOP_SIGNALS:
             signal.signal(signum, self)
+        if sys.unraisablehook != self._unraisable:
+            self._next_unraisable_hook = sys.unraisablehook
+            sys.unraisablehook = self._unraisable
 
     @contextlib.contextmanager
     def deferred(self) -> Iterator[None]:

@@ -140,6 +140,24 @@ def test_a_stop_whose_interrupt_python_swallowed_is_kept_by_the_next_stop(
             signal.raise_signal(sig)
 
 
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+def test_a_swallowed_stop_is_raised_at_the_end_of_the_next_spin_of_the_same_stop(
+        sig: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Within one stop (no nested one follows, as in ``fourbar demo`` starting up), a KeyboardInterrupt that Python
+    swallowed is raised again when the next ``deferred`` block (a spin) ends: the command does not run on."""
+    swallowed: list[type[BaseException]] = []
+    monkeypatch.setattr(sys, 'unraisablehook', lambda unraisable: swallowed.append(unraisable.exc_type))
+    with stop_on_signals() as stop:
+        dropped = _Dropped()
+        ref = weakref.ref(dropped, lambda _: signal.raise_signal(sig))
+        del dropped
+        assert ref() is None and stop.requested and swallowed == [KeyboardInterrupt]  # still printed, as before
+        with pytest.raises(KeyboardInterrupt), stop.deferred():
+            pass
+        with stop.deferred():  # raised once: the next spin runs
+            pass
+
+
 SPINNER_SCRIPT = textwrap.dedent('''
     import sys
     import rclpy
