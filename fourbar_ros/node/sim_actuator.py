@@ -37,6 +37,7 @@ from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, si
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
+from fourbar_ros.node.problem_log import ProblemLog
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.sim_actuator_model import DriveLimits, Encoder, LagActuator, TrajectoryFollower, effort_at
 from fourbar_ros.node.timers import periodic_timer
@@ -65,6 +66,8 @@ class SimActuator(Node):
         super().__init__(node_name, **kwargs)
         get_logger: Callable[[], RcutilsLogger] = self.get_logger
         self._warn: Callable[..., object] = get_logger().warning
+        #: warnings throttled per problem kind (each refusal rule its own), not per call site
+        self._problems = ProblemLog(lambda _level, line: self._warn(line), WARN_THROTTLE_S)
         startup = {name: p.value for name, p in self._parameter_overrides.items()}  # see FourBarNode._startup_values
         try:
             self.config = config_from_values(declared_values(startup))
@@ -99,7 +102,7 @@ class SimActuator(Node):
         self._tick_clock: Any = periodic_timer(self, 1.0 / s.publish_rate, self._on_tick).clock
 
     def _refuse(self, kind: str, why: str) -> None:
-        self._warn(f'{kind} refused: {why}', throttle_duration_sec=WARN_THROTTLE_S)
+        self._problems.warn(f'{kind} refused', f'{kind} refused: {why}')
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
         stamp = msg.header.stamp
@@ -145,7 +148,7 @@ class SimActuator(Node):
             effort = effort_at(self.config, drive.position)
         except FourBarError as exc:  # the drive stays in the tilt range's rocker range: a core bug if here
             effort = math.nan
-            self._warn(f'no effort at {drive.position!r} rad: {exc}', throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.warn('no effort', f'no effort at {drive.position!r} rad: {exc}')
         measured = self.encoder.measure(drive.position, drive.velocity, effort)
         if not all(math.isfinite(v) for v in measured):
             self.counters.joint_states_skipped += 1
@@ -159,4 +162,4 @@ class SimActuator(Node):
         reason = self.follower.holding_reason
         self._reference = self.follower.reference(ns * 1e-9, measured[0], measured[1]).position
         if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
-            self._warn(self.follower.holding_reason, throttle_duration_sec=WARN_THROTTLE_S)
+            self._problems.warn('holding', self.follower.holding_reason)
