@@ -149,16 +149,6 @@ class Reference:
                 out[order] = float(values.max())
         return out
 
-    def position_range(self) -> tuple[float, float]:
-        """Lowest and highest reference position (rad) from the takeover on (sampled at the segments' derivative
-        roots in closed form is not needed here: 64 samples per segment plus its ends, for tests and the simulated
-        drive)."""
-        if self.knots.size < 2:
-            return self.hold[0], self.hold[0]
-        s = np.linspace(0.0, 1.0, 65)[None, :]
-        p = evaluate(self.coefficients, s)
-        return float(min(p.min(), self.hold[0])), float(max(p.max(), self.hold[0]))
-
 
 def controller_reference(velocity_state: bool, points: Sequence[ControllerPoint], stamp: float | None,
                          takeover: float, measured_position: float, measured_velocity: float | None,
