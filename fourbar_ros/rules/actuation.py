@@ -301,7 +301,7 @@ TAKEOVER_SPACINGS = 2
 
 #: The longest (s) a trajectory may take to reach the controller and be taken over: one stamped to end sooner after
 #: the node's now could end before it arrives, and the controller would refuse it.
-ARRIVAL_MARGIN_S = 0.5
+ARRIVAL_MARGIN_S = 0.1
 
 
 def takeover_lead(cfg: AntennaConfig) -> float:
