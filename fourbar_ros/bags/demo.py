@@ -162,20 +162,25 @@ def _column(values: Sequence[float], index: int) -> float:
 
 
 def _planned(trajectories: Sequence[tuple[int, Any]], joint: str, t0: int) -> tuple[Series, FloatArray, FloatArray]:
-    """The planned motion of ``joint``: each trajectory from its start (header stamp, else its arrival) up to the
-    next one's start, as the controller follows the latest (times in s from ``t0`` ns)."""
-    starts = [(_stamp_ns(m.header) or t) for t, m in trajectories]
+    """The planned motion of ``joint`` as the controller follows it: each trajectory (its points timed from its
+    header stamp, else from its arrival) from its arrival, with the last point before it, up to the next one's
+    arrival, when that one takes over (times in s from ``t0`` ns). A trajectory continuing the running one repeats
+    its points under its stamp: the arrival, not the stamp, says where one ends and the next begins."""
+    arrivals = [t for t, _ in trajectories]
     t_out: list[float] = []
     q_out: list[float] = []
     v_out: list[float] = []
     e_out: list[float] = []
-    for k, (_, msg) in enumerate(trajectories):
+    for k, (arrival, msg) in enumerate(trajectories):
         if joint not in msg.joint_names:
             continue
         j = list(msg.joint_names).index(joint)
-        end = starts[k + 1] if k + 1 < len(starts) else math.inf
-        for p in msg.points:
-            at = starts[k] + int(p.time_from_start.sec) * 1_000_000_000 + int(p.time_from_start.nanosec)
+        start = _stamp_ns(msg.header) or arrival
+        end = arrivals[k + 1] if k + 1 < len(arrivals) else math.inf
+        times = [start + int(p.time_from_start.sec) * 1_000_000_000 + int(p.time_from_start.nanosec)
+                 for p in msg.points]
+        first = max(bisect.bisect_right(times, arrival) - 1, 0)  # the point at or before the arrival
+        for at, p in zip(times[first:], msg.points[first:], strict=True):
             if at > end:
                 break
             t_out.append((at - t0) * 1e-9)

@@ -14,6 +14,7 @@ from support.bag_support import CONFIG
 from fourbar_ros.bags.demo import (
     PACE_FRACTION,
     DemoError,
+    _planned,
     demo_topics,
     pace,
     plot,
@@ -195,3 +196,20 @@ def test_plot_writes_a_png(cfg: AntennaConfig, tmp_path: Path) -> None:
     rec = recording(_recording(cfg, lag=1e-3), demo_topics(cfg.trajectory_controller), cfg)
     png = plot(rec, summarize(rec, cfg), cfg, tmp_path / 'demo.png', 'synthetic')
     assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n' and not list(tmp_path.glob('.*'))
+
+
+def test_a_continuing_trajectory_takes_over_at_its_arrival_not_at_its_stamp() -> None:
+    """A replan repeats the running trajectory's points under its stamp: the planned series follows the first up to
+    the second's arrival, then the second from its point at or before that arrival (not nothing, as when the
+    second's stamp, the same as the first's, was taken for its start)."""
+    def traj(stamp_ns: int, points: list[tuple[float, float]]) -> Msg:
+        return Msg(header=_header(stamp_ns), joint_names=['j'],
+                   points=[Msg(positions=[q], velocities=[], effort=[], time_from_start=_duration(t))
+                           for t, q in points])
+
+    stamp = 10**9
+    first = traj(stamp, [(0.0, 0.0), (0.1, 0.1), (0.2, 0.2), (0.3, 0.3)])
+    second = traj(stamp, [(0.1, 0.1), (0.2, 0.2), (0.3, 0.25), (0.4, 0.2)])  # continues, then turns
+    series, _, _ = _planned([(stamp + 5_000_000, first), (stamp + 150_000_000, second)], 'j', stamp)
+    assert series.t.tolist() == pytest.approx([0.0, 0.1, 0.1, 0.2, 0.3, 0.4])
+    assert series.value.tolist() == [0.0, 0.1, 0.1, 0.2, 0.25, 0.2]
