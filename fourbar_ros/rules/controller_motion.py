@@ -32,7 +32,7 @@ import numpy as np
 
 from fourbar_ros.config.controllers import TrajectoryControllerSettings
 from fourbar_ros.core.numeric import FloatArray
-from fourbar_ros.motion.splines import evaluate, segment_extremes
+from fourbar_ros.motion.splines import evaluate, hermite_coefficients, segment_extremes
 
 __all__ = ['ControllerPoint', 'Reference', 'controller_reference', 'lead_in_segment', 'motion_settings_problem',
            'segment_coefficients']
@@ -53,22 +53,15 @@ class ControllerPoint:
 
 def segment_coefficients(h: float, a: ControllerPoint, b: ControllerPoint) -> FloatArray:
     """Power-basis coefficients in s = (t - t_a) / h of the controller's polynomial from ``a`` to ``b`` (positions
-    given), padded to six: linear, cubic when both give velocities, quintic when both give accelerations too."""
-    p0, p1 = float(a.position), float(b.position)  # type: ignore[arg-type]
-    dp = p1 - p0
+    given), padded to six: linear, cubic when both give velocities, quintic when both give accelerations too
+    (``motion.splines.hermite_coefficients``)."""
+    times, p = np.array([0.0, h]), np.array([a.position, b.position], dtype=np.float64)
+    v = None if a.velocity is None or b.velocity is None else np.array([a.velocity, b.velocity])
+    acc = (None if v is None or a.acceleration is None or b.acceleration is None
+           else np.array([a.acceleration, b.acceleration]))
     out = np.zeros(_DEGREE_COLUMNS)
-    out[0] = p0
-    if a.velocity is None or b.velocity is None:
-        out[1] = dp
-        return out
-    v0, v1 = a.velocity * h, b.velocity * h
-    if a.acceleration is None or b.acceleration is None:
-        out[1:4] = v0, 3.0 * dp - 2.0 * v0 - v1, -2.0 * dp + v0 + v1
-        return out
-    a0, a1 = a.acceleration * h * h, b.acceleration * h * h
-    out[1:6] = (v0, 0.5 * a0, 10.0 * dp - 6.0 * v0 - 4.0 * v1 - 0.5 * (3.0 * a0 - a1),
-                -15.0 * dp + 8.0 * v0 + 7.0 * v1 + 0.5 * (3.0 * a0 - 2.0 * a1),
-                6.0 * dp - 3.0 * (v0 + v1) - 0.5 * (a0 - a1))
+    c = hermite_coefficients(times, p, v, acc)[0]
+    out[:c.size] = c
     return out
 
 
