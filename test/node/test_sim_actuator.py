@@ -288,9 +288,9 @@ def test_a_new_trajectory_starts_from_the_measured_state_not_the_last_reference(
     wait_for(lambda: r.node.follower._trajectory is not None, what='the trajectory started')
     taken = r.node.follower._trajectory
     initial = taken.sample(taken.start)
-    # It starts where the drive was measured at its first update (a position the sim published), moving; not at
-    # the forward command's reference.
-    assert any(m.position[0] == initial.position for m in r.states.messages)
+    # It starts where the drive was measured at its first update (a position the sim published just before, which
+    # may still be on its way to the collector), moving; not at the forward command's reference.
+    r.states.wait_match(lambda m: m.position[0] == initial.position)
     assert abs(far - initial.position) > 0.05 and initial.velocity > 0.0
 
 

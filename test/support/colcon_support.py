@@ -142,14 +142,12 @@ def cli_env(install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator
     lease = lease_domain_id()
     env = sourced_env(dict(os.environ), prefix, lease.domain_id)
     env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))  # logs of this run, not ~/.ros
-    daemon = [ros2(), 'daemon']
+    from support.ros_cli_support import start_daemon  # psutil: with ros2cli
+
     try:
-        started = subprocess.run([*daemon, 'start'], env=env, capture_output=True, text=True, timeout=60,
-                                 check=False, stdin=subprocess.DEVNULL)
-        if started.returncode != 0:
-            pytest.fail(f'ros2 daemon start failed: {started.stdout}{started.stderr}')
+        start_daemon(env, timeout=60)
         yield CliEnv(env, prefix, tmp_path_factory.mktemp('anywhere'))
     finally:
-        subprocess.run([*daemon, 'stop'], env=env, capture_output=True, timeout=60, check=False,
+        subprocess.run([ros2(), 'daemon', 'stop'], env=env, capture_output=True, timeout=60, check=False,
                        stdin=subprocess.DEVNULL)
         lease.release()

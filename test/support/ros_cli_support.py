@@ -182,10 +182,25 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
     return doc
 
 
-def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[str]:
-    """Poll ``ros2 node list`` (the daemon's graph) until ``node`` is listed; return the list."""
+def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
+    """``ros2 daemon start`` for ``env``'s domain, in this process's group (not ``run``'s, which is killed when the
+    command exits): the daemon lives until ``ros2 daemon stop``."""
     from support.colcon_support import ros2
 
+    started = subprocess.run([ros2(), 'daemon', 'start'], env=env, capture_output=True, text=True, timeout=timeout,
+                             check=False, stdin=subprocess.DEVNULL)
+    assert started.returncode == 0, f'ros2 daemon start failed: {started.stdout}{started.stderr}'
+
+
+def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[str]:
+    """Poll ``ros2 node list`` (the daemon's graph) until ``node`` is listed; return the list.
+
+    The daemon is started first (the caller stops it: ``ros2 daemon stop``). Without one, ``ros2 node list``
+    spawns one and answers from a direct node of its own, and ``run`` then kills the daemon with the command's
+    group: the node is listed, and the next command's new daemon may not have discovered it yet."""
+    from support.colcon_support import ros2
+
+    start_daemon(env, timeout)
     deadline = time.monotonic() + timeout
     while True:
         nodes = run([ros2(), 'node', 'list'], env).stdout.split()
