@@ -244,6 +244,7 @@ def test_sigkill_while_streaming_keeps_all_but_the_last_interval(storage: Storag
     with Tool(['record', out, '--storage', storage, '--topics', '/fourbar_reindex_stream',
                '--flush-interval', str(interval)], ros.env()) as recorder:
         recorder.wait_line('recording')
+        ros.wait_subscribers(pub)  # both sides matched: message 0 is not sent before the recorder is reached
         timer = ros.node.create_timer(0.005, publish)  # ~200 messages/s while the recorder runs
         ros.executor.wake()
         try:

@@ -216,7 +216,7 @@ def test_bad_commands_rejected(make_rig: Any) -> None:
     check_joint_states(CFG, rig.outputs['joint_states'].wait_count(len(served)), served)
     tq = rig.outputs['input_torque'].wait_count(len(served))
     assert [m.data for m in tq] == [core(CFG, t).input_torque for t in served]  # identical function (see TOL)
-    wait_for(lambda: rig.received() - before['commands_received'] == len(sequence), what='all commands counted')
+    rig.ros.wait_for(lambda: rig.received() - before['commands_received'] == len(sequence), what='all commands counted')
     after = rig.node.counters.as_dict()
     delta = {k: after[k] - before[k] for k in after}
     assert delta['commands_rejected_not_finite'] == 6
@@ -238,7 +238,7 @@ def test_bad_commands_clamped(make_rig: Any) -> None:
     msgs = rig.outputs['joint_states'].wait_count(len(served))
     check_joint_states(CFG, msgs, served)
     assert len(rig.outputs['input_torque'].wait_count(len(served))) == len(served)
-    wait_for(lambda: rig.node.counters.commands_clamped == 6, what='6 clamped commands')
+    rig.ros.wait_for(lambda: rig.node.counters.commands_clamped == 6, what='6 clamped commands')
     assert rig.node.counters.commands_rejected_not_finite == 3
 
 
@@ -299,20 +299,20 @@ def test_outputs_nobody_subscribes_to_are_not_computed(ros: RosSession, make_rig
     c1 = node.counters.as_dict()
     assert c1['input_torque_skipped'] - c0['input_torque_skipped'] == 3 and c1['input_torque_published'] == 0
     assert c1['markers_published'] == 0
-    wait_for(lambda: node.counters.markers_skipped > c1['markers_skipped'], what='skipped marker ticks')
+    ros.wait_for(lambda: node.counters.markers_skipped > c1['markers_skipped'], what='skipped marker ticks')
     # Nobody listens at all: commands are still checked and counted but nothing is solved.
     ros.uncollect(rig.outputs.pop('joint_states'))
     wait_for(lambda: node._joint_pub.get_subscription_count() == 0, what='the node to see no subscriber')
     computed = node.cache.computed
     received = rig.received()
     rig.send([0.04, 0.05, math.nan, 0.06])
-    wait_for(lambda: rig.received() - received == 4, what='4 commands counted')
+    rig.ros.wait_for(lambda: rig.received() - received == 4, what='4 commands counted')
     assert node.cache.computed == computed
     assert node.counters.commands_not_solved - c1['commands_not_solved'] == 3
     assert node.counters.commands_rejected_not_finite == 1
     # Diagnostics: nobody on /diagnostics, so the timer skips building them.
     skipped = node.counters.diagnostics_skipped
-    wait_for(lambda: node.counters.diagnostics_skipped >= skipped + 2, what='skipped diagnostics')
+    ros.wait_for(lambda: node.counters.diagnostics_skipped >= skipped + 2, what='skipped diagnostics')
     assert node.counters.diagnostics_published == 0
 
 

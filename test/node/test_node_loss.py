@@ -59,11 +59,15 @@ class Rig:
                    lambda col, msg, p: bool(msg.position[0] == gamma(p)))
 
     def status(self, predicate: Any = lambda s, v: True) -> tuple[DiagnosticStatus, dict[str, str]]:
-        """The next of this node's statuses (arriving from now on) whose (status, values) satisfy predicate."""
+        """The next of this node's statuses stamped from now on (so it counts every command answered before now,
+        not one built earlier that is still on its way) whose (status, values) satisfy predicate."""
         name = 'fourbar_node: antenna tilt linkage'
         start = len(self.diag)
+        since = time.time_ns()  # the node's clock is the system clock of this host
 
         def ours(msg: DiagnosticArray) -> bool:
+            if msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec < since:
+                return False
             return any(s.name == name and predicate(s, {kv.key: kv.value for kv in s.values}) for s in msg.status)
 
         msg = self.diag.wait_match(ours, start=start)

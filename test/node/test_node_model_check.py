@@ -21,7 +21,7 @@ from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu, JointState
 from std_msgs.msg import Float64
 from support.paths import REPO
-from support.ros_support import RosSession, wait_for
+from support.ros_support import RosSession
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import MEASURED_JOINT_STATES
@@ -74,13 +74,13 @@ class Rig:
         msg = JointState(name=[DRIVEN], position=[q])
         msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
         self.measured.publish(msg)
-        wait_for(lambda: self.completed.measurements_completed > before, what='the measurement completed')
+        self.ros.wait_for(lambda: self.completed.measurements_completed > before, what='the measurement completed')
 
     def read(self, msg: Any) -> None:
         """Publish one reading and wait until the node counted it (compared or skipped)."""
         before = self.seen()
         self.sensor.publish(msg)
-        wait_for(lambda: self.seen() > before, what='the reading taken')
+        self.ros.wait_for(lambda: self.seen() > before, what='the reading taken')
 
     def seen(self) -> int:
         c = self.counters
@@ -89,7 +89,8 @@ class Rig:
                 + c.sensor_readings_skipped_out_of_reach)
 
     def status(self) -> tuple[Level, str, dict[str, str]]:
-        s = self.node.diagnostic_status()
+        with self.ros.paused():  # not halfway through a callback
+            s = self.node.diagnostic_status()
         return Level(s.level[0]), s.message, {kv.key: kv.value for kv in s.values}
 
     def close(self) -> None:

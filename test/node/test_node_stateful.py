@@ -110,10 +110,11 @@ class Rig:
         """Wait until the simulated controller has received every trajectory the node sent and taken over the
         last one it accepted."""
         node, follower = self.node.actuation.counters, self.sim.follower
-        wait_for(lambda: follower.counters.accepted + sum(follower.counters.refused.values())
-                 + follower.counters.refused_not_finite >= node.trajectories_sent and follower._pending is None,
-                 what=f'the sim to take over the node\'s {node.trajectories_sent} trajectories '
-                      f'(accepted {follower.counters.accepted}, refused {follower.counters.refused})')
+        self.ros.wait_for(lambda: follower.counters.accepted + sum(follower.counters.refused.values())
+                          + follower.counters.refused_not_finite >= node.trajectories_sent
+                          and follower._pending is None,
+                          what=f'the sim to take over the node\'s {node.trajectories_sent} trajectories '
+                               f'(accepted {follower.counters.accepted}, refused {follower.counters.refused})')
 
     def close(self) -> None:
         self.ros.destroy(self.cmd, self.antenna, self.fake)
@@ -147,7 +148,7 @@ class Sequences(RuleBasedStateMachine):
         counters = self.rig.node.counters
         before = counters.commands_received
         self.rig.cmd.publish(Float64(data=theta))
-        wait_for(lambda: counters.commands_received > before, what='the command received')
+        self.rig.ros.wait_for(lambda: counters.commands_received > before, what='the command received')
 
     @rule(n=st.integers(1, 5), data=st.data(), stamp=st.sampled_from(['zero', 'past', 'future']),
           at_rest=st.booleans(), fields=st.sampled_from([0, 1, 2]))
@@ -168,7 +169,7 @@ class Sequences(RuleBasedStateMachine):
         counters = self.rig.node.actuation.counters
         before = counters.trajectories_received
         self.rig.antenna.publish(msg)
-        wait_for(lambda: counters.trajectories_received > before, what='the antenna trajectory received')
+        self.rig.ros.wait_for(lambda: counters.trajectories_received > before, what='the antenna trajectory received')
 
     @rule(kind=st.sampled_from(['nan', 'jump', 'gap']), jump=st.floats(-0.2, 0.2))
     def measurement(self, kind: str, jump: float) -> None:
@@ -189,7 +190,7 @@ class Sequences(RuleBasedStateMachine):
             if kind == 'nan':
                 return counters.measurements_refused_not_finite > refused
             return counters.measurements_out_of_range > out or q in seen
-        wait_for(handled, what=f'the {kind} measurement {q!r} rad handled')
+        self.rig.ros.wait_for(handled, what=f'the {kind} measurement {q!r} rad handled')
 
     @rule(policy=st.sampled_from(['reject', 'retime']), tolerance=st.sampled_from([0.0, 0.002, 0.02, 0.05]))
     def parameters(self, policy: str, tolerance: float) -> None:

@@ -112,20 +112,24 @@ def point(position: float, t: float, velocity: float | None = None, acceleration
 
 def test_a_trajectory_is_followed_behind_the_reference_and_effort_is_the_statics(rig: Any) -> None:
     r = rig()
-    # Stamped 0.3 s ahead: the controller still takes it over at its first update after arrival, and its lead-in
-    # from the measured state reaches the first point at stamp + 0.4 s.
-    start = r.node.get_clock().now().nanoseconds + 300_000_000
+    # Stamped 1 s ahead: the controller still takes it over at its first update after arrival, and its lead-in
+    # from the measured state reaches the first point at stamp + 0.4 s. That lead-in is quintic (the point has
+    # accelerations): from rest over T it moves forward only while v T / d < 2.5, for the first point's velocity v
+    # and distance d; at v = 0.03 rad/s, d = 0.02 rad, T up to 1.4 s gives 2.1.
+    start = r.node.get_clock().now().nanoseconds + 1_000_000_000
     target = Q0 + 0.05
     msg = JointTrajectory(joint_names=[JOINT])
     msg.header.stamp = Time(sec=start // 10**9, nanosec=start % 10**9)
-    msg.points = [point(Q0 + 0.02, 0.4, 0.05, 0.0), point(target, 1.0, 0.0, 0.0)]
+    msg.points = [point(Q0 + 0.02, 0.4, 0.03, 0.0), point(target, 1.0, 0.0, 0.0)]
     first = len(r.states)
     r.traj_pub.publish(msg)
-    wait_for(lambda: r.node.follower.counters.accepted == 1, what='the trajectory accepted')
+    r.ros.wait_for(lambda: r.node.follower._trajectory is not None, what='the trajectory taken over')
+    taken_at = r.node.follower._trajectory.start
     end = r.settle_at(target, first)
     msgs = r.states.messages[first:r.states.messages.index(end) + 1]
     assert stamp_s(msgs[-1]) > start * 1e-9 + 1.0  # converged only after the trajectory's end (it lags)
-    assert any(m.position[0] > Q0 for m in msgs if stamp_s(m) <= start * 1e-9)  # moving before the stamp
+    before_stamp = [m.position[0] for m in msgs if stamp_s(m) <= start * 1e-9]
+    assert any(q > Q0 for q in before_stamp), (taken_at, start * 1e-9, before_stamp)  # moving before the stamp
     prev = msgs[0]
     for m in msgs:
         assert list(m.name) == [JOINT]

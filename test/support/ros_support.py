@@ -300,6 +300,16 @@ class RosSession:
         finally:
             self._running.set()
 
+    def wait_for(self, predicate: Callable[[], bool], timeout: float = TIMEOUT, what: str = 'condition') -> None:
+        """``wait_for`` with ``predicate`` evaluated between two callbacks of the executor thread (``paused``): a
+        callback that has counted something has also finished what it does after counting."""
+
+        def between() -> bool:
+            with self.paused():
+                return predicate()
+
+        wait_for(between, timeout, what)
+
     def __exit__(self, *exc: object) -> None:
         self.close()
 
