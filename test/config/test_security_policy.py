@@ -6,13 +6,13 @@ and the DDS security plugins are installed."""
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from support.colcon_support import ros2, ros2_cli_missing
 from support.paths import REPO, TEST_DATA
 
 from fourbar_ros.config.interface import (
@@ -193,9 +193,9 @@ def test_the_nodes_use_exactly_what_their_enclave_allows(created: tuple[Mode | N
 # --------------------------------------------------------------------------- enforcement
 
 def _security_missing() -> str | None:
-    if shutil.which('ros2') is None:
-        return 'sros2 (`ros2 security`) is not installed: no ros2 command line'
-    probe = subprocess.run(['ros2', 'security', '--help'], capture_output=True, text=True, timeout=120, check=False)
+    if (why := ros2_cli_missing()) is not None:
+        return why
+    probe = subprocess.run([ros2(), 'security', '--help'], capture_output=True, text=True, timeout=120, check=False)
     if probe.returncode != 0:
         return 'sros2 (`ros2 security`) is not installed'
     return None
@@ -209,13 +209,13 @@ def test_enforcement_lets_the_open_loop_enclave_run_only_open_loop(tmp_path: Pat
         pytest.skip(why)
     keystore = tmp_path / 'keystore'
 
-    def ros2(*args: str) -> None:
-        out = subprocess.run(['ros2', 'security', *args], capture_output=True, text=True, timeout=120, check=False)
+    def security(*args: str) -> None:
+        out = subprocess.run([ros2(), 'security', *args], capture_output=True, text=True, timeout=120, check=False)
         assert out.returncode == 0, out.stderr
 
-    ros2('create_keystore', str(keystore))
-    ros2('create_enclave', str(keystore), enclave(Mode.OPEN_LOOP))
-    ros2('create_permission', str(keystore), enclave(Mode.OPEN_LOOP), str(POLICY))
+    security('create_keystore', str(keystore))
+    security('create_enclave', str(keystore), enclave(Mode.OPEN_LOOP))
+    security('create_permission', str(keystore), enclave(Mode.OPEN_LOOP), str(POLICY))
     env = {**os.environ, 'ROS_SECURITY_ENABLE': 'true', 'ROS_SECURITY_STRATEGY': 'Enforce',
            'ROS_SECURITY_KEYSTORE': str(keystore), 'ROS_AUTOMATIC_DISCOVERY_RANGE': 'LOCALHOST'}
 
