@@ -50,8 +50,9 @@ class Background:
         self.cmd = list(cmd)
         self._out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in _collect
         self._err = tempfile.TemporaryFile()  # noqa: SIM115
-        self.proc = subprocess.Popen(self.cmd, env=env, cwd=cwd, stdout=self._out, stderr=self._err,
-                                     stdin=subprocess.DEVNULL, start_new_session=True)
+        # faulthandler: a command that hangs is sent SIGABRT before it is killed, and prints every thread's stack
+        self.proc = subprocess.Popen(self.cmd, env={**env, 'PYTHONFAULTHANDLER': '1'}, cwd=cwd, stdout=self._out,
+                                     stderr=self._err, stdin=subprocess.DEVNULL, start_new_session=True)
         self.stdout = ''
         self.stderr = ''
         self._seen: dict[int, Any] = {}
@@ -95,9 +96,12 @@ class Background:
             self.proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             alive = [' '.join(p.cmdline()[:3]) for p in self.descendants()]
+            self.proc.send_signal(signal.SIGABRT)  # the Python stacks of the hung command, on its stderr
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                self.proc.wait(timeout=10.0)
             self.kill()
             raise AssertionError(f'{self.cmd[:4]} did not exit within {timeout} s (descendants alive: {alive}):\n'
-                                 f'{(self.stdout + self.stderr)[-3000:]}') from None
+                                 f'{(self.stdout + self.stderr)[-6000:]}') from None
         self._collect()
         return self.proc.returncode
 
