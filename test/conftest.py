@@ -16,7 +16,9 @@ its ``-m`` expression names the marker (``make test-stress`` is ``-m stress``); 
 Every test process (each pytest-xdist worker, or the lone pytest process) leases a ROS_DOMAIN_ID of its own at
 start and runs with ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST (support.isolation): its rclpy session and every child
 started from its environment use that domain. A module's processes must end with it: what is left running at
-its end is killed and reported as an error (``no_process_outlives_its_module``).
+its end is killed and reported as an error (``no_process_outlives_its_module``). SIGINT and SIGQUIT are restored
+to their defaults where the run inherited them ignored (a background job's), so the commands the tests interrupt
+are interruptible as in a terminal.
 
 Fixtures:
 - ``ros``: one rclpy context, client node and executor on the process's domain id (support.ros_support.RosSession).
@@ -75,6 +77,8 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 
 def pytest_configure(config: pytest.Config) -> None:
+    # Before xdist starts its workers: they, and every command a test starts, get SIGINT as from a terminal.
+    isolation.default_stop_signals()
     # Every process that runs tests (each pytest-xdist worker, or the lone pytest process; not xdist's controller)
     # on a ROS domain of its own, discovery limited to this host, before any rclpy context exists.
     if not (getattr(config.option, 'numprocesses', None) and not hasattr(config, 'workerinput')):

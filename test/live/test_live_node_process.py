@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import subprocess
 import sys
 from pathlib import Path
 
@@ -82,3 +83,25 @@ def test_leases_are_distinct_until_released(tmp_path: Path, monkeypatch: pytest.
     assert third.domain_id == first.domain_id
     second.release()
     third.release()
+
+
+def test_commands_a_run_started_as_a_background_job_starts_are_interruptible() -> None:
+    """A shell's background job (``make test &``) ignores SIGINT and SIGQUIT, and its children inherit that: a
+    Python child then never raises KeyboardInterrupt (``ros2 launch`` cannot be stopped by SIGINT). The session
+    restores both (``isolation.default_stop_signals``, from conftest) before it starts anything."""
+    from support.isolation import default_stop_signals
+
+    probe = [sys.executable, '-c', 'import signal; print(signal.getsignal(signal.SIGINT) is signal.default_int_handler,'
+             ' signal.getsignal(signal.SIGQUIT) == signal.SIG_DFL)']
+    previous = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGQUIT)}
+    try:
+        for s in previous:
+            signal.signal(s, signal.SIG_IGN)
+        inherited = subprocess.run(probe, capture_output=True, text=True, check=True).stdout.split()
+        default_stop_signals()
+        restored = subprocess.run(probe, capture_output=True, text=True, check=True).stdout.split()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    assert inherited == ['False', 'False']  # what a background job's children get
+    assert restored == ['True', 'True']

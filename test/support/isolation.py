@@ -7,6 +7,9 @@ behind when the module ends. No rclpy here (conftest.py uses it for every run, R
   discover only on this host. ``release_process()`` gives the id back.
 - ``isolated_env(base, domain_id)``: an environment for a child process on ``domain_id``, limited to this host
   (all processes that must see each other need the same range: the harness sets it everywhere).
+- ``default_stop_signals()``: SIGINT and SIGQUIT as a terminal's foreground process has them, even when the run
+  inherited them ignored (a shell's background job, ``make test &``, ignores both; children inherit that across
+  exec, and ``ros2 launch`` started with SIGINT ignored never stops on it).
 - ``kill_group(pid)``: SIGKILL to what is left of a process group (a child started with ``start_new_session``).
 - ``Leftovers``: the descendants of this process a module started and left running, ended and named.
 """
@@ -37,6 +40,14 @@ def isolated_env(base: Mapping[str, str], domain_id: int, **extra: str) -> dict[
     env.update(DISCOVERY_RANGE)
     env.update(extra)
     return env
+
+
+def default_stop_signals() -> None:
+    """SIGINT back to Python's KeyboardInterrupt and SIGQUIT to its default action where they are ignored."""
+    if signal.getsignal(signal.SIGINT) == signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if signal.getsignal(signal.SIGQUIT) == signal.SIG_IGN:
+        signal.signal(signal.SIGQUIT, signal.SIG_DFL)
 
 
 def isolate_process() -> DomainLease:

@@ -42,6 +42,17 @@ def run(cmd: Sequence[str], env: dict[str, str], timeout: float = TIMEOUT, cwd: 
     return subprocess.CompletedProcess(proc.args, proc.returncode, out, err)
 
 
+def _signal_masks(pid: int) -> dict[str, str]:
+    """Each thread's pending, blocked, ignored and caught signal masks (hex, bit n-1 for signal n) from /proc."""
+    masks = {}
+    for status in sorted(Path(f'/proc/{pid}/task').glob('*/status')):
+        with contextlib.suppress(OSError):
+            fields = dict(line.split(':\t', 1) for line in status.read_text().splitlines() if ':\t' in line)
+            masks[f'{fields.get("Name", "?").strip()}/{status.parent.name}'] = ' '.join(
+                f'{k}={fields.get(k, "?").strip()}' for k in ('SigPnd', 'ShdPnd', 'SigBlk', 'SigIgn', 'SigCgt'))
+    return masks
+
+
 class Background:
     """A long-lived command in a new session (so a signal can go to it alone, or to its group as Ctrl-C
     does); output goes to files, so it can never block on a full pipe."""
@@ -96,12 +107,13 @@ class Background:
             self.proc.wait(timeout=timeout)
         except subprocess.TimeoutExpired:
             alive = [' '.join(p.cmdline()[:3]) for p in self.descendants()]
+            masks = _signal_masks(self.proc.pid)
             self.proc.send_signal(signal.SIGABRT)  # the Python stacks of the hung command, on its stderr
             with contextlib.suppress(subprocess.TimeoutExpired):
                 self.proc.wait(timeout=10.0)
             self.kill()
-            raise AssertionError(f'{self.cmd[:4]} did not exit within {timeout} s (descendants alive: {alive}):\n'
-                                 f'{(self.stdout + self.stderr)[-6000:]}') from None
+            raise AssertionError(f'{self.cmd[:4]} did not exit within {timeout} s (descendants alive: {alive}; '
+                                 f'signal masks per thread: {masks}):\n{(self.stdout + self.stderr)[-6000:]}') from None
         self._collect()
         return self.proc.returncode
 
