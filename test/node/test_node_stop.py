@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import re
 import signal
+import sys
+from collections.abc import Sequence
 from typing import Any
 
 import pytest
@@ -22,7 +24,7 @@ from support.ros_support import NodeProcess, RosSession, Ticker, sync_probe, wai
 from support.stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
-from fourbar_ros.live.node_process import NodeStopError
+from fourbar_ros.live.node_process import NodeStopError, node_command
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -60,9 +62,11 @@ class Stream(Ticker):
         self.sent += 1
 
 
-def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, repeats: int) -> list[str]:
-    """Start and signal the node ``repeats`` times; return one entry per failure: its status and the process's
-    whole output (the last ``KEPT_OUTPUT`` characters of stderr and of stdout), so a rare failure can be read."""
+def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, repeats: int,
+              command: Sequence[str] | None = None) -> list[str]:
+    """Start (``command``, default the node's) and signal the node ``repeats`` times; return one entry per failure:
+    its status and the process's whole output (the last ``KEPT_OUTPUT`` characters of stderr and of stdout), so a
+    rare failure can be read."""
     pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
     js = ros.collect(JointState, f'{ns}/joint_states')
     tq = ros.collect(Float64, f'{ns}/input_torque')
@@ -71,7 +75,7 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, r
     try:
         for i in range(repeats):
             proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'],
-                               ros.env(**{EXECUTOR_ENV: executor}))
+                               ros.env(**{EXECUTOR_ENV: executor}), command=command)
             proc.start()
             status: int | str
             try:
@@ -114,3 +118,15 @@ def test_every_stop_exits_0_without_traceback(ros: RosSession, sig: int, loaded:
     ns = f'/stop_{int(sig)}_{int(loaded)}_{executor}_{repeats}'
     failures = run_stops(ros, sig, loaded, ns, executor, repeats)
     assert not failures, f'{len(failures)} of {repeats} stops failed:\n' + '\n'.join(failures)
+
+
+#: Runs argv[1:] with SIGINT and SIGQUIT ignored, as a non-interactive shell runs a background job (`cmd &`).
+AS_BACKGROUND_JOB = ('import os, signal, sys; signal.signal(signal.SIGINT, signal.SIG_IGN); '
+                     'signal.signal(signal.SIGQUIT, signal.SIG_IGN); os.execv(sys.argv[1], sys.argv[1:])')
+
+
+@pytest.mark.parametrize('executor', EXECUTORS)
+def test_a_node_started_with_sigint_ignored_still_stops_on_it(ros: RosSession, executor: str) -> None:
+    failures = run_stops(ros, signal.SIGINT, False, f'/stop_ignored_{executor}', executor, 1,
+                         command=[sys.executable, '-c', AS_BACKGROUND_JOB, *node_command()])
+    assert not failures, failures[0]
