@@ -7,8 +7,9 @@ from pathlib import Path
 
 import pytest
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
 from support.bag_support import CONFIG, expected_outputs, run_tool
-from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession
+from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession, sync_probe
 
 from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, float64_cdr, read_commands, recorded_qos
 from fourbar_ros.config.antenna_config import load_config
@@ -47,6 +48,14 @@ def test_namespaced_recording_replays_with_bag_topic(ros: RosSession, tmp_path: 
         with NodeProcess(['--ros-args', '--params-file', str(CONFIG), '-r', '__ns:=/robot',
                           *ONE_JOINT_STATE_PER_COMMAND], ros.env()) as node:
             ros.wait_publishers(answers)  # matched with the node's publisher before the first answer
+            # ... and the node with this subscription: it publishes joint_states only while it sees a subscriber.
+            # Probe commands come back once it does (then the answers are cleared).
+            probe = ros.publisher(Float64, '/robot/antenna_angle_cmd')
+            ros.wait_subscribers(probe)
+            probes = [cfg.theta_min + (cfg.theta_max - cfg.theta_min) * (k + 0.5) / 600 for k in range(600)]
+            sync_probe(lambda t: probe.publish(Float64(data=t)), [answers], probes,
+                       lambda col, msg, t: bool(msg.position[0] == expected_outputs([t], cfg)[0].gamma))
+            ros.destroy(probe)
             rc, lines, _ = run_tool(['replay', bag, '--bag-topic', '/robot/antenna_angle_cmd',
                                      '--as-fast-as-node-keeps-up', '--no-progress'], ros.env())
             assert rc == 0, lines
