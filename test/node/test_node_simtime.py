@@ -44,7 +44,7 @@ SLOW = 4.0  # wall seconds per sim second
 CLOCK_HZ = 40.0  # of sim time
 COMMAND_HZ = 100.0  # of sim time
 RAMP_RATE = 0.04  # rad/s of theta, in sim seconds
-RAMP_COMMANDS = 200  # 2 s of sim time (8 s of wall time) at 100 Hz: theta moves 0.08 rad, inside the range
+RAMP_COMMANDS = 120  # 1.2 s of sim time (4.8 s of wall time) at 100 Hz: theta moves 0.048 rad, inside the range
 SIM_T0_S = 1000  # sim time at the start: far from 0, so the first stamped answer has no velocity
 
 
@@ -114,7 +114,7 @@ def test_sim_time_velocity_is_unbiased_with_a_40_hz_clock() -> None:
     mean = statistics.fmean(ratios)
     print(f'sim-time velocity ratio: mean {mean:.4f} over {len(ratios)} velocities')
     # Each velocity spans first command of a tick to first command of the next; the spans telescope, so the
-    # mean is off the truth by about one command interval over the run (10 ms / 2 s of sim time) plus the
+    # mean is off the truth by about one command interval over the run (10 ms / 1.2 s of sim time) plus the
     # delivery jitter's bias (the docstring).
     assert mean == pytest.approx(1.0, abs=0.05)
 

@@ -25,7 +25,7 @@ from support.stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.live.node_process import NodeStopError, node_command
-from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
+from fourbar_ros.node.executor import DEFAULT_EXECUTOR, EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -125,8 +125,8 @@ AS_BACKGROUND_JOB = ('import os, signal, sys; signal.signal(signal.SIGINT, signa
                      'signal.signal(signal.SIGQUIT, signal.SIG_IGN); os.execv(sys.argv[1], sys.argv[1:])')
 
 
-@pytest.mark.parametrize('executor', EXECUTORS)
-def test_a_node_started_with_sigint_ignored_still_stops_on_it(ros: RosSession, executor: str) -> None:
-    failures = run_stops(ros, signal.SIGINT, False, f'/stop_ignored_{executor}', executor, 1,
+def test_a_node_started_with_sigint_ignored_still_stops_on_it(ros: RosSession) -> None:
+    # main() installs the handlers before it makes the executor: one executor (the default) shows it.
+    failures = run_stops(ros, signal.SIGINT, False, '/stop_ignored', DEFAULT_EXECUTOR, 1,
                          command=[sys.executable, '-c', AS_BACKGROUND_JOB, *node_command()])
     assert not failures, failures[0]
