@@ -28,7 +28,7 @@ if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 pytest.importorskip('pytest_codeblocks', reason='the quick start is read from Markdown with pytest-codeblocks')
 from pytest_codeblocks import extract_from_file
-from support.ros_cli_support import TIMEOUT, Background, run, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import TIMEOUT, Background, run, start_daemon, wait_node  # psutil: with ros2cli
 from support.ros_support import DomainLease
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -95,6 +95,7 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
     background; the last terminal runs to completion, its pub line repeated until the echo has printed."""
     background: list[Background] = []
     try:
+        start_daemon(env)  # what wait_node asks (stopped below)
         node, echo = None, None
         for lines in terminals[:-1]:
             assert lines[-1].startswith(LONG_RUNNING), lines

@@ -211,12 +211,11 @@ def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
 def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[str]:
     """Poll ``ros2 node list`` (the daemon's graph) until ``node`` is listed; return the list.
 
-    The daemon is started first (the caller stops it: ``ros2 daemon stop``). Without one, ``ros2 node list``
-    spawns one and answers from a direct node of its own, and ``run`` then kills the daemon with the command's
-    group: the node is listed, and the next command's new daemon may not have discovered it yet."""
+    The daemon must be running (``start_daemon``; ``cli_env`` starts one). Without one, ``ros2 node list`` spawns
+    one and answers from a direct node of its own, and ``run`` then kills the daemon with the command's group: the
+    node is listed, and the next command's new daemon may not have discovered it yet."""
     from support.colcon_support import ros2
 
-    start_daemon(env, timeout)
     deadline = time.monotonic() + timeout
     while True:
         nodes = run([ros2(), 'node', 'list'], env).stdout.split()
