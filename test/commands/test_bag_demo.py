@@ -37,26 +37,34 @@ def _env() -> dict[str, str]:
 
 @dataclass(frozen=True)
 class DemoRun:
-    """One `fourbar demo` run to the end, on an exported ROS_DOMAIN_ID: its domain, stdout and output directory."""
+    """One `fourbar demo` run to the end with no arguments, started outside the checkout on an exported
+    ROS_DOMAIN_ID: its domain, working directory and stdout, and its output directory (the default)."""
 
     domain_id: int
+    cwd: Path
     stdout: str
-    out: Path
+
+    @property
+    def out(self) -> Path:
+        return self.cwd / 'out' / 'demo'
 
 
 @pytest.fixture(scope='module')
 def demo_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[DemoRun]:
-    """The demo run once for the module's checks (it takes about 20 s), on a domain leased for the module."""
+    """The demo run once for the module's checks (it takes about 20 s), on a domain leased for the module.
+
+    No --params, --bag, --out or --domain-id: the defaults come from the source tree (this environment does not
+    index fourbar_ros: no AMENT_PREFIX_PATH), the output goes below the directory it was started in, and the domain
+    is the exported ROS_DOMAIN_ID (so a user's other terminals see its topics), said in its first line."""
     lease = lease_domain_id()
     try:
-        out = tmp_path_factory.mktemp('demo_run') / 'demo'
-        # On an exported ROS_DOMAIN_ID (so a user's other terminals see its topics), said in its first line.
-        with Tool(['demo', '--params', CONFIG, '--out', out],
-                  {**_env(), 'ROS_DOMAIN_ID': str(lease.domain_id)}) as demo:
-            rc = demo.wait(120.0)  # a deadline against hangs
+        cwd = tmp_path_factory.mktemp('anywhere')
+        env = {k: v for k, v in _env().items() if k != 'AMENT_PREFIX_PATH'}
+        with Tool(['demo'], {**env, 'ROS_DOMAIN_ID': str(lease.domain_id)}, cwd=cwd) as demo:
+            rc = demo.wait(300.0)  # a deadline against hangs; killed with its process group then
             assert rc == 0, demo.lines
             stdout = demo.stdout
-        yield DemoRun(lease.domain_id, stdout, out)
+        yield DemoRun(lease.domain_id, cwd, stdout)
     finally:
         lease.release()
 
@@ -175,28 +183,16 @@ def test_demo_bad_params_is_one_line(tmp_path: Path) -> None:
     assert not (tmp_path / 'demo').exists()
 
 
-def _check_demo_output(rc: int, out: str, err: str, cwd: Path, params: Path, bag: Path) -> None:
-    assert rc == 0, err
-    first = out.splitlines()[0]
-    assert first.startswith('fourbar demo: fourbar_node (mode trajectory) and the simulated actuator with '
-                            f'{params} on ROS_DOMAIN_ID '), first
-    assert f'replaying {len(read_commands(DEMO_BAG))} commands from {bag}, one every ' in first, first
-    png = cwd / 'out' / 'demo' / 'demo.png'  # the default --out, relative to where it was started
-    assert png.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
-    recorded = read_messages(cwd / 'out' / 'demo' / 'outputs')
-    assert len(recorded['/antenna_angle_cmd']) == len(read_commands(DEMO_BAG))
-
-
-def test_demo_with_no_arguments_from_another_directory(tmp_path: Path) -> None:
-    """No --params, --bag or --domain-id, started outside the checkout: the defaults come from the source tree
-    (this environment does not index fourbar_ros), the domain from the lease the test suite shares."""
+def test_demo_with_no_arguments_from_another_directory(demo_run: DemoRun) -> None:
+    """The defaults are the source tree's parameters and bag; the output, and only it, is below the directory the
+    demo was started in."""
     if (Path(sys.prefix) / 'share' / 'fourbar_ros').exists():
         pytest.skip('fourbar_ros is installed into this environment\'s share/ (not an editable install)')
-    env = {k: v for k, v in _env().items() if k != 'AMENT_PREFIX_PATH'}
-    with Tool(['demo'], env, cwd=tmp_path) as demo:  # own session, killed with its process group on a timeout
-        rc = demo.wait(300.0)
-    _check_demo_output(rc, demo.stdout, demo.stderr, tmp_path, CONFIG, DEMO_BAG)
-    assert os.listdir(tmp_path) == ['out']
+    first = demo_run.stdout.splitlines()[0]
+    assert first.startswith('fourbar demo: fourbar_node (mode trajectory) and the simulated actuator with '
+                            f'{CONFIG} on ROS_DOMAIN_ID '), first
+    assert f'replaying {len(read_commands(DEMO_BAG))} commands from {DEMO_BAG}, one every ' in first, first
+    assert os.listdir(demo_run.cwd) == ['out'] and sorted(os.listdir(demo_run.cwd / 'out')) == ['demo']
 
 
 def test_ros2_run_demo_uses_the_installed_share(ros2_cli: CliEnv,

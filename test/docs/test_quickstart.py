@@ -114,7 +114,8 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
         last = terminals[-1]
         out = subprocess.run(['bash', '-e', '-c', script(last)], env=env, cwd=home, capture_output=True, text=True,
                              timeout=TIMEOUT * 3, check=False, stdin=subprocess.DEVNULL)
-        assert out.returncode == 0, out.stdout + out.stderr
+        assert out.returncode == 0, (f'terminal 3 exited {out.returncode}:\n{out.stdout}{out.stderr}'
+                                     f'{graph_report(env, node)}')
         pub = next(line for line in last if line.startswith('ros2 topic pub '))
         deadline = time.monotonic() + TIMEOUT
         while echo.proc.poll() is None:
@@ -130,6 +131,18 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
         for proc in background:
             proc.kill()
         run([ros2(), 'daemon', 'stop'], env, timeout=30)
+
+
+def graph_report(env: dict[str, str], node: Background) -> str:
+    """What the other sides saw, for a failure: the node process's state and last output, and the ros2 daemon's
+    status and node list (the graph `ros2 param` reads) at this moment."""
+    state = 'running' if node.proc.poll() is None else f'exited {node.proc.returncode}'
+    tail = node.output().strip().splitlines()[-12:]
+    status = run([ros2(), 'daemon', 'status'], env, timeout=30)
+    listed = run([ros2(), 'node', 'list'], env, timeout=30)
+    return (f'\nnode terminal ({state}), last lines:\n  ' + '\n  '.join(tail)
+            + f'\nros2 daemon status: {(status.stdout + status.stderr).strip()}'
+            + f'\nros2 node list: {(listed.stdout + listed.stderr).split()}')
 
 
 def _check(echo: str, last: str) -> None:

@@ -315,11 +315,17 @@ def _replan_starts(grid: int, randoms: int) -> list[tuple[JointMotionState, floa
     return starts
 
 
+TARGETS_100HZ = (CFG.theta_min, -0.05, 0.0, 0.03, CFG.theta_max)
+
+
 @needs_ruckig
 @pytest.mark.parametrize(('rate', 'grid', 'randoms', 'targets'), [
-    (100.0, 301, 100, (CFG.theta_min, -0.05, 0.0, 0.03, CFG.theta_max)),
-    (1000.0, 11, 60, (CFG.theta_min, CFG.theta_max)),  # 10 times the points per plan: fewer plans
-], ids=['100Hz', '1kHz'])
+    pytest.param(100.0, 101, 30, TARGETS_100HZ, id='100Hz'),
+    pytest.param(1000.0, 11, 20, (CFG.theta_min, CFG.theta_max), id='1kHz'),  # 10 times the points per plan
+    # The same with a finer grid and more random plans (make test-stress).
+    pytest.param(100.0, 301, 100, TARGETS_100HZ, id='100Hz-dense', marks=pytest.mark.stress),
+    pytest.param(1000.0, 31, 60, (CFG.theta_min, CFG.theta_max), id='1kHz-dense', marks=pytest.mark.stress),
+])
 def test_a_replan_from_any_state_of_a_running_plan_is_never_refused_for_its_limits(
         rate: float, grid: int, randoms: int, targets: tuple[float, ...]) -> None:
     # A jerk-limited plan starts at the state it is given and stays within the limits: its points must be too,
@@ -440,10 +446,25 @@ def test_a_converted_antenna_trajectory_is_held_between_its_points() -> None:
         assert float(np.max(LIMITS.ratio * m)) <= LIMITS.motor(order), order
 
 
-@settings(max_examples=300, deadline=None)
-@given(st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.sampled_from([0.01, 0.001]))
+MEASURED_STARTS = (st.floats(0.0, 1.0), st.floats(-1.0, 1.0), st.sampled_from([0.01, 0.001]))
+
+
+@settings(max_examples=60, deadline=None)
+@given(*MEASURED_STARTS)
 def test_a_plan_from_a_measured_state_is_never_refused_for_its_interpolation(
         where: float, speed: float, spacing: float) -> None:
+    check_a_plan_from_a_measured_state(where, speed, spacing)
+
+
+@pytest.mark.stress
+@settings(max_examples=1000, deadline=None)
+@given(*MEASURED_STARTS)
+def test_a_plan_from_a_measured_state_is_never_refused_for_its_interpolation_many(
+        where: float, speed: float, spacing: float) -> None:
+    check_a_plan_from_a_measured_state(where, speed, spacing)
+
+
+def check_a_plan_from_a_measured_state(where: float, speed: float, spacing: float) -> None:
     # A replan from the measured state (``motion_start``: position and velocity, acceleration 0): the controller's
     # quintics through the profile must stay within the limits between the points too (a segment over them is split
     # at its phase boundaries).

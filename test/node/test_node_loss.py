@@ -22,6 +22,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from support.paths import REPO
 from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, Collector, NodeProcess, RosSession, sync_probe
+from support.stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
@@ -208,13 +209,14 @@ def rig_for(ros: RosSession, rigs: dict[str, Rig], executor: str) -> Rig:
     return rigs[executor]
 
 
+@pytest.mark.parametrize('repeats', once_and_stress(20))
 @pytest.mark.parametrize('executor', EXECUTORS)
-def test_a_scripts_first_command_is_served(ros: RosSession, executor: str) -> None:
+def test_a_scripts_first_command_is_served(ros: RosSession, executor: str, repeats: int) -> None:
     # What a script does: a publisher, wait until it sees the node's subscription, publish one command. Discovery
     # may match the publisher to the node before the node's subscription has matched the publisher; the reliable
     # subscription then gets the sample resent. Each time a fresh node; the answer read from its diagnostics.
     name = 'fourbar_node: antenna tilt linkage'
-    for k in range(3):
+    for k in range(repeats):
         ns = f'/first_{executor}_{k}'
         diag: Collector[Any] = ros.collect(DiagnosticArray, '/diagnostics', 10)
         proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}',
