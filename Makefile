@@ -2,8 +2,9 @@
 PYTHON ?= python3
 VENV ?= .venv
 BIN := $(VENV)/bin
-# pytest-xdist workers: one per CPU, at most 4; each test file runs whole on one worker (its shared node processes).
-PARALLEL ?= -n auto --maxprocesses 4 --dist loadfile
+# Four pytest-xdist workers whatever the CPU count: most ROS tests wait on node processes and discovery, not on the
+# CPU. Each test file runs whole on one worker (its shared node processes).
+PARALLEL ?= -n 4 --dist loadfile
 
 .PHONY: setup demo test test-jitter test-stress test-repeat lint bench-deps bench bench-quick clean
 
