@@ -14,6 +14,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 from fourbar_ros.commands import CommandError, add_storage_argument
 from fourbar_ros.config.interface import (
@@ -168,6 +169,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from fourbar_ros.live.record import Recorder, discover
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
+    from fourbar_ros.node.executor import MessageInfoCallback
 
     assert isinstance(stream, CommandStream) and isinstance(topics, DemoTopics) and isinstance(cfg, AntennaConfig)
     prog = 'fourbar demo'
@@ -193,6 +195,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     recorder: Recorder | None = None
     diagnostics: list[dict[str, str]] = []
     antenna: list[float] = []
+    antenna_sources: list[int] = []  # each antenna angle's source timestamp (ns)
 
     names = {NODE_EXECUTABLE: node, 'the simulated actuator': sim}
 
@@ -209,9 +212,10 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
         ros.create_subscription(DiagnosticArray, DIAGNOSTICS.name,
                                 lambda m: diagnostics.append(_diag_values(m)), DIAGNOSTICS.depth)
 
-        def on_antenna(msg: Float64) -> None:
+        def on_antenna(msg: Float64, info: dict[str, Any]) -> None:
             antenna.append(msg.data)
-        ros.create_subscription(Float64, topics.antenna_angle, on_antenna, STREAM_DEPTH)
+            antenna_sources.append(int(info.get('source_timestamp') or 0))
+        ros.create_subscription(Float64, topics.antenna_angle, MessageInfoCallback(on_antenna), STREAM_DEPTH)
         # The simulated actuator's measured joint and the node's complete joint states: both publishers first.
         spin_until(executor, lambda: failed() is not None or (ros.count_publishers(topics.measured) >= 1
                                                              and ros.count_publishers(topics.joint_states) >= 1),
@@ -244,6 +248,12 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
                 antenna, target, cfg.trajectory_tolerance, SETTLE_SAMPLES), args.timeout):
             print(f'{prog}: warning: the measured antenna angle did not settle within '
                   f'{cfg.trajectory_tolerance:g} rad of the last command in {args.timeout:g} s', file=sys.stderr)
+        # The recording's own subscription may still have older angles queued (a busy machine): it ends with the
+        # angle seen last here, or a later one.
+        last_seen = antenna_sources[-1]
+        if not spin_until(executor, lambda: rec.last_source_ns[topics.antenna_angle] >= last_seen, args.timeout):
+            raise ReplayError(f'the recording did not receive the last measured antenna angle within '
+                              f'{args.timeout:g} s')
         total = len(stream)
         seen = len(diagnostics)
         if not spin_until(executor, lambda: any(d.get('commands_received') == str(total)

@@ -136,6 +136,8 @@ class Recorder:
         self.plans = list(plans)
         self.bag = AtomicBagWriter(self.out, storage)
         self.counts: dict[str, int] = {p.name: 0 for p in self.plans}
+        #: per topic, the latest source timestamp (ns, the publisher's clock) of a message written so far
+        self.last_source_ns: dict[str, int] = {p.name: 0 for p in self.plans}
         self.on_message = on_message
         self._subs: list[Any] = []
         self.bag.open()
@@ -167,6 +169,7 @@ class Recorder:
             log = clock.now().nanoseconds if sim_time or not received else int(received)
             self.bag.write(conn, log, data)
             self.counts[name] += 1
+            self.last_source_ns[name] = max(self.last_source_ns[name], int(info.get('source_timestamp') or 0))
             if self.on_message is not None:
                 self.on_message(name, self.counts[name])
         return MessageInfoCallback(write)

@@ -44,6 +44,8 @@ from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.controller_contract import check_forward_command
 
 WARN_THROTTLE_S = 1.0
+#: Most controller updates one late tick makes (10 s at 100 Hz): a longer gap is integrated in longer steps.
+MAX_CATCH_UP = 1000
 
 
 @dataclass
@@ -143,7 +145,17 @@ class SimActuator(Node):
         last, self._last_tick_ns = self._last_tick_ns, tick_ns
         dt = 0.0 if last is None or tick_ns < last else (tick_ns - last) * 1e-9  # sim time jumping back restarts
         drive = self.drive
-        drive.advance(dt, self._reference)  # the position command of the last update, held over the interval
+        reason = self.follower.holding_reason
+        # A tick late by whole periods (a busy machine) first makes the controller updates it missed, each at its
+        # time with the state measured then, as the controller manager's real-time loop would have: a late timer
+        # then changes what is published, not the motion (nor a tolerance check).
+        updates = min(max(round(dt / self.follower.period), 1), MAX_CATCH_UP)
+        step = dt / updates
+        for k in range(updates - 1, 0, -1):
+            drive.advance(step, self._reference)
+            missed = self.encoder.measure(drive.position, drive.velocity, 0.0)
+            self._reference = self.follower.reference(ns * 1e-9 - k * step, missed[0], missed[1]).position
+        drive.advance(step, self._reference)  # the position command of the last update, held over the interval
         try:
             effort = effort_at(self.config, drive.position)
         except FourBarError as exc:  # the drive stays in the tilt range's rocker range: a core bug if here
@@ -159,7 +171,6 @@ class SimActuator(Node):
         self._pub.publish(msg)
         self.counters.joint_states_published += 1
         # The controller's update: the state just read, then the command for the next interval.
-        reason = self.follower.holding_reason
         self._reference = self.follower.reference(ns * 1e-9, measured[0], measured[1]).position
         if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
             self._problems.warn('holding', self.follower.holding_reason)

@@ -18,17 +18,12 @@ from support.bag_support import CONFIG, DEMO_BAG, Tool
 from support.colcon_support import CliEnv, ros2
 from support.ros_support import DomainLease, lease_domain_id, wait_for
 
-from fourbar_ros.bags.demo import pace
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, trajectory_topic
 from fourbar_ros.live.node_process import domain_in_use
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
-
-
-#: How far (in pacing periods) a trajectory's receive time in the demo's recording may lag its sending.
-LAG_PERIODS = 10
 
 
 def _env() -> dict[str, str]:
@@ -113,27 +108,24 @@ def test_demo_runs_to_the_end_on_the_exported_domain(demo_run: DemoRun) -> None:
     assert f'{len(measured)} measured joint_states' in counts and f'{len(angles)} antenna_angle' in counts
 
 
-def test_demo_records_each_trajectory_when_it_was_sent(demo_run: DemoRun) -> None:
-    """Each stamped actuator trajectory's first point is due at or before the node's time of sending it, within one
-    point spacing (it starts at the running motion's point the node's now fell in, or at the measured state now):
-    the recording's receive time (log time) lags that by at most LAG_PERIODS pacing periods. The demo records on
-    the executor that replays: one that stopped running callbacks while the replay waited for the last commands'
-    acknowledgements (a heartbeat period of the middleware, up to seconds) stamped the last commands, and the
-    motion planned for them, that late."""
+def test_demo_records_each_trajectory_after_its_first_point_is_due(demo_run: DemoRun) -> None:
+    """Each stamped actuator trajectory's first point is due at or before the node's time of sending it (it starts
+    at the running motion's point the node's now fell in, or at the measured state now), so its receive time in
+    the recording (the middleware's, on the same host's system clock) is not before it. How late it arrives is
+    the machine's load and is not asserted; that the replay keeps the recording's executor running while it waits
+    for acknowledgements is test/live/test_replay_acks.py's."""
     cfg = load_config(CONFIG)
-    period = pace(read_commands(DEMO_BAG).values, cfg)
     topic = f'/{trajectory_topic(cfg.trajectory_controller).name}'
     lags = []
     for log, msg in read_messages(demo_run.out / 'outputs', [topic])[topic]:
         stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
         if stamp:
             first = msg.points[0].time_from_start
-            lags.append((log - stamp - first.sec * 10**9 - first.nanosec) * 1e-9)
+            lags.append(log - stamp - first.sec * 10**9 - first.nanosec)
     assert len(lags) > 100, f'{len(lags)} stamped trajectories recorded'
-    worst = max(range(len(lags)), key=lags.__getitem__)
-    assert lags[worst] <= LAG_PERIODS * period, (
-        f'trajectory {worst} of {len(lags)} stamped ones: received {lags[worst] * 1e3:.1f} ms after the node sent '
-        f'it, over the bound of {LAG_PERIODS} pacing periods ({LAG_PERIODS * period * 1e3:.1f} ms)')
+    early = [i for i, lag in enumerate(lags) if lag < 0]
+    assert not early, (f'{len(early)} of {len(lags)} stamped trajectories received before their first point was '
+                       f'due, e.g. trajectory {early[0]}: {-lags[early[0]] * 1e-6:.3f} ms before')
 
 
 def _nodes(pid: int) -> list[int]:

@@ -22,6 +22,7 @@ from typing import Any
 import pytest
 from builtin_interfaces.msg import Duration, Time
 from rclpy.parameter import Parameter
+from rclpy.time import Time as RclpyTime
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from support.paths import REPO
@@ -32,6 +33,7 @@ from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import SIM_PARAMETERS_BY_NAME
+from fourbar_ros.node import sim_actuator
 from fourbar_ros.node.sim_actuator import SimActuator
 from fourbar_ros.node.sim_actuator_model import STEP_S, effort_at
 from fourbar_ros.rules.controller_contract import ContractRule
@@ -281,6 +283,57 @@ def test_console_script_serves_and_stops_with_status_0(ros: RosSession, sig: int
         assert list(states.messages[0].name) == [JOINT]
     finally:
         ros.uncollect(states)
+
+
+class ManualClock:
+    """What SimActuator reads its clocks through (``now().nanoseconds``, ``now().to_msg()``), set by the test."""
+
+    def __init__(self, ns: int) -> None:
+        self.ns = ns
+
+    def now(self) -> RclpyTime:
+        return RclpyTime(nanoseconds=self.ns)
+
+
+def follow_with_ticks(ros: RosSession, ticks: Sequence[int]) -> SimActuator:
+    """An in-process SimActuator that is not spun: it takes a linear trajectory of 0.12 rad in 2 s (0.06 rad/s,
+    within its speed limit) 5 ms after its first tick, and ticks at ``ticks`` (ms) on a clock of the test's."""
+    node = SimActuator(context=ros.context, namespace=f'/sim_test_{next(_ns)}',
+                       cli_args=['--ros-args', '--params-file', str(YAML)])
+    clock = ManualClock(10**12)
+    node._clock = node._tick_clock = clock
+    start = clock.ns
+    for k, t in enumerate(ticks):
+        clock.ns = start + t * 1_000_000
+        node._on_tick()
+        if k == 0:
+            clock.ns += 5_000_000
+            node._on_trajectory(JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.12, 2.0)]))
+    return node
+
+
+def test_a_late_tick_makes_the_controller_updates_it_missed(ros: RosSession,
+                                                            monkeypatch: pytest.MonkeyPatch) -> None:
+    """A tick 1 s late (a busy machine) in the middle of the motion: the drive moves as with ticks on time, and no
+    tolerance hold. Without the missed updates, the drive would wait at the last command for the whole second,
+    1 s x 0.06 rad/s behind the reference, beyond the trajectory tolerance of 0.05 rad: held."""
+    on_time = list(range(0, 3010, 10))
+    late = [t for t in on_time if not 500 < t < 1500]
+    nodes = [follow_with_ticks(ros, on_time), follow_with_ticks(ros, late)]
+    try:
+        (a, b) = (n.drive for n in nodes)
+        assert [n.follower.counters.tolerance_holds for n in nodes] == [0, 0], [n.follower.holding_reason
+                                                                                 for n in nodes]
+        assert abs(a.position - (Q0 + 0.12)) <= SETTLED
+        # The same updates at the same times (their times computed back from the late tick: a few ulps of the
+        # clock's 1e3 s apart), on a drive that integrates in fixed 1 ms steps: far below one encoder count.
+        assert abs(a.position - b.position) <= 1e-9 and abs(a.velocity - b.velocity) <= 1e-9
+        monkeypatch.setattr(sim_actuator, 'MAX_CATCH_UP', 1)  # one update per tick, however late
+        nodes.append(follow_with_ticks(ros, late))
+        assert nodes[-1].follower.counters.tolerance_holds == 1, nodes[-1].drive.position
+    finally:
+        for node in nodes:
+            node.destroy_node()
 
 
 def test_a_new_trajectory_starts_from_the_measured_state_not_the_last_reference(rig: Any) -> None:

@@ -155,6 +155,15 @@ def test_a_trajectory_starts_at_its_first_update_from_the_measured_state() -> No
     assert f.reference(6.2, 0.85, 0.0) == Setpoint(0.85, 0.0, 0.0)  # its start is that update (stamp 0)
 
 
+def test_an_update_before_a_trajectorys_arrival_does_not_take_it_over() -> None:
+    # A late tick makes the updates it missed, at their times: those before the arrival follow the previous command.
+    f = follower(position=0.8)
+    assert f.receive([J], rest([1.0], [0.85]), 0, 5 * 10**9) is None
+    assert f.reference(4.99, 0.8, 0.0) == Setpoint(0.8, 0.0, 0.0)
+    assert f.reference(5.0, 0.8, 0.0) != Setpoint(0.8, 0.0, 0.0)  # taken over at its arrival
+    assert f.reference(6.0, 0.85, 0.0) == Setpoint(0.85, 0.0, 0.0)  # its start was that update (stamp 0)
+
+
 def test_the_follower_holds_on_a_trajectory_tolerance_violation() -> None:
     f = follower(position=0.8)
     assert f.receive([J], rest([0.0, 1.0], [0.8, 0.9]), 0, 0) is None
