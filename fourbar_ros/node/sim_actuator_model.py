@@ -170,6 +170,7 @@ class TrajectoryFollower:
         self._trajectory: Trajectory | None = None
         #: (stamp ns, arrival s, points) of an accepted trajectory until its first update at or after its arrival
         self._pending: tuple[int, float, tuple[Waypoint, ...]] | None = None
+        self._last_update = -math.inf  # time (s) of the last update
         tol = settings.tolerance(joint)
         self._path_tolerance, self._goal_tolerance = tol.trajectory, tol.goal
         self._velocity_state = 'velocity' in settings.state_interfaces
@@ -203,8 +204,11 @@ class TrajectoryFollower:
     def reference(self, now: float, position: float, velocity: float) -> Setpoint:
         """The controller's update at ``now`` (s) with the measured position (rad) and velocity (rad/s): the
         command it writes, the reference one update period ahead."""
-        if self._pending is not None and now >= self._pending[1]:  # its first update: it takes over here, from
-            stamp_ns, _, points = self._pending                       # the state measured here
+        # A trajectory is taken over at its first update at or after its arrival (at once if the clock went back:
+        # sim time looping), from the state measured there.
+        went_back, self._last_update = now < self._last_update, now
+        if self._pending is not None and (now >= self._pending[1] or went_back):
+            stamp_ns, _, points = self._pending
             self._pending = None
             stamp = None if stamp_ns == 0 else stamp_ns * 1e-9 - now
             reference = controller_reference(

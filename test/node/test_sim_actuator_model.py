@@ -162,6 +162,10 @@ def test_an_update_before_a_trajectorys_arrival_does_not_take_it_over() -> None:
     assert f.reference(4.99, 0.8, 0.0) == Setpoint(0.8, 0.0, 0.0)
     assert f.reference(5.0, 0.8, 0.0) != Setpoint(0.8, 0.0, 0.0)  # taken over at its arrival
     assert f.reference(6.0, 0.85, 0.0) == Setpoint(0.85, 0.0, 0.0)  # its start was that update (stamp 0)
+    # Sim time looping back (a bag replayed again): the next update takes a trajectory over whatever its arrival.
+    assert f.receive([J], rest([1.0], [0.9]), 0, 7 * 10**9) is None
+    assert f.reference(1.0, 0.85, 0.0) != Setpoint(0.85, 0.0, 0.0)
+    assert f.reference(2.0, 0.9, 0.0) == Setpoint(0.9, 0.0, 0.0)
 
 
 def test_the_follower_holds_on_a_trajectory_tolerance_violation() -> None:
