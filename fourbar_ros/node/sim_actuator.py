@@ -11,6 +11,8 @@ Interface (relative names, so namespaces and remapping apply; ``<joint>`` is the
                                                  [<joint>], measured position (rad), velocity (rad/s), effort (N m:
                                                  the torque the linkage needs at the true pose, plus noise), as
                                                  joint_state_broadcaster publishes with ``use_local_topics: true``
+                                                 (a late timer tick publishes the updates it missed, each stamped
+                                                 at its time)
 The latest accepted command wins, whichever controller it came for. A refused message (the controller's contract,
 or a value that is not finite, or a forward command of the wrong size) is counted, logged in one throttled line and
 changes nothing. What it cannot imitate: ``sim_actuator_model``'s docstring.
@@ -25,6 +27,7 @@ from typing import Any
 
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
+from rclpy.time import Time as RclpyTime
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
@@ -140,22 +143,26 @@ class SimActuator(Node):
 
     def _on_tick(self) -> None:
         now = self._clock.now()
-        ns = now.nanoseconds
         tick_ns: int = self._tick_clock.now().nanoseconds  # the drive's steps: the timer's clock, not the stamps'
         last, self._last_tick_ns = self._last_tick_ns, tick_ns
         dt = 0.0 if last is None or tick_ns < last else (tick_ns - last) * 1e-9  # sim time jumping back restarts
-        drive = self.drive
         reason = self.follower.holding_reason
-        # A tick late by whole periods (a busy machine) first makes the controller updates it missed, each at its
-        # time with the state measured then, as the controller manager's real-time loop would have: a late timer
-        # then changes what is published, not the motion (nor a tolerance check).
+        # A tick late by whole periods (a busy machine) also makes the controller updates it missed, each at its
+        # time, as the controller manager's real-time loop would have: a late timer delays what is published, but
+        # changes neither the motion nor a tolerance check.
         updates = min(max(round(dt / self.follower.period), 1), MAX_CATCH_UP)
-        step = dt / updates
-        for k in range(updates - 1, 0, -1):
-            drive.advance(step, self._reference)
-            missed = self.encoder.measure(drive.position, drive.velocity, 0.0)
-            self._reference = self.follower.reference(ns * 1e-9 - k * step, missed[0], missed[1]).position
-        drive.advance(step, self._reference)  # the position command of the last update, held over the interval
+        step_ns = round(dt / updates * 1e9)
+        for k in range(updates - 1, -1, -1):
+            self._update(step_ns * 1e-9, RclpyTime(nanoseconds=now.nanoseconds - k * step_ns,
+                                                  clock_type=now.clock_type))
+        if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
+            self._problems.warn('holding', self.follower.holding_reason)
+
+    def _update(self, dt: float, at: RclpyTime) -> None:
+        """One update: the drive moves ``dt`` s under the last command, the broadcaster publishes its state
+        stamped ``at``, and the controller writes the command for the next interval."""
+        drive = self.drive
+        drive.advance(dt, self._reference)  # the position command of the last update, held over the interval
         try:
             effort = effort_at(self.config, drive.position)
         except FourBarError as exc:  # the drive stays in the tilt range's rocker range: a core bug if here
@@ -166,11 +173,8 @@ class SimActuator(Node):
             self.counters.joint_states_skipped += 1
             return
         msg = self._msg
-        msg.header.stamp = now.to_msg()
+        msg.header.stamp = at.to_msg()
         msg.position, msg.velocity, msg.effort = [measured[0]], [measured[1]], [measured[2]]
         self._pub.publish(msg)
         self.counters.joint_states_published += 1
-        # The controller's update: the state just read, then the command for the next interval.
-        self._reference = self.follower.reference(ns * 1e-9, measured[0], measured[1]).position
-        if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
-            self._problems.warn('holding', self.follower.holding_reason)
+        self._reference = self.follower.reference(at.nanoseconds * 1e-9, measured[0], measured[1]).position
