@@ -97,6 +97,7 @@ class SimActuator(Node):
         self.follower = TrajectoryFollower(jtc, s.joint, self.drive.position, 1.0 / s.publish_rate)
         self._clock: Any = self.get_clock()
         self._last_tick_ns: int | None = None
+        self._last_update_ns: int | None = None  # the last update's time (ns, node clock)
         self._reference = self.drive.position  # the position command the drive follows until the next update
         self._msg = JointState()
         self._msg.name = [s.joint]
@@ -152,9 +153,14 @@ class SimActuator(Node):
         # changes neither the motion nor a tolerance check.
         updates = min(max(round(dt / self.follower.period), 1), MAX_CATCH_UP)
         step_ns = round(dt / updates * 1e9)
-        for k in range(updates - 1, -1, -1):
-            self._update(step_ns * 1e-9, RclpyTime(nanoseconds=now.nanoseconds - k * step_ns,
+        # Never before the last update: the two clocks are read one after the other, and a pause between the
+        # reads of this tick or the last one moves the interval on one clock against the other.
+        floor = now.nanoseconds if self._last_update_ns is None else self._last_update_ns
+        for k in range(updates - 1, 0, -1):
+            self._update(step_ns * 1e-9, RclpyTime(nanoseconds=max(now.nanoseconds - k * step_ns, floor),
                                                   clock_type=now.clock_type))
+        self._update(step_ns * 1e-9, now)
+        self._last_update_ns = now.nanoseconds
         if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
             self._problems.warn('holding', self.follower.holding_reason)
 

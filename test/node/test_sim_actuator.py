@@ -24,7 +24,7 @@ from builtin_interfaces.msg import Duration, Time
 from rclpy.parameter import Parameter
 from rclpy.time import Time as RclpyTime
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
+from std_msgs.msg import Float64MultiArray, Header
 from support.paths import REPO
 from support.ros_support import Collector, NodeProcess, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -334,6 +334,30 @@ def test_a_late_tick_makes_the_controller_updates_it_missed(ros: RosSession,
     finally:
         for node in nodes:
             node.destroy_node()
+
+
+def test_a_pause_between_the_two_clock_reads_takes_no_trajectory_over_before_it_arrived(ros: RosSession) -> None:
+    """The tick reads the node clock, then the timer's clock; paused 50 ms between the two, its interval is 50 ms
+    longer on one than on the other. A trajectory stamped at its arrival, starting at the measured state (as the
+    node sends them), is still taken over at an update at or after it: no lead-in for the controller."""
+    node = SimActuator(context=ros.context, namespace=f'/sim_test_{next(_ns)}',
+                       cli_args=['--ros-args', '--params-file', str(YAML)])
+    taken: list[Any] = []
+    node.follower.on_takeover = taken.append
+    clock, tick_clock = ManualClock(10**12), ManualClock(10**12)
+    node._clock, node._tick_clock = clock, tick_clock
+    try:
+        node._on_tick()
+        clock.ns += 5_000_000  # the trajectory arrives 5 ms later, stamped then
+        stamp = Time(sec=clock.ns // 10**9, nanosec=clock.ns % 10**9)
+        node._on_trajectory(JointTrajectory(header=Header(stamp=stamp), joint_names=[JOINT],
+                                            points=[point(Q0, 0.0), point(Q0 + 0.05, 2.0)]))
+        clock.ns += 5_000_000
+        tick_clock.ns += 60_000_000  # the next tick, read 50 ms late on the timer's clock
+        node._on_tick()
+        assert len(taken) == 1 and not taken[0].lead_in, [(r.takeover, r.lead_in) for r in taken]
+    finally:
+        node.destroy_node()
 
 
 def test_a_new_trajectory_starts_from_the_measured_state_not_the_last_reference(rig: Any) -> None:
