@@ -22,7 +22,7 @@ lint: setup
 test: lint
 	$(BIN)/python -m pytest $(PARALLEL)
 
-# The statistical repeats: each stop case 20 times, the soaks and long bursts.
+# The statistical repeats: each stop case 20 times, the soaks and long bursts, the dense grids and many examples.
 test-stress: setup
 	$(BIN)/python -m pytest -m stress
 
