@@ -153,12 +153,15 @@ class SimActuator(Node):
         # changes neither the motion nor a tolerance check.
         updates = min(max(round(dt / self.follower.period), 1), MAX_CATCH_UP)
         step_ns = round(dt / updates * 1e9)
-        # Never before the last update: the two clocks are read one after the other, and a pause between the
-        # reads of this tick or the last one moves the interval on one clock against the other.
-        floor = now.nanoseconds if self._last_update_ns is None else self._last_update_ns
-        for k in range(updates - 1, 0, -1):
-            self._update(step_ns * 1e-9, RclpyTime(nanoseconds=max(now.nanoseconds - k * step_ns, floor),
-                                                  clock_type=now.clock_type))
+        # Their times are spread over the node clock's interval since the last update, not the timer clock's: the
+        # two clocks are read one after the other, and a pause between the reads moves one interval against the
+        # other (a missed update before the last one, or two with one stamp, would misplace a takeover and pair
+        # two measurements with one stamp). A clock that went back (a step, sim time looping) counts back from now.
+        last_ns = self._last_update_ns if self._last_update_ns is not None else now.nanoseconds
+        span = now.nanoseconds - last_ns
+        for j in range(1, updates):
+            at_ns = last_ns + span * j // updates if span >= updates else now.nanoseconds - (updates - j) * step_ns
+            self._update(step_ns * 1e-9, RclpyTime(nanoseconds=at_ns, clock_type=now.clock_type))
         self._update(step_ns * 1e-9, now)
         self._last_update_ns = now.nanoseconds
         if self.follower.holding_reason is not None and self.follower.holding_reason != reason:

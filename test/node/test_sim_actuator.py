@@ -17,6 +17,7 @@ import signal
 import sys
 from collections.abc import Iterator, Sequence
 from pathlib import Path
+from types import SimpleNamespace
 from typing import Any
 
 import pytest
@@ -344,6 +345,8 @@ def test_a_pause_between_the_two_clock_reads_takes_no_trajectory_over_before_it_
                        cli_args=['--ros-args', '--params-file', str(YAML)])
     taken: list[Any] = []
     node.follower.on_takeover = taken.append
+    stamps: list[int] = []
+    node._pub = SimpleNamespace(publish=lambda m: stamps.append(m.header.stamp.sec * 10**9 + m.header.stamp.nanosec))
     clock, tick_clock = ManualClock(10**12), ManualClock(10**12)
     node._clock, node._tick_clock = clock, tick_clock
     try:
@@ -356,6 +359,10 @@ def test_a_pause_between_the_two_clock_reads_takes_no_trajectory_over_before_it_
         tick_clock.ns += 60_000_000  # the next tick, read 50 ms late on the timer's clock
         node._on_tick()
         assert len(taken) == 1 and not taken[0].lead_in, [(r.takeover, r.lead_in) for r in taken]
+        # Six updates (60 ms on the timer's clock), stamped one after the other within the node clock's 10 ms: each
+        # measurement has a stamp of its own, and none is before the last update.
+        assert len(stamps) == 7 and all(a < b for a, b in itertools.pairwise(stamps)), stamps
+        assert stamps[-1] == clock.ns
     finally:
         node.destroy_node()
 
