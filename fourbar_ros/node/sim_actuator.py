@@ -11,8 +11,6 @@ Interface (relative names, so namespaces and remapping apply; ``<joint>`` is the
                                                  [<joint>], measured position (rad), velocity (rad/s), effort (N m:
                                                  the torque the linkage needs at the true pose, plus noise), as
                                                  joint_state_broadcaster publishes with ``use_local_topics: true``
-                                                 (a late timer tick publishes the updates it missed, each stamped
-                                                 at its time)
 The latest accepted command wins, whichever controller it came for. A refused message (the controller's contract,
 or a value that is not finite, or a forward command of the wrong size) is counted, logged in one throttled line and
 changes nothing. What it cannot imitate: ``sim_actuator_model``'s docstring.
@@ -148,27 +146,27 @@ class SimActuator(Node):
         last, self._last_tick_ns = self._last_tick_ns, tick_ns
         dt = 0.0 if last is None or tick_ns < last else (tick_ns - last) * 1e-9  # sim time jumping back restarts
         reason = self.follower.holding_reason
-        # A tick late by whole periods (a busy machine) also makes the controller updates it missed, each at its
-        # time, as the controller manager's real-time loop would have: a late timer delays what is published, but
-        # changes neither the motion nor a tolerance check.
+        # A tick late by whole periods (a busy machine) first makes the running trajectory's updates it missed, as
+        # the controller manager's real-time loop would have: the drive keeps following, and a late timer is no
+        # tolerance violation. What only the tick does: publish the measured state, and take a new trajectory over
+        # (so the state it starts from was published, and it arrived before). The missed updates' times are spread
+        # over the node clock's interval since the last tick (counted back from now if that clock went back).
         updates = min(max(round(dt / self.follower.period), 1), MAX_CATCH_UP)
         step_ns = round(dt / updates * 1e9)
-        # Their times are spread over the node clock's interval since the last update, not the timer clock's: the
-        # two clocks are read one after the other, and a pause between the reads moves one interval against the
-        # other (a missed update before the last one, or two with one stamp, would misplace a takeover and pair
-        # two measurements with one stamp). A clock that went back (a step, sim time looping) counts back from now.
         last_ns = self._last_update_ns if self._last_update_ns is not None else now.nanoseconds
         span = now.nanoseconds - last_ns
         for j in range(1, updates):
             at_ns = last_ns + span * j // updates if span >= updates else now.nanoseconds - (updates - j) * step_ns
-            self._update(step_ns * 1e-9, RclpyTime(nanoseconds=at_ns, clock_type=now.clock_type))
+            self.drive.advance(step_ns * 1e-9, self._reference)
+            missed = self.encoder.measure(self.drive.position, self.drive.velocity, 0.0)
+            self._reference = self.follower.reference(at_ns * 1e-9, missed[0], missed[1], take_new=False).position
         self._update(step_ns * 1e-9, now)
         self._last_update_ns = now.nanoseconds
         if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
             self._problems.warn('holding', self.follower.holding_reason)
 
     def _update(self, dt: float, at: RclpyTime) -> None:
-        """One update: the drive moves ``dt`` s under the last command, the broadcaster publishes its state
+        """The tick's update: the drive moves ``dt`` s under the last command, the broadcaster publishes its state
         stamped ``at``, and the controller writes the command for the next interval."""
         drive = self.drive
         drive.advance(dt, self._reference)  # the position command of the last update, held over the interval

@@ -15,9 +15,10 @@ It stands in for ros2_control's hardware plus its controllers on machines withou
   ``cmd_timeout``, speed scaling, joint angle wrap-around, ``interpolate_from_desired_state`` true,
   ``interpolation_method: none``, deceleration on cancel, the stopped-velocity goal check of an effort interface,
   partial goals of several joints (it has one), and the controller manager's update timing (here a timer of the
-  node's at ``publish_rate``; a late tick makes the updates it missed, at their times, as a real-time loop would
-  have, and a forward command that arrived meanwhile applies from the first of them). Stricter than the
-  controller: a non-finite value in a trajectory is refused (the controller would follow it).
+  node's at ``publish_rate``; a late tick makes the running trajectory's updates it missed, as a real-time loop
+  would have, but publishes once and takes a new trajectory over only at the tick, and a forward command that
+  arrived meanwhile applies from the first missed update). Stricter than the controller: a non-finite value in a
+  trajectory is refused (the controller would follow it).
 - ``LagActuator`` is the drive: a first-order lag (time constant ``tau``, s) towards the reference, its speed
   limited to ``max_velocity`` (rad/s) and its speed change to ``max_acceleration`` (rad/s^2); it also never
   asks for more speed than it can brake from before the reference, so a reference that stands still or moves
@@ -168,9 +169,7 @@ class TrajectoryFollower:
         self.counters = FollowerCounters()
         self._hold = Setpoint(position, 0.0, 0.0)
         self._trajectory: Trajectory | None = None
-        #: (stamp ns, arrival s, points) of an accepted trajectory until its first update at or after its arrival
-        self._pending: tuple[int, float, tuple[Waypoint, ...]] | None = None
-        self._last_update = -math.inf  # time (s) of the last update
+        self._pending: tuple[int, tuple[Waypoint, ...]] | None = None  # (stamp ns, points) until an update takes it
         tol = settings.tolerance(joint)
         self._path_tolerance, self._goal_tolerance = tol.trajectory, tol.goal
         self._velocity_state = 'velocity' in settings.state_interfaces
@@ -192,7 +191,7 @@ class TrajectoryFollower:
         except TrajectoryError as exc:
             self.counters.refused_not_finite += 1
             return Refusal(ContractRule.FIELD_SIZE, str(exc))
-        self._pending = (stamp_ns, now_ns * 1e-9, tuple(taken))
+        self._pending = (stamp_ns, tuple(taken))
         self.counters.accepted += 1
         return None
 
@@ -201,14 +200,12 @@ class TrajectoryFollower:
         self._hold = Setpoint(position, 0.0, 0.0)
         self._trajectory = self._pending = None
 
-    def reference(self, now: float, position: float, velocity: float) -> Setpoint:
+    def reference(self, now: float, position: float, velocity: float, take_new: bool = True) -> Setpoint:
         """The controller's update at ``now`` (s) with the measured position (rad) and velocity (rad/s): the
-        command it writes, the reference one update period ahead."""
-        # A trajectory is taken over at its first update at or after its arrival (at once if the clock went back:
-        # sim time looping), from the state measured there.
-        went_back, self._last_update = now < self._last_update, now
-        if self._pending is not None and (now >= self._pending[1] or went_back):
-            stamp_ns, _, points = self._pending
+        command it writes, the reference one update period ahead. A received trajectory is taken over here, from
+        the state measured here, unless ``take_new`` is false (an update made up for a late tick)."""
+        if self._pending is not None and take_new:
+            stamp_ns, points = self._pending
             self._pending = None
             stamp = None if stamp_ns == 0 else stamp_ns * 1e-9 - now
             reference = controller_reference(
