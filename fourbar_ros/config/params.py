@@ -182,7 +182,8 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               read_only=True),
     ParamSpec('replan_tolerance', float, 0.02, 'rad',
               'Actuator modes: a command during a motion plans on from the motion being followed while the '
-              'measured driven joint is within this of it; otherwise from the measured state.', 0.0, 3.2),
+              'measured driven joint is within this of it at the measurement\'s stamp; otherwise from the measured '
+              'state.', 0.0, 3.2),
     ParamSpec('measured_range_tolerance', float, 1e-5, 'rad',
               'Actuator modes: a measured driven joint outside its range for [theta_min, theta_max] by at most this '
               '(an encoder count through the reducer rounds outward) starts a motion from the nearest end of the '

@@ -88,6 +88,7 @@ class Actuation:
         self.counters = ActuationCounters()
         self.motion: Motion | None = None
         self.measured: JointMotionState | None = None
+        self.measured_ns = 0  # when self.measured was measured, node clock
         self._setpoints: Setpoints | None = None
         #: (time on the node clock the setpoint stands for, ns; position rad) of the setpoints published
         self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
@@ -118,14 +119,17 @@ class Actuation:
         if joint in msg.name:
             i = list(msg.name).index(joint)
             if i < len(msg.position):
-                self.note_measured(float(msg.position[i]), float(msg.velocity[i]) if i < len(msg.velocity) else None)
+                stamp = msg.header.stamp
+                self.note_measured(float(msg.position[i]), float(msg.velocity[i]) if i < len(msg.velocity) else None,
+                                   stamp.sec * 1_000_000_000 + stamp.nanosec)
 
-    def note_measured(self, position: float, velocity: float | None = None) -> None:
-        """The measured driven joint: position rad, velocity rad/s (None or NaN: not measured); a non-finite
-        position is ignored."""
+    def note_measured(self, position: float, velocity: float | None = None, stamp_ns: int = 0) -> None:
+        """The measured driven joint: position rad, velocity rad/s (None or NaN: not measured), measured at
+        ``stamp_ns`` (node clock; 0: on arrival); a non-finite position is ignored."""
         if position - position == 0.0:  # finite
             v = velocity if velocity is not None and velocity - velocity == 0.0 else 0.0
             self.measured = JointMotionState(position, v)
+            self.measured_ns = stamp_ns if stamp_ns else self._now_ns()
 
     def start_state(self, now_ns: int) -> Start | None:
         """Where a new motion starts (``motion_start``: in trajectory mode ``takeover_lead`` ahead of now when it
@@ -133,7 +137,7 @@ class Actuation:
         onto the range."""
         cfg = self._config()
         lead = takeover_lead(cfg) if self.mode == Mode.TRAJECTORY.value else 0.0
-        start = motion_start(cfg, self.motion, self.measured, now_ns, lead)
+        start = motion_start(cfg, self.motion, self.measured, now_ns, lead, self.measured_ns)
         if start is not None:
             self.counters.commands_replanned_from_measured += start.from_measured
             self.counters.measured_start_clamped += start.clamped

@@ -60,13 +60,13 @@ class MeasuredCompletion:
 
     def __init__(self, node: Node, cfg: AntennaConfig, joint_pub: Any, qos: Callable[[Topic], QoSProfile],
                  problems: ProblemLog,
-                 on_measured: Callable[[float, float | None], None] | None = None,
+                 on_measured: Callable[[float, float | None, int], None] | None = None,
                  on_completed: Callable[[int, int, float], None] | None = None) -> None:
         """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic;
         ``problems``: the node's log by problem kind;
         ``on_measured``: called with each measured driven joint that is finite and within reach: position rad,
-        velocity rad/s (None: not measured); ``on_completed``: with each one completed: its stamp (sec, nanosec)
-        and position rad."""
+        velocity rad/s (None: not measured), its header stamp (ns; 0: none); ``on_completed``: with each one
+        completed: its stamp (sec, nanosec) and position rad."""
         self._on_measured = on_measured
         self._on_completed = on_completed
         self.rule = CompletionRule(cfg)
@@ -127,7 +127,7 @@ class MeasuredCompletion:
             self._problems.error('measurement out of range', self._range_error)
             return
         if self._on_measured is not None:
-            self._on_measured(q, q_dot)
+            self._on_measured(q, q_dot, sec * 1_000_000_000 + nanosec)
         joints = self._joint_pub.get_subscription_count() > self._own
         rate = self._rate_pub.get_subscription_count() > 0
         load = self._load_pub.get_subscription_count() > 0

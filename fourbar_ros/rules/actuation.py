@@ -90,10 +90,10 @@ from fourbar_ros.rules.controller_contract import (
 )
 from fourbar_ros.rules.controller_motion import ControllerPoint, motion_settings_problem, segment_coefficients
 
-__all__ = ['ARRIVAL_MARGIN_S', 'TAKEOVER_SPACINGS', 'ActuationCounters', 'CannotReachError', 'Converted',
-           'DurationFields', 'EndMovingError', 'EndsInPastError', 'Motion', 'PointFields', 'PointLike', 'Start',
-           'TrajectoryProblem', 'actuation_contract', 'antenna_arrays', 'at_rest_end', 'connect', 'continued',
-           'convert', 'driven_range', 'duration_parts', 'ends_soon', 'motion_start', 'outgoing_refusal',
+__all__ = ['ARRIVAL_MARGIN_S', 'MEASURED_AGE_MAX_S', 'TAKEOVER_SPACINGS', 'ActuationCounters', 'CannotReachError',
+           'Converted', 'DurationFields', 'EndMovingError', 'EndsInPastError', 'Motion', 'PointFields', 'PointLike',
+           'Start', 'TrajectoryProblem', 'actuation_contract', 'antenna_arrays', 'at_rest_end', 'carried', 'connect',
+           'continued', 'convert', 'driven_range', 'duration_parts', 'ends_soon', 'motion_start', 'outgoing_refusal',
            'outgoing_stamp', 'plan_command', 'planned_points', 'planned_setpoints', 'point_fields', 'problem_of',
            'serve_antenna_trajectory', 'takeover_lead', 'trajectory_setpoints']
 
@@ -315,14 +315,21 @@ def driven_range(cfg: AntennaConfig) -> tuple[float, float]:
     return float(lower), float(upper)
 
 
+#: The most (s) a measurement's stamp may lie before the node's now and still stand for when it was measured: an
+#: older stamp (a stream that stopped, or a drive stamping from another clock) is taken as measured now.
+MEASURED_AGE_MAX_S = 1.0
+
+
 def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotionState | None, now_ns: int,
-                 lead: float) -> Start | None:
+                 lead: float, measured_ns: int | None = None) -> Start | None:
     """Where a new motion starts (``Start``): continuing a running quintic trajectory at its first point ``lead``
     s or more after ``now_ns`` (``lead`` > 0), else now.
 
-    On the running motion while the measured driven position is within ``replan_tolerance`` of it now (or nothing
-    is measured yet); else from the measured state (position rad, velocity within the planner's speed limit,
-    acceleration 0) now: a drive held by its controller, or lagging, is not sent a step. A measured position
+    On the running motion while the measured driven position is within ``replan_tolerance`` of it at the time
+    measured (``measured_ns``, node clock; None or over ``MEASURED_AGE_MAX_S`` before now or after it: now), or
+    nothing is measured yet; else from the measured state (position rad, velocity within the planner's speed limit,
+    acceleration 0) carried on to now at that velocity (``carried``): a drive held by its controller, or lagging, is
+    not sent a step, and a measurement that arrives late is not taken for a drive off its motion. A measured position
     within ``measured_range_tolerance`` of an end of the range, outside it or moving outward, starts from that end
     at rest (an encoder rounds to whole counts, so a drive parked at an end may read half a count beyond it). With
     no motion running: the measured state, else the end of the last motion; None before any of them exists."""
@@ -330,16 +337,20 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
         speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reducer_ratio
         if abs(measured.velocity) > speed:
             measured = JointMotionState(measured.position, math.copysign(speed, measured.velocity))
+    at_ns = now_ns
+    if measured_ns is not None and 0 <= now_ns - measured_ns <= round(MEASURED_AGE_MAX_S * 1e9):
+        at_ns = measured_ns
+    age = (now_ns - at_ns) * 1e-9
     if motion is not None and not motion.done(now_ns):
         now_state = motion.state_at(now_ns)
-        if measured is None or abs(measured.position - now_state.position) <= cfg.replan_tolerance:
+        if measured is None or abs(measured.position - motion.state_at(at_ns).position) <= cfg.replan_tolerance:
             traj = motion.trajectory
             if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC:
                 return _continuing(motion, traj, now_ns, lead, now_state)
             return Start(now_state, now_ns)
-        return _from_measured(cfg, measured, now_ns, left=True)
+        return _from_measured(cfg, carried(cfg, measured, age), now_ns, left=True)
     if measured is not None:
-        return _from_measured(cfg, measured, now_ns, left=False)
+        return _from_measured(cfg, carried(cfg, measured, age), now_ns, left=False)
     return None if motion is None else Start(motion.state_at(now_ns), now_ns)
 
 
@@ -352,6 +363,18 @@ def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float
     assert traj.velocities is not None and traj.accelerations is not None
     state = JointMotionState(float(traj.positions[k1]), float(traj.velocities[k1]), float(traj.accelerations[k1]))
     return Start(state, motion.start_ns, float(times[k1]), _cut(traj, k0, k1), now_state)
+
+
+def carried(cfg: AntennaConfig, measured: JointMotionState, age: float) -> JointMotionState:
+    """The measured driven state ``age`` s after it was measured: its position moved on at its velocity, not past
+    an end of the range it was within (the drive stops there); velocity as measured, acceleration 0."""
+    if age == 0.0 or measured.velocity == 0.0:
+        return measured
+    q = measured.position + measured.velocity * age
+    lower, upper = driven_range(cfg)
+    if lower <= measured.position <= upper:
+        q = min(max(q, lower), upper)
+    return JointMotionState(q, measured.velocity)
 
 
 def _from_measured(cfg: AntennaConfig, measured: JointMotionState, now_ns: int, left: bool) -> Start:

@@ -10,12 +10,14 @@ whole module. No timing is asserted: each check waits for a state with a deadlin
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterator
 from typing import Any
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Duration, Time
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64, Float64MultiArray
@@ -25,11 +27,11 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.motion.limits import JointLimits, worst_violation
-from fourbar_ros.motion.planner import PLAN_SHRINK, driven_angles
+from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_angles
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
-from fourbar_ros.rules.actuation import TrajectoryProblem, takeover_lead
+from fourbar_ros.rules.actuation import MEASURED_AGE_MAX_S, TrajectoryProblem, motion_start, takeover_lead
 
 pytestmark = pytest.mark.ros
 
@@ -72,15 +74,20 @@ class Pair:
     """A FourBarNode in ``mode`` and a SimActuator in one namespace, with the client's endpoints."""
 
     def __init__(self, ros: RosSession, mode: str, suffix: str = '', sim: tuple[Parameter, ...] = (),
-                 overrides: tuple[Parameter, ...] = ()) -> None:
+                 overrides: tuple[Parameter, ...] = (), delay_s: float = 0.0) -> None:
+        """``delay_s`` > 0: the node gets the drive's measurements that much after the broadcaster sent them
+        (``DelayRelay``)."""
         self.ros, self.ns = ros, f'/actuation_{mode}{suffix}'
         self.mark = 0
         self.sim = SimActuator(context=ros.context, namespace=self.ns, parameter_overrides=list(sim))
+        self.relay = DelayRelay(ros, self.ns, delay_s) if delay_s > 0.0 else None
+        measured_from = DelayRelay.OUT if self.relay is not None else BROADCASTER_JOINT_STATES.name
         self.node = FourBarNode(context=ros.context, namespace=self.ns,
                                 parameter_overrides=[Parameter('mode', value=mode), *overrides],
-                                cli_args=['--ros-args', '-r', f'{MEASURED_JOINT_STATES.name}:='
-                                                              f'{BROADCASTER_JOINT_STATES.name}'])
+                                cli_args=['--ros-args', '-r', f'{MEASURED_JOINT_STATES.name}:={measured_from}'])
         ros.add_node(self.sim)
+        if self.relay is not None:
+            ros.add_node(self.relay)
         ros.add_node(self.node)
         self.measured: Collector[JointState] = ros.collect(JointState, f'{self.ns}/{BROADCASTER_JOINT_STATES.name}')
         self.complete: Collector[JointState] = ros.collect(JointState, f'{self.ns}/{JOINT_STATES.name}')
@@ -120,17 +127,40 @@ class Pair:
         self.ros.destroy(self.cmd)
         self.ros.destroy(self.antenna)
         self.ros.remove_node(self.node)
+        if self.relay is not None:
+            self.ros.remove_node(self.relay)
         self.ros.remove_node(self.sim)
 
 
-#: The traj fixture's replan_tolerance: far above the simulated drive's lag (its speed times its 0.05 s time
-#: constant, 3e-3 rad, plus a measurement's age), so a command mid-motion always plans on from the motion.
-WIDE_REPLAN = 0.05
+class DelayRelay(Node):
+    """Passes the broadcaster's measurements on to ``OUT`` ``delay_s`` after they arrived, unchanged (stamps
+    included): a drive whose measurements reach the node late, as on a loaded machine."""
+
+    OUT = 'late_joint_states'
+
+    def __init__(self, ros: RosSession, namespace: str, delay_s: float) -> None:
+        super().__init__('delay_relay', context=ros.context, namespace=namespace)
+        self._delay_ns = round(delay_s * 1e9)
+        self._held: deque[tuple[int, JointState]] = deque()
+        self._out = self.create_publisher(JointState, self.OUT, 100)
+        self.create_subscription(JointState, BROADCASTER_JOINT_STATES.name, self._on_measured, 100)
+        self.create_timer(0.002, self._on_timer)
+
+    def _on_measured(self, msg: JointState) -> None:
+        self._held.append((self.get_clock().now().nanoseconds, msg))
+
+    def _on_timer(self) -> None:
+        due = self.get_clock().now().nanoseconds - self._delay_ns
+        while self._held and self._held[0][0] <= due:
+            self._out.publish(self._held.popleft()[1])
 
 
 @pytest.fixture(scope='module')
 def traj(ros: RosSession) -> Iterator[Pair]:
-    pair = Pair(ros, 'trajectory', overrides=(Parameter('replan_tolerance', value=WIDE_REPLAN),))
+    """The default replan_tolerance (0.02 rad) is far above the simulated drive's lag (its speed times its 0.05 s
+    time constant, 3e-3 rad), and the node compares a measurement with the motion at the measurement's stamp, so a
+    command mid-motion plans on from the motion however late the measurement arrives."""
+    pair = Pair(ros, 'trajectory')
     yield pair
     # Every trajectory the node sent in this module, whatever the test: what the controller accepts (checked by
     # the contract, and by the strict simulated actuator, which refused none), no effort field, the first point at
@@ -187,6 +217,39 @@ def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
         assert np.array_equal(getattr(b, field)[:k1], getattr(a, field)[k0:k0 + k1]), field
     assert b.velocities[k1 - 1] > 0.0  # it was moving when replanned
     traj.settle_at(CFG.theta_min)
+
+
+#: How late the ``late`` fixture's node gets each measurement (s): within MEASURED_AGE_MAX_S, and long enough that
+#: at the plan's top speed the drive moves on by more than the default replan_tolerance meanwhile.
+LATE_S = 0.5
+
+
+@pytest.fixture(scope='module')
+def late(ros: RosSession) -> Iterator[Pair]:
+    pair = Pair(ros, 'trajectory', '_late', delay_s=LATE_S)
+    yield pair
+    pair.close()
+
+
+def test_measurements_arriving_late_leave_the_motion_followed(late: Pair) -> None:
+    assert LATE_S < MEASURED_AGE_MAX_S
+    late.command(CFG.theta_min)
+    late.settle_at(CFG.theta_min)
+    before = len(late.trajectories)
+    late.command(CFG.theta_max)  # a motion of seconds ...
+    late.trajectories.wait_count(before + 1)
+    # ... at a speed where the drive moves on by more than the replan tolerance while a measurement is on its way
+    fast = PLAN_SHRINK * LIMITS.at_rocker(1) * 0.9
+    assert fast * LATE_S > CFG.replan_tolerance
+    late.measured.wait_match(lambda m: abs(m.velocity[0]) >= fast, start=late.mark)
+    late.command(CFG.theta_min)  # ... interrupted: the node's latest measurement is LATE_S old
+    late.trajectories.wait_count(before + 2)
+    counters = late.actuation.counters
+    assert counters.commands_replanned_from_measured == 0, (
+        f'the node took a late measurement for a drive off its motion: {counters.as_dict()}')
+    late.settle_at(CFG.theta_min)
+    holds = late.sim.follower.counters
+    assert holds.tolerance_holds == 0, holds.as_dict()
 
 
 def antenna_msg(times: list[float], theta: list[float], theta_dot: list[float] | None = None,
@@ -325,9 +388,16 @@ def test_a_command_after_the_drive_was_held_plans_from_the_measured_state(held: 
     second = as_driven(held.trajectories.wait_count(before + 2)[-1])
     assert held.actuation.counters.commands_replanned_from_measured == 1
     # The plan starts where the drive was measured (a measurement the node received; the held drive still creeps a
-    # little, so not necessarily the latest now), not where its model of the first motion is (seconds into it, far
-    # along): the controller gets no step.
-    held.measured.wait_match(lambda m: m.position[0] == second.positions[0])
+    # little, so not necessarily the latest now), carried on at its velocity from its stamp to the plan's (the
+    # node's now), not where its model of the first motion is (seconds into it, far along): the controller gets no
+    # step.
+    planned_ns = stamp_ns(held.trajectories.messages[before + 1].header.stamp)
+
+    def planned_from(m: JointState) -> bool:
+        measured = JointMotionState(m.position[0], m.velocity[0])
+        start = motion_start(CFG, None, measured, planned_ns, 0.0, stamp_ns(m.header.stamp))
+        return start is not None and start.state.position == second.positions[0]
+    held.measured.wait_match(planned_from)
     model = held.actuation.motion  # the second motion now; the first one's model is far from the drive
     assert model is not None and abs(second.positions[0] - q_of(CFG.theta_max)) > 0.01
 

@@ -72,9 +72,9 @@ class Rig:
         assert completion is not None and completion._on_measured is not None
         passed_on = completion._on_measured
 
-        def note(position: float, velocity: float | None) -> None:
+        def note(position: float, velocity: float | None, stamp_ns: int) -> None:
             self.seen.add(position)
-            passed_on(position, velocity)
+            passed_on(position, velocity, stamp_ns)
         completion._on_measured = note
         #: (rule, reason) of every trajectory the simulated controller refused
         self.refusals: list[tuple[str, ...]] = []

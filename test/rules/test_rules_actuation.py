@@ -16,11 +16,14 @@ from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_angles
 from fourbar_ros.rules.actuation import (
+    MEASURED_AGE_MAX_S,
     ActuationCounters,
     Motion,
     Start,
     TrajectoryProblem,
+    carried,
     convert,
+    driven_range,
     duration_parts,
     motion_start,
     plan_command,
@@ -151,6 +154,44 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
     assert motion_start(CFG, None, None, now, lead) is None
     # The plan from the held state starts there: the drive is sent no step.
     assert plan_command(CFG, held, 0.0).state_at(0.0) == held
+
+
+def test_a_late_measurement_is_compared_with_the_motion_when_measured_and_carried_on_to_now() -> None:
+    q = driven_angles(CFG, np.array([CFG.theta_min]))
+    plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
+    start_ns = 1_700_000_000_000_000_000
+    motion = Motion(start_ns, plan=plan)
+    now = start_ns + round(0.5 * plan.duration * 1e9)
+    late = round(0.6e9)  # a measurement 0.6 s old, as arrived under load
+    then = motion.state_at(now - late)
+    # The drive on its motion, measured 0.6 s ago: at mid-motion the motion has since moved on by more than the
+    # tolerance, and the measurement was on it when taken: the motion goes on.
+    assert abs(motion.state_at(now).position - then.position) > CFG.replan_tolerance
+    on_it = JointMotionState(then.position, then.velocity)
+    assert motion_start(CFG, motion, on_it, now, 0.0, now - late) == Start(motion.state_at(now), now)
+    # Taken as measured now (no stamp, a stamp from the future, or one older than MEASURED_AGE_MAX_S), the same
+    # measurement is off the motion.
+    for stamp in (None, now + 1, now - round(MEASURED_AGE_MAX_S * 1e9) - 1):
+        assert motion_start(CFG, motion, on_it, now, 0.0, stamp) == Start(on_it, now, from_measured=True)
+    # Off the motion when measured: the plan starts at the measured state carried on to now at its velocity.
+    off = JointMotionState(then.position - 2 * CFG.replan_tolerance, 0.01)
+    start = motion_start(CFG, motion, off, now, 0.0, now - late)
+    assert start == Start(JointMotionState(off.position + 0.01 * late * 1e-9, 0.01), now, from_measured=True)
+    # A held drive (at rest) is where it was measured, however late the measurement.
+    held = JointMotionState(float(q[0]))
+    assert motion_start(CFG, motion, held, now, 0.0, now - late) == Start(held, now, from_measured=True)
+
+
+def test_a_measurement_is_carried_on_no_further_than_the_end_of_the_range() -> None:
+    lower, upper = driven_range(CFG)
+    speed = 0.05
+    # Toward an end the carried position stops there (and starts at it, at rest); away from it, it moves on.
+    assert carried(CFG, JointMotionState(upper - 0.01, speed), 1.0) == JointMotionState(upper, speed)
+    assert carried(CFG, JointMotionState(lower + 0.01, -speed), 1.0) == JointMotionState(lower, -speed)
+    assert carried(CFG, JointMotionState(lower + 0.01, speed), 0.1).position == pytest.approx(lower + 0.015,
+                                                                                             abs=1e-15)
+    start = motion_start(CFG, None, JointMotionState(upper - 0.01, speed), 10**9, 0.0, 10**9 - round(0.5e9))
+    assert start == Start(JointMotionState(upper), 10**9, clamped=True)
 
 
 def test_forward_setpoints_of_a_trajectory_follow_the_controllers_spline() -> None:
