@@ -14,7 +14,7 @@ from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.interface import ANTENNA_JOINT
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.motion.limits import JointLimits, worst_violation
-from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_angles
+from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Plan, driven_angles
 from fourbar_ros.rules.actuation import (
     MEASURED_AGE_MAX_S,
     ActuationCounters,
@@ -122,12 +122,16 @@ def test_a_replan_from_the_running_motion_starts_at_its_state() -> None:
     assert on_points.state_at(start_ns + 10**12) == JointMotionState(float(on_points.trajectory.positions[-1]))
 
 
-def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_tolerance() -> None:
-    q = driven_angles(CFG, np.array([CFG.theta_min]))
-    plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
+def mid_motion() -> tuple[float, Plan, int, Motion, int]:
+    """The motion from theta_min to theta_max, at half its duration: (start rad, plan, start ns, motion, now ns)."""
+    q = float(driven_angles(CFG, np.array([CFG.theta_min]))[0])
+    plan = plan_command(CFG, JointMotionState(q), CFG.theta_max)
     start_ns = 1_700_000_000_000_000_000
-    motion = Motion(start_ns, plan=plan)
-    now = start_ns + round(0.5 * plan.duration * 1e9)
+    return q, plan, start_ns, Motion(start_ns, plan=plan), start_ns + round(0.5 * plan.duration * 1e9)
+
+
+def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_tolerance() -> None:
+    q, plan, start_ns, motion, now = mid_motion()
     model = motion.state_at(now)
     tol = CFG.replan_tolerance
     near = JointMotionState(model.position + 0.5 * tol, 0.001)
@@ -146,7 +150,7 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
                                            float(sent.trajectory.velocities[k]),  # type: ignore[union-attr, index]
                                            float(sent.trajectory.accelerations[k]))  # type: ignore[union-attr, index]
     # Held at the start (a refused trajectory, or a hold after a tolerance violation): the measured state.
-    held = JointMotionState(float(q[0]))
+    held = JointMotionState(q)
     assert motion_start(CFG, motion, held, now, lead) == Start(held, now, from_measured=True)
     assert motion_start(CFG, motion, None, now, 0.0) == Start(model, now)  # nothing measured: the motion
     done = start_ns + round(plan.duration * 1e9) + 1
@@ -157,11 +161,7 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
 
 
 def test_a_late_measurement_is_compared_with_the_motion_when_measured_and_carried_on_to_now() -> None:
-    q = driven_angles(CFG, np.array([CFG.theta_min]))
-    plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
-    start_ns = 1_700_000_000_000_000_000
-    motion = Motion(start_ns, plan=plan)
-    now = start_ns + round(0.5 * plan.duration * 1e9)
+    q, _, _, motion, now = mid_motion()
     late = round(0.6e9)  # a measurement 0.6 s old, as arrived under load
     then = motion.state_at(now - late)
     # The drive on its motion, measured 0.6 s ago: at mid-motion the motion has since moved on by more than the
@@ -178,7 +178,7 @@ def test_a_late_measurement_is_compared_with_the_motion_when_measured_and_carrie
     start = motion_start(CFG, motion, off, now, 0.0, now - late)
     assert start == Start(JointMotionState(off.position + 0.01 * late * 1e-9, 0.01), now, from_measured=True)
     # A held drive (at rest) is where it was measured, however late the measurement.
-    held = JointMotionState(float(q[0]))
+    held = JointMotionState(q)
     assert motion_start(CFG, motion, held, now, 0.0, now - late) == Start(held, now, from_measured=True)
 
 
