@@ -1,10 +1,12 @@
 """fourbar_node's actuator modes over the real middleware, driving the simulated actuator: plain commands become
 motion the sim follows to the command's driven angle (trajectory and forward modes), antenna trajectories are
-converted and followed, replanning mid-motion continues the running motion without a jump, every bad antenna
-trajectory is counted with nothing sent, and every point and setpoint sent is within the limits.
+converted and followed, replanning mid-motion continues the running motion without a jump (with measurements that
+reach the node late too), every bad antenna trajectory is counted with nothing sent, and every point and setpoint
+sent is within the limits.
 
 One trajectory-mode node and one forward-mode node, each with its own sim actuator in its own namespace, for the
-whole module. No timing is asserted: each check waits for a state with a deadline, or holds for every message.
+whole module; a held drive and late measurements each get a pair of their own. No timing is asserted: each check
+waits for a state with a deadline, or holds for every message.
 """
 
 from __future__ import annotations
