@@ -28,7 +28,15 @@ if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 pytest.importorskip('pytest_codeblocks', reason='the quick start is read from Markdown with pytest-codeblocks')
 from pytest_codeblocks import extract_from_file
-from support.ros_cli_support import TIMEOUT, Background, run, start_daemon, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import (  # psutil: with ros2cli
+    TIMEOUT,
+    Background,
+    daemon_processes,
+    run,
+    start_daemon,
+    stop_daemon,
+    wait_node,
+)
 from support.ros_support import DomainLease
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -96,6 +104,7 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
     background: list[Background] = []
     try:
         start_daemon(env)  # what wait_node asks (stopped below)
+        started = daemon_processes(env)
         node, echo = None, None
         for lines in terminals[:-1]:
             assert lines[-1].startswith(LONG_RUNNING), lines
@@ -115,7 +124,7 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
         out = subprocess.run(['bash', '-e', '-c', script(last)], env=env, cwd=home, capture_output=True, text=True,
                              timeout=TIMEOUT * 3, check=False, stdin=subprocess.DEVNULL)
         assert out.returncode == 0, (f'terminal 3 exited {out.returncode}:\n{out.stdout}{out.stderr}'
-                                     f'{graph_report(env, node)}')
+                                     f'{graph_report(env, node, started)}')
         pub = next(line for line in last if line.startswith('ros2 topic pub '))
         deadline = time.monotonic() + TIMEOUT
         while echo.proc.poll() is None:
@@ -130,17 +139,20 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
     finally:
         for proc in background:
             proc.kill()
-        run([ros2(), 'daemon', 'stop'], env, timeout=30)
+        stop_daemon(env, timeout=30)
 
 
-def graph_report(env: dict[str, str], node: Background) -> str:
-    """What the other sides saw, for a failure: the node process's state and last output, and the ros2 daemon's
-    status and node list (the graph `ros2 param` reads) at this moment."""
+def graph_report(env: dict[str, str], node: Background, started: list[str]) -> str:
+    """What the other sides saw, for a failure: the node process's state and last output, the ros2 daemons of the
+    domain when the terminals started (``started``) and now, this process's group, and the daemon's status and node
+    list (the graph `ros2 param` reads) at this moment."""
     state = 'running' if node.proc.poll() is None else f'exited {node.proc.returncode}'
     tail = node.output().strip().splitlines()[-12:]
+    daemons = (f'\nros2 daemons of domain {env.get("ROS_DOMAIN_ID")}: at the start {started}, now '
+               f'{daemon_processes(env)}; this test process {os.getpid()} in process group {os.getpgid(0)}')
     status = run([ros2(), 'daemon', 'status'], env, timeout=30)
     listed = run([ros2(), 'node', 'list'], env, timeout=30)
-    return (f'\nnode terminal ({state}), last lines:\n  ' + '\n  '.join(tail)
+    return (f'\nnode terminal ({state}), last lines:\n  ' + '\n  '.join(tail) + daemons
             + f'\nros2 daemon status: {(status.stdout + status.stderr).strip()}'
             + f'\nros2 node list: {(listed.stdout + listed.stderr).split()}')
 

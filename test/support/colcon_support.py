@@ -142,12 +142,13 @@ def cli_env(install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator
     lease = lease_domain_id()
     env = sourced_env(dict(os.environ), prefix, lease.domain_id)
     env['ROS_HOME'] = str(tmp_path_factory.mktemp('ros_home'))  # logs of this run, not ~/.ros
-    from support.ros_cli_support import start_daemon  # psutil: with ros2cli
+    from support.ros_cli_support import start_daemon, stop_daemon  # psutil: with ros2cli
 
     try:
         start_daemon(env, timeout=60)
         yield CliEnv(env, prefix, tmp_path_factory.mktemp('anywhere'))
     finally:
-        subprocess.run([ros2(), 'daemon', 'stop'], env=env, capture_output=True, timeout=60, check=False,
-                       stdin=subprocess.DEVNULL)
-        lease.release()
+        try:
+            stop_daemon(env, timeout=60)  # before the domain is given back
+        finally:
+            lease.release()

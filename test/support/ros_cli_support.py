@@ -208,6 +208,37 @@ def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
     assert started.returncode == 0, f'ros2 daemon start failed: {started.stdout}{started.stderr}'
 
 
+def _daemons(env: dict[str, str]) -> list[Any]:
+    """The ros2 daemon processes of ``env``'s domain now."""
+    domain = env.get('ROS_DOMAIN_ID', '0')
+    found = []
+    for proc in psutil.process_iter(['cmdline', 'status']):
+        cmd = proc.info['cmdline'] or []
+        if 'ros2-daemon' in cmd and '--ros-domain-id' in cmd and cmd[cmd.index('--ros-domain-id') + 1] == domain:
+            found.append(proc)
+    return found
+
+
+def daemon_processes(env: dict[str, str]) -> list[str]:
+    """The ros2 daemons of ``env``'s domain now, as 'pid N (status, process group G)', for failure reports."""
+    found = []
+    for proc in _daemons(env):
+        with contextlib.suppress(psutil.NoSuchProcess, ProcessLookupError):
+            found.append(f'pid {proc.pid} ({proc.info["status"]}, process group {os.getpgid(proc.pid)})')
+    return found
+
+
+def stop_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
+    """``ros2 daemon stop`` for ``env``'s domain, then wait until its process has exited. The command returns once
+    the daemon stops answering, and the process keeps the daemon's port a moment longer (about 2 s here): a
+    ``ros2 daemon start`` meanwhile (the next test on the domain) finds it "already running", and then has none."""
+    from support.colcon_support import ros2
+
+    run([ros2(), 'daemon', 'stop'], env, timeout=timeout)
+    _, alive = psutil.wait_procs(_daemons(env), timeout=timeout)
+    assert not alive, f'ros2 daemon still running {timeout} s after ros2 daemon stop: {[p.pid for p in alive]}'
+
+
 def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[str]:
     """Poll ``ros2 node list`` (the daemon's graph) until ``node`` is listed; return the list.
 
