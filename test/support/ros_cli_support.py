@@ -200,8 +200,12 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
 
 def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
     """``ros2 daemon start`` for ``env``'s domain, in this process's group (not ``run``'s, which is killed when the
-    command exits): the daemon lives until ``ros2 daemon stop``."""
+    command exits): the daemon lives until ``ros2 daemon stop``. A daemon already on the domain is stopped first:
+    one left by a killed test run (a lease does not see it) has that run's environment and lifetime."""
     from support.colcon_support import ros2
+
+    if _daemons(env):
+        stop_daemon(env, timeout)
 
     started = subprocess.run([ros2(), 'daemon', 'start'], env=env, capture_output=True, text=True, timeout=timeout,
                              check=False, stdin=subprocess.DEVNULL)
