@@ -325,16 +325,18 @@ def _peak(values: FloatArray) -> float:
 
 def completion_deviation(rec: Recording, cfg: AntennaConfig) -> tuple[float, float, int, int]:
     """Largest |node - core| of the completed positions (rad) and velocities (rad/s), each completed message
-    against ``core.completion.complete`` of the measurement with its stamp; and the paired and unpaired counts
-    (completions stamped before the first recorded measurement are left out: the recording started after them)."""
+    against ``core.completion.complete`` of the measurement with its stamp; and the paired and unpaired counts.
+
+    Completions stamped outside the recorded measurements' stamps are left out: the recording started after their
+    measurements, or ended before it took them (the two topics' messages are taken in no fixed order)."""
     by_stamp = {int(s): i for i, s in enumerate(rec.measured.stamp_ns)}
     branch = rocker_branch(cfg)
     position, velocity, paired = 0.0, 0.0, 0
     c = rec.completed
-    first = int(rec.measured.stamp_ns[0])  # completions of measurements sent before the recording matched: not ours
+    first, last = int(rec.measured.stamp_ns.min()), int(rec.measured.stamp_ns.max())
     considered = 0
     for k, stamp in enumerate(c.stamp_ns):
-        if stamp < first:
+        if not first <= stamp <= last:
             continue
         considered += 1
         i = by_stamp.get(int(stamp))

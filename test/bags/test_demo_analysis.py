@@ -169,9 +169,14 @@ def test_unpaired_completions_are_counted(cfg: AntennaConfig) -> None:
         return messages
     s = summarize(recording(without_measurements(50, 59), topics, cfg), cfg)
     assert (s.completed_paired, s.completed_unpaired) == (191, 10)
-    # Completions of measurements before the first recorded one: the recording started after them, left out.
+    # Completions of measurements before the first recorded one, or after the last: the recording started after
+    # them, or ended before it took them; left out.
     s = summarize(recording(without_measurements(0, 9), topics, cfg), cfg)
     assert (s.completed_paired, s.completed_unpaired) == (191, 0)
+    s = summarize(recording(without_measurements(191, 200), topics, cfg), cfg)
+    assert (s.completed_paired, s.completed_unpaired) == (191, 0)
+    s = summarize(recording(without_measurements(190, 199), topics, cfg), cfg)  # the last one (200) is recorded
+    assert (s.completed_paired, s.completed_unpaired) == (191, 10)
     with pytest.raises(DemoError, match='no measured'):
         recording(without_measurements(0, 200), topics, cfg)
 
