@@ -32,6 +32,7 @@ from support.ros_cli_support import (  # psutil: with ros2cli
     TIMEOUT,
     Background,
     daemon_processes,
+    echoed_messages,
     run,
     start_daemon,
     stop_daemon,
@@ -158,9 +159,9 @@ def graph_report(env: dict[str, str], node: Background, started: list[str]) -> s
 
 
 def _check(echo: str, last: str) -> None:
-    import yaml
-
-    msg = yaml.safe_load(echo.split('\n---', maxsplit=1)[0])
+    messages = echoed_messages(echo)
+    assert messages, f'no message in the echo\'s output:\n{echo}'
+    msg = messages[0]
     assert msg['name'] == ['rocker_ab_joint', 'rocker_cd_joint', 'coupler_joint'], echo
     assert len(msg['position']) == 3, echo
     assert 'Set parameter successful' in last, last

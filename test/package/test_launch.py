@@ -11,7 +11,6 @@ import sys
 from pathlib import Path
 
 import pytest
-import yaml
 from support.colcon_support import BIN, CliEnv, launch_missing, ros2, ros2_cli_missing
 from support.isolation import isolated_env
 from support.paths import REPO
@@ -19,7 +18,14 @@ from support.paths import REPO
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from support.ros_cli_support import Background, echo_once, publish_until_echoed, run, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import (  # psutil: with ros2cli
+    Background,
+    echo_once,
+    echoed_messages,
+    publish_until_echoed,
+    run,
+    wait_node,
+)
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.live.node_process import DomainLease
@@ -104,10 +110,9 @@ def test_sim_actuator_argument_starts_the_simulated_drive(install: CliEnv) -> No
         assert 'trajectory' in got.stdout, got.stdout + got.stderr  # the mode argument reached the node
         echo = echo_once(install.env, '/tilt_sim/joint_states', 'sensor_msgs/msg/JointState')
         assert echo.wait_exit() == 0, echo.stderr  # the drive publishes by itself, at its rate
-        # ros2 topic echo may first note messages lost before it matched ("A message was lost ..."): skip to the
-        # message itself.
-        text = echo.stdout[echo.stdout.index('header:'):]
-        doc = yaml.safe_load(text.split('\n---')[0])
+        echoed = echoed_messages(echo.stdout)
+        assert echoed, f'no message in the echo\'s output:\n{echo.stdout}'
+        doc = echoed[0]
         cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
         # joint_states holds the node's complete state, one per measurement of the drive (trajectory mode): it
         # exists only because the drive publishes where the launch file remapped the node's measured_joint_states.
@@ -157,8 +162,7 @@ def test_the_real_controller_manager_accepts_what_the_node_sends(install: CliEnv
             echo.kill()
 
         def at_target(text: str) -> bool:
-            docs = [yaml.safe_load(d) for d in text.split('\n---') if 'position:' in d]
-            return any(abs(d['position'][0] - q) < 1e-3 for d in docs if d and d.get('position'))
+            return any(abs(d['position'][0] - q) < 1e-3 for d in echoed_messages(text) if d.get('position'))
         follow = Background([ros2(), 'topic', 'echo', '/tilt_rc/joint_state_broadcaster/joint_states',
                              'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
         try:

@@ -24,7 +24,14 @@ from support.colcon_support import CliEnv, ros2, ros2_cli_missing
 if (_why := ros2_cli_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from support.ros_cli_support import TIMEOUT, Background, echo_once, publish_until_echoed, run  # psutil: with ros2cli
+from support.ros_cli_support import (  # psutil: with ros2cli
+    TIMEOUT,
+    Background,
+    echo_once,
+    echoed_messages,
+    publish_until_echoed,
+    run,
+)
 from support.urdf_kinematics import link_poses
 
 from fourbar_ros.config.antenna_config import load_config
@@ -136,3 +143,16 @@ def test_ctrl_c_stops_ros2_run_and_the_node_with_status_0(antenna: Antenna) -> N
     assert status == 0, antenna.proc.stderr[-3000:]
     assert 'Traceback' not in antenna.proc.stderr, antenna.proc.stderr[-3000:]
     assert not antenna.proc.descendants(), 'a process outlived ros2 run'
+
+
+def test_echoed_messages_are_read_between_the_middlewares_log_lines() -> None:
+    # Fast DDS logs to the echo's stdout (the line's start as one was captured; its end as Fast DDS formats it),
+    # and ros2 topic echo notes messages lost before it matched: neither is part of a message.
+    log = ('\x1b[37;1m2026-11-27 11:58:33.906 \x1b[31;1m[\x1b[37;1mRTPS_TRANSPORT_SHM\x1b[31;1m Error] '
+           '\x1b[37mFailed init_port fastrtps_port7413: open_and_lock_file failed -> Function init_port\x1b[m')
+    stdout = '\n'.join([log, 'header:', '  stamp:', '    sec: 1', "  frame_id: ''", 'name:', '- a_joint',
+                         'position:', '- 0.5', 'velocity: []', '---', 'A message was lost!!!',
+                         '\ttotal count change:1', '\ttotal count: 1', log, 'name: []', 'position: []', '---', ''])
+    assert echoed_messages(stdout) == [
+        {'header': {'stamp': {'sec': 1}, 'frame_id': ''}, 'name': ['a_joint'], 'position': [0.5], 'velocity': []},
+        {'name': [], 'position': []}]

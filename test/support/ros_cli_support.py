@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import re
 import signal
 import subprocess
 import tempfile
@@ -174,6 +175,25 @@ def echo_once(env: dict[str, str], topic: str, msg_type: str) -> Background:
     return Background([ros2(), 'topic', 'echo', '--once', topic, msg_type], env)
 
 
+#: A line of a message as ``ros2 topic echo`` prints it (YAML block style): ``key:``, ``key: value``, ``- item``,
+#: indented by spaces. Anything else on its stdout is a note of the CLI ("A message was lost") or the middleware's
+#: log: Fast DDS writes its log to stdout, e.g. "[RTPS_TRANSPORT_SHM Error] Failed init_port ..." with colour codes.
+_MESSAGE_LINE = re.compile(r' *(?:[A-Za-z_]\w*:(?: .*)?|-(?: .*)?)')
+
+
+def echoed_messages(stdout: str) -> list[dict[str, Any]]:
+    """The messages ``ros2 topic echo`` printed on ``stdout``, in order, without the other lines between them."""
+    import yaml
+
+    messages = []
+    for chunk in stdout.split('\n---'):
+        lines = [line for line in chunk.splitlines() if _MESSAGE_LINE.fullmatch(line)]
+        doc = yaml.safe_load('\n'.join(lines)) if lines else None
+        if isinstance(doc, dict):
+            messages.append(doc)
+    return messages
+
+
 def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, value: float,
                          timeout: float = TIMEOUT) -> dict[str, Any]:
     """``ros2 topic pub --once`` (which waits for a matching subscription) until the echo has a message.
@@ -181,8 +201,6 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
     Repeated because discovery is not symmetric: the node may not yet see the echo's subscription when the
     first command arrives (it skips outputs nobody subscribes to); one answer ends the echo.
     """
-    import yaml
-
     from support.colcon_support import ros2
 
     deadline = time.monotonic() + timeout
@@ -193,9 +211,9 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
                    f'{{data: {value!r}}}'], env, timeout=max(5.0, deadline - time.monotonic()))
         assert out.returncode == 0, out.stdout + out.stderr
     assert echo.wait_exit() == 0, echo.stderr
-    doc = yaml.safe_load(echo.stdout.split('\n---')[0])
-    assert isinstance(doc, dict), echo.stdout
-    return doc
+    messages = echoed_messages(echo.stdout)
+    assert messages, f'no message in the echo\'s output:\n{echo.stdout}'
+    return messages[0]
 
 
 def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
