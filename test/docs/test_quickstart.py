@@ -104,8 +104,7 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
     background; the last terminal runs to completion, its pub line repeated until the echo has printed."""
     background: list[Background] = []
     try:
-        start_daemon(env)  # what wait_node asks (stopped below)
-        started = daemon_processes(env)
+        started = start_daemon(env)  # what wait_node asks (stopped below)
         node, echo = None, None
         for lines in terminals[:-1]:
             assert lines[-1].startswith(LONG_RUNNING), lines
@@ -143,13 +142,13 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
         stop_daemon(env, timeout=30)
 
 
-def graph_report(env: dict[str, str], node: Background, started: list[str]) -> str:
-    """What the other sides saw, for a failure: the node process's state and last output, the ros2 daemons of the
-    domain when the terminals started (``started``) and now, this process's group, and the daemon's status and node
-    list (the graph `ros2 param` reads) at this moment."""
+def graph_report(env: dict[str, str], node: Background, started: str) -> str:
+    """What the other sides saw, for a failure: the node process's state and last output, the ros2 daemon's start
+    (``start_daemon``'s report) and the domain's daemons now, this process's group, and the daemon's status and
+    node list (the graph `ros2 param` reads) at this moment."""
     state = 'running' if node.proc.poll() is None else f'exited {node.proc.returncode}'
     tail = node.output().strip().splitlines()[-12:]
-    daemons = (f'\nros2 daemons of domain {env.get("ROS_DOMAIN_ID")}: at the start {started}, now '
+    daemons = (f'\nros2 daemon start on domain {env.get("ROS_DOMAIN_ID")}: {started}\nros2 daemons now: '
                f'{daemon_processes(env)}; this test process {os.getpid()} in process group {os.getpgid(0)}')
     status = run([ros2(), 'daemon', 'status'], env, timeout=30)
     listed = run([ros2(), 'node', 'list'], env, timeout=30)

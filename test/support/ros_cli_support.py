@@ -216,10 +216,13 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
     return messages[0]
 
 
-def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
+def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> str:
     """``ros2 daemon start`` for ``env``'s domain, in this process's group (not ``run``'s, which is killed when the
     command exits): the daemon lives until ``ros2 daemon stop``. A daemon already on the domain is stopped first:
-    one left by a killed test run (a lease does not see it) has that run's environment and lifetime."""
+    one left by a killed test run (a lease does not see it) has that run's environment and lifetime.
+
+    Returns, for failure reports, what the command printed, the domain's daemons right after it and the processes
+    holding the daemon's TCP port (the command says "already running" when it cannot bind that port)."""
     from support.colcon_support import ros2
 
     if _daemons(env):
@@ -228,6 +231,23 @@ def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
     started = subprocess.run([ros2(), 'daemon', 'start'], env=env, capture_output=True, text=True, timeout=timeout,
                              check=False, stdin=subprocess.DEVNULL)
     assert started.returncode == 0, f'ros2 daemon start failed: {started.stdout}{started.stderr}'
+    return (f'{started.stdout.strip()!r}; the domain\'s daemons then: {daemon_processes(env)}; '
+            f'{_port_holders(env)}')
+
+
+#: ros2cli's daemon listens on 127.0.0.1 at this port plus ROS_DOMAIN_ID.
+DAEMON_BASE_PORT = 11511
+
+
+def _port_holders(env: dict[str, str]) -> str:
+    """The TCP sockets on the daemon's port of ``env``'s domain: 'port P: pid N (STATUS), ...'."""
+    port = DAEMON_BASE_PORT + int(env.get('ROS_DOMAIN_ID', '0'))
+    try:
+        held = [f'pid {c.pid} ({c.status})' for c in psutil.net_connections(kind='tcp')
+                if c.laddr and c.laddr.port == port]
+    except psutil.Error as exc:
+        return f'port {port}: unknown ({exc})'
+    return f'port {port}: {", ".join(held) or "free"}'
 
 
 def _daemons(env: dict[str, str]) -> list[Any]:
