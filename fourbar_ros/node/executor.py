@@ -79,8 +79,14 @@ def is_events(executor: Executor) -> bool:
 class Spinner:
     """Runs an executor's callbacks in bounded slices until told to stop.
 
-    ``request_stop()`` may be called from a signal handler or a callback: an EventsExecutor slice then ends
-    after the running callback (its queue is stopped), a SingleThreadedExecutor's after the current wait.
+    ``request_stop()`` may be called from a signal handler, a callback or another thread: an EventsExecutor slice
+    then ends after the running callback (its queue is stopped), a SingleThreadedExecutor's after the current wait.
+
+    An EventsExecutor slice ends early only when its future completes, and completing the future takes the
+    future's lock, which this thread holds for a moment in every slice (the executor adds and removes its
+    done-callback under it). A signal handler runs in this thread, possibly right there, and would wait for
+    itself forever; so a helper thread completes the future, and ``request_stop`` only releases that thread
+    (a lock release, which never waits).
     """
 
     def __init__(self, executor: Executor, slice_s: float = SLICE_S) -> None:
@@ -90,14 +96,21 @@ class Spinner:
         self._events = is_events(executor)
         new_future: Callable[[], Future] = Future  # rclpy's Future is unannotated: typed names for its calls
         self._wake = new_future()
-        self._wake_done: Callable[[], bool] = self._wake.done
-        self._wake_set: Callable[[object], None] = self._wake.set_result
+        self._requested = threading.Lock()  # held until request_stop()
+        self._requested.acquire()
+        if self._events:
+            threading.Thread(target=self._complete_on_request, name='stop-waker', daemon=True).start()
+
+    def _complete_on_request(self) -> None:
+        self._requested.acquire()
+        complete: Callable[[object], None] = self._wake.set_result
+        complete(None)  # its done-callback (added by the running slice) stops the events queue
 
     def request_stop(self) -> None:
-        """End the running slice (after the callback in progress) and every later one."""
+        """End the running slice (after the callback in progress) and every later one. Never waits."""
         self.stopped = True
-        if not self._wake_done():
-            self._wake_set(None)  # its done-callback (added by the running slice) stops the events queue
+        with contextlib.suppress(RuntimeError):  # released by an earlier request
+            self._requested.release()
 
     def spin_slice(self, timeout_s: float | None = None) -> None:
         """Run ready callbacks for at most ``timeout_s`` (default slice_s) seconds."""

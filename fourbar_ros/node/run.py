@@ -88,7 +88,8 @@ class Stop:
         return self.signal is not None
 
     def on_request(self, wake: Callable[[], None]) -> None:
-        """Call ``wake()`` from the handler when a stop arrives (e.g. to end a running spin slice)."""
+        """Call ``wake()`` from the handler when a stop arrives (e.g. to end a running spin slice). It runs in the
+        main thread between any two bytecodes, so it must not wait for a lock that thread may hold."""
         self._wakers.append(wake)
 
     def install(self, raises: Callable[[], BaseException] | None = None) -> None:

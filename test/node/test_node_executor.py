@@ -9,6 +9,10 @@
   run): a subscription with message info is served, and request_stop() from a callback ends a slice whose
   queue never empties (a zero-period timer). The slice's own deadline alone would not: the events queue only
   looks at its deadline when it is empty. fourbar_node's SIGINT/SIGTERM handler relies on this.
+- the node's spin loop (``spin_until_stopped`` under the noting stop, on a real EventsExecutor in a child process)
+  ends on a signal that Python handles while the loop's own thread holds the slice future's lock, as it does for
+  a moment in every slice (the executor adds and removes its done-callback under it): the handler must not wait
+  for that lock. The signal is raised from inside the lock, so the case is hit every time.
 - fourbar_node's --executor option and $FOURBAR_EXECUTOR: an unknown name exits 2 with one line.
 """
 
@@ -205,6 +209,72 @@ def test_events_spinner_serves_message_info_and_stops_a_never_empty_queue_on_req
         lease.release()
     assert done.returncode == 0, done.stderr
     assert done.stdout.startswith('stopped after'), done.stdout
+
+
+#: The node's spin loop under its stop, with the slice future's callback list replaced by one that raises the signal
+#: (argv[2]) inside the future's lock, on the third add (argv[1] 'add') or remove ('remove') of a done-callback.
+#: A hang dumps every thread's stack and exits 1 after HANG_S.
+HANG_S = 20
+STOP_IN_LOCK_SCRIPT = textwrap.dedent(f'''
+    import faulthandler, signal, sys
+    faulthandler.dump_traceback_later({HANG_S}, exit=True)
+    from fourbar_ros.node.run import STOP, spin_until_stopped
+    STOP.install(raises=None)
+    import rclpy
+    from rclpy.node import Node
+    from rclpy.signals import SignalHandlerOptions
+    from rclpy.task import Future
+    import fourbar_ros.node.executor as executor_module
+
+    where, sig = sys.argv[1], int(sys.argv[2])
+    class SignalInsideLock(list):
+        calls = 0
+        def _count(self, name):
+            if name == where:
+                SignalInsideLock.calls += 1
+                if SignalInsideLock.calls == 3:
+                    signal.raise_signal(sig)  # Python runs the handler here, with the future's lock held
+        def append(self, item):
+            self._count('add')
+            super().append(item)
+        def remove(self, item):
+            self._count('remove')
+            super().remove(item)
+    class ProbeFuture(Future):
+        def __init__(self, **kwargs):
+            super().__init__(**kwargs)
+            self._callbacks = SignalInsideLock()
+    executor_module.Future = ProbeFuture
+
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    node = Node('stop_in_lock_probe')
+    ticks = [0]
+    node.create_timer(0.01, lambda: ticks.__setitem__(0, ticks[0] + 1))
+    executor = executor_module.create_executor('events')
+    executor.add_node(node)
+    spin_until_stopped(executor)
+    executor.shutdown(timeout_sec=0.0)
+    node.destroy_node()
+    rclpy.shutdown()
+    print(f'stopped by {{STOP.signal}} after {{ticks[0]}} ticks; {{where}} calls {{SignalInsideLock.calls}}')
+''')
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM], ids=['SIGINT', 'SIGTERM'])
+@pytest.mark.parametrize('where', ['add', 'remove'])
+def test_the_spin_loop_stops_on_a_signal_handled_inside_the_slice_futures_lock(where: str, sig: int) -> None:
+    lease = lease_domain_id()
+    try:
+        env = dict(os.environ, ROS_DOMAIN_ID=str(lease.domain_id))
+        done = subprocess.run([sys.executable, '-c', STOP_IN_LOCK_SCRIPT, where, str(int(sig))], env=env, cwd=REPO,
+                              capture_output=True, text=True, timeout=HANG_S + 60, check=False)
+    finally:
+        lease.release()
+    assert done.returncode == 0 and done.stdout.startswith(f'stopped by {int(sig)} '), (
+        f'the loop did not stop (status {done.returncode}); it printed {done.stdout!r}; its stacks and errors:\n'
+        f'{done.stderr}')
+    assert f'{where} calls 3' in done.stdout, done.stdout  # the signal was raised inside the lock
 
 
 @pytest.mark.ros
