@@ -98,8 +98,10 @@ class Spinner:
         self._wake = new_future()
         self._requested = threading.Lock()  # held until request_stop()
         self._requested.acquire()
+        self._waker: threading.Thread | None = None
         if self._events:
-            threading.Thread(target=self._complete_on_request, name='stop-waker', daemon=True).start()
+            self._waker = threading.Thread(target=self._complete_on_request, name='stop-waker', daemon=True)
+            self._waker.start()
 
     def _complete_on_request(self) -> None:
         self._requested.acquire()
@@ -112,6 +114,12 @@ class Spinner:
         with contextlib.suppress(RuntimeError):  # released by an earlier request
             self._requested.release()
 
+    def close(self) -> None:
+        """Stop, and wait for the helper thread to end (call when no slice runs any more)."""
+        self.request_stop()
+        if self._waker is not None:
+            self._waker.join()
+
     def spin_slice(self, timeout_s: float | None = None) -> None:
         """Run ready callbacks for at most ``timeout_s`` (default slice_s) seconds."""
         timeout = self.slice_s if timeout_s is None else timeout_s
@@ -120,13 +128,6 @@ class Spinner:
             self.executor.spin_until_future_complete(self._wake, timeout_sec=timeout)
         else:
             self.executor.spin_once(timeout_sec=timeout)
-
-    def spin(self) -> None:
-        """Until request_stop() or the context shuts down."""
-        context_ok: Callable[[], bool] = self.executor.context.ok
-        with StallWatch(self.executor).running():
-            while not self.stopped and context_ok():
-                self.spin_slice()
 
 
 class StallWatch:

@@ -169,9 +169,12 @@ def spin_until_stopped(executor: Executor, stop: Stop = STOP, poll_s: float = ST
     spinner = Spinner(executor, poll_s)
     stop.on_request(spinner.request_stop)
     context_ok: Callable[[], bool] = executor.context.ok
-    with StallWatch(executor).running():  # timers stalled by a step of the system clock
-        while not stop.requested and context_ok():
-            spinner.spin_slice()
+    try:
+        with StallWatch(executor).running():  # timers stalled by a step of the system clock
+            while not stop.requested and context_ok():
+                spinner.spin_slice()
+    finally:
+        spinner.close()
 
 
 # --------------------------------------------------------------------------- fourbar_node's command line

@@ -191,6 +191,7 @@ SPINNER_SCRIPT = textwrap.dedent('''
             break
     assert infos and infos[0][0] == 1.5 and 'publication_sequence_number' in infos[0][1], infos[:1]
     assert spinner.stopped and ticks[0] >= 200
+    spinner.close()
     executor.shutdown(timeout_sec=0.0)
     node.destroy_node()
     rclpy.shutdown()
