@@ -10,6 +10,7 @@ purposes.
 
 from __future__ import annotations
 
+import os
 import re
 import signal
 import sys
@@ -32,7 +33,8 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 YAML = REPO / 'config' / 'antenna.yaml'
 CFG = load_config(YAML)
 LO, HI = CFG.theta_min, CFG.theta_max
-REPEATS = 20
+#: Stops per case in ``make test-stress``; FOURBAR_STOP_REPEATS=N runs more, to look for a rare unclean stop.
+REPEATS = int(os.environ.get('FOURBAR_STOP_REPEATS', '20'))
 STREAM_HZ = 1000.0
 #: Answers seen after a restart before the signal is sent under load (the stream is really being served).
 SERVED_BEFORE_SIGNAL = 50
