@@ -42,23 +42,32 @@ class NodeStopError(FourBarError):
 
 # --------------------------------------------------------------------------- domain ids
 
-def _port_free(port: int) -> bool:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+#: The ros2 command line's daemon serves on 127.0.0.1 at this TCP port plus the domain id.
+ROS2_DAEMON_BASE_PORT = 11511
+
+
+def _port_free(port: int, kind: socket.SocketKind = socket.SOCK_DGRAM, host: str = '') -> bool:
+    """Whether ``port`` can be bound (without SO_REUSEADDR) on ``host`` for a socket of ``kind``."""
+    with socket.socket(socket.AF_INET, kind) as s:
         try:
-            s.bind(('', port))
+            s.bind((host, port))
         except OSError:
             return False
     return True
 
 
 def domain_in_use(domain_id: int, participants: int = 8) -> bool:
-    """True if a DDS participant of ``domain_id`` runs on this host.
+    """True if a DDS participant of ``domain_id`` runs on this host, or its ros2 daemon's port is taken.
 
     Checks the first ``participants`` unicast discovery ports of the RTPS port mapping
-    (7400 + 250 d + 10 + 2 i), which a running participant holds exclusively.
+    (7400 + 250 d + 10 + 2 i), which a running participant holds exclusively, and the ros2 daemon's TCP port
+    (11511 + d on 127.0.0.1), bound as ``ros2 daemon start`` binds it. A running daemon holds that port; so does,
+    for 60 s after a daemon stopped, a connection it closed first (TIME_WAIT), and ``ros2 daemon start`` then says
+    the daemon is "already running" and starts none.
     """
     base = 7400 + 250 * domain_id + 10
-    return not all(_port_free(base + 2 * i) for i in range(participants))
+    return (not all(_port_free(base + 2 * i) for i in range(participants))
+            or not _port_free(ROS2_DAEMON_BASE_PORT + domain_id, socket.SOCK_STREAM, '127.0.0.1'))
 
 
 class DomainLease:

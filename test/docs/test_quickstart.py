@@ -31,7 +31,8 @@ from pytest_codeblocks import extract_from_file
 from support.ros_cli_support import (  # psutil: with ros2cli
     TIMEOUT,
     Background,
-    daemon_processes,
+    daemon_log,
+    daemon_state,
     echoed_messages,
     run,
     start_daemon,
@@ -99,12 +100,13 @@ def _env(home: Path, lease: DomainLease) -> dict[str, str]:
     return env
 
 
-def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -> tuple[str, str]:
+def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path, log: Path) -> tuple[str, str]:
     """Run the terminals in order; return (echo output, last terminal's output). Node and echo stay in the
-    background; the last terminal runs to completion, its pub line repeated until the echo has printed."""
+    background; the last terminal runs to completion, its pub line repeated until the echo has printed. The ros2
+    daemon's output goes to ``log``."""
     background: list[Background] = []
     try:
-        started = start_daemon(env)  # what wait_node asks (stopped below)
+        started = start_daemon(env, log)  # what wait_node asks (stopped below)
         node, echo = None, None
         for lines in terminals[:-1]:
             assert lines[-1].startswith(LONG_RUNNING), lines
@@ -124,7 +126,7 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
         out = subprocess.run(['bash', '-e', '-c', script(last)], env=env, cwd=home, capture_output=True, text=True,
                              timeout=TIMEOUT * 3, check=False, stdin=subprocess.DEVNULL)
         assert out.returncode == 0, (f'terminal 3 exited {out.returncode}:\n{out.stdout}{out.stderr}'
-                                     f'{graph_report(env, node, started)}')
+                                     f'{graph_report(env, node, started, log)}')
         pub = next(line for line in last if line.startswith('ros2 topic pub '))
         deadline = time.monotonic() + TIMEOUT
         while echo.proc.poll() is None:
@@ -142,14 +144,15 @@ def run_terminals(terminals: list[list[str]], env: dict[str, str], home: Path) -
         stop_daemon(env, timeout=30)
 
 
-def graph_report(env: dict[str, str], node: Background, started: str) -> str:
+def graph_report(env: dict[str, str], node: Background, started: str, log: Path) -> str:
     """What the other sides saw, for a failure: the node process's state and last output, the ros2 daemon's start
-    (``start_daemon``'s report) and the domain's daemons now, this process's group, and the daemon's status and
-    node list (the graph `ros2 param` reads) at this moment."""
+    (``start_daemon``'s report), its own output, the domain's daemons and who holds the daemon's port now, this
+    process's group, and the daemon's status and node list (the graph `ros2 param` reads) at this moment."""
     state = 'running' if node.proc.poll() is None else f'exited {node.proc.returncode}'
     tail = node.output().strip().splitlines()[-12:]
-    daemons = (f'\nros2 daemon start on domain {env.get("ROS_DOMAIN_ID")}: {started}\nros2 daemons now: '
-               f'{daemon_processes(env)}; this test process {os.getpid()} in process group {os.getpgid(0)}')
+    daemons = (f'\nros2 daemon start on domain {env.get("ROS_DOMAIN_ID")}: {started}\nnow: {daemon_state(env)}; '
+               f'this test process {os.getpid()} in process group {os.getpgid(0)}'
+               f'\nros2 daemon output (start --debug), last lines:\n  ' + daemon_log(log).replace('\n', '\n  '))
     status = run([ros2(), 'daemon', 'status'], env, timeout=30)
     listed = run([ros2(), 'node', 'list'], env, timeout=30)
     return (f'\nnode terminal ({state}), last lines:\n  ' + '\n  '.join(tail) + daemons
@@ -167,18 +170,19 @@ def _check(echo: str, last: str) -> None:
     assert 'Setting parameter failed' in last, last  # theta_max 1.5: out of reach
 
 
-def test_readme_quickstart_runs_as_typed(home: Path, lease: DomainLease) -> None:
+def test_readme_quickstart_runs_as_typed(home: Path, lease: DomainLease, tmp_path: Path) -> None:
     terminals = quickstart(REPO / 'README.md')
     assert len(terminals) == 3, terminals
-    echo, last = run_terminals(terminals, _env(home, lease), home)
+    echo, last = run_terminals(terminals, _env(home, lease), home, tmp_path / 'ros2_daemon.log')
     _check(echo, last)
 
 
-def test_pip_only_quickstart_runs_as_typed(home: Path, lease: DomainLease) -> None:
+def test_pip_only_quickstart_runs_as_typed(home: Path, lease: DomainLease, tmp_path: Path) -> None:
     """docs/how-to/without-ros.md: its pip-only block is a terminal 1 of its own, ending in README's node line,
     followed by README's echo and pub terminals."""
     [pip_only] = quickstart(REPO / 'docs' / 'how-to' / 'without-ros.md')
     readme = quickstart(REPO / 'README.md')
     assert pip_only[-1] == readme[0][-1]
-    echo, last = run_terminals([pip_only, readme[1], readme[2]], _env(home, lease), home)
+    echo, last = run_terminals([pip_only, readme[1], readme[2]], _env(home, lease), home,
+                               tmp_path / 'ros2_daemon.log')
     _check(echo, last)

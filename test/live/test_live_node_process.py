@@ -9,10 +9,18 @@ import sys
 from pathlib import Path
 
 import pytest
+from support.isolation import leave_time_wait
 from support.ros_support import wait_for
 
 from fourbar_ros.live import node_process
-from fourbar_ros.live.node_process import NodeProcess, NodeStopError, lease_domain_id
+from fourbar_ros.live.node_process import (
+    ROS2_DAEMON_BASE_PORT,
+    DomainError,
+    NodeProcess,
+    NodeStopError,
+    domain_in_use,
+    lease_domain_id,
+)
 
 #: A child that says 'first' once its SIGINT handler is in place, then on SIGINT says 'second' and exits 0.
 ANSWERS_SIGINT = """
@@ -83,6 +91,20 @@ def test_leases_are_distinct_until_released(tmp_path: Path, monkeypatch: pytest.
     assert third.domain_id == first.domain_id
     second.release()
     third.release()
+
+
+def test_a_domain_whose_ros2_daemon_port_is_in_time_wait_is_in_use(tmp_path: Path) -> None:
+    """A stopped ros2 daemon can leave its port in TIME_WAIT for 60 s, and ``ros2 daemon start`` there then starts
+    none (test/package/test_ros2_daemon.py): no lease takes that domain meanwhile."""
+    held = lease_domain_id()
+    try:
+        assert not domain_in_use(held.domain_id)
+        leave_time_wait(ROS2_DAEMON_BASE_PORT + held.domain_id)
+        assert domain_in_use(held.domain_id)
+        with pytest.raises(DomainError):
+            lease_domain_id((held.domain_id,), tmp_path)  # a lock directory of its own: only the port decides
+    finally:
+        held.release()
 
 
 def test_commands_a_run_started_as_a_background_job_starts_are_interruptible() -> None:

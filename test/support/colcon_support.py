@@ -145,7 +145,7 @@ def cli_env(install: Path, tmp_path_factory: pytest.TempPathFactory) -> Iterator
     from support.ros_cli_support import start_daemon, stop_daemon  # psutil: with ros2cli
 
     try:
-        start_daemon(env, timeout=60)
+        start_daemon(env, Path(env['ROS_HOME']) / 'ros2_daemon.log', timeout=60)
         yield CliEnv(env, prefix, tmp_path_factory.mktemp('anywhere'))
     finally:
         try:

@@ -11,6 +11,8 @@ behind when the module ends. No rclpy here (conftest.py uses it for every run, R
   inherited them ignored (a shell's background job, ``make test &``, ignores both; children inherit that across
   exec, and ``ros2 launch`` started with SIGINT ignored never stops on it).
 - ``kill_group(pid)``: SIGKILL to what is left of a process group (a child started with ``start_new_session``).
+- ``leave_time_wait(port)``: a connection in TIME_WAIT on a port of 127.0.0.1, as a server that closes first leaves
+  one (the ros2 daemon does).
 - ``Leftovers``: the descendants of this process a module started and left running, ended and named.
 """
 
@@ -19,7 +21,10 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
+import socket
+import time
 from collections.abc import Mapping
+from pathlib import Path
 from typing import Any
 
 from fourbar_ros.live.node_process import DomainLease, lease_domain_id
@@ -76,6 +81,29 @@ def kill_group(pid: int) -> None:
     """SIGKILL whatever still runs in the process group led by ``pid`` (nothing if the group is gone)."""
     with contextlib.suppress(ProcessLookupError, PermissionError):
         os.killpg(pid, signal.SIGKILL)
+
+
+def leave_time_wait(port: int, timeout: float = 10.0) -> None:
+    """Leave a connection in TIME_WAIT on 127.0.0.1:``port``, which holds the port for 60 s (Linux): its server
+    side closes first, then the client. Returns once /proc/net/tcp lists it."""
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as server:
+        server.bind(('127.0.0.1', port))
+        server.listen()
+        client = socket.create_connection(('127.0.0.1', port), timeout=timeout)
+        conn, _ = server.accept()
+    conn.close()
+    client.close()
+    deadline = time.monotonic() + timeout
+    while not _in_time_wait(port):
+        assert time.monotonic() < deadline, f'no TIME_WAIT on 127.0.0.1:{port} after {timeout} s'
+        time.sleep(0.01)
+
+
+def _in_time_wait(port: int) -> bool:
+    """Whether /proc/net/tcp lists a socket of 127.0.0.1:``port`` in TIME_WAIT (state 06)."""
+    local = f'0100007F:{port:04X}'
+    rows = (line.split() for line in Path('/proc/net/tcp').read_text().splitlines()[1:])
+    return any(row[1] == local and row[3] == '06' for row in rows)
 
 
 class Leftovers:

@@ -18,6 +18,7 @@ from typing import Any
 
 import psutil
 
+from fourbar_ros.live.node_process import ROS2_DAEMON_BASE_PORT
 from support.isolation import kill_group
 
 #: Deadline (s) for a one-shot command and for waits; generous because the machine is shared.
@@ -216,32 +217,40 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
     return messages[0]
 
 
-def start_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> str:
-    """``ros2 daemon start`` for ``env``'s domain, in this process's group (not ``run``'s, which is killed when the
-    command exits): the daemon lives until ``ros2 daemon stop``. A daemon already on the domain is stopped first:
-    one left by a killed test run (a lease does not see it) has that run's environment and lifetime.
+def start_daemon(env: dict[str, str], log: Path, timeout: float = TIMEOUT) -> str:
+    """``ros2 daemon start --debug`` for ``env``'s domain (a leased one: no daemon there, its port free), in this
+    process's group (not ``run``'s, which is killed when the command exits): the daemon lives until ``ros2 daemon
+    stop``. ``--debug`` is the one way to keep what the daemon prints (its output goes to /dev/null otherwise): the
+    command's and the daemon's output are appended to ``log``, unbuffered (``daemon_log`` reads it back).
+    AssertionError, with that output, if no daemon runs then: the command says "already running" and starts none
+    when it cannot bind the daemon's port.
 
-    Returns, for failure reports, what the command printed, the domain's daemons right after it and the processes
-    holding the daemon's TCP port (the command says "already running" when it cannot bind that port)."""
+    Returns ``daemon_state`` right after the command, for failure reports."""
     from support.colcon_support import ros2
 
-    if _daemons(env):
-        stop_daemon(env, timeout)
+    with log.open('ab') as out:
+        started = subprocess.run([ros2(), 'daemon', 'start', '--debug'], env={**env, 'PYTHONUNBUFFERED': '1'},
+                                 stdout=out, stderr=subprocess.STDOUT, timeout=timeout, check=False,
+                                 stdin=subprocess.DEVNULL)
+    assert started.returncode == 0, f'ros2 daemon start failed:\n{daemon_log(log)}'
+    assert _daemons(env), (f'ros2 daemon start started no daemon on domain {env.get("ROS_DOMAIN_ID")} '
+                           f'({daemon_state(env)}); its output:\n{daemon_log(log)}')
+    return daemon_state(env)
 
-    started = subprocess.run([ros2(), 'daemon', 'start'], env=env, capture_output=True, text=True, timeout=timeout,
-                             check=False, stdin=subprocess.DEVNULL)
-    assert started.returncode == 0, f'ros2 daemon start failed: {started.stdout}{started.stderr}'
-    return (f'{started.stdout.strip()!r}; the domain\'s daemons then: {daemon_processes(env)}; '
-            f'{_port_holders(env)}')
 
-
-#: ros2cli's daemon listens on 127.0.0.1 at this port plus ROS_DOMAIN_ID.
-DAEMON_BASE_PORT = 11511
+def daemon_log(log: Path, lines: int = 20) -> str:
+    """The last ``lines`` lines of ``start_daemon``'s log (the command's and the daemon's output), each cut to 300
+    characters (the daemon prints every network address it sees on each request)."""
+    try:
+        text = log.read_text(errors='replace')
+    except OSError as exc:
+        return f'(no daemon log: {exc})'
+    return '\n'.join(line[:300] for line in text.splitlines()[-lines:])
 
 
 def _port_holders(env: dict[str, str]) -> str:
     """The TCP sockets on the daemon's port of ``env``'s domain: 'port P: pid N (STATUS), ...'."""
-    port = DAEMON_BASE_PORT + int(env.get('ROS_DOMAIN_ID', '0'))
+    port = ROS2_DAEMON_BASE_PORT + int(env.get('ROS_DOMAIN_ID', '0'))
     try:
         held = [f'pid {c.pid} ({c.status})' for c in psutil.net_connections(kind='tcp')
                 if c.laddr and c.laddr.port == port]
@@ -261,19 +270,20 @@ def _daemons(env: dict[str, str]) -> list[Any]:
     return found
 
 
-def daemon_processes(env: dict[str, str]) -> list[str]:
-    """The ros2 daemons of ``env``'s domain now, as 'pid N (status, process group G)', for failure reports."""
+def daemon_state(env: dict[str, str]) -> str:
+    """The ros2 daemons of ``env``'s domain now, as 'pid N (status, process group G)', and the processes holding the
+    daemon's TCP port, for failure reports (``ros2 daemon start`` logs "already running" when it cannot bind that
+    port; a command finds no daemon when nothing listens there)."""
     found = []
     for proc in _daemons(env):
         with contextlib.suppress(psutil.NoSuchProcess, ProcessLookupError):
             found.append(f'pid {proc.pid} ({proc.info["status"]}, process group {os.getpgid(proc.pid)})')
-    return found
+    return f'daemons {found}; {_port_holders(env)}'
 
 
 def stop_daemon(env: dict[str, str], timeout: float = TIMEOUT) -> None:
-    """``ros2 daemon stop`` for ``env``'s domain, then wait until its process has exited. The command returns once
-    the daemon stops answering, and the process keeps the daemon's port a moment longer (about 2 s here): a
-    ``ros2 daemon start`` meanwhile (the next test on the domain) finds it "already running", and then has none."""
+    """``ros2 daemon stop`` for ``env``'s domain, then wait until its process has exited (the command returns once
+    the daemon stops answering, about 2 s before). Its port may stay taken for 60 s more (``domain_in_use``)."""
     from support.colcon_support import ros2
 
     run([ros2(), 'daemon', 'stop'], env, timeout=timeout)
