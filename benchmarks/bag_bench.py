@@ -29,7 +29,7 @@ from typing import Any
 from benchmarks import CONFIG, options, print_json
 from benchmarks.process_bench import make_bag
 from benchmarks.timing import cpu_seconds
-from fourbar_ros.config.interface import DEFAULT_STORAGE, Storage
+from fourbar_ros.interface.topics import DEFAULT_STORAGE, Storage
 
 WINDOWS = (1, 16)
 
@@ -72,7 +72,7 @@ def replay_rates(bag: Path, repeats: int, timeout_s: float = 60.0) -> dict[str, 
     from fourbar_ros.live.node_process import NodeProcess, free_domain_id, node_args
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
-    from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS, create_executor
+    from fourbar_ros.runtime.executor import EXECUTOR_ENV, EXECUTORS, create_executor
 
     stream = read_commands(bag)
     rates: dict[str, dict[int, list[float]]] = {k: {w: [] for w in WINDOWS} for k in EXECUTORS}

@@ -18,7 +18,7 @@ import numpy as np
 from benchmarks import CONFIG, options, print_json
 from benchmarks.timing import Case, interleaved, machine_info
 from fourbar_ros.config.antenna_config import load_config
-from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, segment_magnitudes
 from fourbar_ros.rules.actuation import DurationFields, PointFields, convert, duration_parts
 

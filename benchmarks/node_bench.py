@@ -32,7 +32,7 @@ from typing import Any, NamedTuple
 
 from benchmarks import CONFIG, REPO, options, print_json
 from benchmarks.timing import cpu_seconds, percentile, round_trips_us
-from fourbar_ros.config.interface import COMMAND, JOINT_STATES, MEASURED_JOINT_STATES, STREAM_DEPTH
+from fourbar_ros.interface.topics import COMMAND, JOINT_STATES, MEASURED_JOINT_STATES, STREAM_DEPTH
 from fourbar_ros.live.node_process import NodeProcess, free_domain_id, node_args, node_command
 
 PACED_HZ = 200.0  # command rate of the executor comparison (one outstanding at a time)
@@ -117,8 +117,9 @@ def helper_node(role: str, topics: Sequence[str]) -> Any:
 def helper_main(argv: Sequence[str]) -> int:
     """``ROLE [--executor KIND | TOPIC:TYPE...] --ros-args ...``: a helper process (see helper_node), started, spun
     and stopped by SIGINT/SIGTERM as fourbar_node is (the sink on the SingleThreadedExecutor)."""
-    from fourbar_ros.node.executor import executor_kind
-    from fourbar_ros.node.run import STOP, node_options, non_ros_args, serve_node
+    from fourbar_ros.node.run import node_options, non_ros_args, serve_node
+    from fourbar_ros.runtime.executor import executor_kind
+    from fourbar_ros.runtime.stop import STOP
 
     STOP.install()
     role, *rest = argv
@@ -492,7 +493,7 @@ def executor_systems(relay: str, node_parameters: list[str]) -> dict[str, list[s
     """The four processes of an executor comparison, named ``relay_<kind>`` and ``node_<kind>`` (and namespaced
     so): a bare relay (helper ``relay``) and fourbar_node (with ``-p`` ``node_parameters``, the joint_states
     republish off) on each executor. The shipped node is started as a user starts it (no option)."""
-    from fourbar_ros.node.executor import DEFAULT_EXECUTOR, EXECUTORS
+    from fourbar_ros.runtime.executor import DEFAULT_EXECUTOR, EXECUTORS
 
     out: dict[str, list[str]] = {}
     for kind in EXECUTORS:
@@ -505,7 +506,7 @@ def executor_systems(relay: str, node_parameters: list[str]) -> dict[str, list[s
 
 def executor_comparison(bench: Bench, systems: dict[str, Target], values: list[float], quick: bool) -> dict[str, Any]:
     """``executor_rounds`` at PACED_HZ against the relay on the SingleThreadedExecutor, with its settings."""
-    from fourbar_ros.node.executor import DEFAULT_EXECUTOR
+    from fourbar_ros.runtime.executor import DEFAULT_EXECUTOR
 
     per_round, rounds = (100, 1) if quick else (400, 3)
     pids = {k: c.proc.pid for k, c in bench.children.items() if c.proc is not None}
@@ -529,8 +530,8 @@ def run(quick: bool) -> dict[str, Any]:
     from visualization_msgs.msg import MarkerArray
 
     from fourbar_ros.config.antenna_config import load_config
-    from fourbar_ros.node.executor import DEFAULT_EXECUTOR
     from fourbar_ros.node.fourbar_node import destroy_node
+    from fourbar_ros.runtime.executor import DEFAULT_EXECUTOR
 
     cfg = load_config(CONFIG)
     n_lat, duration, bisections, repeats, rounds = (300, 1.0, 2, 5, 1) if quick else (2000, 2.0, 4, 15, 3)

@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks import CONFIG, REPO, print_json
-from fourbar_ros.config.interface import DEFAULT_STORAGE, Storage
+from fourbar_ros.interface.topics import DEFAULT_STORAGE, Storage
 
 T0_NS = 1_700_000_000 * 1_000_000_000
 BLOCK = 65536  #: messages encoded at a time
@@ -45,7 +45,7 @@ def make_bag(path: Path, n: int, storage: Storage, bad_every: int = 1000) -> Pat
 
     from fourbar_ros.bags.storage import FLOAT64, AtomicBagWriter, recorded_qos
     from fourbar_ros.config.antenna_config import load_config
-    from fourbar_ros.config.cdr import encode_float64s
+    from fourbar_ros.interface.cdr import encode_float64s
 
     cfg = load_config(CONFIG)
     k = np.arange(n)

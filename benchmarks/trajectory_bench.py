@@ -30,7 +30,7 @@ from benchmarks.cases import TURNANTENNA
 from benchmarks.sweep import floor_inputs, floor_ufuncs
 from benchmarks.timing import Case, interleaved
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_motion, trajectory_points
 from fourbar_ros.motion.trajectory import antenna_trajectory, to_driven

@@ -38,7 +38,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
-from fourbar_ros.config.interface import (
+from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
     MARKERS,
     MEASURED_JOINT_STATES,

@@ -1,7 +1,7 @@
 #!/usr/bin/env python3
 """Write the tables that restate code: the node's topics per mode and its QoS override parameters
-(``config/interface.py``) and its parameters (``config/params.py``) into docs/reference/, and the fields `fourbar
-compare` compares (``config/interface.py``) into docs/how-to/bags.md, between the markers
+(``interface/topics.py``) and its parameters (``config/params.py``) into docs/reference/, and the fields `fourbar
+compare` compares (``interface/topics.py``) into docs/how-to/bags.md, between the markers
 
     <!-- generated: NAME -->
     ...
@@ -25,7 +25,8 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from fourbar_ros.config.interface import (  # noqa: E402
+from fourbar_ros.config.params import PARAMETERS, ParamSpec  # noqa: E402
+from fourbar_ros.interface.topics import (  # noqa: E402
     COMPARED,
     QOS_OVERRIDABLE,
     Direction,
@@ -34,7 +35,6 @@ from fourbar_ros.config.interface import (  # noqa: E402
     every_endpoint,
     qos_override_parameters,
 )
-from fourbar_ros.config.params import PARAMETERS, ParamSpec  # noqa: E402
 
 MARKER = re.compile(r'(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end generated -->)', re.DOTALL)
 

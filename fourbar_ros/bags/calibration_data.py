@@ -28,17 +28,17 @@ import numpy as np
 
 from fourbar_ros.bags.process_measured import measured_topic
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag, topic_types
-from fourbar_ros.config.cdr import (
+from fourbar_ros.core.calibration import CalibrationError, imu_tilt
+from fourbar_ros.core.errors import one_line
+from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.interface.cdr import (
     MalformedCdrError,
     decode_float64s,
     decode_joint_states,
     read_joint_state_arrays,
     read_joint_state_head,
 )
-from fourbar_ros.config.interface import IMU
-from fourbar_ros.core.calibration import CalibrationError, imu_tilt
-from fourbar_ros.core.errors import one_line
-from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.interface.topics import IMU
 
 __all__ = ['IMU', 'SENSOR_TYPES', 'CalibrationData', 'imu_tilt', 'pair', 'read_calibration_data']
 

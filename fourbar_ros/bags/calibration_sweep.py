@@ -20,12 +20,12 @@ import numpy as np
 
 from fourbar_ros.bags.calibration_data import IMU
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, AtomicBagWriter, jazzy_typestore, recorded_qos
-from fourbar_ros.config.cdr import encode_float64s, encode_joint_states
-from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, DEFAULT_STORAGE, Storage
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.calibration import PARAMETER_NAMES
 from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.load_calibration import LOAD_NAMES, effort_model, load_pose
+from fourbar_ros.interface.cdr import encode_float64s, encode_joint_states
+from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, DEFAULT_STORAGE, Storage
 
 __all__ = ['GRAVITY', 'Sweep', 'write_calibration_bag']
 

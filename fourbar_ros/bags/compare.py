@@ -51,8 +51,10 @@ import numpy.typing as npt
 
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.cdr import decode_float64s, decode_joint_states
-from fourbar_ros.config.interface import (
+from fourbar_ros.core.antenna import Driven
+from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.cdr import decode_float64s, decode_joint_states
+from fourbar_ros.interface.topics import (
     ANTENNA_ANGLE,
     COMPARED_FIELDS,
     INPUT_TORQUE,
@@ -60,8 +62,6 @@ from fourbar_ros.config.interface import (
     JOINT_TRAJECTORY,
     sibling_topic,
 )
-from fourbar_ros.core.antenna import Driven
-from fourbar_ros.core.errors import one_line
 from fourbar_ros.rules.velocity import VelocityState, anchors
 
 FloatArray = npt.NDArray[np.float64]

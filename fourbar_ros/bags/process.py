@@ -39,9 +39,9 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.cdr import decode_float64s, encode_float64s, encode_joint_states
-from fourbar_ros.config.interface import PER_COMMAND_OUTPUTS, sibling_topic
 from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.cdr import decode_float64s, encode_float64s, encode_joint_states
+from fourbar_ros.interface.topics import PER_COMMAND_OUTPUTS, sibling_topic
 from fourbar_ros.rules.outputs import outputs_block
 from fourbar_ros.rules.policy import Outcome, Policy, serve
 from fourbar_ros.rules.velocity import IntArray, VelocityState

@@ -36,14 +36,14 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
-from fourbar_ros.config.interface import (
+from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
+from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
     JOINT_STATES,
     MEASURED_JOINT_STATES,
     PER_MEASUREMENT_OUTPUTS,
 )
-from fourbar_ros.core.errors import one_line
 from fourbar_ros.rules.completion import CompletionRule, Skipped, complete_block, driven_index, driven_measurement
 
 #: Measurements per block.

@@ -31,8 +31,8 @@ from fourbar_ros.bags.storage import (
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.controllers import TrajectoryControllerSettings
-from fourbar_ros.config.interface import ANTENNA_TRAJECTORY, JOINT_TRAJECTORY, sibling_topic, trajectory_topic
 from fourbar_ros.core.errors import FourBarError, one_line
+from fourbar_ros.interface.topics import ANTENNA_TRAJECTORY, JOINT_TRAJECTORY, sibling_topic, trajectory_topic
 from fourbar_ros.rules.actuation import (
     ActuationCounters,
     PointFields,

@@ -21,8 +21,8 @@ import threading
 from collections.abc import Sequence
 from typing import Any, NoReturn
 
-from fourbar_ros.config.interface import DEFAULT_STORAGE, Storage
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.topics import DEFAULT_STORAGE, Storage
 
 _NUMBER = r'(?:(?:\d+\.?\d*|\.\d+)(?:e[+-]?\d+)?|inf(?:inity)?|nan)'
 #: A token that starts with '-' but is a value: a number or a comma-separated list of numbers (-6e-1, -.5, -inf,
@@ -109,10 +109,10 @@ def _chosen(argv: Sequence[str]) -> str | None:
 
 def _stop_held() -> contextlib.AbstractContextManager[object]:
     """SIGINT and SIGTERM noted and raised as KeyboardInterrupt (status 130) from the command's start, before it
-    imports rclpy (``node.run.stop_on_signals``; in the main thread only, where Python runs signal handlers)."""
+    imports rclpy (``runtime.stop.stop_on_signals``; in the main thread only, where Python runs signal handlers)."""
     if threading.current_thread() is not threading.main_thread():
         return contextlib.nullcontext()
-    from fourbar_ros.node.run import stop_on_signals
+    from fourbar_ros.runtime.stop import stop_on_signals
 
     return stop_on_signals()
 

@@ -54,8 +54,8 @@ def run(args: argparse.Namespace) -> int:
     input; nothing written unless everything is."""
     import numpy as np
 
+    from fourbar_ros.analysis.residual_plot import draw
     from fourbar_ros.bags.calibration_data import read_calibration_data
-    from fourbar_ros.commands._residual_plot import draw
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, calibrate
 

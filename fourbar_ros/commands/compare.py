@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from fourbar_ros.config.interface import COMPARED_FIELDS
+from fourbar_ros.interface.topics import COMPARED_FIELDS
 
 #: bag_compare.DEFAULT_ULPS, written out: building the parser must not import rosbags.
 DEFAULT_ULPS = 16.0

@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from fourbar_ros.commands import CommandError, add_storage_argument
-from fourbar_ros.config.interface import (
+from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
     DIAGNOSTICS,
     MEASURED_JOINT_STATES,
@@ -87,8 +87,8 @@ def run(args: argparse.Namespace) -> int:
     import dataclasses
     import shutil
 
-    from fourbar_ros.bags.demo import demo_topics, pace, recording, summarize, summary_lines
-    from fourbar_ros.bags.demo import plot as plot_demo
+    from fourbar_ros.analysis.demo import demo_topics, pace, recording, summarize, summary_lines
+    from fourbar_ros.analysis.demo import plot as plot_demo
     from fourbar_ros.bags.storage import read_commands, read_messages
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.config.share import share_path
@@ -160,7 +160,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from rclpy.node import Node
     from std_msgs.msg import Float64
 
-    from fourbar_ros.bags.demo import DemoTopics, served
+    from fourbar_ros.analysis.demo import DemoTopics, served
     from fourbar_ros.bags.storage import BagError, CommandStream
     from fourbar_ros.config.antenna_config import AntennaConfig
     from fourbar_ros.live.graph import ReplayError, spin_until
@@ -169,7 +169,7 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     from fourbar_ros.live.record import Recorder, discover
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
-    from fourbar_ros.node.executor import MessageInfoCallback
+    from fourbar_ros.runtime.executor import MessageInfoCallback
 
     assert isinstance(stream, CommandStream) and isinstance(topics, DemoTopics) and isinstance(cfg, AntennaConfig)
     prog = 'fourbar demo'

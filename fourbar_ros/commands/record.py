@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError, add_storage_argument
-from fourbar_ros.config.interface import RECORDED_OUTPUTS
+from fourbar_ros.interface.topics import RECORDED_OUTPUTS
 
 HELP = 'record topics (default: the node outputs) to a rosbag2 bag, mcap by default; Ctrl-C stops it cleanly'
 
@@ -57,8 +57,8 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.live.graph import spin_until
     from fourbar_ros.live.record import Recorder, discover, record_until
     from fourbar_ros.live.ros_context import close_context, init_context
-    from fourbar_ros.node.executor import create_executor
-    from fourbar_ros.node.run import stop_on_signals
+    from fourbar_ros.runtime.executor import create_executor
+    from fourbar_ros.runtime.stop import stop_on_signals
 
     prog = 'fourbar record'
     if args.wait <= 0 or (args.duration is not None and not args.duration > 0):

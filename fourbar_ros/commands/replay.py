@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
-from fourbar_ros.config.interface import INPUT_TORQUE, STREAM_DEPTH, sibling_topic
+from fourbar_ros.interface.topics import INPUT_TORQUE, STREAM_DEPTH, sibling_topic
 
 HELP = ('replay a command bag into a running fourbar_node: recorded timing (--rate) '
         'or lock-step with its answers (--as-fast-as-node-keeps-up)')
@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.live.progress import Progress
     from fourbar_ros.live.replay import Replayer
     from fourbar_ros.live.ros_context import close_context, init_context
-    from fourbar_ros.node.executor import create_executor
+    from fourbar_ros.runtime.executor import create_executor
 
     prog = 'fourbar replay'
     for name in ('rate', 'wait', 'deadline'):

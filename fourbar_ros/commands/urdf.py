@@ -10,13 +10,13 @@ from pathlib import Path
 
 from fourbar_ros.commands import CommandError
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.config.robot_model import (
     DEFAULT_HARDWARE_PLUGIN,
     robot_description,
     robot_description_for,
 )
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.topics import NODE_NAME
 
 HELP = ('print the URDF robot model (for robot_state_publisher and ros2_control) generated from the node\'s '
         'parameters')

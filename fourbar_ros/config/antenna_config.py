@@ -17,7 +17,6 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.config.params import (
     PARAMETERS,
     PARAMETERS_BY_NAME,
@@ -38,6 +37,7 @@ from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import has_gravity_load
+from fourbar_ros.interface.topics import NODE_NAME
 
 __all__ = [
     'AntennaConfig', 'ConfigError', 'check_value', 'config_from_values', 'declared_values',

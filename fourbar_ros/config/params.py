@@ -12,8 +12,8 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from fourbar_ros.config.interface import DEFAULT_FORWARD_CONTROLLER, DEFAULT_TRAJECTORY_CONTROLLER, Mode
 from fourbar_ros.core.antenna import Branch, Driven
+from fourbar_ros.interface.topics import DEFAULT_FORWARD_CONTROLLER, DEFAULT_TRAJECTORY_CONTROLLER, Mode
 
 ParamValue = float | int | str | bool
 

@@ -16,8 +16,8 @@ from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.topics import NODE_NAME
 
 #: Largest parameter file read (bytes): 1 MiB, a few hundred times a real one; larger files are refused unread.
 MAX_FILE_BYTES = 1 << 20

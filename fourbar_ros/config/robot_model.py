@@ -46,9 +46,9 @@ from xml.sax.saxutils import escape, quoteattr
 import numpy as np
 
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
-from fourbar_ros.config.interface import NODE_NAME
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.completion import coupler_joint_position
+from fourbar_ros.interface.topics import NODE_NAME
 
 #: Link names below the root (``frame_id``); the root link itself is named by ``frame_id``.
 LINKS = ('rocker_ab', 'coupler', 'rocker_cd', 'coupler_c', 'rocker_cd_c', 'antenna')

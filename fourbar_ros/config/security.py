@@ -26,7 +26,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from xml.sax.saxutils import escape, quoteattr
 
-from fourbar_ros.config.interface import (
+from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
+from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
     DEFAULT_FORWARD_CONTROLLER,
     DEFAULT_TRAJECTORY_CONTROLLER,
@@ -38,7 +39,6 @@ from fourbar_ros.config.interface import (
     forward_topic,
     trajectory_topic,
 )
-from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
 
 __all__ = ['ENCLAVE_ROOT', 'LAUNCH_REMAPPINGS', 'POLICY_FILE', 'RCLPY_PUBLISH', 'RCLPY_SERVICES', 'RCLPY_SUBSCRIBE',
            'Profile', 'enclave', 'policy_xml', 'profiles']

@@ -11,7 +11,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 
 from fourbar_ros.core.errors import FourBarError
-from fourbar_ros.node.run import spin_once
+from fourbar_ros.runtime.spin import spin_once
 
 #: rclpy's QoSProfile constructor is unannotated; a typed alias keeps mypy strict about the rest.
 make_qos = cast('Callable[..., QoSProfile]', QoSProfile)
@@ -28,7 +28,7 @@ def spin_until(executor: Executor, done: Callable[[], bool], timeout_s: float) -
         remaining = end - time.monotonic()
         if remaining <= 0.0:
             return done()
-        spin_once(executor, min(remaining, 0.1))  # a signal during it is raised after it (node.run)
+        spin_once(executor, min(remaining, 0.1))  # a signal during it is raised after it (runtime.stop)
     return True
 
 

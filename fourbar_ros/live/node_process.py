@@ -18,9 +18,9 @@ from collections.abc import Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import IO
 
-from fourbar_ros.config.interface import NODE_EXECUTABLE, SIM_EXECUTABLE
 from fourbar_ros.core.errors import FourBarError
-from fourbar_ros.node.run import STOP
+from fourbar_ros.interface.topics import NODE_EXECUTABLE, SIM_EXECUTABLE
+from fourbar_ros.runtime.stop import STOP
 
 #: The console scripts ``fourbar_node`` and ``fourbar_sim_actuator`` (setup.py) as ``python -c`` programs, for an
 #: uninstalled tree.

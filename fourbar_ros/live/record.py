@@ -23,10 +23,10 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
 
 from fourbar_ros.bags.storage import AtomicBagWriter, BagError, jazzy_typestore, time_from_ns
-from fourbar_ros.config.interface import DEFAULT_STORAGE, STREAM_DEPTH, Storage
+from fourbar_ros.interface.topics import DEFAULT_STORAGE, STREAM_DEPTH, Storage
 from fourbar_ros.live.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
 from fourbar_ros.live.node_params import handshake
-from fourbar_ros.node.executor import MessageInfoCallback
+from fourbar_ros.runtime.executor import MessageInfoCallback
 
 #: History depth of the recording subscriptions: how far the recorder may fall behind a burst (the node's own).
 RECORD_DEPTH = STREAM_DEPTH

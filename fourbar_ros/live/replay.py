@@ -36,7 +36,7 @@ from rosbags.interfaces import QosDurability, QosReliability
 from std_msgs.msg import Float64
 
 from fourbar_ros.bags.storage import CommandStream
-from fourbar_ros.config.interface import STREAM_DEPTH
+from fourbar_ros.interface.topics import STREAM_DEPTH
 from fourbar_ros.live.graph import (
     ReplayError,
     make_qos,
@@ -47,7 +47,7 @@ from fourbar_ros.live.graph import (
 )
 from fourbar_ros.live.node_params import LIMIT_PARAMETERS, Predictor, fetch_parameters, handshake, predictor_from_values
 from fourbar_ros.live.progress import Progress
-from fourbar_ros.node.run import spin_once
+from fourbar_ros.runtime.spin import spin_once
 
 #: History depth of the replay publisher (timed mode may run ahead of a slow node by this much): the node's own.
 PUBLISH_DEPTH = STREAM_DEPTH

@@ -1,4 +1,4 @@
-"""rclpy contexts for the command-line tools: create, close (their signals: fourbar_ros.node.run)."""
+"""rclpy contexts for the command-line tools: create, close (their signals: fourbar_ros.runtime.stop)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from rclpy.node import Node
 
 def init_context(domain_id: int | None = None) -> Context:
     """A fresh rclpy context (``domain_id`` None: from ROS_DOMAIN_ID, as rclpy does), without rclpy's signal
-    handlers: the tools stop by ``node.run.stop_on_signals``."""
+    handlers: the tools stop by ``runtime.stop.stop_on_signals``."""
     from rclpy.signals import SignalHandlerOptions
 
     context = Context()

@@ -22,17 +22,16 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.controllers import ForwardControllerSettings, TrajectoryControllerSettings
-from fourbar_ros.config.interface import (
+from fourbar_ros.core.errors import FourBarError, one_line
+from fourbar_ros.interface.topics import (
     ANTENNA_TRAJECTORY,
     MEASURED_JOINT_STATES,
     Mode,
     forward_topic,
     trajectory_topic,
 )
-from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.motion.planner import JointMotionState, Setpoints
 from fourbar_ros.motion.trajectory import DrivenTrajectory
-from fourbar_ros.node.problem_log import ProblemLog
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.actuation import (
@@ -55,6 +54,7 @@ from fourbar_ros.rules.actuation import (
     trajectory_setpoints,
 )
 from fourbar_ros.rules.controller_contract import check_forward_command
+from fourbar_ros.runtime.problem_log import ProblemLog
 
 #: Setpoints kept in ``recent_setpoints`` (the last seconds of the stream at the default rate).
 RECENT_SETPOINTS = 1000

@@ -7,7 +7,7 @@ they hold is ``fourbar_ros.rules.completion``; topics and types: docs/reference/
 and published only while it has a subscriber (the node's own subscription, if remapped onto joint_states, is not
 counted).
 
-Read raw: the subscription takes the CDR bytes and ``fourbar_ros.config.cdr`` reads the stamp and names first, the
+Read raw: the subscription takes the CDR bytes and ``fourbar_ros.interface.cdr`` reads the stamp and names first, the
 float arrays only for a measurement. Skipped without reading the arrays: the node's own complete JointState (its
 names exactly; if ``measured_joint_states`` is remapped onto ``joint_states``), counted as
 ``measurements_own_skipped``; one without the driven joint (``measurements_ignored_no_driven_joint``, one throttled
@@ -33,12 +33,12 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
-from fourbar_ros.config.interface import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
 from fourbar_ros.core.errors import FourBarError, one_line
-from fourbar_ros.node.diagnostic_values import Level
-from fourbar_ros.node.problem_log import ProblemLog
+from fourbar_ros.interface.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
+from fourbar_ros.interface.topics import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
 from fourbar_ros.rules.completion import CompletionRule, Skipped, driven_index, driven_measurement
+from fourbar_ros.rules.diagnostics import Level
+from fourbar_ros.runtime.problem_log import ProblemLog
 
 
 @dataclass

@@ -1,10 +1,10 @@
 """fourbar_node: antenna angle commands in; joint states, input torque, diagnostics and markers out; in the
 actuator modes, the front end of a ros2_control drive (node.actuation, node.completion).
 
-Topics, QoS and directions per mode: docs/reference/topics.md (from fourbar_ros.config.interface); parameters:
+Topics, QoS and directions per mode: docs/reference/topics.md (from fourbar_ros.interface.topics); parameters:
 docs/reference/parameters.md (from fourbar_ros.config.params). The node only adapts messages and parameters: the
 math is fourbar_ros.core, what a message becomes is fourbar_ros.rules, its bookkeeping state_cache and
-diagnostic_values; start, spin and stop: fourbar_ros.node.run.
+diagnostic_values; start, spin and stop: fourbar_ros.node.run and fourbar_ros.runtime.
 """
 
 from __future__ import annotations
@@ -33,8 +33,12 @@ from fourbar_ros.config.antenna_config import (
     declared_values,
     unknown_in_node_sections,
 )
-from fourbar_ros.config.cdr import MalformedCdrError, read_float64
-from fourbar_ros.config.interface import (
+from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
+from fourbar_ros.core.antenna import LinkageState
+from fourbar_ros.core.errors import FourBarError, one_line
+from fourbar_ros.core.loads import Pose, pose_solver, solve
+from fourbar_ros.interface.cdr import MalformedCdrError, read_float64
+from fourbar_ros.interface.topics import (
     COMMAND,
     DIAGNOSTICS,
     INPUT_TORQUE,
@@ -44,27 +48,23 @@ from fourbar_ros.config.interface import (
     SENSOR_NONE,
     Mode,
 )
-from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
-from fourbar_ros.core.antenna import LinkageState
-from fourbar_ros.core.errors import FourBarError, one_line
-from fourbar_ros.core.loads import Pose, pose_solver, solve
 from fourbar_ros.node.actuation import Actuation
 from fourbar_ros.node.completion import MeasuredCompletion
-from fourbar_ros.node.diagnostic_values import DIAGNOSTIC_TASK, Counters, Level, SequenceGaps, command_rate, summarize
-from fourbar_ros.node.executor import (
-    MessageInfoCallback,
-)
-from fourbar_ros.node.marker_geometry import linkage_points
 from fourbar_ros.node.markers import LinkageMarkers
 from fourbar_ros.node.model_check import LiveModelCheck
 from fourbar_ros.node.param_descriptors import declarations
-from fourbar_ros.node.problem_log import CallbackGuard, ProblemLog
 from fourbar_ros.node.qos import qos
-from fourbar_ros.node.state_cache import StateCache
 from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.actuation import actuation_contract
+from fourbar_ros.rules.diagnostics import DIAGNOSTIC_TASK, Counters, Level, SequenceGaps, command_rate, summarize
+from fourbar_ros.rules.marker_geometry import linkage_points
 from fourbar_ros.rules.outputs import JointStateRule
 from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
+from fourbar_ros.rules.state_cache import StateCache
+from fourbar_ros.runtime.executor import (
+    MessageInfoCallback,
+)
+from fourbar_ros.runtime.problem_log import CallbackGuard, ProblemLog
 
 WARN_THROTTLE_S = 1.0
 #: Steady-clock delay (s) after which a node on sim time without /clock says so.

@@ -7,7 +7,7 @@ from geometry_msgs.msg import Point, Vector3
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from fourbar_ros.node.marker_geometry import LinkagePoints
+from fourbar_ros.rules.marker_geometry import LinkagePoints
 
 NAMESPACE = 'fourbar'
 _LINE_WIDTH = 0.004  # m

@@ -19,10 +19,10 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import ANTENNA_SENSORS, Topic
-from fourbar_ros.node.diagnostic_values import Level
-from fourbar_ros.node.problem_log import ProblemLog
+from fourbar_ros.interface.topics import ANTENNA_SENSORS, Topic
+from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.rules.model_check import ModelCheck, SensorSkipped, imu_theta
+from fourbar_ros.runtime.problem_log import ProblemLog
 
 
 class LiveModelCheck:

@@ -1,4 +1,4 @@
-"""The rclpy QoS profile of one of the package's topics (``fourbar_ros.config.interface.Topic``: keep-last depth and
+"""The rclpy QoS profile of one of the package's topics (``fourbar_ros.interface.topics.Topic``: keep-last depth and
 reliability), for every node of the package."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from collections.abc import Callable
 
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
-from fourbar_ros.config.interface import Topic
+from fourbar_ros.interface.topics import Topic
 
 _qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
 

@@ -32,17 +32,17 @@ from trajectory_msgs.msg import JointTrajectory
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, declared_values
 from fourbar_ros.config.controllers import forward_controller, trajectory_controller
-from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, forward_topic, trajectory_topic
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, forward_topic, trajectory_topic
 from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
-from fourbar_ros.node.problem_log import ProblemLog
 from fourbar_ros.node.qos import qos
-from fourbar_ros.node.sim_actuator_model import DriveLimits, Encoder, LagActuator, TrajectoryFollower, effort_at
 from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.controller_contract import check_forward_command
+from fourbar_ros.rules.simulated_drive import DriveLimits, Encoder, LagActuator, TrajectoryFollower, effort_at
+from fourbar_ros.runtime.problem_log import ProblemLog
 
 WARN_THROTTLE_S = 1.0
 #: Most controller updates one late tick makes (10 s at 100 Hz): a longer gap is integrated in longer steps.

@@ -44,10 +44,10 @@ from fourbar_ros.config.controllers import (
     forward_controller,
     trajectory_controller,
 )
-from fourbar_ros.config.interface import ANTENNA_JOINT
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import FourBarError, UnreachableError
 from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.errors import (
     EmptyTrajectoryError,
     LimitError,

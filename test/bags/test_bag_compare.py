@@ -17,7 +17,7 @@ from fourbar_ros.bags.compare import compare_bags
 from fourbar_ros.bags.process import process_bag
 from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_commands
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, load_config
-from fourbar_ros.config.interface import Storage
+from fourbar_ros.interface.topics import Storage
 
 STORE = jazzy_typestore()
 

@@ -34,7 +34,7 @@ from fourbar_ros.bags.storage import (
 )
 from fourbar_ros.commands import main as cli_main
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
-from fourbar_ros.config.interface import Storage
+from fourbar_ros.interface.topics import Storage
 
 BAGS = committed_bags()
 KINDS = ('sweep', 'steps', 'fast_ramp', 'jitter', 'bad_values')

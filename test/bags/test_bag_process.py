@@ -31,9 +31,9 @@ from fourbar_ros.bags.storage import (
     write_command_bag,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, default_config, load_config
-from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.loads import pose_solver
+from fourbar_ros.interface.topics import Storage
 from fourbar_ros.rules.policy import Policy, decide
 from fourbar_ros.rules.velocity import Sample, VelocityState, velocities, velocity_step
 

@@ -14,7 +14,7 @@ import pytest
 from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_messages
 from fourbar_ros.commands import main
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import ANTENNA_JOINT, JOINT_TRAJECTORY, trajectory_topic
+from fourbar_ros.interface.topics import ANTENNA_JOINT, JOINT_TRAJECTORY, trajectory_topic
 from fourbar_ros.rules.actuation import convert, duration_parts
 
 CFG = default_config()

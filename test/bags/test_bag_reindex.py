@@ -37,7 +37,7 @@ from fourbar_ros.bags.storage import (
     recorded_qos,
     reindex,
 )
-from fourbar_ros.config.interface import Storage
+from fourbar_ros.interface.topics import Storage
 
 # A writer that flushes after FLUSHED messages, writes UNFLUSHED more and dies without any cleanup.
 KILLED_WRITER = '''

@@ -12,8 +12,8 @@ import pytest
 from fourbar_ros.bags.calibration_data import imu_tilt, pair, read_calibration_data
 from fourbar_ros.bags.calibration_sweep import GRAVITY, Sweep, write_calibration_bag
 from fourbar_ros.bags.storage import JOINT_STATE
-from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.calibration import CalibrationError
+from fourbar_ros.interface.topics import Storage
 
 TRUTH = {'frame_length': 0.1803, 'rocker_ab_length': 0.0598, 'coupler_length': 0.1021, 'rocker_cd_length': 0.0602,
          'driven_joint_offset': -math.radians(0.7), 'sensor_offset': 0.004}

@@ -1,4 +1,4 @@
-"""The demo's analysis (fourbar_ros.bags.demo) on a synthetic closed-loop recording: message objects shaped as
+"""The demo's analysis (fourbar_ros.analysis.demo) on a synthetic closed-loop recording: message objects shaped as
 rosbags decodes them, with known tracking errors, speeds, torques and completions."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from typing import Any
 import pytest
 from support.bag_support import CONFIG
 
-from fourbar_ros.bags.demo import (
+from fourbar_ros.analysis.demo import (
     PACE_FRACTION,
     DemoError,
     _planned,

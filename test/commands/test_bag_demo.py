@@ -20,7 +20,7 @@ from support.ros_support import DomainLease, lease_domain_id, wait_for
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import load_config
-from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, trajectory_topic
+from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, trajectory_topic
 from fourbar_ros.live.node_process import domain_in_use
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

@@ -19,7 +19,7 @@ from fourbar_ros.core.loads import pose
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_to_angle, trajectory_points
 from fourbar_ros.motion.refine import dtheta_dq_bounds
-from fourbar_ros.node.sim_actuator_model import effort_at
+from fourbar_ros.rules.simulated_drive import effort_at
 
 #: frame 0.10 m, rockers 0.06 m, coupler 0.12 m: the forward solve's upper branch is from_rocker's lower one.
 GEOMETRY = {'frame_length': 0.10, 'rocker_ab_length': 0.06, 'rocker_cd_length': 0.06, 'coupler_length': 0.12}

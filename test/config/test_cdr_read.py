@@ -1,4 +1,4 @@
-"""One JointState read from its CDR bytes (fourbar_ros.config.cdr) gives back exactly what rclpy serialized, and
+"""One JointState read from its CDR bytes (fourbar_ros.interface.cdr) gives back exactly what rclpy serialized, and
 a payload that is not one (truncated, corrupted, big-endian) gives MalformedCdrError and nothing else."""
 
 from __future__ import annotations
@@ -13,7 +13,12 @@ from hypothesis import strategies as st
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from fourbar_ros.config.cdr import MalformedCdrError, joint_state_layout, read_joint_state_arrays, read_joint_state_head
+from fourbar_ros.interface.cdr import (
+    MalformedCdrError,
+    joint_state_layout,
+    read_joint_state_arrays,
+    read_joint_state_head,
+)
 
 Read = tuple[int, int, str, list[str], tuple[float, ...], tuple[float, ...], tuple[float, ...]]
 

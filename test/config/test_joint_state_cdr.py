@@ -1,4 +1,4 @@
-"""Block CDR encoding (fourbar_ros.config.cdr) is byte for byte what rosbags' serializer writes."""
+"""Block CDR encoding (fourbar_ros.interface.cdr) is byte for byte what rosbags' serializer writes."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, jazzy_typestore
-from fourbar_ros.config.cdr import (
+from fourbar_ros.interface.cdr import (
     decode_float64s,
     decode_joint_states,
     encode_float64s,

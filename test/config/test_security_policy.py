@@ -15,7 +15,16 @@ import pytest
 from support.colcon_support import ros2, ros2_cli_missing
 from support.paths import REPO, TEST_DATA
 
-from fourbar_ros.config.interface import (
+from fourbar_ros.config.security import (
+    POLICY_FILE,
+    RCLPY_PUBLISH,
+    RCLPY_SERVICES,
+    RCLPY_SUBSCRIBE,
+    enclave,
+    policy_xml,
+)
+from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
+from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
     MEASURED_JOINT_STATES,
     NODE_NAME,
@@ -26,15 +35,6 @@ from fourbar_ros.config.interface import (
     forward_topic,
     trajectory_topic,
 )
-from fourbar_ros.config.security import (
-    POLICY_FILE,
-    RCLPY_PUBLISH,
-    RCLPY_SERVICES,
-    RCLPY_SUBSCRIBE,
-    enclave,
-    policy_xml,
-)
-from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
 
 POLICY = REPO / POLICY_FILE
 SCHEMA = TEST_DATA / 'sros2' / 'policy.xsd'

@@ -146,7 +146,7 @@ def test_documented_keys_absent_before_the_first_command_are_the_nodes() -> None
     """The diagnostics keys the diagnostics reference lists as absent until the first command: exactly those a
     status before any command lacks and one after a served command has."""
     from fourbar_ros.config.antenna_config import default_config
-    from fourbar_ros.node.diagnostic_values import Counters, summarize
+    from fourbar_ros.rules.diagnostics import Counters, summarize
     from fourbar_ros.rules.policy import decide
 
     cfg = default_config()

@@ -11,8 +11,8 @@ from types import ModuleType
 import pytest
 from support.paths import REPO
 
-from fourbar_ros.config.interface import Mode, endpoints
 from fourbar_ros.config.params import PARAMETERS
+from fourbar_ros.interface.topics import Mode, endpoints
 
 
 def _generator() -> ModuleType:

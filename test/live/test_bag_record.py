@@ -14,7 +14,7 @@ from support.bag_support import CONFIG, Tool, read_with_mcap, read_with_sqlite, 
 from support.ros_support import NodeProcess, RosSession, wait_for
 
 from fourbar_ros.bags.storage import fingerprint, jazzy_typestore, read_messages
-from fourbar_ros.config.interface import Storage
+from fourbar_ros.interface.topics import Storage
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

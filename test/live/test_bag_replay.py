@@ -28,7 +28,7 @@ from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSes
 
 from fourbar_ros.bags.storage import read_commands, read_messages
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
-from fourbar_ros.config.interface import Storage
+from fourbar_ros.interface.topics import Storage
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -25,8 +25,8 @@ from rclpy.node import Node
 from support.paths import REPO
 from support.ros_support import Collector, NodeProcess, RosSession, wait_for
 
-from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS, StallWatch, create_executor
 from fourbar_ros.node.timers import periodic_timer, work_clock
+from fourbar_ros.runtime.executor import EXECUTOR_ENV, EXECUTORS, StallWatch, create_executor
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

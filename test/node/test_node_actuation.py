@@ -27,7 +27,7 @@ from support.ros_support import Collector, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
+from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_angles
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory

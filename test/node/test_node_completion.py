@@ -26,11 +26,11 @@ from support.ros_support import Collector, RosSession, wait_for
 from support.ulp_bounds import CHAIN_ULPS, assert_close_ulps, completion_scales
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
-from fourbar_ros.node.diagnostic_values import Level
+from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
 from fourbar_ros.rules.completion import CompletionRule
+from fourbar_ros.rules.diagnostics import Level
 
 pytestmark = pytest.mark.ros
 

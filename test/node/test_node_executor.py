@@ -1,9 +1,9 @@
-"""The executor choice and the spinning helpers of fourbar_ros.node.executor.
+"""The executor choice and the spinning helpers of fourbar_ros.runtime.executor.
 
 - MessageInfoCallback: rclpy picks the (msg, info) form for it, and it unpacks both call forms (two
   arguments from the SingleThreadedExecutor, one tuple from rclpy 7.1.6's EventsExecutor).
 - executor_kind: option, then $FOURBAR_EXECUTOR, then the default; one line for an unknown name.
-- the stop (node.run.STOP) raising KeyboardInterrupt: a signal during spin_once is raised after it returns, never
+- the stop (runtime.stop.STOP) raising KeyboardInterrupt: a signal during spin_once is raised after it returns, never
   inside a callback; a stop that only notes the signal raises nothing.
 - Spinner on a real EventsExecutor (in a child process, so a hang fails by a deadline instead of hanging the
   run): a subscription with message info is served, and request_stop() from a callback ends a slice whose
@@ -32,7 +32,7 @@ from support.bag_support import Tool
 from support.paths import REPO
 from support.ros_support import lease_domain_id, node_command
 
-from fourbar_ros.node.executor import (
+from fourbar_ros.runtime.executor import (
     DEFAULT_EXECUTOR,
     EXECUTOR_ENV,
     EXECUTORS,
@@ -40,7 +40,8 @@ from fourbar_ros.node.executor import (
     MessageInfoCallback,
     executor_kind,
 )
-from fourbar_ros.node.run import spin_once, stop_on_signals
+from fourbar_ros.runtime.spin import spin_once
+from fourbar_ros.runtime.stop import stop_on_signals
 
 
 def test_message_info_callback_binds_like_a_two_parameter_function_and_accepts_both_forms() -> None:
@@ -168,7 +169,7 @@ SPINNER_SCRIPT = textwrap.dedent('''
     from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
     from std_msgs.msg import Float64
-    from fourbar_ros.node.executor import MessageInfoCallback, Spinner, create_executor
+    from fourbar_ros.runtime.executor import MessageInfoCallback, Spinner, create_executor
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
     node = Node('spinner_probe')
@@ -219,13 +220,14 @@ HANG_S = 20
 STOP_IN_LOCK_SCRIPT = textwrap.dedent(f'''
     import faulthandler, signal, sys
     faulthandler.dump_traceback_later({HANG_S}, exit=True)
-    from fourbar_ros.node.run import STOP, spin_until_stopped
+    from fourbar_ros.runtime.spin import spin_until_stopped
+    from fourbar_ros.runtime.stop import STOP
     STOP.install(raises=None)
     import rclpy
     from rclpy.node import Node
     from rclpy.signals import SignalHandlerOptions
     from rclpy.task import Future
-    import fourbar_ros.node.executor as executor_module
+    import fourbar_ros.runtime.executor as executor_module
 
     where, sig = sys.argv[1], int(sys.argv[2])
     class SignalInsideLock(list):

@@ -21,10 +21,10 @@ from fourbar_ros.core.loads import (
     solve,
 )
 from fourbar_ros.core.transforms import antenna_joint_positions
-from fourbar_ros.node.diagnostic_values import Counters, Level, SequenceGaps, summarize
-from fourbar_ros.node.marker_geometry import linkage_points
-from fourbar_ros.node.state_cache import StateCache
+from fourbar_ros.rules.diagnostics import Counters, Level, SequenceGaps, summarize
+from fourbar_ros.rules.marker_geometry import linkage_points
 from fourbar_ros.rules.policy import Outcome, Policy, decide
+from fourbar_ros.rules.state_cache import StateCache
 from fourbar_ros.rules.velocity import Sample, velocity_step
 
 CFG = default_config()

@@ -20,9 +20,9 @@ from support.paths import REPO
 from support.ros_support import RosSession
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import DIAGNOSTICS, SENSOR_NONE, Direction, Mode, endpoints
-from fourbar_ros.node.diagnostic_values import Counters, summarize
+from fourbar_ros.interface.topics import DIAGNOSTICS, SENSOR_NONE, Direction, Mode, endpoints
 from fourbar_ros.node.fourbar_node import FourBarNode
+from fourbar_ros.rules.diagnostics import Counters, summarize
 from fourbar_ros.rules.policy import decide
 
 pytestmark = pytest.mark.ros

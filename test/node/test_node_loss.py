@@ -27,7 +27,7 @@ from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, Collector, NodeProc
 from support.stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
-from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
+from fourbar_ros.runtime.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

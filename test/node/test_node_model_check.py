@@ -24,9 +24,9 @@ from support.paths import REPO
 from support.ros_support import RosSession
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import MEASURED_JOINT_STATES
-from fourbar_ros.node.diagnostic_values import Level
+from fourbar_ros.interface.topics import MEASURED_JOINT_STATES
 from fourbar_ros.node.fourbar_node import FourBarNode
+from fourbar_ros.rules.diagnostics import Level
 
 pytestmark = pytest.mark.ros
 

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from fourbar_ros.config.interface import NODE_EXECUTABLE, SIM_EXECUTABLE
+from fourbar_ros.interface.topics import NODE_EXECUTABLE, SIM_EXECUTABLE
 
 #: The console scripts' entry points (setup.py), started as the scripts start them.
 ENTRY = {NODE_EXECUTABLE: 'main', SIM_EXECUTABLE: 'sim_actuator_main'}

@@ -28,7 +28,7 @@ from support.ros_support import (
 
 from fourbar_ros.config.antenna_config import ConfigError, load_config
 from fourbar_ros.live.node_process import sim_actuator_command
-from fourbar_ros.node.executor import EXECUTOR_ENV, EXECUTORS
+from fourbar_ros.runtime.executor import EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

@@ -12,7 +12,7 @@ import pytest
 from support.paths import REPO
 from support.ros_support import RosSession
 
-from fourbar_ros.config.interface import COMMAND
+from fourbar_ros.interface.topics import COMMAND
 from fourbar_ros.node.fourbar_node import FourBarNode
 
 pytestmark = pytest.mark.ros

@@ -31,7 +31,7 @@ from support.ros_support import RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES
+from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator

@@ -26,7 +26,7 @@ from support.stress import once_and_stress
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.live.node_process import NodeStopError, node_command
-from fourbar_ros.node.executor import DEFAULT_EXECUTOR, EXECUTOR_ENV, EXECUTORS
+from fourbar_ros.runtime.executor import DEFAULT_EXECUTOR, EXECUTOR_ENV, EXECUTORS
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 

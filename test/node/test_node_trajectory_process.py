@@ -25,7 +25,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from fourbar_ros.bags.process_trajectory import TrajectoryStats
 from fourbar_ros.bags.storage import read_messages
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import ANTENNA_JOINT, ANTENNA_TRAJECTORY, trajectory_topic
+from fourbar_ros.interface.topics import ANTENNA_JOINT, ANTENNA_TRAJECTORY, trajectory_topic
 from fourbar_ros.live.record import Recorder, discover
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.rules.actuation import ActuationCounters, TrajectoryProblem, duration_parts

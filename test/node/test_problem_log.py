@@ -6,7 +6,7 @@ import pytest
 from support.ros_support import RosSession
 
 from fourbar_ros.node.fourbar_node import FourBarNode
-from fourbar_ros.node.problem_log import MAX_KINDS, CallbackGuard, ProblemLog
+from fourbar_ros.runtime.problem_log import MAX_KINDS, CallbackGuard, ProblemLog
 
 
 class Clock:

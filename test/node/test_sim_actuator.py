@@ -31,13 +31,13 @@ from support.ros_support import Collector, NodeProcess, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import SIM_PARAMETERS_BY_NAME
+from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES
 from fourbar_ros.node import sim_actuator
 from fourbar_ros.node.sim_actuator import SimActuator
-from fourbar_ros.node.sim_actuator_model import STEP_S, effort_at
 from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.simulated_drive import STEP_S, effort_at
 
 pytestmark = pytest.mark.ros
 

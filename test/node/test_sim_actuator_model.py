@@ -11,7 +11,9 @@ from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.controllers import trajectory_controller
-from fourbar_ros.node.sim_actuator_model import (
+from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.controller_motion import ControllerPoint, controller_reference
+from fourbar_ros.rules.simulated_drive import (
     STEP_S,
     DriveLimits,
     Encoder,
@@ -24,8 +26,6 @@ from fourbar_ros.node.sim_actuator_model import (
     braking_speed,
     waypoints,
 )
-from fourbar_ros.rules.controller_contract import ContractRule
-from fourbar_ros.rules.controller_motion import ControllerPoint, controller_reference
 
 EPS = float(np.finfo(np.float64).eps)
 

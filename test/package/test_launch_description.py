@@ -26,7 +26,7 @@ from launch.utilities import perform_substitutions
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterFile
 
-from fourbar_ros.config.interface import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME
+from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME
 from launch import LaunchContext
 
 LAUNCH_FILE = REPO / 'launch' / 'fourbar.launch.py'

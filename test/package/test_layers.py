@@ -1,5 +1,5 @@
-"""The package's layers import one way: core < config < motion < rules < node < bags < live < commands; no
-cycles; pure core, motion and rules.
+"""The package's layers import one way: core < interface < config < motion < rules < bags < analysis < runtime < node
+< live < commands; no cycles; pure core; no ROS in interface, motion, rules, bags and analysis.
 
 Read from the source with ``ast`` (nothing of the package is imported), so a violation is reported even in
 modules whose imports would fail here. Lazy imports inside functions count too.
@@ -19,7 +19,7 @@ import fourbar_ros
 
 PACKAGE_DIR = Path(fourbar_ros.__file__).parent
 #: Lowest first; a module may import only its own layer and the layers before it.
-LAYERS = ('core', 'config', 'motion', 'rules', 'node', 'bags', 'live', 'commands')
+LAYERS = ('core', 'interface', 'config', 'motion', 'rules', 'bags', 'analysis', 'runtime', 'node', 'live', 'commands')
 #: Third-party modules the core must never import (ROS, YAML, bags, plotting).
 IMPURE = ('rclpy', 'rosbags', 'mcap', 'mcap_ros2', 'yaml', 'ruamel', 'matplotlib', 'PIL', 'std_msgs', 'sensor_msgs',
           'diagnostic_msgs', 'visualization_msgs', 'geometry_msgs', 'rcl_interfaces', 'builtin_interfaces',
@@ -155,8 +155,8 @@ print(AntennaLinkage(0.180, 0.060, 0.102).rocker_angles(0.0, Branch.UPPER).gamma
     assert float(done.stdout) > 0.0
 
 
-#: What the motion and rules layers may not import: ROS (they run without rclpy; the node wires them in).
-ROS_FREE_LAYERS = (LAYERS.index('motion'), LAYERS.index('rules'))
+#: Layers that may not import ROS (they run without rclpy; the node wires them in).
+ROS_FREE_LAYERS = tuple(LAYERS.index(name) for name in ('interface', 'motion', 'rules', 'bags', 'analysis'))
 ROS = tuple(m for m in IMPURE if m not in ('yaml', 'ruamel', 'matplotlib', 'PIL', 'rosbags', 'mcap', 'mcap_ros2'))
 
 
@@ -167,7 +167,7 @@ def test_ros_free_module_imports_no_ros(name: str) -> None:
 
 
 def test_ros_free_layers_import_with_ros_blocked() -> None:
-    """Every motion and rules module imports in a process where no ROS package can load."""
+    """Every module of the ROS-free layers imports in a process where no ROS package can load."""
     motion = sorted(n for n in MODULES if _layer(n) in ROS_FREE_LAYERS)
     assert motion
     script = f"""

@@ -17,7 +17,7 @@ from support.paths import REPO
 from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSession, sync_probe
 
 from fourbar_ros.config.antenna_config import load_config
-from fourbar_ros.config.interface import NODE_EXECUTABLE, SIM_EXECUTABLE
+from fourbar_ros.interface.topics import NODE_EXECUTABLE, SIM_EXECUTABLE
 
 
 def test_package_xml_validates_with_catkin_pkg() -> None:

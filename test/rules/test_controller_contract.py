@@ -24,7 +24,7 @@ from fourbar_ros.config.controllers import (
     forward_controller,
     trajectory_controller,
 )
-from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.planner import JointMotionState
 from fourbar_ros.rules.actuation import (
     ARRIVAL_MARGIN_S,

@@ -14,7 +14,7 @@ from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
 from fourbar_ros.config.controllers import trajectory_controller
-from fourbar_ros.config.interface import ANTENNA_JOINT
+from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles
 from fourbar_ros.motion.trajectory import DrivenTrajectory

@@ -11,8 +11,8 @@ import pytest
 from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.config.interface import ANTENNA_JOINT
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Plan, driven_angles
 from fourbar_ros.rules.actuation import (

@@ -25,7 +25,7 @@ from fourbar_ros.bags.storage.read import (
 )
 from fourbar_ros.bags.storage.reindex import ReindexResult, partial_dirs, reindex
 from fourbar_ros.bags.storage.write import AtomicBagWriter, float64_cdr, write_command_bag
-from fourbar_ros.config.interface import (  # re-exported
+from fourbar_ros.interface.topics import (  # re-exported
     DEFAULT_STORAGE,
     DIAGNOSTIC_ARRAY,
     FLOAT64,

@@ -7,7 +7,7 @@ from pathlib import Path
 from fourbar_ros.bags.storage.mcap_storage import McapStorage
 from fourbar_ros.bags.storage.protocol import StorageAdapter
 from fourbar_ros.bags.storage.sqlite3_storage import Sqlite3Storage
-from fourbar_ros.config.interface import Storage
+from fourbar_ros.interface.topics import Storage
 
 ADAPTERS: dict[Storage, StorageAdapter] = {a.storage: a for a in (McapStorage(), Sqlite3Storage())}
 

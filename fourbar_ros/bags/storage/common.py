@@ -8,8 +8,8 @@ from typing import TYPE_CHECKING, Literal
 from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 from rosbags.typesys import Stores, get_typestore
 
-from fourbar_ros.config.interface import COMMAND
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.topics import COMMAND
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

@@ -15,7 +15,7 @@ from typing import Protocol
 from rosbags.interfaces import Qos
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from fourbar_ros.config.interface import Storage
+from fourbar_ros.interface.topics import Storage
 
 
 @dataclass(frozen=True)

@@ -21,8 +21,8 @@ from rosbags.rosbag2 import Reader
 
 from fourbar_ros.bags.storage.adapters import adapter_of_file
 from fourbar_ros.bags.storage.common import COMMAND_TOPIC, BagError, jazzy_typestore
-from fourbar_ros.config.interface import COMMAND, FLOAT64, Storage
 from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.topics import COMMAND, FLOAT64, Storage
 
 
 @contextmanager

@@ -15,8 +15,8 @@ from fourbar_ros.bags.storage.common import BagError
 from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StorageAdapter
 from fourbar_ros.bags.storage.read import open_bag
 from fourbar_ros.bags.storage.write import AtomicBagWriter, fsync_path
-from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.topics import Storage
 
 
 @dataclass

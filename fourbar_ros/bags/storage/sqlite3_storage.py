@@ -11,8 +11,8 @@ from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from fourbar_ros.bags.storage.common import parse_offered_qos, type_hash
 from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StoredMessage
-from fourbar_ros.config.interface import Storage
 from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.topics import Storage
 
 
 class Sqlite3Storage:

@@ -30,8 +30,8 @@ from fourbar_ros.bags.storage.common import (
     jazzy_typestore,
     recorded_qos,
 )
-from fourbar_ros.config.interface import DEFAULT_STORAGE, FLOAT64, Storage
 from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.topics import DEFAULT_STORAGE, FLOAT64, Storage
 
 if TYPE_CHECKING:
     from rosbags.typesys.store import Typestore

@@ -21,7 +21,11 @@ import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.interface import (
+from fourbar_ros.core.antenna import Branch, Driven
+from fourbar_ros.core.completion import complete
+from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.core.loads import motor_torque, poses
+from fourbar_ros.interface.topics import (
     ANTENNA_ANGLE,
     BROADCASTER_JOINT_STATES,
     COMMAND,
@@ -30,10 +34,6 @@ from fourbar_ros.config.interface import (
     JOINT_STATES,
     trajectory_topic,
 )
-from fourbar_ros.core.antenna import Branch, Driven
-from fourbar_ros.core.completion import complete
-from fourbar_ros.core.errors import FourBarError
-from fourbar_ros.core.loads import motor_torque, poses
 from fourbar_ros.rules.completion import completed_names
 from fourbar_ros.rules.policy import Outcome, Policy, Served, serve
 

@@ -25,9 +25,10 @@ from functools import lru_cache
 import numpy as np
 import numpy.typing as npt
 
+from fourbar_ros.interface.stamps import join_ns, split_ns
+
 ENCAPSULATION = b'\x00\x01\x00\x00'  #: CDR, little endian, no options
 FloatArray = npt.NDArray[np.float64]
-_INT32_MAX = 2**31 - 1
 
 
 class MalformedCdrError(ValueError):
@@ -199,17 +200,6 @@ def _split(blob: bytes, size: int) -> list[bytes]:
     return [blob[i:i + size] for i in range(0, len(blob), size)]
 
 
-def stamp_parts(stamps_ns: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:
-    """(sec, nanosec) of ``builtin_interfaces/Time`` for nanosecond stamps, as rclpy's Time.to_msg splits them.
-
-    Raises ValueError for a stamp whose seconds do not fit the message's int32.
-    """
-    sec, nanosec = np.divmod(np.asarray(stamps_ns, dtype=np.int64), 1_000_000_000)
-    if sec.size and (sec.min() < -_INT32_MAX - 1 or sec.max() > _INT32_MAX):
-        raise ValueError('a stamp does not fit builtin_interfaces/Time (int32 seconds)')
-    return sec, nanosec
-
-
 def encode_joint_states(stamps_ns: npt.NDArray[np.int64], frame_id: str, names: Sequence[str],
                         position: FloatArray, effort: FloatArray, velocity: FloatArray,
                         has_velocity: npt.NDArray[np.bool_]) -> list[bytes]:
@@ -221,7 +211,7 @@ def encode_joint_states(stamps_ns: npt.NDArray[np.int64], frame_id: str, names: 
     names = tuple(names)
     n = len(stamps_ns)
     k = len(names)
-    sec, nanosec = stamp_parts(stamps_ns)
+    sec, nanosec = split_ns(stamps_ns)
     position = np.asarray(position, dtype=np.float64).reshape(n, k)
     effort = np.asarray(effort, dtype=np.float64).reshape(n, k)
     velocity = np.asarray(velocity, dtype=np.float64).reshape(n, k)
@@ -335,7 +325,7 @@ def decode_joint_states(raws: Sequence[bytes], frame_id: str, names: tuple[str, 
         if not bool(np.all(rows[:, const] == template[const])):
             return None
         recs = rows.reshape(-1).view(layout.dtype)
-        stamps[select] = recs['sec'].astype(np.int64) * 1_000_000_000 + recs['nanosec']
+        stamps[select] = join_ns(recs['sec'], recs['nanosec'])
         if k:
             position[select] = recs['position']
             effort[select] = recs['effort']
