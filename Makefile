@@ -5,11 +5,17 @@ BIN := $(VENV)/bin
 # Four pytest-xdist workers whatever the CPU count: most ROS tests wait on node processes and discovery, not on the
 # CPU. Each test file runs whole on one worker (its shared node processes).
 PARALLEL ?= -n 4 --dist loadfile
+# The real ros2_control stack for the tests that start it, where no ROS 2 install with it is sourced: an install space
+# built for this venv's ROS wheels, taken from beside the checkout when one lies there (the tests skip without it).
+FOURBAR_ROS2_CONTROL ?= $(firstword $(wildcard $(abspath $(CURDIR)/..)/shared/ros2-control/install))
+export FOURBAR_ROS2_CONTROL
 
 .PHONY: setup demo test test-jitter test-stress test-repeat lint bench-deps bench bench-quick clean
 
 setup:
 	@PYTHON=$(PYTHON) VENV=$(VENV) ./scripts/bootstrap.sh
+	@if [ -n "$(FOURBAR_ROS2_CONTROL)" ]; then \
+	  $(BIN)/python -m pip install --quiet -c requirements/constraints.txt -r requirements/ros2-control.txt; fi
 
 demo: setup
 	$(BIN)/fourbar demo --params config/antenna.yaml

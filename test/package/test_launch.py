@@ -14,6 +14,7 @@ import pytest
 from support.colcon_support import BIN, CliEnv, launch_missing, ros2, ros2_cli_missing
 from support.isolation import isolated_env
 from support.paths import REPO
+from support.ros2_control_support import ros2_control_missing
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
@@ -138,14 +139,10 @@ def test_launch_testing_test_passes(install: CliEnv, lease: DomainLease) -> None
 
 
 def test_the_real_controller_manager_accepts_what_the_node_sends(install: CliEnv) -> None:
-    # Where ros2_control and ros2_controllers are installed: the launch file's bringup with the mock hardware and
-    # a command; the controller takes the node's trajectory (its measured joint, echoed by the mock, reaches the
-    # commanded angle). Not run on the machines these tests were written on (no ros2_control there).
-    missing = [p for p in ('controller_manager', 'joint_trajectory_controller', 'joint_state_broadcaster')
-               if not installed(install.env, p)]
-    if missing:
-        pytest.skip(f'ros2_control is not installed here ({", ".join(missing)} missing): the bringup against the '
-                    'real controller manager is checked in-process by test_launch_description only')
+    # The launch file's bringup with the mock hardware and a command; the real controller takes the node's
+    # trajectory (its measured joint, echoed by the mock, reaches the commanded angle).
+    if (why := ros2_control_missing(install.env)) is not None:
+        pytest.skip(why)
     cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
     launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_rc',
                          'use_ros2_control:=true', 'rviz:=false'], install.env, cwd=install.cwd)

@@ -23,6 +23,7 @@ import pytest
 
 from support.isolation import isolated_env
 from support.paths import REPO
+from support.ros2_control_support import with_ros2_control
 
 #: What a source checkout of the package contains that its build reads.
 PACKAGE_FILES = ('package.xml', 'setup.py', 'setup.cfg', 'resource', 'fourbar_ros', 'config', 'launch', 'rviz')
@@ -79,11 +80,11 @@ def _build(colcon: Path, ws: Path) -> str | None:
 
 def sourced_env(base: dict[str, str], prefix: Path, domain_id: int, localhost: bool = True) -> dict[str, str]:
     """``base`` plus what sourcing ``install/setup.sh`` sets for this package (PYTHONPATH, AMENT_PREFIX_PATH,
-    PATH with this venv's ``ros2``), on ``domain_id``; with ``localhost``, discovery limited to this host (all
-    processes that must see each other need the same setting: every test process has it (support.isolation), so
-    ``localhost=False`` only keeps what ``base`` says)."""
+    PATH with this venv's ``ros2``) and the real ros2_control stack where one is named, on ``domain_id``; with
+    ``localhost``, discovery limited to this host (all processes that must see each other need the same setting:
+    every test process has it (support.isolation), so ``localhost=False`` only keeps what ``base`` says)."""
     site = prefix / 'lib' / f'python{sys.version_info.major}.{sys.version_info.minor}' / 'site-packages'
-    env = dict(base)
+    env = with_ros2_control(dict(base))
     env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(site), env.get('PYTHONPATH', '')]))
     env['AMENT_PREFIX_PATH'] = os.pathsep.join(filter(None, [str(prefix), env.get('AMENT_PREFIX_PATH', '')]))
     env['PATH'] = os.pathsep.join(filter(None, [str(BIN), env.get('PATH', '')]))

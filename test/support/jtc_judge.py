@@ -1,0 +1,147 @@
+"""Drive a running joint_trajectory_controller and record what it does, update by update.
+
+    python jtc_judge.py NAMESPACE CASES.json OUT.json
+
+A process of its own, started with the real ros2_control stack on its paths (control_msgs' Python messages need the
+library path set before the process starts). CASES.json is a list of steps, each sent ``after`` s after the
+previous one (the first: once the controller's state arrives):
+- ``{"points": [[t, p, v, a], ...], "stamp": s or null, "after": s}``: a JointTrajectory to the controller (s, rad,
+  rad/s, rad/s^2; null leaves a field empty; stamp null: zero, else the send time plus that many seconds);
+- ``{"command": theta, "after": s}``: an antenna angle (rad) to fourbar_node's ``antenna_angle_cmd``.
+OUT.json: every trajectory the controller's topic carried, the judge's with the time it sent them, the node's with
+the time the judge received them (``echoed``), and every ``~/controller_state`` message, from the first step to
+``tail`` s after the last trajectory's end (ns on the node clock).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import rclpy
+from builtin_interfaces.msg import Duration, Time
+from control_msgs.msg import JointTrajectoryControllerState
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Float64
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+NS = 1_000_000_000
+DISCOVERY_S = 60.0
+CONTROLLER = 'joint_trajectory_controller'
+JOINT = 'rocker_ab_joint'
+
+
+def _ns(stamp: Any) -> int:
+    return int(stamp.sec) * NS + int(stamp.nanosec)
+
+
+def _message(points: list[list[float | None]], stamp_ns: int) -> JointTrajectory:
+    msg = JointTrajectory()
+    msg.header.stamp = Time(sec=stamp_ns // NS, nanosec=stamp_ns % NS)
+    msg.joint_names = [JOINT]
+    for t, p, v, a in points:
+        ns = round(float(t) * NS)  # type: ignore[arg-type]
+        pt = JointTrajectoryPoint(time_from_start=Duration(sec=ns // NS, nanosec=ns % NS))
+        pt.positions, pt.velocities, pt.accelerations = ([] if x is None else [float(x)] for x in (p, v, a))
+        msg.points.append(pt)
+    return msg
+
+
+def main(namespace: str, cases_path: str, out_path: str, tail_s: float = 0.3) -> int:
+    steps = json.loads(Path(cases_path).read_text(encoding='utf-8'))
+    rclpy.init()
+    node = Node('jtc_judge', namespace=namespace)
+    clock = node.get_clock()
+    states: list[dict[str, Any]] = []
+    trajectories: list[dict[str, Any]] = []
+    got_state = threading.Event()
+
+    def on_state(msg: JointTrajectoryControllerState) -> None:
+        states.append({'stamp': _ns(msg.header.stamp), 'ref_tfs': _ns(msg.reference.time_from_start),
+                       'fb_tfs': _ns(msg.feedback.time_from_start),
+                       'ref': [list(msg.reference.positions), list(msg.reference.velocities),
+                               list(msg.reference.accelerations)],
+                       'fb': [list(msg.feedback.positions), list(msg.feedback.velocities)],
+                       'out': list(msg.output.positions)})
+        got_state.set()
+
+    def on_trajectory(msg: JointTrajectory) -> None:
+        trajectories.append({'received': clock.now().nanoseconds, 'echoed': True, 'stamp': _ns(msg.header.stamp),
+                             'points': [[_ns(p.time_from_start) / NS, *(float(f[0]) if len(f) else None for f in
+                                                                        (p.positions, p.velocities, p.accelerations))]
+                                        for p in msg.points]})
+
+    deep = QoSProfile(depth=10000, reliability=ReliabilityPolicy.RELIABLE)
+    node.create_subscription(JointTrajectoryControllerState, f'{CONTROLLER}/controller_state', on_state, deep)
+    need_node = any('command' in s for s in steps)
+    # The node's trajectories are recorded as they pass; the judge's own when it sends them (exact send times).
+    echo = node.create_subscription(JointTrajectory, f'{CONTROLLER}/joint_trajectory', on_trajectory, deep) \
+        if need_node else None
+    to_controller = node.create_publisher(JointTrajectory, f'{CONTROLLER}/joint_trajectory', 10)
+    to_node = node.create_publisher(Float64, 'antenna_angle_cmd', 10)
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    running = True
+
+    def spin() -> None:
+        while running:
+            executor.spin_once(timeout_sec=0.05)
+
+    spinner = threading.Thread(target=spin)
+    spinner.start()
+    try:
+        deadline = time.monotonic() + DISCOVERY_S
+
+        def ready() -> bool:
+            return (to_controller.get_subscription_count() >= 1 and got_state.is_set()
+                    and (echo is None or (to_node.get_subscription_count() >= 1 and echo.get_publisher_count() >= 1)))
+        while not ready() and time.monotonic() < deadline:
+            time.sleep(0.01)  # polls the graph and the callback thread, bounded by the deadline
+        if not ready():
+            print(f'jtc_judge: not ready in {DISCOVERY_S} s: trajectory subscribers '
+                  f'{to_controller.get_subscription_count()}, command subscribers {to_node.get_subscription_count()}, '
+                  f'trajectory publishers {echo.get_publisher_count() if echo else "-"}, states received {len(states)}',
+                  file=sys.stderr)
+            return 1
+        first = clock.now().nanoseconds
+        t_prev = time.monotonic()
+        for step in steps:
+            while time.monotonic() < t_prev + float(step['after']):
+                time.sleep(0.001)
+            t_prev = time.monotonic()
+            if 'command' in step:
+                to_node.publish(Float64(data=float(step['command'])))
+            else:
+                now = clock.now().nanoseconds
+                stamp = 0 if step['stamp'] is None else now + round(float(step['stamp']) * NS)
+                to_controller.publish(_message(step['points'], stamp))
+                sent_points = [[round(float(p[0]) * NS) / NS, *p[1:]] for p in step['points']]  # as on the wire
+                trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points})
+        if steps and 'command' in steps[-1]:  # the node's answer to the last command: wait for it to arrive
+            sent = clock.now().nanoseconds - round((time.monotonic() - t_prev) * NS)
+            deadline = time.monotonic() + 10.0
+            while not any(t['received'] >= sent for t in trajectories) and time.monotonic() < deadline:
+                time.sleep(0.01)
+        end = max((max(t['stamp'], t['received']) + round(t['points'][-1][0] * NS) for t in trajectories),
+                  default=clock.now().nanoseconds)
+        while clock.now().nanoseconds < end + round(tail_s * NS):
+            time.sleep(0.01)
+        out = {'trajectories': trajectories, 'states': [s for s in states if s['stamp'] >= first - 50_000_000]}
+        Path(out_path).write_text(json.dumps(out), encoding='utf-8')
+        return 0
+    finally:
+        running = False
+        spinner.join()
+        executor.shutdown(timeout_sec=1.0)
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    sys.exit(main(*sys.argv[1:4]))

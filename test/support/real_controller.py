@@ -1,0 +1,181 @@
+"""The real joint_trajectory_controller as the judge of the package's model of it: random trajectories to send
+(``random_steps``), and each recorded trajectory's reference, update by update, against the motion model
+(``rules.controller_motion``) and the simulated actuator's follower (``rules.simulated_drive``): ``judged``.
+
+The recording is jtc_judge.py's. The takeover of a trajectory is the controller state whose reference and feedback
+``time_from_start`` are equal (the first sample of a new trajectory; at every other update the reference is sampled
+one period ahead); the measured state there is the state the lead-in starts from. Times are the trajectory's own
+(``time_from_start``, from its stamp, or from the takeover for a zero stamp), as the controller samples it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from fourbar_ros.config.controllers import TrajectoryControllerSettings
+from fourbar_ros.interface.stamps import NS_PER_S, from_ns, seconds_to_ns
+from fourbar_ros.rules.controller_motion import ControllerPoint, Reference, controller_reference
+from fourbar_ros.rules.simulated_drive import TrajectoryFollower
+
+#: The kinds of trajectory: which fields its points give (positions, velocities, accelerations).
+KINDS = ('p', 'pv', 'pva', 'v')
+#: A far-off time base for the simulated follower's float seconds (its takeover and stamps are relative to it).
+_FOLLOWER_BASE_S = 1000
+
+
+def _point(kind: str, t: float, p: float, v: float, a: float) -> list[float | None]:
+    return [t, p if 'p' in kind else None, v if 'v' in kind else None, a if 'a' in kind else None]
+
+
+def random_trajectory(rng: np.random.Generator, kind: str, low: float, high: float) -> list[list[float | None]]:
+    """1-5 points of ``kind`` (KINDS) inside [low, high] rad, the first 0.05-0.5 s out, 0.1-0.5 s apart; the
+    last at rest (the controller refuses a moving end)."""
+    n = int(rng.integers(1, 6))
+    times = np.cumsum(np.concatenate([[rng.uniform(0.05, 0.5)], rng.uniform(0.1, 0.5, n - 1)]))
+    positions = rng.uniform(low, high, n)
+    velocities = np.append(rng.uniform(-0.2, 0.2, n - 1), 0.0)
+    accelerations = rng.uniform(-0.5, 0.5, n)
+    return [_point(kind, float(t), float(p), float(v), float(a))
+            for t, p, v, a in zip(times, positions, velocities, accelerations, strict=True)]
+
+
+def random_steps(rng: np.random.Generator, count: int, low: float, high: float) -> list[dict[str, Any]]:
+    """``count`` trajectories for jtc_judge.py: every kind; stamps zero, in the future or in the past (never so far
+    past that the first point is due at the takeover: see ``judged``); sent from rest or while the previous one
+    runs."""
+    steps: list[dict[str, Any]] = []
+    previous_end = 0.0
+    for i in range(count):
+        kind = KINDS[i % len(KINDS)]
+        points = random_trajectory(rng, kind, low, high)
+        first = float(points[0][0])  # type: ignore[arg-type]
+        stamp = [None, float(rng.uniform(0.02, 0.2)), -float(rng.uniform(0.0, first - 0.03))][int(rng.integers(3))]
+        mid = bool(rng.integers(2)) and i > 0
+        after = float(rng.uniform(0.05, 0.3)) if mid else previous_end + 0.2
+        steps.append({'points': points, 'stamp': stamp, 'after': after, 'kind': kind, 'mid': mid})
+        previous_end = max(stamp or 0.0, 0.0) + float(points[-1][0])  # type: ignore[arg-type]
+    return steps
+
+
+@dataclass(frozen=True)
+class Judged:
+    """One recorded trajectory against the real controller: its index in the recording, its kind, stamp kind
+    ('zero', 'future', 'past'), whether it took over a running one, the updates compared, and the largest
+    |model - real| and |simulated follower - real| of the reference position (rad)."""
+
+    index: int
+    kind: str
+    stamp: str
+    mid: bool
+    updates: int
+    model: float
+    follower: float
+
+
+def _kind(points: list[list[float | None]]) -> str:
+    first = points[0]
+    return ''.join(c for c, x in zip('pva', first[1:], strict=True) if x is not None)
+
+
+class _Point(SimpleNamespace):
+    """A trajectory point as the follower reads a message's."""
+
+
+def message_points(points: list[list[float | None]]) -> list[_Point]:
+    """``[t, p, v, a]`` rows as trajectory points with a message's fields."""
+    out = []
+    for t, p, v, a in points:
+        sec, nanosec = from_ns(seconds_to_ns(float(t)))  # type: ignore[arg-type]
+        out.append(_Point(positions=[] if p is None else [p], velocities=[] if v is None else [v],
+                          accelerations=[] if a is None else [a], effort=[],
+                          time_from_start=SimpleNamespace(sec=sec, nanosec=nanosec)))
+    return out
+
+
+#: How much earlier, or later, than the judge's receive time the controller takes a passing trajectory over (ns):
+#: both receive it from the node, in either order, and the controller at its next update.
+ECHO_EARLY_NS, ECHO_LATE_NS = 20_000_000, 30_000_000
+
+
+def _candidates(states: list[dict[str, Any]], traj: dict[str, Any], since: int, until: int) -> list[int]:
+    """Indices of the updates stamped in (since, until) (ns) that could have taken ``traj`` over: the reference and
+    feedback ``time_from_start`` equal, and the trajectory's own time there 0 for a zero stamp (its origin is that
+    update), else the update's time less the stamp (the controller's clock and the header's differ by microseconds).
+    """
+    out = []
+    for k, s in enumerate(states):
+        if s['stamp'] <= since or s['ref_tfs'] != s['fb_tfs']:
+            continue
+        if s['stamp'] >= until:
+            break
+        if (s['fb_tfs'] == 0) if traj['stamp'] == 0 else abs(s['fb_tfs'] - (s['stamp'] - traj['stamp'])) < 1_000_000:
+            out.append(k)
+    return out
+
+
+def _reference_from(states: list[dict[str, Any]], traj: dict[str, Any], k: int, velocity_state: bool,
+                    period: float) -> tuple[float, Reference]:
+    """(the trajectory's own time s at update k, the model's reference of ``traj`` taken over at update k)."""
+    tau0 = states[k]['fb_tfs'] / NS_PER_S
+    position, velocity = states[k]['fb'][0][0], (states[k]['fb'][1] or [None])[0]
+    points = [ControllerPoint(*p) for p in traj['points']]
+    return tau0, controller_reference(velocity_state, points, 0.0, tau0, position, velocity, period)
+
+
+def _worst(states: list[dict[str, Any]], model: Reference, start: int, stop: int) -> float:
+    """Largest |model - real| of the reference position (rad) over the updates start..stop-1."""
+    return max((abs(model.sample(s['ref_tfs'] / NS_PER_S)[0] - s['ref'][0][0]) for s in states[start:stop]),
+               default=0.0)
+
+
+def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, joint: str,
+           period: float) -> list[Judged]:
+    """Every recorded trajectory the controller took over, compared update by update until the next one's takeover
+    (a trajectory the controller refused has none and is not in the list).
+
+    The judge's own trajectories are taken over at the first candidate update after they were sent. The node's
+    are seen passing and reach the controller up to a few updates before or after the judge; a plan that continues
+    the running one is stamped at that one's origin, so several updates in that window can qualify: the one the
+    model follows best up to the window's end is taken (a model wrong at every candidate still fails)."""
+    states = recording['states']
+    trajectories = recording['trajectories']
+    velocity_state = 'velocity' in settings.state_interfaces
+    arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else 0) for t in trajectories] + [2**63]
+    taken: list[tuple[int, int]] = []
+    for i, t in enumerate(trajectories):
+        since = max(arrivals[i], states[taken[-1][1]]['stamp'] if taken else 0)
+        until = min(arrivals[i + 1], t['received'] + ECHO_LATE_NS) if t['echoed'] else arrivals[i + 1]
+        found = _candidates(states, t, since, until)
+        if not found:
+            continue
+        if t['echoed'] and len(found) > 1:
+            stop = next((j for j, s in enumerate(states) if s['stamp'] >= until), len(states))
+            found = [min(found, key=lambda k: _worst(states, _reference_from(states, t, k, velocity_state,
+                                                                               period)[1], k, stop))]
+        taken.append((i, found[0]))
+    out: list[Judged] = []
+    for n, (index, k) in enumerate(taken):
+        traj = trajectories[index]
+        upto = taken[n + 1][1] if n + 1 < len(taken) else len(states)
+        tau0, model = _reference_from(states, traj, k, velocity_state, period)
+        position, velocity = states[k]['fb'][0][0], (states[k]['fb'][1] or [None])[0]
+        follower = TrajectoryFollower(settings, joint, position, period)
+        taken_over: list[Reference] = []
+        follower.on_takeover = taken_over.append
+        now = _FOLLOWER_BASE_S + tau0
+        stamp_ns = 0 if traj['stamp'] == 0 else _FOLLOWER_BASE_S * NS_PER_S
+        refusal = follower.receive([joint], message_points(traj['points']), stamp_ns, seconds_to_ns(now))
+        assert refusal is None, f'the simulated follower refused what the real controller took: {refusal}'
+        follower.reference(now, position, velocity or 0.0)
+        assert len(taken_over) == 1, 'the simulated follower did not take the trajectory over at its first update'
+        simulated = taken_over[0]  # its takeover at 0, the trajectory's own time at tau0
+        worst_follower = max((abs(simulated.sample(s['ref_tfs'] / NS_PER_S - tau0)[0] - s['ref'][0][0])
+                              for s in states[k:upto]), default=0.0)
+        stamp = 'zero' if traj['stamp'] == 0 else ('future' if traj['stamp'] > traj['received'] else 'past')
+        out.append(Judged(index, _kind(traj['points']), stamp, k > 0 and states[k - 1]['ref'][1][0] != 0.0, upto - k,
+                          _worst(states, model, k, upto), worst_follower))
+    return out
