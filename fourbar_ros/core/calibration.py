@@ -201,10 +201,6 @@ class Calibration:
         return _linkage(self.values)
 
 
-def _rms(r: FloatArray) -> float:
-    return float(np.sqrt(np.mean(np.square(r))))
-
-
 def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[float, float, float, float],
               driven: Driven, branch: Branch, length_sd: float = 5e-4, offset_sd: float = OFFSET_SD,
               max_iterations: int | None = None) -> Calibration:

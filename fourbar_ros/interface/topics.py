@@ -248,6 +248,8 @@ COMPARED: dict[str, str] = {
                                                                            LOAD_TORQUE)},
 }
 COMPARED_FIELDS = tuple(COMPARED)
+#: ``fourbar compare``'s default tolerance: units in the last place of each value's scale (docs/how-to/bags.md).
+DEFAULT_ULPS = 16.0
 
 
 class Storage(enum.Enum):
