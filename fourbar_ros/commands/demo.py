@@ -92,6 +92,7 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.storage import read_commands, read_messages
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.config.share import share_path
+    from fourbar_ros.interface.stamps import seconds_to_ns
     from fourbar_ros.live.node_process import free_domain_id
 
     prog = 'fourbar demo'
@@ -107,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     chosen, source = (args.domain_id, '--domain-id') if args.domain_id is not None else _environment_domain()
     period = pace(stream.values, cfg)
     first = stream.stamps_ns[0] if stream.stamps_ns else 0
-    paced = dataclasses.replace(stream, stamps_ns=tuple(first + round(i * period * 1e9) for i in range(len(stream))))
+    paced = dataclasses.replace(stream, stamps_ns=tuple(first + seconds_to_ns(i * period) for i in range(len(stream))))
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     outputs = out / 'outputs'

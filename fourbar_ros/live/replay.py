@@ -36,6 +36,7 @@ from rosbags.interfaces import QosDurability, QosReliability
 from std_msgs.msg import Float64
 
 from fourbar_ros.bags.storage import CommandStream
+from fourbar_ros.interface.stamps import from_ns, ns_to_seconds, seconds_to_ns
 from fourbar_ros.interface.topics import STREAM_DEPTH
 from fourbar_ros.live.graph import (
     ReplayError,
@@ -221,7 +222,7 @@ class Replayer:
     def _publish_clock(self, stamp_ns: int) -> None:
         from builtin_interfaces.msg import Time
 
-        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        sec, nanosec = from_ns(stamp_ns)
         self.clock_publisher.publish(_clock_type()(clock=Time(sec=sec, nanosec=nanosec)))
 
     def run_timed(self, executor: Executor, rate: float = 1.0,
@@ -246,13 +247,13 @@ class Replayer:
         def tick(now: float) -> None:
             nonlocal next_clock
             if clock and now >= next_clock:
-                self._publish_clock(stamps[0] + round((now - start) * rate * 1e9))
+                self._publish_clock(stamps[0] + seconds_to_ns((now - start) * rate))
                 stats.clocks += 1
                 next_clock += period
                 if next_clock <= now:  # fell behind (a busy machine): resume the rate, no burst
                     next_clock = now + period
         for i, raw in enumerate(raws):
-            due = start + (stamps[i] - stamps[0]) * 1e-9 / rate
+            due = start + ns_to_seconds(stamps[i] - stamps[0]) / rate
             while True:
                 now = time.monotonic()
                 tick(now)
