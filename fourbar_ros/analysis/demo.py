@@ -1,12 +1,7 @@
-"""The demo's analysis of a closed-loop recording: fourbar_node in trajectory mode driving the simulated actuator.
-No ROS here (the recording is read back with ``rosbags``).
+"""The demo's analysis of a closed-loop recording: series, summary figures and plot (no ROS: read with ``rosbags``).
 
-From the recorded messages it builds time series, the summary figures (tracking error, limit margins, counts, the
-node's completion against the core's) and the plot. Times in s from the first recorded command (receive times of
-the recording, one clock); angles in rad (degrees only for display); driven-joint speeds in rad/s at the driven
-rocker (the reducer's output side); torques at the motor in N m (``loads.motor_torque``: the rocker's torque over
-reducer_ratio * reducer_efficiency).
-"""
+Times in s from the first recorded command, angles rad (degrees for display), driven-joint speeds rad/s at the
+rocker, torques N m at the motor (``loads.motor_torque``). The demo: docs/tutorial.md."""
 
 from __future__ import annotations
 

@@ -1,11 +1,7 @@
-"""`fourbar demo`: the closed loop. Start fourbar_node in trajectory mode and the simulated actuator, replay the
-bundled sweep paced so the drive can follow, record commands, planned trajectories, measured and completed state,
-summarize and plot.
+"""`fourbar demo`: the closed loop, fourbar_node in trajectory mode driving the simulated actuator, recorded.
 
-Runs on --domain-id, else an exported ROS_DOMAIN_ID, else one nobody on this host uses, with discovery limited to this
-host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so it neither sees nor disturbs other ROS traffic.
-Both node processes are stopped on every path (done, error, Ctrl-C).
-"""
+On a free or given ROS domain, discovery limited to this host; both node processes stopped on every path.
+What it prints and writes: docs/tutorial.md."""
 
 from __future__ import annotations
 

@@ -1,24 +1,7 @@
 """Replay a command bag into a running fourbar_node (rclpy), timed or lock-step.
 
-Two modes:
-
-- timed: each command is published at its recorded time offset divided by ``rate``
-  (``rate=2`` plays twice as fast), like ``ros2 bag play --rate``;
-- lock-step: after each command the node is expected to answer, wait (with a deadline) for its
-  ``input_torque`` message (published exactly once per served command; ``joint_states`` also carries
-  republished poses) before publishing the next one, so nothing queues up and nothing is
-  lost whatever the node's speed. Which commands the node answers is predicted with the node's
-  own rule (``rules.policy.decide``) from its live ``theta_min``, ``theta_max`` and
-  ``out_of_limits`` parameters (or a parameter file): rejected commands get no answer to wait for,
-  and the next answered command proves the node has consumed them (one subscription, in order).
-
-The recorded CDR bytes are published unchanged (rclpy >= Jazzy's ``Publisher.publish(bytes)``).
-
-Timed mode can also publish ``/clock`` (``rosgraph_msgs/Clock``) from the bag's timeline, like
-``ros2 bag play --clock``: the playback time (the first command's stamp plus the elapsed wall time
-times ``rate``) at ``clock_hz`` (40 Hz by default, rosbag2's default), so a node with
-``use_sim_time:=true`` runs on the bag's time.
-"""
+Lock-step predicts which commands the node answers by its own rule (``rules.policy.decide``) and its live
+parameters; the modes and ``/clock``: docs/how-to/bags.md."""
 
 from __future__ import annotations
 
