@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import ast
+import io
 import re
+import tokenize
 from pathlib import Path
 
 import pytest
@@ -72,10 +74,38 @@ def _exists(name: str) -> bool:
     return False
 
 
+FILES = [*PACKAGE.rglob('*.py'), *(REPO / 'test').rglob('*.py'), *(REPO / 'benchmarks').rglob('*.py'),
+         *(REPO / 'scripts').rglob('*.py'), REPO / 'README.md', *(REPO / 'docs').rglob('*.md')]
+
+
 def test_every_module_named_exists() -> None:
     """A module renamed or moved leaves no comment, docstring or document naming it."""
-    files = [*PACKAGE.rglob('*.py'), *(REPO / 'test').rglob('*.py'), *(REPO / 'benchmarks').rglob('*.py'),
-             *(REPO / 'scripts').rglob('*.py'), REPO / 'README.md', *(REPO / 'docs').rglob('*.md')]
-    missing = [f'{f.relative_to(REPO)}: {name}' for f in files
+    missing = [f'{f.relative_to(REPO)}: {name}' for f in FILES
                for name in sorted(_named_modules(f.read_text(encoding='utf-8'))) if not _exists(name)]
     assert not missing, '\n'.join(missing)
+
+
+def _prose(path: Path) -> str:
+    """A document, or a Python file's comments and strings."""
+    text = path.read_text(encoding='utf-8')
+    if path.suffix != '.py':
+        return text
+    tokens = tokenize.generate_tokens(io.StringIO(text).readline)
+    return '\n'.join(t.string for t in tokens if t.type in (tokenize.COMMENT, tokenize.STRING))
+
+
+def test_every_module_named_by_its_layer_exists() -> None:
+    """``layer.module`` in prose names a module of that layer: a module moved to another layer leaves no old name."""
+    modules = {'.'.join(p.relative_to(PACKAGE).with_suffix('').parts).removesuffix('.__init__')
+               for p in MODULES.values()}
+    leaves = {m.rpartition('.')[2] for m in modules}
+    layers = {m.partition('.')[0] for m in modules if '.' in m}
+    wrong = []
+    for path in FILES:
+        if path.relative_to(REPO).as_posix() in EXEMPT_UNTIL_MERGE:
+            continue
+        for chain in re.findall(r'(?<![\w.])\w+(?:\.\w+)+', _prose(path)):
+            parts = [*chain.removeprefix('fourbar_ros.').split('.'), '']
+            if parts[0] in layers and parts[1] in leaves | layers and f'{parts[0]}.{parts[1]}' not in modules:
+                wrong.append(f'{path.relative_to(REPO)}: {chain}')
+    assert not wrong, '\n'.join(wrong)
