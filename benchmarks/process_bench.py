@@ -32,9 +32,10 @@ from pathlib import Path
 from typing import Any
 
 from benchmarks import CONFIG, REPO, print_json
+from fourbar_ros.interface.stamps import NS_PER_S
 from fourbar_ros.interface.topics import DEFAULT_STORAGE, Storage
 
-T0_NS = 1_700_000_000 * 1_000_000_000
+T0_NS = 1_700_000_000 * NS_PER_S
 BLOCK = 65536  #: messages encoded at a time
 
 

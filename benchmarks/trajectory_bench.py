@@ -30,6 +30,7 @@ from benchmarks.cases import TURNANTENNA
 from benchmarks.sweep import floor_inputs, floor_ufuncs
 from benchmarks.timing import Case, interleaved
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.interface.stamps import seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_motion, trajectory_points
@@ -112,7 +113,7 @@ def replan_continuity(replans: int) -> dict[str, Any]:
     for delay in (0.0003, 0.003, 0.013, 0.025, 0.040):
         pos, vel, acc = [], [], []
         for now_s in np.linspace(0.3, 0.9 * plan.duration, replans):
-            now = round(float(now_s) * 1e9)
+            now = seconds_to_ns(float(now_s))
             start = motion_start(cfg, motion, motion.state_at(now), now, takeover_lead(cfg))
             assert start is not None
             second = continued(start, planned_points(cfg, plan_command(cfg, start.state, 0.0)))

@@ -1,8 +1,4 @@
-"""fourbar_ros: kinematics and statics of a four-bar antenna tilt linkage, with ROS 2 glue.
-
-The package root imports only the pure core (standard library and numpy); the rclpy node lives in
-fourbar_ros.node.fourbar_node and is imported only when used.
-"""
+"""Kinematics and statics of a four-bar antenna tilt linkage, with ROS 2 glue; the root imports the pure core only."""
 
 from fourbar_ros.core.antenna import (
     AntennaLinkage,

@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Write the tables that restate code: the node's topics per mode and its QoS override parameters
-(``interface/topics.py``) and its parameters (``config/params.py``) into docs/reference/, and the fields `fourbar
-compare` compares (``interface/topics.py``) into docs/how-to/bags.md, between the markers
+(``interface/topics.py``) and its parameters (``config/params.py``) into docs/reference/, the fields `fourbar
+compare` compares (``interface/topics.py``) into docs/how-to/bags.md, and the package map (each package's and
+module's docstring summary, in layer order) into docs/reference/python.md, between the markers
 
     <!-- generated: NAME -->
     ...
@@ -16,6 +17,7 @@ The test suite runs the check, so the docs cannot drift from the code.
 from __future__ import annotations
 
 import argparse
+import ast
 import math
 import re
 import sys
@@ -36,6 +38,7 @@ from fourbar_ros.interface.topics import (  # noqa: E402
     qos_override_parameters,
 )
 
+PACKAGE = REPO / 'fourbar_ros'
 MARKER = re.compile(r'(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-- end generated -->)', re.DOTALL)
 
 
@@ -122,10 +125,45 @@ def parameters_table() -> str:
     return '\n'.join(out) + '\n'
 
 
+def layers() -> tuple[str, ...]:
+    """The layers, lowest first, as test/package/test_layers.py enforces them (read, not imported)."""
+    tree = ast.parse((REPO / 'test' / 'package' / 'test_layers.py').read_text(encoding='utf-8'))
+    for node in tree.body:
+        if isinstance(node, ast.AnnAssign | ast.Assign) and 'LAYERS' in ast.unparse(node).split('=')[0]:
+            assert node.value is not None
+            return tuple(ast.literal_eval(node.value))
+    raise LookupError('test/package/test_layers.py defines no LAYERS')
+
+
+def summary(path: Path) -> str:
+    """A module's docstring summary: its first paragraph on one line."""
+    doc = ast.get_docstring(ast.parse(path.read_text(encoding='utf-8'))) or ''
+    return ' '.join(doc.split('\n\n')[0].split())
+
+
+def package_map() -> str:
+    """Every package and module of fourbar_ros, packages in layer order, each with its docstring summary."""
+    out = ['| Module | What it holds |', '|---|---|', f'| **`fourbar_ros/`** | {summary(PACKAGE / "__init__.py")} |']
+
+    def package(folder: Path) -> None:
+        name = folder.relative_to(PACKAGE).as_posix()
+        out.append(f'| **`{name}/`** | {summary(folder / "__init__.py")} |')
+        for path in sorted(folder.glob('*.py')):
+            if path.name != '__init__.py':
+                out.append(f'| `{name}/{path.name}` | {summary(path)} |')
+        for sub in sorted(p.parent for p in folder.glob('*/__init__.py')):
+            package(sub)
+
+    for layer in layers():
+        package(PACKAGE / layer)
+    return '\n'.join(out) + '\n'
+
+
 GENERATORS: dict[str, Callable[[], str]] = {'topics': topics_table, 'qos_overrides': qos_overrides_table,
-                                            'parameters': parameters_table, 'compared_fields': compared_fields_list}
+                                            'parameters': parameters_table, 'compared_fields': compared_fields_list,
+                                            'package_map': package_map}
 DOCS = (REPO / 'docs' / 'reference' / 'topics.md', REPO / 'docs' / 'reference' / 'parameters.md',
-        REPO / 'docs' / 'how-to' / 'bags.md')
+        REPO / 'docs' / 'how-to' / 'bags.md', REPO / 'docs' / 'reference' / 'python.md')
 
 
 def render(text: str) -> str:

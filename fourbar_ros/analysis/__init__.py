@@ -1,1 +1,1 @@
-"""Analysis of recordings: the demo's series, summary and plot, and the calibration residual plot (no rclpy)."""
+"""Analysis of recordings, without rclpy: the demo's and the calibration's."""

@@ -1,12 +1,7 @@
-"""The demo's analysis of a closed-loop recording: fourbar_node in trajectory mode driving the simulated actuator.
-No ROS here (the recording is read back with ``rosbags``).
+"""The demo's analysis of a closed-loop recording: series, summary figures and plot (no ROS: read with ``rosbags``).
 
-From the recorded messages it builds time series, the summary figures (tracking error, limit margins, counts, the
-node's completion against the core's) and the plot. Times in s from the first recorded command (receive times of
-the recording, one clock); angles in rad (degrees only for display); driven-joint speeds in rad/s at the driven
-rocker (the reducer's output side); torques at the motor in N m (``loads.motor_torque``: the rocker's torque over
-reducer_ratio * reducer_efficiency).
-"""
+Times in s from the first recorded command, angles rad (degrees for display), driven-joint speeds rad/s at the
+rocker, torques N m at the motor (``loads.motor_torque``). The demo: docs/tutorial.md."""
 
 from __future__ import annotations
 
@@ -25,6 +20,7 @@ from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.core.completion import complete
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.loads import motor_torque, poses
+from fourbar_ros.interface.stamps import ns_to_seconds, to_ns
 from fourbar_ros.interface.topics import (
     ANTENNA_ANGLE,
     BROADCASTER_JOINT_STATES,
@@ -153,10 +149,6 @@ def pace(values: Sequence[float], cfg: AntennaConfig) -> float:
     return max(step / (PACE_FRACTION * cfg.motor_speed_limit / cfg.reducer_ratio), MIN_PERIOD_S)
 
 
-def _stamp_ns(header: Any) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
-
-
 def _column(values: Sequence[float], index: int) -> float:
     return float(values[index]) if len(values) > index else math.nan
 
@@ -175,15 +167,15 @@ def _planned(trajectories: Sequence[tuple[int, Any]], joint: str, t0: int) -> tu
         if joint not in msg.joint_names:
             continue
         j = list(msg.joint_names).index(joint)
-        start = _stamp_ns(msg.header) or arrival
+        start = to_ns(msg.header.stamp) or arrival
         end = arrivals[k + 1] if k + 1 < len(arrivals) else math.inf
-        times = [start + int(p.time_from_start.sec) * 1_000_000_000 + int(p.time_from_start.nanosec)
+        times = [start + to_ns(p.time_from_start)
                  for p in msg.points]
         first = max(bisect.bisect_right(times, arrival) - 1, 0)  # the point at or before the arrival
         for at, p in zip(times[first:], msg.points[first:], strict=True):
             if at > end:
                 break
-            t_out.append((at - t0) * 1e-9)
+            t_out.append(ns_to_seconds(at - t0))
             q_out.append(float(p.positions[j]))
             v_out.append(_column(p.velocities, j))
             e_out.append(_column(p.effort, j))
@@ -198,7 +190,7 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
     t0 = commands[0][0]
 
     def seconds(rows: Sequence[tuple[int, Any]]) -> FloatArray:
-        return np.array([(t - t0) * 1e-9 for t, _ in rows], dtype=np.float64)
+        return np.array([ns_to_seconds(t - t0) for t, _ in rows], dtype=np.float64)
 
     answered = served([m.data for _, m in commands], cfg)
     rejected = sum(n for outcome, n in answered.outcomes.items() if outcome.rejected)
@@ -212,8 +204,8 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
     def field(rows: Sequence[tuple[int, Any]], name: str, attr: str) -> FloatArray:
         return np.array([_column(getattr(m, attr), list(m.name).index(name)) for _, m in rows], dtype=np.float64)
 
-    measured_stamps = np.array([_stamp_ns(m.header) for _, m in measured_rows], dtype=np.int64)
-    measured_t = ((measured_stamps - t0) * 1e-9).astype(np.float64)
+    measured_stamps = np.array([to_ns(m.header.stamp) for _, m in measured_rows], dtype=np.int64)
+    measured_t = ns_to_seconds(measured_stamps - t0).astype(np.float64)
     measured_q = field(measured_rows, driven, 'position')
 
     planned, planned_velocity, planned_effort = _planned(messages.get(topics.trajectory, []), driven, t0)
@@ -227,7 +219,7 @@ def recording(messages: Messages, topics: DemoTopics, cfg: AntennaConfig) -> Rec
                           field(measured_rows, driven, 'velocity'), field(measured_rows, driven, 'effort'),
                           measured_stamps),
         antenna=antenna, antenna_matched=matched, antenna_recorded=len(angles),
-        completed=Completed(np.array([_stamp_ns(m.header) for _, m in completed_rows], dtype=np.int64),
+        completed=Completed(np.array([to_ns(m.header.stamp) for _, m in completed_rows], dtype=np.int64),
                             field(completed_rows, other_name, 'position'),
                             field(completed_rows, coupler_name, 'position'),
                             field(completed_rows, other_name, 'velocity'),

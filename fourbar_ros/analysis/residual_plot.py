@@ -1,10 +1,6 @@
-"""The residual plot of `fourbar calibrate`, drawn with Pillow in the command's process.
+"""The residual plot of `fourbar calibrate`, drawn with Pillow in the command's process (docs/how-to/calibrate.md).
 
-Two panels, before and after the fit: the residuals (sensor minus model, drawn in mrad) against the antenna angle
-(deg), a sample of the readings as dots and their mean per bin as a line, each panel titled with its RMS. Pillow
-(matplotlib's own image library) rather than matplotlib: importing matplotlib alone costs more CPU than reading a
-10-minute recording, Pillow a twentieth of it. Not a subcommand (the leading underscore).
-"""
+Pillow rather than matplotlib: importing matplotlib alone costs more CPU than reading a 10-minute recording."""
 
 from __future__ import annotations
 

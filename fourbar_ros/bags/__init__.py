@@ -1,1 +1,1 @@
-"""rosbag2 bags: read/write, record, replay, offline processing and comparison, the demo's analysis."""
+"""rosbag2 bags without rclpy: storage, offline processing, comparison and calibration recordings."""

@@ -25,6 +25,7 @@ from fourbar_ros.core.calibration import PARAMETER_NAMES
 from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.load_calibration import LOAD_NAMES, effort_model, load_pose
 from fourbar_ros.interface.cdr import encode_float64s, encode_joint_states
+from fourbar_ros.interface.stamps import seconds_to_ns, split_ns
 from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, DEFAULT_STORAGE, Storage
 
 __all__ = ['GRAVITY', 'Sweep', 'write_calibration_bag']
@@ -103,8 +104,8 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     qm = sweep.measured_q(sweep.true_q(sweep.theta(tj)))
     velocity, effort, has_velocity = _load(sweep, tj, rng)
     reading = sweep.theta(ts) + sweep.truth['sensor_offset'] + rng.normal(0.0, sweep.sensor_noise, ts.size)
-    j_ns = _START_NS + np.round(tj * 1e9).astype(np.int64)
-    s_ns = _START_NS + np.round((ts + sweep.sensor_clock_offset) * 1e9).astype(np.int64)
+    j_ns = _START_NS + seconds_to_ns(tj)
+    s_ns = _START_NS + seconds_to_ns(ts + sweep.sensor_clock_offset)
     k = len(sweep.names)
     position = np.zeros((tj.size, k))
     position[:, sweep.names.index(sweep.joint_name)] = qm
@@ -171,7 +172,7 @@ def _imus(stamps_ns: np.ndarray, theta: np.ndarray) -> list[bytes]:
     at = 16 + len('antenna_imu') + 1
     at += -(at - 4) % 8
     accel_at = at + 8 * (4 + 9 + 3 + 9)
-    sec, nanosec = np.divmod(stamps_ns, 1_000_000_000)
+    sec, nanosec = split_ns(stamps_ns)
     out = []
     for s, ns, th in zip(sec.tolist(), nanosec.tolist(), theta.tolist(), strict=True):
         raw = bytearray(template)

@@ -57,6 +57,7 @@ from fourbar_ros.interface.cdr import decode_float64s, decode_joint_states
 from fourbar_ros.interface.topics import (
     ANTENNA_ANGLE,
     COMPARED_FIELDS,
+    DEFAULT_ULPS,
     INPUT_TORQUE,
     JOINT_STATES,
     JOINT_TRAJECTORY,
@@ -65,7 +66,6 @@ from fourbar_ros.interface.topics import (
 from fourbar_ros.rules.velocity import VelocityState, anchors
 
 FloatArray = npt.NDArray[np.float64]
-DEFAULT_ULPS = 16.0
 #: Messages per block and topic.
 BLOCK = 65536
 

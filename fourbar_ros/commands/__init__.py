@@ -1,12 +1,4 @@
-"""The `fourbar` command line: one subcommand per module in fourbar_ros.commands.
-
-Each command module defines HELP (one line), add_arguments(parser) and run(args) -> exit status, and imports
-anything heavy (rclpy, rosbags, matplotlib) inside run(), so `fourbar solve` stays quick. A command reports
-bad input or a failure by raising a FourBarError (a CommandError where the exit status is not 2); `main` alone
-turns it into the one line `fourbar <command>: error: <message>` on stderr and the exit status. Usage errors
-(an unknown option, a bad choice, a missing argument) are the same one line, with a pointer to `--help`. A result that
-is not an error (check's failed limit, compare's difference) is a returned 1.
-"""
+"""The `fourbar` command line: one subcommand per module of this package."""
 
 from __future__ import annotations
 

@@ -6,10 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from fourbar_ros.interface.topics import COMPARED_FIELDS
-
-#: bag_compare.DEFAULT_ULPS, written out: building the parser must not import rosbags.
-DEFAULT_ULPS = 16.0
+from fourbar_ros.interface.topics import COMPARED_FIELDS, DEFAULT_ULPS
 
 HELP = ('compare two bags of the node\'s outputs message by message: every JointState, Float64 and JointTrajectory '
         'topic (ulps of each value\'s scale, or --atol); exit 0 equal, 1 different, 2 bad input')

@@ -1,11 +1,7 @@
-"""`fourbar demo`: the closed loop. Start fourbar_node in trajectory mode and the simulated actuator, replay the
-bundled sweep paced so the drive can follow, record commands, planned trajectories, measured and completed state,
-summarize and plot.
+"""`fourbar demo`: the closed loop, fourbar_node in trajectory mode driving the simulated actuator, recorded.
 
-Runs on --domain-id, else an exported ROS_DOMAIN_ID, else one nobody on this host uses, with discovery limited to this
-host (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST), so it neither sees nor disturbs other ROS traffic.
-Both node processes are stopped on every path (done, error, Ctrl-C).
-"""
+On a free or given ROS domain, discovery limited to this host; both node processes stopped on every path.
+What it prints and writes: docs/tutorial.md."""
 
 from __future__ import annotations
 
@@ -92,6 +88,7 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.bags.storage import read_commands, read_messages
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.config.share import share_path
+    from fourbar_ros.interface.stamps import seconds_to_ns
     from fourbar_ros.live.node_process import free_domain_id
 
     prog = 'fourbar demo'
@@ -107,7 +104,7 @@ def run(args: argparse.Namespace) -> int:
     chosen, source = (args.domain_id, '--domain-id') if args.domain_id is not None else _environment_domain()
     period = pace(stream.values, cfg)
     first = stream.stamps_ns[0] if stream.stamps_ns else 0
-    paced = dataclasses.replace(stream, stamps_ns=tuple(first + round(i * period * 1e9) for i in range(len(stream))))
+    paced = dataclasses.replace(stream, stamps_ns=tuple(first + seconds_to_ns(i * period) for i in range(len(stream))))
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     outputs = out / 'outputs'

@@ -1,9 +1,7 @@
-"""`fourbar solve`: rocker angles, rates and their derivatives, mechanical advantage and input torque at one antenna
-angle, or at the pose a measured rocker angle completes.
+"""`fourbar solve`: the linkage at one antenna angle, or at the pose a measured rocker angle completes.
 
-The input torque is the node's: the core's load model (``core.loads.load_at_pose``: the constant ``load_torque`` plus
-the antenna's weight at its configured centre of mass) mapped to the driven rocker by ``AntennaLinkage.torque_at``,
-the calls ``core.loads.pose_solver`` makes for every command the node serves."""
+The input torque is the node's, through the same core calls (docs/reference/python.md); the output:
+docs/reference/cli.md."""
 
 from __future__ import annotations
 

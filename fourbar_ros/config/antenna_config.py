@@ -1,12 +1,6 @@
 """Antenna configuration: validated node parameters, from a ROS 2 parameter file or a name->value map.
 
-``load_config(path)`` reads the same YAML that ``fourbar_node --ros-args --params-file`` reads and
-applies the same rules the node applies to its parameters (at startup and on every run-time
-change): rclpy's type and range checks from ``fourbar_ros.config.params`` plus the cross-parameter
-checks in ``config_from_values`` (the linkage assembles over the whole tilt range, no dead point
-of the driven rocker inside it, enumerations, distinct joint names).
-Units: metres, radians, N m, kg, seconds.
-"""
+The rules the node applies, applied the same way: docs/reference/parameters.md. Metres, radians, N m, kg, s."""
 
 from __future__ import annotations
 

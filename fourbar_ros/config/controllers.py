@@ -1,14 +1,6 @@
 """The ros2_control controllers YAML the drive runs, read for what decides which messages its controllers take.
 
-The same file is given to ``ros2_control_node --params-file`` and to fourbar_node (``controllers_file``), so the
-node checks its output against the controller's own settings. Each controller's section is read the way a ROS 2
-parameter file is (``rcl_yaml``: node name = controller name, in the controller manager's namespace, where the
-manager starts its controllers; the shipped file's ``/**/`` keys apply in any namespace); a setting it leaves out
-takes the Jazzy default
-(``joint_trajectory_controller/src/joint_trajectory_controller_parameters.yaml`` and
-``forward_command_controller/src/*_parameters.yaml`` of ros2_controllers, jazzy branch). No ROS import.
-Tolerances and positions in rad, times in s.
-"""
+Read as the controller manager reads it (docs/reference/parameters.md); rad and s. No ROS import."""
 
 from __future__ import annotations
 

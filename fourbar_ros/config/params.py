@@ -1,10 +1,6 @@
-"""The fourbar_node parameter spec: the single list the node declares and the YAML loader checks.
+"""The fourbar_node parameter table: the one definition the node declares and the YAML loader checks (no ROS).
 
-Lengths in metres, angles in radians, torques in N m, masses in kg, times in seconds.
-Each entry is plain data (no ROS import); ``fourbar_ros.node.param_descriptors`` turns it into
-``rcl_interfaces/ParameterDescriptor`` s, and ``fourbar_ros.config.antenna_config`` builds ``AntennaConfig``
-(one field per entry), its ``as_values`` and its validation from it: this table is the one definition.
-"""
+Metres, radians, N m, kg, s; docs/reference/parameters.md is generated from it."""
 
 from __future__ import annotations
 

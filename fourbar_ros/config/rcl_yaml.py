@@ -1,11 +1,6 @@
 """Reading a ROS 2 parameter file the way rcl's YAML parameter parser reads it (no ROS import).
 
-What a node receives from ``--params-file``: scalars typed as rcl types them (``rcl_scalar``), the sections that
-apply to the node (``/**``, its name, ``*``/``**`` wildcards) merged in file order, nested mappings under
-``ros__parameters`` flattened to dotted names. Like rcl, YAML aliases (``*name``) are refused (anchors alone are
-accepted and ignored). Hostile input is bounded: at most ``MAX_FILE_BYTES`` are read (a real parameter file is a few
-KB) and mappings/sequences nest at most ``MAX_DEPTH`` deep, so memory and time stay small whatever the file holds.
-"""
+What rcl accepts and the bounds on hostile input: docs/reference/parameters.md and docs/how-to/design.md."""
 
 from __future__ import annotations
 

@@ -1,39 +1,6 @@
-"""URDF robot model of the tilt linkage, generated from the node's configuration. No ROS import.
+"""URDF robot model of the tilt linkage, generated from the node's validated configuration. No ROS import.
 
-One source of truth: the lengths come from the same validated configuration the node uses
-(``fourbar_ros.config.antenna_config.load_config``), so the model cannot drift from the solver.
-
-Conventions (REP-103, metres, radians, z up). The linkage lies in the x-z plane of the root link
-(the node's ``frame_id``): pivot A at its origin, pivot D at (frame length, 0, 0); a point (x, y) of the
-planar convention (x along A->D, y up) is (x, 0, y) here.
-
-=====================  ==========  ================================================================
-joint (JointState)     type        from -> to; position
-=====================  ==========  ================================================================
-``gamma_joint``        revolute    root -> ``rocker_ab`` at A, axis -y: position gamma, 0 along A->D,
-                                   positive lifts B (z > 0)
-``coupler_joint``      revolute    ``rocker_ab`` -> ``coupler`` at B, axis +y: position gamma + theta,
-                                   the coupler frame's x axis points along B->C
-``delta_joint``        revolute    root -> ``rocker_cd`` at D (frame turned by pi about z, so its x
-                                   points along D->A at zero), axis -y: position delta, positive lifts C
-``c_from_coupler``     fixed       ``coupler`` -> ``coupler_c``: C reached through A, B
-``c_from_rocker_cd``   fixed       ``rocker_cd`` -> ``rocker_cd_c``: C reached through D
-``antenna_mount``      fixed       ``coupler`` -> ``antenna``: the antenna's centre of mass (coupler
-                                   midpoint plus ``com_offset_along`` / ``com_offset_normal``)
-=====================  ==========  ================================================================
-
-The loop is closed kinematically, not in the tree: ``coupler_c`` and ``rocker_cd_c`` coincide exactly when
-the published joint positions solve the linkage (the node publishes all three). Joints are revolute with
-position limits spanning the configured tilt range [theta_min, theta_max]. The driven rocker's velocity limit is
-the motor's speed over the reducer ratio, its effort limit the reducer's rated ``output_torque_limit`` (N m); a
-passive joint's velocity limit is the driven one times the largest |d joint / d driven| over the range, and its
-effort limit 0 (nothing drives it).
-
-A ``<ros2_control>`` block describes the driven joint for ros2_control: position command interface (within the
-position limits), position, velocity and effort state interfaces, a hardware plugin to replace with the drive's
-(``mock_components/GenericSystem`` by default, which echoes commands as states), and a
-``transmission_interface/SimpleTransmission`` with the reducer ratio as ``mechanical_reduction``.
-"""
+Frames, joints, limits and the ``<ros2_control>`` block: docs/how-to/ros2-control.md."""
 
 from __future__ import annotations
 

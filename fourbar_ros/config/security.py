@@ -1,22 +1,7 @@
-"""The SROS2 permissions policy of the package's nodes: who may move the antenna.
+"""The SROS2 permissions policy of the package's nodes: who may move the antenna. No ROS import.
 
-Generated from the interface table (``interface.every_endpoint``: with what a parameter may turn on), so the policy
-and the topics the nodes use cannot drift apart. One enclave per node and mode: ``fourbar_node`` in ``open_loop``
-may not write to any controller, in ``trajectory`` only to ``<trajectory_controller>/joint_trajectory``, in
-``forward`` only to ``<forward_controller>/commands``; ``sim_actuator`` reads both controllers' topics and writes
-the broadcaster's joint states. Besides a node's own topics, each profile allows what every rclpy node needs: its
-parameter and type-description services, ``/rosout``, ``/parameter_events`` (publish) and ``/clock``
-(``use_sim_time``).
-
-Topic names are as the launch file remaps them (``measured_joint_states`` is read on
-``joint_state_broadcaster/joint_states``). ``config/security/policy.xml`` is ``policy_xml()`` for the root
-namespace; for another one::
-
-    python3 -m fourbar_ros.config.security --namespace /tilt > policy.xml
-
-The format is sros2's policy format 0.2.0 (``sros2/policy/schemas/policy.xsd``); ``ros2 security
-create_permission`` turns it into DDS permissions. No ROS import.
-"""
+Generated from the interface table (``interface.topics.every_endpoint``), sros2's policy format 0.2.0; the enclaves
+and how to use them: docs/how-to/security.md."""
 
 from __future__ import annotations
 

@@ -1,9 +1,6 @@
 """Where the package's shared files are: the installed share/fourbar_ros/, else the package data or source tree.
 
-setup.py installs ``config/antenna.yaml`` to ``share/fourbar_ros/config/`` and the demo bag to
-``share/fourbar_ros/bags/demo_sweep/``; in a source checkout the same files are ``config/antenna.yaml`` next to
-the package and ``fourbar_ros/data/demo_sweep`` (package data, also installed by pip).
-"""
+The installed files: docs/reference/cli.md; in a checkout, config/ beside the package and fourbar_ros/data/."""
 
 from __future__ import annotations
 

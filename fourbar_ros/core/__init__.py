@@ -1,1 +1,1 @@
-"""The pure math: geometry, kinematics, statics, synthesis. numpy and the standard library only."""
+"""The pure math, numpy and the standard library only: kinematics, statics, synthesis, calibration."""

@@ -1,24 +1,7 @@
-r"""The antenna's tilt linkage (Turnantenna, Annex A): antenna angle theta to rocker angles, rates and torque.
+"""The antenna's tilt linkage (Turnantenna, Annex A): antenna angle theta to rocker angles, rates and torque.
 
-Geometry and sign convention (Annex A, eq. A.2; the second line of A.1 has a sign typo)::
-
-               B ___________ C         theta: angle of the coupler BC (the antenna) against the frame,
-               /   coupler h  \               positive when C is below B (the antenna points down)
-     AB      /                 \  CD   gamma: angle at A between the frame AD and the rocker AB
-           / gamma       delta  \      delta: angle at D between the frame DA and the rocker DC
-         A ----------------------- D
-                  frame H
-
-A is the origin, D = (H, 0), B = A + AB (cos gamma, sin gamma), C = D + CD (-cos delta, sin delta) and
-C - B = h (cos theta, -sin theta). So AB cos gamma + CD cos delta = H - h cos theta and
-AB sin gamma - CD sin delta = h sin theta.
-
-Lengths are in metres (any consistent unit works: only ratios matter), angles in radians, torques in N m.
-Every method takes a Python float (a math-module fast path returning floats) or a numpy array (vectorized,
-returning arrays of the same shape). theta is periodic (theta and theta + 2 pi are the same pose); the rocker
-angles are not wrapped but continuous in theta over the reachable interval (with a coupler longer than the frame
-gamma lies beyond pi).
-"""
+Every method takes a float (a math-module fast path) or a numpy array (vectorized, same shape). The geometry, sign
+conventions and units: docs/reference/python.md."""
 
 from __future__ import annotations
 

@@ -1,43 +1,7 @@
-r"""Calibration of the linkage as built: the four lengths and two offsets fitted to an antenna angle sensor.
+"""Calibration of the linkage as built: the four lengths and two offsets fitted to an antenna angle sensor.
 
-A recording pairs the measured driven joint q_m (rad, the encoder through the reducer, as ros2_control reports it)
-with an antenna angle sensor reading y (rad, in theta's sense: an inclinometer, or the tilt an IMU gives from
-gravity). The model of one reading is
-
-    y = theta(q_m + driven_joint_offset; H, AB, CD, h) + sensor_offset + noise
-
-- ``driven_joint_offset`` (rad) is the correction of the driven joint's zero: the true rocker angle is
-  q = q_m + driven_joint_offset. With ros2_control's transmission, joint = actuator / reduction + offset (the URDF
-  ``<offset>``), so the offset that makes the reported joint the true rocker angle is the offset in effect while
-  recording plus this correction: the offset itself when recorded with the generated URDF's ``<offset>0.0``. An
-  encoder zero 0.7 deg high (q_m = q + 0.7 deg) gives driven_joint_offset = -0.7 deg.
-- ``sensor_offset`` (rad) is the sensor's reading at theta = 0 (its mounting error): subtract it from readings.
-- theta(q; lengths) is the core's inverse (``AntennaLinkage.from_rocker``) on the measured branch.
-
-The fit is maximum a posteriori: the given lengths are a Gaussian prior of standard deviation ``length_sd`` (m)
-each, the offsets a weak Gaussian prior of ``offset_sd`` (rad) about 0 that only keeps the problem well posed, and
-the readings have independent Gaussian noise of one standard deviation sigma, estimated from the residuals
-(sigma^2 = sum r^2 / (N - 6), re-estimated and the fit repeated until it settles). The engine is
-Levenberg-Marquardt on the whitened residuals [r / sigma; (p - p0) / sd] in parameters scaled by their prior sd,
-with the exact Jacobian from the loop closure by implicit differentiation:
-
-    F(theta, other; q, lengths) = 0 (two equations), eliminate the other rocker's angle by projecting F on the
-    normal of dF/d other: G(theta; q, lengths) = 0, and d theta/d p = -G_p / G_theta.
-
-Driving gamma (other = delta, u = delta - theta, X = gamma + delta), G_theta = h sin u and
-G_H = -cos delta, G_AB = cos X, G_CD = 1, G_h = cos u, G_q = -AB sin X;
-driving delta (other = gamma, v = gamma + theta), G_theta = -h sin v and
-G_H = -cos gamma, G_AB = 1, G_CD = cos X, G_h = cos v, G_q = -CD sin X.
-
-Angles alone fix the lengths only up to scale, and over a narrow tilt range the data determine a few combinations
-of the six parameters; the rest comes from the prior. ``Calibration`` says which: the singular values of the data
-part of the scaled Jacobian (a direction of parameter space is determined by the data when its singular value s
-exceeds sqrt(3): the posterior sd along it, prior sd / sqrt(1 + s^2), is then below half the prior's), and per
-parameter the posterior sd (from the Gauss-Newton Hessian at the optimum, with the estimated sigma) against the
-prior sd: ``determined_by_data`` when the posterior sd is below half the prior sd.
-
-Pure: numpy and the core only.
-"""
+The model, the fit and what the report means: docs/how-to/calibrate.md; the exact Jacobian:
+docs/explanation/exactness.md."""
 
 from __future__ import annotations
 
@@ -199,10 +163,6 @@ class Calibration:
 
     def linkage(self) -> AntennaLinkage:
         return _linkage(self.values)
-
-
-def _rms(r: FloatArray) -> float:
-    return float(np.sqrt(np.mean(np.square(r))))
 
 
 def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[float, float, float, float],

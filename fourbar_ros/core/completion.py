@@ -1,22 +1,7 @@
-r"""The whole linkage from a measured driven rocker: angles, rates by the chain rule, and the load the effort holds.
+"""The whole linkage from a measured driven rocker: angles, rates by the chain rule, and the load the effort holds.
 
-A motor with an encoder measures one rocker q (gamma or delta, rad), maybe its rate q_dot (rad/s) and its effort
-tau_in (N m, in the sense of increasing q). ``complete`` returns the antenna angle theta, the other rocker, the
-coupler joint (gamma + theta, the coupler's angle from rocker AB, as the robot model has it), their rates and the
-load torque on the antenna implied by the effort, all from the core's exact inverse and rates (no differencing).
-
-With q' = dq/dtheta (AntennaLinkage.rates_at) and X = gamma + delta, u = delta - theta, v = gamma + theta:
-
-    gamma driven: dtheta/dq = AB sin X / (h sin u),  d delta/dq = -AB sin v / (CD sin u)
-    delta driven: dtheta/dq = -CD sin X / (h sin v), d gamma/dq = -CD sin u / (AB sin v)
-
-(the quotients of the rates, with sin X cancelled: finite where the antenna is at its reach limit), and by power
-balance tau_in dq = tau_load dtheta, tau_load = tau_in q'. At the driven rocker's own reach limit (sin u = 0 driving
-gamma, sin v = 0 driving delta: the other rocker in line with the coupler, a dead point) dtheta/dq is unbounded:
-scalars raise DeadPointError, arrays give NaN there (within the statics' dead-point tolerance, as torque_at).
-Where the antenna is at its reach limit (sin X = 0) q' is unbounded: a scalar effort raises SingularPositionError,
-arrays give NaN load torque there.
-"""
+Exact inverse and rates, no differencing (docs/explanation/exactness.md); dead points as in
+docs/reference/python.md."""
 
 from __future__ import annotations
 

@@ -1,26 +1,6 @@
 """Design check of the antenna tilt linkage over its configured tilt range (pure: no ROS).
 
-For ``[theta_min, theta_max]`` (rad) of a :class:`DesignSpec` (the configuration layer's ``AntennaConfig`` provides
-one) it reports:
-
-- reach margin at both ends: how much further theta (rad) may go before the linkage reaches its toggle
-  (the reach limit, where the rockers' rates blow up);
-- the minimum transmission angle (rad) and where: the transmission angle mu in [0, pi] at the joint between the
-  coupler and the non-driven rocker, measured as its distance from the dead point, min(mu, pi - mu) in [0, pi/2];
-- the peak required input torque (N m) at the driven rocker, for the configured load (constant torque plus the
-  antenna weight, :mod:`fourbar_ros.core.loads`, with its configured sign: the torque the node reports), as an
-  absolute value, against the reducer rating; and the motor-side torque, driving through the reducer
-  (tau / (ratio * efficiency)), against the motor's limit;
-- the worst-case sensitivity of the rocker angles to theta, max |dq/dtheta| (dimensionless), and its inverse for
-  the driven rocker, max |dtheta/dq|: the antenna-angle error per unit of rocker-angle error (backlash, encoder);
-- a verdict: FAIL when one of the configuration's own limits is exceeded over the range (reducer rating
-  ``output_torque_limit``, motor limit ``motor_torque_limit``, ``transmission_angle_min`` -- below it the node's
-  diagnostics warn in normal use -- and a required reach margin, 0 by default); otherwise PASS, with a warning
-  below the classical 40 deg guideline for the transmission angle (a recommendation, not a configured limit).
-
-Extrema are found on a uniform grid (``samples`` + 1 points including both ends) and refined by golden-section
-search in the grid cell around the best sample.
-"""
+What it reports and when it fails: docs/how-to/design.md."""
 
 from __future__ import annotations
 

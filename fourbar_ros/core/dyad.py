@@ -1,24 +1,6 @@
 """Stable closure of a two-link dyad: the triangle solve shared by every position solver in the package.
 
-A diagonal runs from a pivot P to a point Q with Q - P = (L1 - L2 cos x, L2 sin x) for two lengths L1, L2 and an
-angle x. Two links of lengths r1 (at P) and r2 (at Q) meet at a third point. With w = 4 L1 L2 sin^2(x/2):
-
-    |Q - P|^2              = (L1 - L2)^2 + w
-    (r1 + r2)^2 - |Q - P|^2 = far - w     >= 0: the dyad is not over-stretched
-                           = far_pi + wc  with wc = 4 L1 L2 cos^2(x/2), the same factor measured from x = pi
-    |Q - P|^2 - (r1 - r2)^2 = near + w    >= 0: the dyad is not over-folded
-    angle at P = atan2(sqrt((far - w)(near + w)), cos_p + w),  angle at Q = atan2(same, cos_q + w)
-
-The constants (far, near, cos_p, cos_q) are exact rational functions of the lengths, rounded once at construction,
-so each per-angle quantity is one constant plus w: its only rounding beyond the constant's is that of w, which is
-the rounding the angle x itself brings. No acos, no asin, no difference of two rounded squares per call.
-Past |x| = pi/2 the over-stretch factor is taken as far_pi + wc: wc < w there, so its rounding is smaller, and near
-x = pi, where far - w would cancel when r1 + r2 = L1 + L2 (a linkage whose coupler turns a full circle), it does not.
-
-``closure_for(k)`` (one Python float, math module: the scalar fast path) and ``closure_array`` (float64 arrays,
-numpy, in cache-sized blocks) apply the same operations in the same order; ``AntennaLinkage`` and ``FourBar`` both
-solve through them. ``closes`` is their validity test.
-"""
+Why it stays exact to the reach limit: docs/explanation/exactness.md."""
 
 from __future__ import annotations
 

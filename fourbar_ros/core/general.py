@@ -1,15 +1,6 @@
 """The general four-bar of the lecture notes: crank angle to coupler and rocker angles, velocity ratio, statics.
 
-Ground O2 O4 of length l1 along +x (O2 at the origin), crank O2 B of length l2 at angle t2, coupler B C of length l3
-at angle t3, rocker O4 C of length l4 at angle t4; all angles in radians from +x, counter-clockwise. Loop closure:
-l2 e^(i t2) + l3 e^(i t3) = l1 + l4 e^(i t4). Freudenstein's equation, in the standard form (the notes' D3 misses
-the l4^2 term):
-
-    K1 cos t4 - K2 cos t2 + K3 = cos(t2 - t4),   K1 = l1/l2,  K2 = l1/l4,  K3 = (l1^2 + l2^2 - l3^2 + l4^2)/(2 l2 l4).
-
-Positions are solved by the same cancellation-free dyad closure as the antenna (no acos); Freudenstein's
-equation is kept as an independent residual check.
-"""
+Conventions: docs/reference/python.md; the notes' errata: docs/explanation/errata.md."""
 
 from __future__ import annotations
 

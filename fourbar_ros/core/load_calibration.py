@@ -1,24 +1,6 @@
-r"""The load model fitted to the driven joint's measured effort: the antenna's mass, its centre of mass, a Coulomb
-friction and the reducer's efficiency (after the geometry: ``fourbar_ros.core.calibration``).
+"""The load model fitted to the driven joint's measured effort: mass, centre of mass, friction, reducer efficiency.
 
-The driven joint's effort tau_m (N m, as ros2_control reports it through an ideal transmission: the motor's torque
-times the reduction) while the antenna moves, at the pose completed from the measured joint q (rad, offset
-corrected) with the calibrated linkage:
-
-    tau_in = m g (dy/dtheta) dtheta/dq        the torque the rocker needs to hold the weight (loads.py's model),
-        dy/dtheta = AB cos(gamma) dgamma/dtheta - (h/2 + along) cos(theta) - normal sin(theta)
-    tau_m = tau_in / eta + c sign(q_dot)      when the motor drives the load (tau_in q_dot > 0),
-    tau_m = tau_in eta + c sign(q_dot)        when the load drives the motor back (tau_in q_dot < 0)
-
-with m = ``antenna_mass`` (kg), along/normal = ``com_offset_along``/``com_offset_normal`` (m), eta =
-``reducer_efficiency`` and c a Coulomb friction at the joint (N m). No wind or other constant load: record
-indoors. Readings at rest (|q_dot| below ``MOVING`` of the sweep's top speed) are left out: static friction holds
-anything within +-c there. The priors (Gaussian, about the parameter file's values) are weak; the report says which
-parameters the data determined, by the geometry fit's rule. The Jacobian is exact (the sign s of tau_in q_dot held
-fixed: the model has a kink where it changes).
-
-Pure: numpy and the core only.
-"""
+Fitted after the geometry (core/calibration.py); the model and the report: docs/how-to/calibrate.md."""
 
 from __future__ import annotations
 

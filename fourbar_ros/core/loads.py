@@ -1,15 +1,6 @@
 """Loads on the antenna and torques along the drive: constant torque plus the antenna's weight. No ROS.
 
-Sign convention: a load torque (N m) is what the drive must supply about the antenna angle theta,
-positive in the sense of increasing theta (antenna tilting down); ``AntennaLinkage.input_torque``
-maps it to the driven rocker by power balance (tau_in dq = tau_load dtheta).
-
-Gravity: the frame AD is horizontal with +y up (the rockers point up on the upper branch).
-The antenna's centre of mass sits at B + (h/2 + along) u + normal n on the coupler, with
-u = (cos theta, -sin theta) along B->C and n = (sin theta, cos theta). Holding it takes the
-generalized torque m g dy/dtheta (virtual work), with
-dy/dtheta = AB cos(gamma) dgamma/dtheta - (h/2 + along) cos(theta) - normal sin(theta).
-"""
+The load model and its sign convention: docs/reference/python.md."""
 
 from __future__ import annotations
 

@@ -1,18 +1,6 @@
-r"""A precomputed rocker-angle table over a tilt range: the cheap alternative to the exact solve, with a checked bound.
+"""A precomputed rocker-angle table over a tilt range: the cheap alternative to the exact solve, with a checked bound.
 
-For users who accept a bounded error (say 1e-6 rad) in exchange for no trigonometry at run time, e.g. a small
-controller: :meth:`RockerTable.build` tabulates gamma and delta (radians) of an
-:class:`~fourbar_ros.core.antenna.AntennaLinkage` on a uniform grid over [theta_min, theta_max] and interpolates by
-cubic Hermite (values and slopes from the exact core), doubling the grid until the error, measured against the
-exact solver at 16 points inside every interval, is at most half the requested tolerance. ``max_error`` (float64
-evaluation) and ``max_error_float32`` (coefficients and arithmetic in float32, as :meth:`to_c` emits; float32
-itself limits that to about 1e-7 rad) are those measured maxima, in radians. Near the reach limit the rocker
-angles have unbounded slope and no table converges: build then raises ValueError; keep the tilt range a little
-inside ``linkage.reach()``.
-
-Evaluation per angle: one index, one fraction and a cubic in Horner form per rocker (6 multiply-adds).
-Benchmarks (benchmarks/run.py) compare it with the exact solve; the exact solve remains the default everywhere.
-"""
+How it is built and what it costs: docs/reference/python.md and docs/benchmarks.md."""
 
 from __future__ import annotations
 

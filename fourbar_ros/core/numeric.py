@@ -1,5 +1,4 @@
-"""Numeric conventions shared by the core's solvers: array types, the invalid-input policy, the dead-point
-tolerance and length validation. The bottom of the core: imports numpy and fourbar_ros.core.errors only."""
+"""Numeric conventions shared by the core's solvers: array types, invalid input, dead-point tolerance, lengths."""
 
 from __future__ import annotations
 

@@ -1,24 +1,6 @@
 """Freudenstein function-generator synthesis: link lengths from (crank angle, rocker angle) pairs.
 
-Linkage and angles follow :class:`fourbar_ros.core.general.FourBar`: ground pivot O2 at the origin, O4 at (l1, 0),
-crank l2 at O2 (angle t2 from +x), coupler l3, rocker l4 at O4 (angle t4 from +x); lengths in metres, angles in
-radians. Loop closure ``|l2 e^{i t2} - l1 - l4 e^{i t4}| = l3`` squared and divided by ``2 l2 l4`` is Freudenstein's
-equation
-
-    K1 cos t4 - K2 cos t2 + K3 = cos(t2 - t4),
-    K1 = l1/l2,  K2 = l1/l4,  K3 = (l1^2 + l2^2 - l3^2 + l4^2) / (2 l2 l4).
-
-(The lecture notes write the last constant as (l1^2 + l2^2 - l3^2)/(l2 l4); that is wrong, see
-docs/explanation/errata.md.)
-Each pair gives one equation linear in (K1, K2, K3): three pairs give a 3x3 system, more give a least-squares problem.
-
-Signs: a negative K1 gives l2 = l1/K1 < 0. A link of length -a at angle t is the same vector as a link of length a
-at t + pi, so such a design *is* a linkage, but its crank points opposite to the requested angles (the input datum
-is shifted by pi). By default that is refused as unbuildable; with ``allow_flip=True`` the link is reported with
-its positive length and ``crank_flipped`` (``rocker_flipped`` for K2 < 0) set, and the verification runs the
-physical linkage at t2 + pi (t4 + pi). K1 or K2 zero within the solve's rounding (an infinitely long link; see
-:func:`rounding_bound`) and l3^2 <= 0 (no real coupler) are always unbuildable.
-"""
+The equations, the signs and what is refused: docs/how-to/design.md."""
 
 from __future__ import annotations
 

@@ -1,10 +1,6 @@
 """Forward kinematics by planar homogeneous transformation matrices, as in the lecture notes.
 
-A joint position is the origin carried through a chain of rotations R(alpha) and translations T(l, 0) along the
-current x axis. Closing the loop from both ground pivots gives two constraint equations; their mismatch (the
-loop-closure residual, in metres) checks any closed-form solution independently of how it was derived.
-Accepts floats or numpy arrays (any shape, broadcast together); returns arrays of shape (..., 2) or (...).
-"""
+Joints and the loop-closure residual (m) for floats or broadcast arrays: the independent check of every closed form."""
 
 from __future__ import annotations
 

@@ -1,18 +1,6 @@
-"""CDR bytes of the interface's messages (numpy and stdlib, no ROS): one ``sensor_msgs/msg/JointState`` read
-field by field (``read_joint_state_head`` and ``read_joint_state_arrays``, the node's measured joint_states), and
-many JointStates and ``std_msgs/msg/Float64`` at once (``encode_joint_states`` and the block decoders, the bags).
+"""CDR bytes of the interface's messages (numpy and stdlib, no ROS): JointState and Float64, one or a block at a time.
 
-For blocks: the node publishes JointStates whose frame_id and joint names never change between messages and whose
-position and effort always hold one value per joint; only the stamp, the floats and whether the velocity
-is present (``len(names)`` values or none) vary. So each message is one of two fixed byte layouts, and a
-block of messages is a numpy structured array over a repeated template: no per-message serializer.
-
-The bytes are those of ROS 2's little-endian plain CDR (XCDR1, encapsulation ``00 01 00 00``), what
-rclpy and ``rosbags``' ``serialize_cdr`` produce: alignment is counted from the end of the 4-byte
-encapsulation header; a sequence length (uint32) is aligned to 4; float64 elements to 8, and an empty
-sequence adds no padding; a string is its uint32 length (UTF-8 bytes plus the terminating NUL), the
-bytes and the NUL.
-"""
+The byte layout and why blocks need no per-message serializer: docs/how-to/bags.md."""
 
 from __future__ import annotations
 

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Protocol
+from typing import Protocol, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -33,14 +33,24 @@ def from_ns(ns: int) -> tuple[int, int]:
     return sec, nanosec
 
 
-def seconds_to_ns(t: float) -> int:
-    """Seconds to the nearest nanosecond."""
+@overload
+def seconds_to_ns(t: float) -> int: ...
+@overload
+def seconds_to_ns(t: npt.NDArray[np.float64]) -> npt.NDArray[np.int64]: ...
+def seconds_to_ns(t: float | npt.NDArray[np.float64]) -> int | npt.NDArray[np.int64]:
+    """Seconds to the nearest nanosecond (elementwise on an array)."""
+    if isinstance(t, np.ndarray):
+        return np.round(t * NS_PER_S).astype(np.int64)
     return round(t * NS_PER_S)
 
 
-def ns_to_seconds(ns: int) -> float:
-    """Nanoseconds to seconds (float)."""
-    return ns * 1e-9
+@overload
+def ns_to_seconds(ns: int) -> float: ...
+@overload
+def ns_to_seconds(ns: npt.NDArray[np.int64]) -> npt.NDArray[np.float64]: ...
+def ns_to_seconds(ns: int | npt.NDArray[np.int64]) -> float | npt.NDArray[np.float64]:
+    """Nanoseconds to seconds (elementwise on an array)."""
+    return ns * 1e-9  # type: ignore[return-value]  # numpy types the product floating[Any]
 
 
 def split_ns(stamps_ns: npt.NDArray[np.int64]) -> tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]:

@@ -1,9 +1,6 @@
-"""fourbar_node's interface as plain data: its name, topics, message types, QoS, the compared fields and the
-bag storages. No ROS here: the node, the launch file, the bag tools, the commands and the tests read it.
+"""fourbar_node's interface as plain data: name, topics, message types, QoS, compared fields, bag storages (no ROS).
 
-Topic names are relative (namespaces and remapping apply) except ``/diagnostics``, which is absolute as
-diagnostic aggregators expect. Message types are written ``package/msg/Type`` (rosbag2's and rosbags' form).
-"""
+Types are written ``package/msg/Type`` (rosbag2's and rosbags' form); the topics: docs/reference/topics.md."""
 
 from __future__ import annotations
 
@@ -248,6 +245,8 @@ COMPARED: dict[str, str] = {
                                                                            LOAD_TORQUE)},
 }
 COMPARED_FIELDS = tuple(COMPARED)
+#: ``fourbar compare``'s default tolerance: units in the last place of each value's scale (docs/how-to/bags.md).
+DEFAULT_ULPS = 16.0
 
 
 class Storage(enum.Enum):

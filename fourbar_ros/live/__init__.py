@@ -1,1 +1,1 @@
-"""Live ROS tools (rclpy): record and replay bags, read the graph and a node's parameters, run the node as a process."""
+"""Live ROS tools (rclpy): record and replay bags, read the graph and a node's parameters, run the node."""

@@ -1,5 +1,4 @@
-"""A running fourbar_node's parameters over its parameter services: a discovery handshake, and which commands
-it will answer (its limits and out-of-limits policy)."""
+"""A running fourbar_node's parameters over its services: a discovery handshake, and which commands it will answer."""
 
 from __future__ import annotations
 

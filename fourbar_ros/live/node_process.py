@@ -1,8 +1,6 @@
 """``fourbar_node`` as a child process on a ROS_DOMAIN_ID nobody else on this host uses. No rclpy.
 
-The demo, the benchmarks and the tests start the node and lease domain ids through this one module, so
-concurrent runs on one machine (tests, benchmarks, demos) never share a domain.
-"""
+The demo, the benchmarks and the tests lease domain ids through this one module (docs/explanation/testing.md)."""
 
 from __future__ import annotations
 

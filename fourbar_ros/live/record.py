@@ -1,11 +1,4 @@
-"""Record topics to a rosbag2 bag (rclpy + rosbags), atomically.
-
-Like ``ros2 bag record``: each topic is subscribed with the reliability and durability every
-publisher offers, messages are stored as received (raw CDR, receive time from the node clock),
-and the bag stores each topic's message definition, type hash and the offered QoS profiles as
-the ROS graph reports them, so ``ros2 bag info``/``play`` on a full ROS install and the ``mcap``
-reader accept it. The bag appears at its path only when closed (``bags.storage.AtomicBagWriter``).
-"""
+"""Record topics to a rosbag2 bag (rclpy + rosbags), atomically, as ``ros2 bag record`` does: docs/how-to/bags.md."""
 
 from __future__ import annotations
 

@@ -1,24 +1,7 @@
 """Replay a command bag into a running fourbar_node (rclpy), timed or lock-step.
 
-Two modes:
-
-- timed: each command is published at its recorded time offset divided by ``rate``
-  (``rate=2`` plays twice as fast), like ``ros2 bag play --rate``;
-- lock-step: after each command the node is expected to answer, wait (with a deadline) for its
-  ``input_torque`` message (published exactly once per served command; ``joint_states`` also carries
-  republished poses) before publishing the next one, so nothing queues up and nothing is
-  lost whatever the node's speed. Which commands the node answers is predicted with the node's
-  own rule (``rules.policy.decide``) from its live ``theta_min``, ``theta_max`` and
-  ``out_of_limits`` parameters (or a parameter file): rejected commands get no answer to wait for,
-  and the next answered command proves the node has consumed them (one subscription, in order).
-
-The recorded CDR bytes are published unchanged (rclpy >= Jazzy's ``Publisher.publish(bytes)``).
-
-Timed mode can also publish ``/clock`` (``rosgraph_msgs/Clock``) from the bag's timeline, like
-``ros2 bag play --clock``: the playback time (the first command's stamp plus the elapsed wall time
-times ``rate``) at ``clock_hz`` (40 Hz by default, rosbag2's default), so a node with
-``use_sim_time:=true`` runs on the bag's time.
-"""
+Lock-step predicts which commands the node answers by its own rule (``rules.policy.decide``) and its live
+parameters; the modes and ``/clock``: docs/how-to/bags.md."""
 
 from __future__ import annotations
 
@@ -36,6 +19,7 @@ from rosbags.interfaces import QosDurability, QosReliability
 from std_msgs.msg import Float64
 
 from fourbar_ros.bags.storage import CommandStream
+from fourbar_ros.interface.stamps import from_ns, ns_to_seconds, seconds_to_ns
 from fourbar_ros.interface.topics import STREAM_DEPTH
 from fourbar_ros.live.graph import (
     ReplayError,
@@ -221,7 +205,7 @@ class Replayer:
     def _publish_clock(self, stamp_ns: int) -> None:
         from builtin_interfaces.msg import Time
 
-        sec, nanosec = divmod(stamp_ns, 1_000_000_000)
+        sec, nanosec = from_ns(stamp_ns)
         self.clock_publisher.publish(_clock_type()(clock=Time(sec=sec, nanosec=nanosec)))
 
     def run_timed(self, executor: Executor, rate: float = 1.0,
@@ -246,13 +230,13 @@ class Replayer:
         def tick(now: float) -> None:
             nonlocal next_clock
             if clock and now >= next_clock:
-                self._publish_clock(stamps[0] + round((now - start) * rate * 1e9))
+                self._publish_clock(stamps[0] + seconds_to_ns((now - start) * rate))
                 stats.clocks += 1
                 next_clock += period
                 if next_clock <= now:  # fell behind (a busy machine): resume the rate, no burst
                     next_clock = now + period
         for i, raw in enumerate(raws):
-            due = start + (stamps[i] - stamps[0]) * 1e-9 / rate
+            due = start + ns_to_seconds(stamps[i] - stamps[0]) / rate
             while True:
                 now = time.monotonic()
                 tick(now)

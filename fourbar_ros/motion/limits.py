@@ -1,18 +1,7 @@
 """Motor and reducer limits, checked at every point of a driven-joint trajectory; reject or retime.
 
-The reducer ratio N is constant, so motor speed, acceleration and jerk are N times the driven rocker's: the motor
-limits are constant limits in rocker space (limit / N). Torque: the motor needs input_torque / (N * efficiency)
-(``fourbar_ros.core.loads.motor_torque``), and the reducer's output carries the input torque itself (its rated
-torque). The checked motion is the controller's: at every point, the velocity, acceleration and jerk of its
-interpolating segments as a whole, not only at the points: the largest speed, acceleration and jerk of the
-polynomial the controller follows over each segment, found in closed form (``splines.segment_extremes``); for
-linear segments the speed only (their acceleration is a step at each point the controller cannot follow smoothly:
-send velocities to bound it); and each point's effort.
-
-Retiming plays the same path k >= 1 times slower: the order-n time derivatives scale by 1/k^n, the segment
-polynomials in s and so the path (and its interpolation error) are unchanged, and the static torque is unchanged:
-a torque over its limit is rejected under either policy.
-"""
+The motor's limits over the reducer ratio, checked over each interpolating segment, not only at the points;
+retiming and what it leaves unchanged: docs/explanation/motion.md."""
 
 from __future__ import annotations
 

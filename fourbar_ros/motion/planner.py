@@ -1,12 +1,7 @@
 """Plain angle commands to motion the motor can follow: time-optimal, jerk-limited profiles of the driven joint.
 
-``ruckig`` computes the profile from the current driven-joint state (position rad, velocity rad/s, acceleration
-rad/s^2) to the target at rest, within the rocker-space velocity, acceleration and jerk limits (the motor's / the
-reducer ratio, ``JointLimits``). Its profile is a piecewise cubic in position, continuous in position, velocity and
-acceleration, and starts at exactly the state it is given: replanning mid-motion from ``Plan.state_at(t)`` of the
-running plan leaves no jump. Sampled, a plan becomes a ``DrivenTrajectory`` (points at a spacing, with the static
-effort at each pose) or a setpoint stream at a control rate. The ruckig module is imported on first use.
-"""
+``ruckig`` (imported on first use) plans from the current state to the target at rest; a plan starts at exactly
+that state, so replanning from ``Plan.state_at(t)`` leaves no jump. docs/explanation/motion.md."""
 
 from __future__ import annotations
 

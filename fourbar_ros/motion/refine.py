@@ -1,30 +1,6 @@
-r"""The controller's interpolation error, bounded: insert points until the antenna follows the requested path.
+"""The controller's interpolation error, bounded: insert points until the antenna follows the requested path.
 
-joint_trajectory_controller interpolates the driven joint q with segment polynomials Q(s) (``splines``). The antenna
-then follows Theta(Q(s)) (the core's ``from_rocker``), while the request is the same kind of spline T(s) through the
-antenna points. On one segment (s in [0, 1]) the deviation is e(s) = Theta(Q(s)) - T(s).
-
-The bound. e is evaluated at s_j = j / S (j = 0..S). On [s_j, s_j+1], e is its linear interpolation between
-the samples plus a remainder of at most 1/(8 S^2) max |e''| (the linear interpolation error), so
-
-    |e(s)| <= max(|e(s_j)|, |e(s_j+1)|) + M / (8 S^2),    M = L2 B1^2 + L1 B2 + C2,
-
-with e'' = theta''(Q) Q'^2 + theta'(Q) Q'' - T''. B1, B2 bound |Q'|, |Q''| and C2 bounds |T''| on [0, 1], from
-the power-basis coefficients (sum_k k |c_k| and sum_k k (k - 1) |c_k|, as |s| <= 1). L1 and L2 bound |d theta/d q|
-= 1/|q'| and |d2 theta/d q2| = |q''|/|q'|^3 over the band of q the check admits (the driven joint's range over
-[theta_min, theta_max], widened by 5% each side); a segment whose Q may leave the band (|Q(s) - q_0| <=
-sum_{k>=1} |q_k|) is not accepted. L1, L2 are the largest values on a grid of the band (``_GRID`` points) plus the
-largest change between neighbouring grid values, which bounds the rise between grid points to second order in
-the grid spacing (1/4096 of the band). A segment is accepted when its largest bound is at most the tolerance: it
-then deviates by at most the tolerance everywhere, not only at the samples, up to the rounding of e (~1e-15 rad).
-
-Refinement. A failing segment is bisected: the point inserted at its middle time carries T's own position (and
-velocity and acceleration, as the kind requires) there. T is a polynomial of the segment's degree, so the two
-halves' Hermite polynomials are T itself: the request does not change, and Q on each half is the Hermite
-interpolant of q(T(t)) on a half-length segment, whose error falls as h^(degree + 1). The points inserted are
-bounded by max_trajectory_points (TrajectoryError, naming the segment still failing, beyond it). Uniform retiming
-(``limits``) leaves every segment's polynomials in s, and so this bound, unchanged.
-"""
+The bound, why it holds between samples, and the bisection: docs/explanation/motion.md."""
 
 from __future__ import annotations
 

@@ -1,10 +1,7 @@
 """The segment polynomials joint_trajectory_controller interpolates with, for many segments at once.
 
-Segment i runs from point i to point i + 1 over h = t[i+1] - t[i]; with s = (t - t[i]) / h in [0, 1] it is the
-Hermite polynomial of degree 1, 3 or 5 matching the positions (and velocities, and accelerations) at both ends:
-the unique polynomial of that degree, so it is the controller's segment whatever basis the controller writes it in.
-Coefficients are in powers of s, lowest first, one row per segment; derivatives in s divide by h^k for time.
-"""
+Hermite of degree 1, 3 or 5 in s = (t - t[i]) / h, the unique such polynomial (the controller's in any basis);
+coefficients in powers of s, lowest first, one row per segment; derivatives in s divide by h^k for time."""
 
 from __future__ import annotations
 

@@ -1,15 +1,6 @@
 """Trajectories as plain arrays, their validation, and the antenna-to-driven-joint conversion.
 
-An antenna trajectory gives times (s from the start, strictly increasing), antenna angles theta (rad) and optionally
-theta_dot (rad/s) and theta_ddot (rad/s^2). Its driven-joint equivalent (q the driven rocker, rad) has
-
-    q = q(theta),   q_dot = q' theta_dot,   q_ddot = q'' theta_dot^2 + q' theta_ddot,
-    effort = the static input torque at the pose (N m at the driven rocker, sense of increasing q),
-
-with q' = dq/dtheta, q'' = d2q/dtheta2 from the core. The arrays a trajectory carries decide how
-joint_trajectory_controller interpolates it (``SplineKind``): positions only linearly, with velocities by cubic
-Hermite segments, with accelerations too by quintic ones.
-"""
+The conversion and how the arrays a trajectory carries decide its interpolation: docs/explanation/motion.md."""
 
 from __future__ import annotations
 

@@ -1,31 +1,7 @@
-"""What fourbar_node publishes for a measured driven joint (the actuator modes), and ``fourbar process`` for a
-recorded one. No ROS.
+"""What fourbar_node publishes for a measured driven joint (the actuator modes), and ``fourbar process`` for a bag.
 
-From the measured driven rocker q (rad), and where given its velocity q_dot (rad/s) and effort (N m at the rocker,
-in the sense of increasing q), through the core's exact inverse (``core.completion.complete``, on the branch of
-``from_rocker`` that matches the configured one, ``AntennaConfig.measured_branch``):
-
-- ``joint_states``: one JointState of every joint, names [the driven joint, the other rocker's joint, the coupler
-  joint]: positions [q, other rocker, gamma + theta] rad; velocities [q_dot, then the chain rule's] rad/s (empty
-  without q_dot, or at the driven rocker's dead point where they are unbounded); efforts [the measured effort,
-  0.0, 0.0] N m (empty without one: the passive joints carry no actuator effort). The passive angles are published
-  in one fixed turn per joint (``CompletionRule.turn_starts``): the turn of the open-loop pose at mid-range (so they
-  lie within the URDF's limits), starting in the middle of the widest arc no reachable value of that joint enters,
-  so no rounding of a reachable pose can move a published angle by 2 pi.
-- ``antenna_angle``: theta (rad); ``antenna_rate``: theta_dot (rad/s) where q_dot is given and bounded.
-- ``load_torque``: effort * dq/dtheta (N m about theta, + in the sense of increasing theta; power balance, no
-  reducer losses since the effort is measured at the rocker) where the effort is given and bounded (not at the
-  antenna's reach limit).
-
-A NaN velocity or effort means *not measured* (``measured``): ros2_control's joint_state_broadcaster publishes NaN
-for a state interface the joint does not have; the message is completed without the rates or without the load
-torque. A measurement is *refused* when q is NaN or inf or q_dot or effort is infinite, and *out of range* when the
-rocker cannot take q (outside ``AntennaLinkage.rocker_reach``): nothing is published for either.
-
-Two paths over the same core calls: ``CompletionRule.one`` per message (Python floats, the math module: the node)
-and ``complete_block`` on arrays (numpy: ``fourbar process``). They agree within a few ulps (numpy's SIMD
-transcendentals against libm), held together by test/rules/test_rules_completion.py.
-"""
+``CompletionRule.one`` per message (math module) and ``complete_block`` on arrays (numpy) agree within a few ulps.
+The outputs: docs/reference/topics.md; the passive angles' fixed turn: docs/explanation/exactness.md. No ROS."""
 
 from __future__ import annotations
 

@@ -1,14 +1,7 @@
-"""What ros2_control's controllers accept, written once: fourbar_node checks every message it sends against it, and
-the simulated actuator refuses exactly what it refuses. No ROS: messages are read through their attributes.
+"""What ros2_control's controllers accept, written once: fourbar_node checks what it sends, sim_actuator refuses alike.
 
-``check_trajectory`` applies, in the controller's order, every check of
-``JointTrajectoryController::validate_trajectory_msg`` (ros2_controllers, jazzy branch,
-``joint_trajectory_controller/src/joint_trajectory_controller.cpp``), with the controller's parameters from the
-controllers YAML (``fourbar_ros.config.controllers``). A refused message changes nothing in the controller: the
-trajectory it is following goes on. ``check_forward_command`` is forward_command_controller's size check
-(``forward_command_controller/src/forward_controllers_base.cpp``, ``update``). Neither checks values for NaN: the
-controllers do not either (what this package sends is finite by construction).
-"""
+Jazzy's ``validate_trajectory_msg`` and forward_command_controller's size check, with the controllers YAML's
+settings; no NaN check, as in the controllers (docs/how-to/ros2-control.md). No ROS: messages are read as attributes."""
 
 from __future__ import annotations
 

@@ -1,26 +1,7 @@
 """What joint_trajectory_controller does with a trajectory over time, for one joint: the reference it follows.
 
-Follows ros2_controllers' jazzy branch (``joint_trajectory_controller.cpp`` ``update``, ``trajectory.cpp``
-``set_point_before_trajectory_msg``, ``sample``, ``interpolate_between_points``, ``deduce_from_derivatives``), topic
-interface, ``interpolation_method: splines``:
-
-- A trajectory the contract accepted (``rules.controller_contract``) takes over at the controller's first update
-  after it arrives (``takeover``). Its time origin is its ``header.stamp``, or that update for a zero stamp.
-- The state before it is the one measured at the takeover: the position, the velocity where the controller has a
-  velocity state interface; a velocity (acceleration) the first point gives and the state lacks is zero-filled.
-- If the first point is due after the takeover, a lead-in segment runs from that state at the takeover to the first
-  point; else there is none, and the reference continues on the segment holding the takeover (a point already due
-  is a step from wherever the drive is).
-- Point to point, each segment is linear, cubic or quintic by the fields both its ends give; a point without a
-  position (or velocity) gets one by integrating the next derivative by the trapezoid rule
-  (``allow_integration_in_goal_trajectories``). After the last point: that point held (its velocity as given).
-- Each update at time t commands the reference at t + one update period.
-
-Left out: ``interpolation_method: none``, ``interpolate_from_desired_state`` / ``open_loop_control``, speed scaling,
-``cmd_timeout``, joint angle wrap-around, acceleration state interfaces, the action interface (the node refuses the
-settings that would change the motion: ``motion_settings_problem``), and the controller manager's timing jitter.
-Times are float seconds from an origin the caller picks (e.g. the arrival): keep them small, not seconds since 1970.
-"""
+Follows ros2_controllers' jazzy branch, topic interface, ``interpolation_method: splines``: docs/explanation/motion.md.
+Times are float seconds from an origin the caller picks (e.g. the arrival): keep them small, not seconds since 1970."""
 
 from __future__ import annotations
 

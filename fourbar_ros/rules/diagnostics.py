@@ -1,11 +1,6 @@
 """The node's diagnostic status as plain values: level, message and key/value pairs. No ROS.
 
-Levels use diagnostic_msgs/DiagnosticStatus numbering: ERROR when the drive cannot hold the load at the
-served angle (a torque margin below zero), WARN when the last command was rejected or clamped or the
-transmission angle is poor (outside [transmission_angle_min, pi - transmission_angle_min]) or commands
-were lost since the previous status (``commands_lost`` grew), OK otherwise.
-Floats are written with ``repr`` (shortest round-trip form), so a reader recovers them exactly.
-"""
+Levels, keys and the float format: docs/reference/diagnostics.md."""
 
 from __future__ import annotations
 

@@ -1,9 +1,7 @@
 """Points of the linkage drawing (frame, rockers, coupler, antenna) in the marker frame. No ROS.
 
-Plane coordinates (along A->D, up) in metres from pivot A (the Annex A convention); the markers put them in the x-z
-plane of ``frame_id`` (z up, REP-103). The antenna is drawn
-as an arrow from the coupler's midpoint along B->C, one coupler length long: theta > 0 points it down.
-"""
+Plane coordinates (along A->D, up) in metres from pivot A, put in the x-z plane of ``frame_id``; the antenna an
+arrow from the coupler's midpoint along B->C, one coupler length long (docs/reference/topics.md)."""
 
 from __future__ import annotations
 

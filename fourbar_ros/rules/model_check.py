@@ -1,21 +1,7 @@
-"""The live check of the model (actuator modes, ``antenna_sensor_type``): an antenna angle sensor's readings against
-the angle completed from the measured driven joint at their times. No ROS.
+"""The live check of the model: an antenna angle sensor's readings against the angle completed at their times. No ROS.
 
-Every completed measurement is held (stamp ns, measured joint rad; the last ``HISTORY`` of them). A sensor reading
-(stamp ns, theta rad in theta's sense) is paired with the measured joint at its stamp: interpolated linearly
-between the two measurements around it, or the latest one at or before it when none is after it yet, as
-``fourbar calibrate`` pairs a recording (the joint, not the angle, is interpolated). The mismatch is the
-calibration's residual, ``core.calibration.model_mismatch``: the sensor minus ``antenna_sensor_offset`` minus the
-angle the completion's linkage gives for the joint (the measured joint is already the one the completion uses: no
-driven joint offset here, ros2_control has applied the URDF's). Diagnostics report the latest mismatch and its RMS
-over ``tracking_window`` s (the last ``WINDOW_READINGS`` readings at most), and the level from that RMS against
-``model_mismatch_warn`` and ``model_mismatch_error``.
-
-A reading is skipped and counted (``sensor_readings_skipped_<why>``) when it is not finite, when an Imu's
-acceleration in the x-z plane is below ``MIN_GRAVITY`` (no tilt to read: free fall, or the y axis vertical), when
-no measurement is held at or before its stamp within ``measurement_timeout`` s, or when the model cannot take the
-joint (``out_of_reach``).
-"""
+The mismatch is ``core.calibration.model_mismatch``, the joint paired as ``fourbar calibrate`` pairs it;
+docs/how-to/calibrate.md and docs/reference/diagnostics.md."""
 
 from __future__ import annotations
 

@@ -1,17 +1,7 @@
-"""What fourbar_node publishes for a served antenna angle theta (rad). No ROS.
+"""What fourbar_node publishes for a served antenna angle theta (rad): the pose, joint_states, input_torque. No ROS.
 
-- The pose: rocker angles gamma, delta (rad) and the driven rocker's torque (N m) under the configured load
-  (constant plus the antenna's weight): ``core.loads.pose_solver`` for one angle, ``core.loads.poses`` for many.
-- ``joint_states``: positions [gamma, delta, gamma + theta] in the order of the joint names (the coupler joint
-  is the coupler's angle to the frame, ``core.completion.coupler_joint_position``); velocities by the velocity rule
-  (``rules.velocity``); efforts with the torque at the driven rocker and 0.0 at the other joints.
-- ``input_torque``: the driven rocker's torque (N m).
-
-Two paths over the same operations: per command ``JointStateRule`` (the node: Python floats through the math
-module, the cost of one command) and ``outputs_block`` for an array (``fourbar process``: numpy). They agree within
-a few ulps (numpy's SIMD transcendentals against libm); the rules tests hold them together.
-An output is added here, to both, and to ``Block``.
-"""
+``JointStateRule`` per command (math module) and ``outputs_block`` on arrays (numpy) agree within a few ulps; an
+output is added to both and to ``Block``. The outputs: docs/reference/topics.md."""
 
 from __future__ import annotations
 

@@ -1,17 +1,7 @@
 """What the node does with antenna angle commands (rad): accept, clamp or reject them. No ROS here.
 
-NaN and inf are always rejected. A finite command outside [theta_min, theta_max] is rejected or
-clamped to the nearer limit, by policy; out-of-reach commands are a sub-case of out-of-limits
-(the configured limits always lie inside the reach), told apart only for the message and counters.
-Commands exactly at a limit are accepted unchanged.
-
-An antenna angle command is a number, not a direction: theta + 2 pi is not theta, and a command is in reach only if
-the linkage reaches that very number (|theta| <= pi and ``Reach.contains``). So 2 pi + 0.05 and 1e308 are out of
-reach; the node, ``fourbar solve`` and ``fourbar replay`` use this rule (``in_reach``).
-
-``decide`` takes one command (the node's per-command path, with the message); ``serve`` takes an array (a bag's
-block) and sends every command outside the limits through ``decide`` itself, so both give the same outcomes.
-"""
+``decide`` takes one command (the node), ``serve`` an array (a bag's block) and sends every command outside the
+limits through ``decide``, so both give the same outcomes. The rule: docs/reference/topics.md."""
 
 from __future__ import annotations
 

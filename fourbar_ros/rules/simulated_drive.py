@@ -1,33 +1,7 @@
 """The simulated actuator's behaviour, without ROS: the trajectory controller, the drive, the encoder.
 
-It stands in for ros2_control's hardware plus its controllers on machines without them:
-
-- ``TrajectoryFollower`` is joint_trajectory_controller (Jazzy, ``interpolation_method: splines``, topic
-  interface) for the one driven joint: it refuses exactly what ``fourbar_ros.rules.controller_contract`` refuses
-  (the controller's own ``validate_trajectory_msg``, with its settings from the controllers YAML), and a refused
-  message leaves the running trajectory in place. An accepted one replaces it and is followed as the controller
-  follows it (``rules.controller_motion``, the one model of that: taken over at the first update after its
-  arrival from the state measured there, the lead-in with zero-filled velocity and acceleration, the segments,
-  velocity-only points integrated, the hold); each update commands the reference one update period ahead. It
-  holds the measured position when the measured position is off the reference by more than the joint's
-  ``trajectory`` tolerance before the last point, or by more than its ``goal`` tolerance ``goal_time`` s after it.
-  What it does not imitate: the action interface and its goal results, PID or other closed-loop adapters,
-  ``cmd_timeout``, speed scaling, joint angle wrap-around, ``interpolate_from_desired_state`` true,
-  ``interpolation_method: none``, deceleration on cancel, the stopped-velocity goal check of an effort interface,
-  partial goals of several joints (it has one), and the controller manager's update timing (here a timer of the
-  node's at ``publish_rate``; a late tick makes the running trajectory's updates it missed, as a real-time loop
-  would have, but publishes once and takes a new trajectory over only at the tick, and a forward command that
-  arrived meanwhile applies from the first missed update). Stricter than the controller: a non-finite value in a
-  trajectory is refused (the controller would follow it).
-- ``LagActuator`` is the drive: a first-order lag (time constant ``tau``, s) towards the reference, its speed
-  limited to ``max_velocity`` (rad/s) and its speed change to ``max_acceleration`` (rad/s^2); it also never
-  asks for more speed than it can brake from before the reference, so a reference that stands still or moves
-  away is reached without overshoot. It integrates in fixed steps of STEP_S, whatever the caller's period.
-- ``Encoder`` is what the hardware reports: the position rounded to the encoder's counts (at the motor, through
-  the reducer) after optional Gaussian noise, plus a fixed offset.
-
-Angles are the driven joint's (rad, joint side of the reducer), times in seconds.
-"""
+``TrajectoryFollower`` imitates joint_trajectory_controller, ``LagActuator`` the drive, ``Encoder`` what the
+hardware reports; angles are the driven joint's (rad), times s. What it imitates: docs/how-to/ros2-control.md."""
 
 from __future__ import annotations
 

@@ -1,26 +1,7 @@
 """Joint velocities from successive published joint positions and their stamps. No ROS.
 
-The rule (the node applies it per published JointState with ``velocity_step``; ``velocities`` applies it to a
-block of samples, ``fourbar process`` to a bag's; ``anchors`` says which sample each is measured from):
-
-    velocities, anchor = velocity_step(anchor, sample, timeout)
-
-``anchor`` is the sample velocities are measured from; start with ``None`` and feed back the returned one.
-
-- No anchor yet: no velocity; the sample becomes the anchor.
-- The stamp has not advanced (equal to the anchor's): no velocity, and the anchor stays. With sim time
-  (``use_sim_time``, ``/clock`` at 40 Hz from ``ros2 bag play --clock``) commands at 100 Hz share a stamp;
-  the time between them is unknown, so no velocity is computed over a zero interval. The anchor stays the
-  *first* sample published at its stamp, so the next velocity spans from the first sample of one clock
-  tick to the first of the next: over a constant-rate motion its mean is the true rate (replacing the anchor
-  by the last sample of the old tick would divide one command interval by a whole tick: 100 Hz over 40 Hz
-  gives 0.4x the true rate).
-- The stamp went back (sim time restarted, a bag looped): no velocity; the sample becomes the anchor.
-- The anchor is more than ``timeout`` s older: no velocity (a pause, not a motion); the sample becomes the anchor.
-- Otherwise: velocity = (q - q_anchor) / (t - t_anchor) per joint, and the sample becomes the anchor.
-
-With the wall clock every stamp differs, so this is the plain difference of successive samples.
-"""
+``velocity_step`` per sample (the node), ``velocities`` on a block (``fourbar process``), ``anchors`` the sample
+each is measured from. The rule: docs/reference/topics.md; why a stamp's first sample: docs/explanation/node.md."""
 
 from __future__ import annotations
 

@@ -62,12 +62,6 @@ def changed(topic: str, index: int, edit: Callable[[Any], None]) -> Callable[[st
 STORE_TYPES = {'/joint_states': 'sensor_msgs/msg/JointState', '/input_torque': 'std_msgs/msg/Float64'}
 
 
-def ulps_up(x: float, n: int) -> float:
-    for _ in range(n):
-        x = math.nextafter(x, math.inf)
-    return x
-
-
 def test_a_bag_equals_itself_and_its_other_storage(processed: Path, cfg: AntennaConfig, tmp_path: Path) -> None:
     process_bag(BAG_DIR / 'jitter_mcap', tmp_path / 'sqlite', cfg, storage=Storage.SQLITE3)
     result = compare_bags(processed, tmp_path / 'sqlite', cfg)

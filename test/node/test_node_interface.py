@@ -1,4 +1,4 @@
-"""The topics fourbar_node creates in each mode are exactly those of ``config.interface.endpoints`` (the table the
+"""The topics fourbar_node creates in each mode are exactly those of ``interface.topics.endpoints`` (the table the
 reference docs are generated from): names resolved in the node's namespace, message types, directions, keep-last
 depths and reliability. rclpy's own endpoints (``/rosout``, ``/parameter_events``) are left out.
 

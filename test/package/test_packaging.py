@@ -34,7 +34,7 @@ def test_package_xml_validates_with_catkin_pkg() -> None:
 
 def test_setup_declares_the_console_script_and_ros_install_dir() -> None:
     setup_py = (REPO / 'setup.py').read_text(encoding='utf-8')
-    # The executables the launch file, the process helpers and the commands name (config.interface).
+    # The executables the launch file, the process helpers and the commands name (interface.topics).
     assert f"'{NODE_EXECUTABLE} = fourbar_ros.node:main'" in setup_py
     assert f"'{SIM_EXECUTABLE} = fourbar_ros.node:sim_actuator_main'" in setup_py
     cfg = (REPO / 'setup.cfg').read_text(encoding='utf-8')

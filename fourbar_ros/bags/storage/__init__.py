@@ -1,9 +1,4 @@
-"""rosbag2 bags with ``rosbags`` (no rclpy): read, write atomically, recover killed recordings.
-
-One adapter per storage (``mcap_storage``, ``sqlite3_storage``) behind a small protocol (``protocol``),
-like ``rosbags``' storage plugins; ``read``, ``write`` and ``reindex`` work on either. This face
-re-exports what the rest of the package uses.
-"""
+"""Bag storage with ``rosbags`` (no rclpy), mcap or sqlite3: the names the rest of the package imports."""
 
 from fourbar_ros.bags.storage.common import (
     COMMAND_TOPIC,
