@@ -14,7 +14,6 @@ import pytest
 from support.colcon_support import BIN, CliEnv, launch_missing, ros2, ros2_cli_missing
 from support.isolation import isolated_env
 from support.paths import REPO
-from support.ros2_control_support import ros2_control_missing
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
@@ -136,36 +135,3 @@ def test_launch_testing_test_passes(install: CliEnv, lease: DomainLease) -> None
     text = out.stdout + out.stderr
     assert out.returncode == 0, text[-4000:]
     assert 'test_joint_states_answer_a_command' in text and 'test_exit_codes' in text, text[-4000:]
-
-
-def test_the_real_controller_manager_accepts_what_the_node_sends(install: CliEnv) -> None:
-    # The launch file's bringup with the mock hardware and a command; the real controller takes the node's
-    # trajectory (its measured joint, echoed by the mock, reaches the commanded angle).
-    if (why := ros2_control_missing(install.env)) is not None:
-        pytest.skip(why)
-    cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
-    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_rc',
-                         'use_ros2_control:=true', 'rviz:=false'], install.env, cwd=install.cwd)
-    try:
-        wait_node(install.env, '/tilt_rc/fourbar_node')
-        launch.wait_output(lambda t: 'joint_trajectory_controller' in t and 'onfigured and activated' in t,
-                           'the trajectory controller active')
-        target = 0.05
-        q = float(cfg.linkage.rocker_angles(target, cfg.branch)[0 if cfg.driven_joint == cfg.gamma_joint else 1])
-        echo = echo_once(install.env, '/tilt_rc/joint_states', 'sensor_msgs/msg/JointState')
-        try:
-            publish_until_echoed(install.env, echo, '/tilt_rc/antenna_angle_cmd', target)
-        finally:
-            echo.kill()
-
-        def at_target(text: str) -> bool:
-            return any(abs(d['position'][0] - q) < 1e-3 for d in echoed_messages(text) if d.get('position'))
-        follow = Background([ros2(), 'topic', 'echo', '/tilt_rc/joint_state_broadcaster/joint_states',
-                             'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
-        try:
-            follow.wait_output(at_target, 'the measured joint at the commanded angle')
-        finally:
-            follow.kill()
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-    finally:
-        launch.kill()

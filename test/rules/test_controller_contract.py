@@ -68,6 +68,8 @@ BREAKS: dict[ContractRule, tuple[list[str], list[Point], int]] = {
     ContractRule.TIME_NOT_INCREASING: ([JOINT], pts([0.0, 1.0, 1.0], [0.8, 0.9, 0.95]), 0),
     ContractRule.FIELD_SIZE: ([JOINT], [*GOOD[:1], Point([0.9, 1.0], time_from_start=Duration(1, 0))], 0),
     ContractRule.EFFORT_FIELD: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], effort=[[0.1], [0.2]]), 0),
+    # Taken by the controller, which then commands 0 rad (no interpolation branch handles it).
+    ContractRule.MISHANDLED: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], accelerations=[[0.0], [0.0]]), 0),
 }
 
 
@@ -108,10 +110,13 @@ def test_the_options_admit_what_they_name() -> None:
     # A last velocity at float epsilon is still at rest for the controller (it compares with >).
     at_eps = pts([0.0, 1.0], [0.8, 0.9], velocities=[[0.0], [FLOAT_EPSILON]])
     assert check_trajectory(JTC, [JOINT], at_eps, 0, NOW) is None
-    # Integration in goals: a point may leave out positions, not every field.
+    # Integration in goals: a later point may leave out positions, not every field; a first point may not (the
+    # controller crashes when such a point is due as it takes the trajectory over).
     integrating = replace(JTC, allow_integration_in_goal_trajectories=True)
+    velocities_later = [Point([0.8], [0.0]), Point([], [0.0], time_from_start=Duration(1, 0))]
+    assert check_trajectory(integrating, [JOINT], velocities_later, 0, NOW) is None
     velocities_only = [Point([], [0.0]), Point([], [0.0], time_from_start=Duration(1, 0))]
-    assert check_trajectory(integrating, [JOINT], velocities_only, 0, NOW) is None
+    assert check_trajectory(integrating, [JOINT], velocities_only, 0, NOW).rule is ContractRule.MISHANDLED  # type: ignore[union-attr]
     assert check_trajectory(JTC, [JOINT], velocities_only, 0, NOW).rule is ContractRule.FIELD_SIZE  # type: ignore[union-attr]
     empty = [Point([]), Point([], time_from_start=Duration(1, 0))]
     assert check_trajectory(integrating, [JOINT], empty, 0, NOW).rule is ContractRule.FIELD_SIZE  # type: ignore[union-attr]

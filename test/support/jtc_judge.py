@@ -5,8 +5,9 @@
 A process of its own, started with the real ros2_control stack on its paths (control_msgs' Python messages need the
 library path set before the process starts). CASES.json is a list of steps, each sent ``after`` s after the
 previous one (the first: once the controller's state arrives):
-- ``{"points": [[t, p, v, a], ...], "stamp": s or null, "after": s}``: a JointTrajectory to the controller (s, rad,
-  rad/s, rad/s^2; null leaves a field empty; stamp null: zero, else the send time plus that many seconds);
+- ``{"points": [[t, p, v, a(, effort)], ...], "stamp": s or null, "after": s(, "joints": [...])}``: a
+  JointTrajectory to the controller (s, rad, rad/s, rad/s^2, N m; null leaves a field empty, a list fills it; stamp
+  null: zero, else the send time plus that many seconds; joints: the driven joint unless given);
 - ``{"command": theta, "after": s}``: an antenna angle (rad) to fourbar_node's ``antenna_angle_cmd``.
 OUT.json: every trajectory the controller's topic carried, the judge's with the time it sent them, the node's with
 the time the judge received them (``echoed``), and every ``~/controller_state`` message, from the first step to
@@ -41,14 +42,20 @@ def _ns(stamp: Any) -> int:
     return int(stamp.sec) * NS + int(stamp.nanosec)
 
 
-def _message(points: list[list[float | None]], stamp_ns: int) -> JointTrajectory:
+def _field(x: float | list[float] | None) -> list[float]:
+    return [] if x is None else [float(v) for v in x] if isinstance(x, list) else [float(x)]
+
+
+def _message(step: dict[str, Any], stamp_ns: int) -> JointTrajectory:
     msg = JointTrajectory()
     msg.header.stamp = Time(sec=stamp_ns // NS, nanosec=stamp_ns % NS)
-    msg.joint_names = [JOINT]
-    for t, p, v, a in points:
-        ns = round(float(t) * NS)  # type: ignore[arg-type]
+    msg.joint_names = step.get('joints', [JOINT])
+    for row in step['points']:
+        t, p, v, a = row[:4]
+        ns = round(float(t) * NS)
         pt = JointTrajectoryPoint(time_from_start=Duration(sec=ns // NS, nanosec=ns % NS))
-        pt.positions, pt.velocities, pt.accelerations = ([] if x is None else [float(x)] for x in (p, v, a))
+        pt.positions, pt.velocities, pt.accelerations = _field(p), _field(v), _field(a)
+        pt.effort = _field(row[4] if len(row) > 4 else None)
         msg.points.append(pt)
     return msg
 
@@ -120,16 +127,17 @@ def main(namespace: str, cases_path: str, out_path: str, tail_s: float = 0.3) ->
             else:
                 now = clock.now().nanoseconds
                 stamp = 0 if step['stamp'] is None else now + round(float(step['stamp']) * NS)
-                to_controller.publish(_message(step['points'], stamp))
+                to_controller.publish(_message(step, stamp))
                 sent_points = [[round(float(p[0]) * NS) / NS, *p[1:]] for p in step['points']]  # as on the wire
-                trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points})
+                trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points,
+                                     'joints': step.get('joints', [JOINT])})
         if steps and 'command' in steps[-1]:  # the node's answer to the last command: wait for it to arrive
             sent = clock.now().nanoseconds - round((time.monotonic() - t_prev) * NS)
             deadline = time.monotonic() + 10.0
             while not any(t['received'] >= sent for t in trajectories) and time.monotonic() < deadline:
                 time.sleep(0.01)
-        end = max((max(t['stamp'], t['received']) + round(t['points'][-1][0] * NS) for t in trajectories),
-                  default=clock.now().nanoseconds)
+        end = max((max(t['stamp'], t['received']) + round(t['points'][-1][0] * NS) for t in trajectories
+                   if t['points']), default=clock.now().nanoseconds)
         while clock.now().nanoseconds < end + round(tail_s * NS):
             time.sleep(0.01)
         out = {'trajectories': trajectories, 'states': [s for s in states if s['stamp'] >= first - 50_000_000]}

@@ -85,13 +85,17 @@ class _Point(SimpleNamespace):
     """A trajectory point as the follower reads a message's."""
 
 
-def message_points(points: list[list[float | None]]) -> list[_Point]:
-    """``[t, p, v, a]`` rows as trajectory points with a message's fields."""
+def _field(x: Any) -> list[float]:
+    return [] if x is None else list(x) if isinstance(x, list) else [x]
+
+
+def message_points(points: list[list[Any]]) -> list[_Point]:
+    """``[t, p, v, a(, effort)]`` rows (jtc_judge.py's) as trajectory points with a message's fields."""
     out = []
-    for t, p, v, a in points:
-        sec, nanosec = from_ns(seconds_to_ns(float(t)))  # type: ignore[arg-type]
-        out.append(_Point(positions=[] if p is None else [p], velocities=[] if v is None else [v],
-                          accelerations=[] if a is None else [a], effort=[],
+    for row in points:
+        sec, nanosec = from_ns(seconds_to_ns(float(row[0])))
+        out.append(_Point(positions=_field(row[1]), velocities=_field(row[2]), accelerations=_field(row[3]),
+                          effort=_field(row[4] if len(row) > 4 else None),
                           time_from_start=SimpleNamespace(sec=sec, nanosec=nanosec)))
     return out
 
@@ -132,10 +136,9 @@ def _worst(states: list[dict[str, Any]], model: Reference, start: int, stop: int
                default=0.0)
 
 
-def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, joint: str,
-           period: float) -> list[Judged]:
-    """Every recorded trajectory the controller took over, compared update by update until the next one's takeover
-    (a trajectory the controller refused has none and is not in the list).
+def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) -> list[tuple[int, int]]:
+    """(trajectory index, update index) of every recorded trajectory the controller took over, in order (a
+    trajectory the controller refused has none).
 
     The judge's own trajectories are taken over at the first candidate update after they were sent. The node's
     are seen passing and reach the controller up to a few updates before or after the judge; a plan that continues
@@ -143,7 +146,6 @@ def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, jo
     model follows best up to the window's end is taken (a model wrong at every candidate still fails)."""
     states = recording['states']
     trajectories = recording['trajectories']
-    velocity_state = 'velocity' in settings.state_interfaces
     arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else 0) for t in trajectories] + [2**63]
     taken: list[tuple[int, int]] = []
     for i, t in enumerate(trajectories):
@@ -157,6 +159,17 @@ def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, jo
             found = [min(found, key=lambda k: _worst(states, _reference_from(states, t, k, velocity_state,
                                                                                period)[1], k, stop))]
         taken.append((i, found[0]))
+    return taken
+
+
+def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, joint: str,
+           period: float) -> list[Judged]:
+    """Every recorded trajectory the controller took over (``takeovers``), compared update by update until the next
+    one's takeover."""
+    states = recording['states']
+    trajectories = recording['trajectories']
+    velocity_state = 'velocity' in settings.state_interfaces
+    taken = takeovers(recording, velocity_state, period)
     out: list[Judged] = []
     for n, (index, k) in enumerate(taken):
         traj = trajectories[index]

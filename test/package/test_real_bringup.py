@@ -1,0 +1,73 @@
+"""The package's launch file with ``use_ros2_control:=true`` on the real controller manager (mock hardware), in the
+root namespace and in one, in trajectory and forward mode: the spawners activate the controllers, a command moves
+the joint, joint_states carries the completed linkage, and SIGINT ends everything with status 0.
+
+Runs where the ros2 command line, launch_ros and ros2_control are installed; skipped elsewhere with the reason.
+"""
+
+from __future__ import annotations
+
+import pytest
+from support.colcon_support import CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.ros2_control_support import ros2_control_missing
+
+if (_why := ros2_cli_missing() or launch_missing()) is not None:
+    pytest.skip(_why, allow_module_level=True)
+
+from support.ros_cli_support import (  # psutil: with ros2cli
+    Background,
+    echo_once,
+    echoed_messages,
+    publish_until_echoed,
+    wait_node,
+)
+
+from fourbar_ros.config.antenna_config import load_config
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+
+@pytest.fixture
+def install(ros2_cli: CliEnv) -> CliEnv:
+    """The run's sourced install for the command line (conftest's ``ros2_cli``)."""
+    return ros2_cli
+
+
+@pytest.mark.parametrize(('namespace', 'mode'), [('', 'trajectory'), ('tilt', 'trajectory'), ('tilt', 'forward')])
+def test_the_bringup_moves_the_joint(install: CliEnv, namespace: str, mode: str) -> None:
+    # The launch file's bringup on the real controller manager with the mock hardware: the spawners activate the
+    # broadcaster and the mode's controller, a command moves the mock joint to the commanded angle, and joint_states
+    # carries the whole linkage, completed from the measured joint.
+    if (why := ros2_control_missing(install.env)) is not None:
+        pytest.skip(why)
+    cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
+    ns = f'/{namespace}' if namespace else ''
+    controller = 'forward_position_controller' if mode == 'forward' else 'joint_trajectory_controller'
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={namespace or "/"}',
+                         'use_ros2_control:=true', f'mode:={mode}', 'rviz:=false'], install.env, cwd=install.cwd)
+    try:
+        wait_node(install.env, f'{ns}/fourbar_node')
+        launch.wait_output(lambda t: f'Configured and activated {controller}' in t, f'{controller} active')
+        target = 0.05
+        q = float(cfg.linkage.rocker_angles(target, cfg.branch)[0 if cfg.driven_joint == cfg.gamma_joint else 1])
+        echo = echo_once(install.env, f'{ns}/joint_states', 'sensor_msgs/msg/JointState')
+        try:
+            state = publish_until_echoed(install.env, echo, f'{ns}/antenna_angle_cmd', target)
+        finally:
+            echo.kill()
+        other = cfg.delta_joint if cfg.driven_joint == cfg.gamma_joint else cfg.gamma_joint
+        assert state['name'] == [cfg.driven_joint, other, cfg.coupler_joint] and len(state['effort']) == 3, state
+
+        def at_target(text: str) -> bool:
+            return any(abs(d['position'][0] - q) < 1e-3 for d in echoed_messages(text) if d.get('position'))
+        follow = Background([ros2(), 'topic', 'echo', f'{ns}/joint_state_broadcaster/joint_states',
+                             'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
+        try:
+            follow.wait_output(at_target, f'the measured joint at the commanded angle {q} rad')
+        finally:
+            follow.kill()
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+        assert not launch.descendants(), 'a process outlived ros2 launch'
+    finally:
+        launch.kill()
