@@ -33,7 +33,8 @@ from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_ang
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
-from fourbar_ros.rules.actuation import MEASURED_AGE_MAX_S, TrajectoryProblem, motion_start, takeover_lead
+from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem
+from fourbar_ros.rules.takeover import MEASURED_AGE_MAX_S, motion_start, takeover_lead
 
 pytestmark = pytest.mark.ros
 

@@ -12,35 +12,30 @@ from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Plan, driven_angles
-from fourbar_ros.rules.actuation import (
-    MEASURED_AGE_MAX_S,
-    ActuationCounters,
+from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem, convert, problem_of
+from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.motion_plan import (
     Motion,
-    Start,
-    TrajectoryProblem,
-    carried,
-    convert,
     driven_range,
-    duration_parts,
-    motion_start,
     plan_command,
     planned_points,
     planned_setpoints,
-    problem_of,
-    takeover_lead,
     trajectory_setpoints,
 )
-from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.serve import ActuationCounters
+from fourbar_ros.rules.takeover import MEASURED_AGE_MAX_S, Start, carried, motion_start, takeover_lead
 
 CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
 
 
 def pts(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Point]:
-    return [Point([th], [] if theta_dot is None else [theta_dot[i]], time_from_start=Duration(*duration_parts(t)))
+    return [Point([th], [] if theta_dot is None else [theta_dot[i]],
+                  time_from_start=Duration(*from_ns(seconds_to_ns(t))))
             for i, (t, th) in enumerate(zip(times, theta, strict=True))]
 
 
@@ -212,7 +207,7 @@ def test_forward_setpoints_of_a_trajectory_follow_the_controllers_spline() -> No
 def test_setpoint_streams_are_held_to_every_limit_by_their_divided_differences() -> None:
     from fourbar_ros.motion.errors import LimitError
     from fourbar_ros.motion.planner import Setpoints
-    from fourbar_ros.rules.actuation import checked_setpoints
+    from fourbar_ros.rules.motion_plan import checked_setpoints
 
     q = driven_angles(CFG, np.array([CFG.theta_min, CFG.theta_max]))
     plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
