@@ -1,7 +1,7 @@
 """What checking the controller's interpolated motion costs: ``python -m benchmarks.limits_bench [--quick]``.
 
 A 10,000-point antenna trajectory (positions, velocities and accelerations: quintic segments) is converted by the
-node's rule (``rules.actuation.convert``: validation, chain rule, refinement, limits); in the same interleaved
+node's rule (``rules.antenna_trajectory.convert``: validation, chain rule, refinement, limits); in the same interleaved
 rounds the closed-form extremes of its segments (speed, acceleration, jerk: ``motion.limits.segment_magnitudes``)
 are computed alone. Reported: CPU seconds of each (median over rounds) and their ratio; the target is at most 1x
 (the check adds at most the conversion's own time). Also the worst margin the converted trajectory keeps under each
