@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -71,6 +72,7 @@ def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[s
     counters = stats.counters
     store = jazzy_typestore()
     contract = actuation_contract(cfg, 'trajectory')
+    floats = partial(np.array, dtype=np.float64)  # rosbags serializes float64[] from numpy arrays
     with open_bag(src_path) as reader:
         chosen = antenna_trajectory_topic(topic_types(reader), topic)
         if chosen is None:
@@ -85,7 +87,7 @@ def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[s
                     msg: Any = store.deserialize_cdr(bytes(data), JOINT_TRAJECTORY)
                     sent = serve_antenna_trajectory(cfg, contract, Drive(), msg, int(log), counters)
                     if isinstance(sent, Outgoing):
-                        msg = joint_trajectory(store.types, cfg.driven_joint, sent.points, sent.stamp_ns, _floats)
+                        msg = joint_trajectory(store.types, cfg.driven_joint, sent.points, sent.stamp_ns, floats)
                         bag.write(out, log, bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY)))
             except BagError:
                 raise
@@ -96,8 +98,3 @@ def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[s
                 raise BagError(f'{src_path}: topic {chosen} has no messages')
     stats.seconds = time.perf_counter() - start
     return stats
-
-
-def _floats(values: list[float]) -> Any:
-    """A float64[] field's value for rosbags' serializer."""
-    return np.array(values, dtype=np.float64)

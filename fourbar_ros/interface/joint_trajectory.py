@@ -3,7 +3,7 @@ rosbags' typestore classes (``fourbar process``): both take the same field names
 
 from __future__ import annotations
 
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any, NamedTuple
 
 from fourbar_ros.interface.stamps import from_ns
@@ -31,7 +31,7 @@ class PointFields(NamedTuple):
     time_from_start: DurationFields
 
 
-def joint_trajectory(types: Mapping[str, Any], joint: str, points: list[PointFields], stamp_ns: int,
+def joint_trajectory(types: Mapping[str, Any], joint: str, points: Sequence[PointFields], stamp_ns: int,
                      floats: Callable[[list[float]], Any] = list) -> Any:
     """The JointTrajectory of ``points`` for ``joint``, header stamp ``stamp_ns`` (0: start on arrival), built of
     ``types`` (ROS type name -> message class, ``TYPE_NAMES``); ``floats`` makes a float64[] field's value."""

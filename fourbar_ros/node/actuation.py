@@ -136,8 +136,7 @@ class Actuation:
         if stream is None or motion is None:
             return
         t = motion.elapsed(self._now_ns())
-        i = int(stream.times.searchsorted(t, side='right')) - 1  # the latest setpoint due: never ahead of the plan
-        i = max(i, 0)
+        i = max(int(stream.times.searchsorted(t, side='right')) - 1, 0)  # the latest setpoint due, never ahead
         if i == stream.times.size - 1:
             self._setpoints = None  # the last one goes out once; the controller holds it
         position = float(stream.positions[i])

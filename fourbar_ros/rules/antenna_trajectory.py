@@ -30,9 +30,6 @@ from fourbar_ros.motion.refine import refine
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, antenna_trajectory, to_driven
 from fourbar_ros.rules.controller_contract import FLOAT_EPSILON, PointLike
 
-__all__ = ['CannotReachError', 'Converted', 'EndMovingError', 'EndsInPastError', 'TrajectoryProblem',
-           'antenna_arrays', 'at_rest_end', 'convert', 'problem_of']
-
 
 class TrajectoryProblem(enum.Enum):
     """Why an antenna trajectory was refused; the value names its counter (``trajectories_rejected_<value>``)."""
@@ -75,7 +72,6 @@ _PROBLEMS: tuple[tuple[type[FourBarError], TrajectoryProblem], ...] = (
 def problem_of(exc: FourBarError) -> TrajectoryProblem:
     """The class of a refusal, from the error ``convert`` raised."""
     return next((p for kind, p in _PROBLEMS if isinstance(exc, kind)), TrajectoryProblem.INVALID)
-
 
 
 

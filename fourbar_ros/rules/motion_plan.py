@@ -24,9 +24,6 @@ from fourbar_ros.motion.planner import (
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients
 from fourbar_ros.motion.trajectory import DrivenTrajectory, SplineKind
 
-__all__ = ['QUANTITIES', 'Motion', 'checked_setpoints', 'driven_range', 'plan_command', 'planned_points',
-           'planned_setpoints', 'trajectory_setpoints']
-
 #: Derivative order -> (the motor's quantity, its unit), for one-line refusals.
 QUANTITIES = {1: ('speed', 'rad/s'), 2: ('acceleration', 'rad/s^2'), 3: ('jerk', 'rad/s^3')}
 

@@ -20,8 +20,6 @@ from fourbar_ros.motion.trajectory import DrivenTrajectory
 from fourbar_ros.rules.controller_contract import Refusal, check_trajectory
 from fourbar_ros.rules.controller_motion import motion_settings_problem
 
-__all__ = ['actuation_contract', 'outgoing_refusal', 'point_fields']
-
 
 def point_fields(traj: DrivenTrajectory, effort: bool) -> list[PointFields]:
     """The points of the JointTrajectory sent for a driven-joint trajectory: one joint; velocities and accelerations

@@ -32,9 +32,6 @@ from fourbar_ros.rules.takeover import (
     takeover_lead,
 )
 
-__all__ = ['ActuationCounters', 'Drive', 'Outgoing', 'Refused', 'antenna_motion', 'serve_antenna_trajectory',
-           'serve_command']
-
 Contract = TrajectoryControllerSettings | ForwardControllerSettings
 
 @dataclass
@@ -74,13 +71,12 @@ class Drive(NamedTuple):
     measured_ns: int = 0
 
 
-@dataclass(frozen=True)
-class Outgoing:
+class Outgoing(NamedTuple):
     """What goes out, and the ``motion`` the drive then follows: a trajectory (``points``, header stamp ``stamp_ns``,
     0: start on arrival) in trajectory mode, ``setpoints`` in forward mode."""
 
     motion: Motion
-    points: list[PointFields] = field(default_factory=list)
+    points: Sequence[PointFields] = ()
     stamp_ns: int = 0
     setpoints: Setpoints | None = None
 
@@ -106,22 +102,16 @@ def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: f
         if start.before is not None and ends_soon(start, start.at + plan.duration, now_ns):
             start = start.here(now_ns)  # too short to stamp (``outgoing_stamp``): from the motion's state now
             plan = plan_command(cfg, start.state, theta)
-        trajectory_mode = isinstance(contract, TrajectoryControllerSettings)
-        points = continued(start, planned_points(cfg, plan)) if trajectory_mode else None
-        stream = None if trajectory_mode else planned_setpoints(cfg, plan)
+        if isinstance(contract, ForwardControllerSettings):
+            out: Outgoing | Refused = Outgoing(Motion(now_ns, plan=plan), setpoints=planned_setpoints(cfg, plan))
+        else:
+            points = continued(start, planned_points(cfg, plan))
+            out = _sent(cfg, contract, Motion(start.origin_ns, trajectory=points),
+                        outgoing_stamp(cfg, start, points, now_ns), now_ns, 'trajectory', counters)
     except FourBarError as exc:
-        counters.commands_not_planned += 1
-        return Refused(f'command {type(exc).__name__}', f'command theta = {theta!r} rad not planned: {one_line(exc)}')
-    if stream is not None:
-        out: Outgoing | Refused = Outgoing(Motion(now_ns, plan=plan), setpoints=stream)
-    else:
-        assert isinstance(contract, TrajectoryControllerSettings) and points is not None
-        out = _sent(cfg, contract, Motion(start.origin_ns, trajectory=points),
-                    outgoing_stamp(cfg, start, points, now_ns), now_ns, 'trajectory', counters)
-        if isinstance(out, Refused):
-            counters.commands_not_planned += 1
-            return out
-    counters.commands_planned += 1
+        out = Refused(f'command {type(exc).__name__}', f'command theta = {theta!r} rad not planned: {one_line(exc)}')
+    counters.commands_planned += isinstance(out, Outgoing)
+    counters.commands_not_planned += isinstance(out, Refused)
     return out
 
 
@@ -136,21 +126,18 @@ def serve_antenna_trajectory(cfg: AntennaConfig, contract: Contract, drive: Driv
     try:
         start = _start(cfg, contract, drive, now_ns, counters) if drive.measured is not None else None
         converted = antenna_motion(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns, start)
-        stream = (trajectory_setpoints(cfg, converted.trajectory)
-                  if isinstance(contract, ForwardControllerSettings) else None)
+        motion = Motion(converted.stamp_ns or now_ns, trajectory=converted.trajectory)
+        if isinstance(contract, ForwardControllerSettings):
+            out: Outgoing | Refused = Outgoing(motion, setpoints=trajectory_setpoints(cfg, converted.trajectory))
+        else:
+            out = _sent(cfg, contract, motion, converted.stamp_ns, now_ns, 'antenna trajectory', counters)
     except FourBarError as exc:
         problem = problem_of(exc)
         counters.rejected[problem] += 1
         return Refused(f'antenna trajectory {problem.value}',
                        f'antenna trajectory refused ({problem.value}): {one_line(exc)}')
-    motion = Motion(converted.stamp_ns or now_ns, trajectory=converted.trajectory)
-    if stream is not None:
-        out: Outgoing | Refused = Outgoing(motion, setpoints=stream)
-    else:
-        assert isinstance(contract, TrajectoryControllerSettings)
-        out = _sent(cfg, contract, motion, converted.stamp_ns, now_ns, 'antenna trajectory', counters)
-        if isinstance(out, Refused):
-            return out
+    if isinstance(out, Refused):
+        return out
     counters.trajectory_points_inserted += converted.inserted
     counters.trajectories_retimed += converted.retimed
     counters.trajectories_connected += start is not None

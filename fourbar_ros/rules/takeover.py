@@ -22,9 +22,6 @@ from fourbar_ros.rules.antenna_trajectory import CannotReachError, Converted
 from fourbar_ros.rules.controller_motion import ControllerPoint, segment_coefficients
 from fourbar_ros.rules.motion_plan import QUANTITIES, Motion, driven_range
 
-__all__ = ['ARRIVAL_MARGIN_S', 'MEASURED_AGE_MAX_S', 'TAKEOVER_SPACINGS', 'Start', 'carried', 'connect', 'continued',
-           'ends_soon', 'motion_start', 'outgoing_stamp', 'takeover_lead']
-
 
 @dataclass(frozen=True)
 class Start:
