@@ -79,8 +79,7 @@ class Actuation:
                                      qos(MEASURED_JOINT_STATES))
 
     def _now_ns(self) -> int:
-        ns: int = self._clock.now().nanoseconds
-        return ns
+        return int(self._clock.now().nanoseconds)
 
     # ------------------------------------------------------------------ measured driven joint
 

@@ -32,7 +32,9 @@ from fourbar_ros.rules.takeover import (
     takeover_lead,
 )
 
+#: The settings of the controller the actuator mode sends to (``rules.outgoing.actuation_contract``).
 Contract = TrajectoryControllerSettings | ForwardControllerSettings
+
 
 @dataclass
 class ActuationCounters:
@@ -146,10 +148,9 @@ def serve_antenna_trajectory(cfg: AntennaConfig, contract: Contract, drive: Driv
 
 def antenna_motion(cfg: AntennaConfig, allow_moving_end: bool, joint_names: Sequence[str],
                    points: Sequence[PointLike], stamp_ns: int, now_ns: int, start: Start | None = None) -> Converted:
-    """An antenna trajectory's driven-joint motion, or FourBarError (one line; ``problem_of`` classifies it): refused
-    when stamped (``stamp_ns`` != 0) to end before ``now_ns`` plus ``ARRIVAL_MARGIN_S`` (EndsInPastError), else
-    converted (``convert``) and, given the drive's ``start``, joined to it (``connect``); without a start it goes out
-    as given. Stamps and times in ns on the receiver's clock."""
+    """An antenna trajectory's driven-joint motion (``convert``, joined to the drive's ``start`` if given: ``connect``),
+    or FourBarError (one line; ``problem_of`` classifies it), EndsInPastError when stamped (``stamp_ns`` != 0) to end
+    before ``now_ns`` plus ``ARRIVAL_MARGIN_S``. Stamps and times in ns on the receiver's clock."""
     if points:
         end_ns = stamp_ns + to_ns(points[-1].time_from_start)
         if stamp_ns != 0 and end_ns < now_ns + seconds_to_ns(ARRIVAL_MARGIN_S):

@@ -10,11 +10,10 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from support.trajectory_points import Duration, Point
+from support.trajectory_points import antenna_points
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
 from fourbar_ros.config.controllers import trajectory_controller
-from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles
@@ -43,12 +42,6 @@ EPS = float(np.finfo(np.float64).eps)
 
 def q_of(theta: float) -> float:
     return float(driven_angles(CFG, np.array([theta]))[0])
-
-
-def antenna_points(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Point]:
-    return [Point([th], [] if theta_dot is None else [theta_dot[i]],
-                  time_from_start=Duration(*from_ns(seconds_to_ns(t))))
-            for i, (t, th) in enumerate(zip(times, theta, strict=True))]
 
 
 def controller_points(traj: DrivenTrajectory) -> list[ControllerPoint]:

@@ -10,10 +10,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from support.trajectory_points import Duration, Point
+from support.trajectory_points import antenna_points as pts
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.core.errors import FourBarError
-from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Plan, driven_angles
@@ -33,12 +33,6 @@ from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, MEASURED_AGE_MAX_S, Sta
 
 CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
-
-
-def pts(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Point]:
-    return [Point([th], [] if theta_dot is None else [theta_dot[i]],
-                  time_from_start=Duration(*from_ns(seconds_to_ns(t))))
-            for i, (t, th) in enumerate(zip(times, theta, strict=True))]
 
 
 def test_a_trajectory_converts_with_every_point_within_the_limits() -> None:
