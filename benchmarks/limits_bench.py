@@ -1,7 +1,7 @@
 """What checking the controller's interpolated motion costs: ``python -m benchmarks.limits_bench [--quick]``.
 
 A 10,000-point antenna trajectory (positions, velocities and accelerations: quintic segments) is converted by the
-node's rule (``rules.actuation.convert``: validation, chain rule, refinement, limits); in the same interleaved
+node's rule (``rules.antenna_trajectory.convert``: validation, chain rule, refinement, limits); in the same interleaved
 rounds the closed-form extremes of its segments (speed, acceleration, jerk: ``motion.limits.segment_magnitudes``)
 are computed alone. Reported: CPU seconds of each (median over rounds) and their ratio; the target is at most 1x
 (the check adds at most the conversion's own time). Also the worst margin the converted trajectory keeps under each
@@ -18,9 +18,11 @@ import numpy as np
 from benchmarks import CONFIG, options, print_json
 from benchmarks.timing import Case, interleaved, machine_info
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.interface.joint_trajectory import DurationFields, PointFields
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, segment_magnitudes
-from fourbar_ros.rules.actuation import DurationFields, PointFields, convert, duration_parts
+from fourbar_ros.rules.antenna_trajectory import convert
 
 POINTS = 10_000
 #: The target: the extremes' time over the conversion's.
@@ -39,7 +41,7 @@ def request(n: int) -> list[PointFields]:
     theta_dot = amp * w * np.sin(w * t)
     theta_ddot = amp * w * w * np.cos(w * t)
     theta_dot[[0, -1]] = 0.0
-    return [PointFields([float(a)], [float(b)], [float(c)], [], DurationFields(*duration_parts(float(s))))
+    return [PointFields([float(a)], [float(b)], [float(c)], [], DurationFields(*from_ns(seconds_to_ns(float(s)))))
             for s, a, b, c in zip(t, theta, theta_dot, theta_ddot, strict=True)]
 
 

@@ -6,7 +6,7 @@
   sin(gamma + theta), cos(gamma + delta), cos(delta - theta) (the rates and second derivatives). CPU-time medians of
   interleaved rounds. Target: ratio <= 2.
 - whole motion: serving a 10,000-point antenna trajectory message the way the node does, joined to a measured
-  start (``serve_antenna_trajectory`` with a ``Start``: the connecting segment's check included), against
+  start (``antenna_motion`` with a ``Start``: the connecting segment's check included), against
   ``convert`` of the same message alone; CPU-time medians of interleaved rounds. Target: the join adds at most 1x
   the conversion's own time (ratio <= 2).
 - replan continuity: mid-motion replans as the node sends them (the running trajectory's own points first), taken
@@ -30,26 +30,17 @@ from benchmarks.cases import TURNANTENNA
 from benchmarks.sweep import floor_inputs, floor_ufuncs
 from benchmarks.timing import Case, interleaved
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.interface.stamps import seconds_to_ns
+from fourbar_ros.interface.joint_trajectory import DurationFields, PointFields
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_motion, trajectory_points
 from fourbar_ros.motion.trajectory import antenna_trajectory, to_driven
-from fourbar_ros.rules.actuation import (
-    DurationFields,
-    Motion,
-    PointFields,
-    Start,
-    continued,
-    convert,
-    duration_parts,
-    motion_start,
-    plan_command,
-    planned_points,
-    serve_antenna_trajectory,
-    takeover_lead,
-)
+from fourbar_ros.rules.antenna_trajectory import convert
 from fourbar_ros.rules.controller_motion import ControllerPoint, controller_reference
+from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points
+from fourbar_ros.rules.serve import antenna_motion
+from fourbar_ros.rules.takeover import Start, continued, motion_start, takeover_lead
 
 POINTS = 10_000
 
@@ -84,11 +75,11 @@ def whole_motion(rounds: int) -> dict[str, Any]:
     low, span, w = cfg.theta_min + 0.01, cfg.theta_max - cfg.theta_min - 0.02, np.pi / 20.0
     theta, theta_dot = low + 0.5 * span * (1.0 - np.cos(w * (t - 0.5))), 0.5 * span * w * np.sin(w * (t - 0.5))
     mid = float(theta[0])
-    points = [PointFields([float(theta[i])], [float(theta_dot[i])], [], [], DurationFields(*duration_parts(ti)))
+    points = [PointFields([float(theta[i])], [float(theta_dot[i])], [], [], DurationFields(*from_ns(seconds_to_ns(ti))))
               for i, ti in enumerate(t.tolist())]
     start = Start(JointMotionState(float(driven_angles(cfg, np.array([mid]))[0])), 0)
     names = [ANTENNA_JOINT]
-    times = interleaved([Case('serve', lambda: serve_antenna_trajectory(cfg, False, names, points, 0, 0, start), 1),
+    times = interleaved([Case('serve', lambda: antenna_motion(cfg, False, names, points, 0, 0, start), 1),
                          Case('convert', lambda: convert(cfg, names, points, False), 1)], rounds)
     serve, conv = times['serve'][0], times['convert'][0]
     return {'points': POINTS, 'serve_s': serve, 'convert_s': conv, 'ratio': serve / conv, 'ratio_target': 2.0}

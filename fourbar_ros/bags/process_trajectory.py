@@ -1,11 +1,9 @@
 """The actuator trajectories fourbar_node publishes in trajectory mode, for a bag of antenna trajectories (no rclpy).
 
 For every ``trajectory_msgs/JointTrajectory`` of the antenna trajectory topic (``/antenna_trajectory``, else the one
-``*/antenna_trajectory``) in bag order, the node's rule (``fourbar_ros.rules.actuation.convert``): a refused
-trajectory is counted by its problem (``problem_of``) and writes nothing; a converted one gives the driven joint's
-JointTrajectory on ``<trajectory_controller>/joint_trajectory`` next to the input topic, at the input's log time,
-with the input's header stamp (0: start on arrival), the log time standing for the node's clock at arrival. What
-the controller's contract would refuse is counted and not written, as the node does. The output appears
+``*/antenna_trajectory``) in bag order, what the node sends for it (``rules.serve.serve_antenna_trajectory``, the
+log time standing for the node's clock at arrival, no measured drive) on ``<trajectory_controller>/joint_trajectory``
+next to the input topic, at the input's log time; a refusal is counted and writes nothing. The output appears
 atomically.
 """
 
@@ -14,6 +12,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -30,18 +29,11 @@ from fourbar_ros.bags.storage import (
     topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.config.controllers import TrajectoryControllerSettings
-from fourbar_ros.core.errors import FourBarError, one_line
+from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.joint_trajectory import joint_trajectory
 from fourbar_ros.interface.topics import ANTENNA_TRAJECTORY, JOINT_TRAJECTORY, sibling_topic, trajectory_topic
-from fourbar_ros.rules.actuation import (
-    ActuationCounters,
-    PointFields,
-    actuation_contract,
-    outgoing_refusal,
-    point_fields,
-    problem_of,
-    serve_antenna_trajectory,
-)
+from fourbar_ros.rules.outgoing import actuation_contract
+from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, serve_antenna_trajectory
 
 
 @dataclass
@@ -70,23 +62,6 @@ def antenna_trajectory_topic(types: dict[str, str], topic: str | None) -> str | 
     return f'/{name}' if f'/{name}' in candidates else (candidates[0] if len(candidates) == 1 else None)
 
 
-def trajectory_cdr(store: Any, joint: str, points: list[PointFields], stamp_ns: int) -> bytes:
-    """The serialized JointTrajectory of the node's points (``point_fields``) for ``joint``, stamped ``stamp_ns``."""
-    t = store.types
-    point_type, duration_type = t['trajectory_msgs/msg/JointTrajectoryPoint'], t['builtin_interfaces/msg/Duration']
-    msg_points = [point_type(positions=np.array(p.positions, dtype=np.float64),
-                             velocities=np.array(p.velocities, dtype=np.float64),
-                             accelerations=np.array(p.accelerations, dtype=np.float64),
-                             effort=np.array(p.effort, dtype=np.float64),
-                             time_from_start=duration_type(sec=p.time_from_start.sec,
-                                                           nanosec=p.time_from_start.nanosec))
-                  for p in points]
-    stamp = t['builtin_interfaces/msg/Time'](sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
-    msg = t[JOINT_TRAJECTORY](header=t['std_msgs/msg/Header'](stamp=stamp, frame_id=''), joint_names=[joint],
-                              points=msg_points)
-    return bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY))
-
-
 def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
                            topic: str | None = None, storage: Storage | None = None) -> TrajectoryStats:
     """Write to ``dst`` what fourbar_node in trajectory mode publishes for the antenna trajectories of ``src``
@@ -97,7 +72,7 @@ def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[s
     counters = stats.counters
     store = jazzy_typestore()
     contract = actuation_contract(cfg, 'trajectory')
-    assert isinstance(contract, TrajectoryControllerSettings)
+    floats = partial(np.array, dtype=np.float64)  # rosbags serializes float64[] from numpy arrays
     with open_bag(src_path) as reader:
         chosen = antenna_trajectory_topic(topic_types(reader), topic)
         if chosen is None:
@@ -110,24 +85,10 @@ def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[s
                 for _, log, data in reader.messages(connections=conns):
                     counters.trajectories_received += 1
                     msg: Any = store.deserialize_cdr(bytes(data), JOINT_TRAJECTORY)
-                    stamp_ns = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-                    try:
-                        converted = serve_antenna_trajectory(
-                            cfg, contract.allow_nonzero_velocity_at_trajectory_end, msg.joint_names, msg.points,
-                            stamp_ns, int(log))
-                    except FourBarError as exc:
-                        counters.rejected[problem_of(exc)] += 1
-                        continue
-                    points = point_fields(converted.trajectory, cfg.effort_feedforward)
-                    refusal = outgoing_refusal(contract, cfg.driven_joint, points, stamp_ns, int(log))
-                    if refusal is not None:
-                        counters.refused[refusal.rule] += 1
-                        continue
-                    bag.write(out, log, trajectory_cdr(store, cfg.driven_joint, points, stamp_ns))
-                    counters.trajectories_sent += 1
-                    counters.trajectory_points_sent += len(converted.trajectory)
-                    counters.trajectory_points_inserted += converted.inserted
-                    counters.trajectories_retimed += converted.retimed
+                    sent = serve_antenna_trajectory(cfg, contract, Drive(), msg, int(log), counters)
+                    if isinstance(sent, Outgoing):
+                        msg = joint_trajectory(store.types, cfg.driven_joint, sent.points, sent.stamp_ns, floats)
+                        bag.write(out, log, bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY)))
             except BagError:
                 raise
             except Exception as exc:

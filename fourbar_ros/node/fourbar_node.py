@@ -55,9 +55,9 @@ from fourbar_ros.node.model_check import LiveModelCheck
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.timers import periodic_timer
-from fourbar_ros.rules.actuation import actuation_contract
 from fourbar_ros.rules.diagnostics import DIAGNOSTIC_TASK, Counters, Level, SequenceGaps, command_rate, summarize
 from fourbar_ros.rules.marker_geometry import linkage_points
+from fourbar_ros.rules.outgoing import actuation_contract
 from fourbar_ros.rules.outputs import JointStateRule
 from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
 from fourbar_ros.rules.state_cache import StateCache

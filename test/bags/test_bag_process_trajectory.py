@@ -14,8 +14,9 @@ import pytest
 from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_messages
 from fourbar_ros.commands import main
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT, JOINT_TRAJECTORY, trajectory_topic
-from fourbar_ros.rules.actuation import convert, duration_parts
+from fourbar_ros.rules.antenna_trajectory import convert
 
 CFG = default_config()
 STORE = jazzy_typestore()
@@ -28,7 +29,7 @@ def antenna_trajectory(times: list[float], theta: list[float], theta_dot: list[f
     points = [t['trajectory_msgs/msg/JointTrajectoryPoint'](
         positions=np.array([th]), velocities=np.array([] if theta_dot is None else [theta_dot[i]]),
         accelerations=np.array([], dtype=np.float64), effort=np.array([], dtype=np.float64),
-        time_from_start=t['builtin_interfaces/msg/Duration'](*duration_parts(s)))
+        time_from_start=t['builtin_interfaces/msg/Duration'](*from_ns(seconds_to_ns(s))))
         for i, (s, th) in enumerate(zip(times, theta, strict=True))]
     stamp = t['builtin_interfaces/msg/Time'](sec=sec, nanosec=7 if sec else 0)
     return t[JOINT_TRAJECTORY](header=t['std_msgs/msg/Header'](stamp=stamp, frame_id=''), joint_names=[joint],
@@ -73,7 +74,7 @@ def test_a_trajectory_bag_is_converted_by_the_node_rule(tmp_path: Path, capsys: 
         assert [p.velocities.tolist() for p in m.points] == \
             ([[]] * len(want) if vel is None else [[v] for v in vel.tolist()])
         assert all(len(p.accelerations) == 0 for p in m.points) == (want.accelerations is None)
-        assert [duration_parts(t) for t in want.times.tolist()] == \
+        assert [from_ns(seconds_to_ns(t)) for t in want.times.tolist()] == \
             [(p.time_from_start.sec, p.time_from_start.nanosec) for p in m.points]
 
 

@@ -35,7 +35,7 @@ from fourbar_ros.motion.planner import (
 from fourbar_ros.motion.refine import deviation_bounds, refine
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients, segment_extremes
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, antenna_trajectory, on_wire, to_driven
-from fourbar_ros.rules.actuation import motion_start
+from fourbar_ros.rules.takeover import motion_start
 
 CFG = default_config()
 DELTA_CFG = config_from_values({'driven_rocker': 'delta'})

@@ -27,13 +27,15 @@ from support.ros_support import Collector, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.interface.stamps import to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_angles
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
-from fourbar_ros.rules.actuation import MEASURED_AGE_MAX_S, TrajectoryProblem, motion_start, takeover_lead
+from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem
+from fourbar_ros.rules.takeover import MEASURED_AGE_MAX_S, motion_start, takeover_lead
 
 pytestmark = pytest.mark.ros
 
@@ -66,10 +68,6 @@ def as_driven(msg: JointTrajectory) -> DrivenTrajectory:
     effort = col('effort')
     return DrivenTrajectory(t, col('positions'), col('velocities'), col('accelerations'),
                             np.zeros_like(t) if effort is None else effort, AntennaTrajectory(t, np.zeros_like(t)))
-
-
-def stamp_ns(stamp: Time) -> int:
-    return stamp.sec * 10**9 + stamp.nanosec
 
 
 class Pair:
@@ -204,7 +202,7 @@ def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     # The second carries the first's stamp and repeats its points, bit for bit, from the one the node's now fell in
     # up to the first at least takeover_lead ahead, where the new motion starts: wherever the controller takes it
     # over, it is on the segments it was following.
-    assert stamp_ns(second.header.stamp) == stamp_ns(first.header.stamp) > 0
+    assert to_ns(second.header.stamp) == to_ns(first.header.stamp) > 0
     k0 = int(np.flatnonzero(a.times == b.times[0])[0])
     n = min(len(b), len(a) - k0)
     assert b.velocities is not None and b.accelerations is not None
@@ -348,13 +346,13 @@ def test_the_node_publishes_one_complete_joint_state_per_measurement(traj: Pair)
     # 0, 0]. One complete message per measurement (matched by stamp), none without a measurement.
     start = len(traj.complete)
     traj.complete.wait_count(start + 5)
-    measured = {stamp_ns(m.header.stamp): m for m in traj.measured.messages}
+    measured = {to_ns(m.header.stamp): m for m in traj.measured.messages}
     names = [JOINT, CFG.delta_joint, CFG.coupler_joint]
     seen = set()
     for m in traj.complete.messages[start:]:
         assert list(m.name) == names
-        k = stamp_ns(m.header.stamp)
-        src = measured.get(k) or traj.measured.wait_match(lambda x, k=k: stamp_ns(x.header.stamp) == k)
+        k = to_ns(m.header.stamp)
+        src = measured.get(k) or traj.measured.wait_match(lambda x, k=k: to_ns(x.header.stamp) == k)
         assert m.position[0] == src.position[0] and m.velocity[0] == src.velocity[0]
         assert list(m.effort) == [src.effort[0], 0.0, 0.0]
         assert k not in seen
@@ -395,11 +393,11 @@ def test_a_command_after_the_drive_was_held_plans_from_the_measured_state(held: 
     # little, so not necessarily the latest now), carried on at its velocity from its stamp to the plan's (the
     # node's now), not where its model of the first motion is (seconds into it, far along): the controller gets no
     # step.
-    planned_ns = stamp_ns(held.trajectories.messages[before + 1].header.stamp)
+    planned_ns = to_ns(held.trajectories.messages[before + 1].header.stamp)
 
     def planned_from(m: JointState) -> bool:
         measured = JointMotionState(m.position[0], m.velocity[0])
-        start = motion_start(CFG, None, measured, planned_ns, 0.0, stamp_ns(m.header.stamp))
+        start = motion_start(CFG, None, measured, planned_ns, 0.0, to_ns(m.header.stamp))
         return start is not None and start.state.position == second.positions[0]
     held.measured.wait_match(planned_from)
     model = held.actuation.motion  # the second motion now; the first one's model is far from the drive

@@ -25,11 +25,13 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from fourbar_ros.bags.process_trajectory import TrajectoryStats
 from fourbar_ros.bags.storage import read_messages
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT, ANTENNA_TRAJECTORY, trajectory_topic
 from fourbar_ros.live.record import Recorder, discover
 from fourbar_ros.node.fourbar_node import FourBarNode
-from fourbar_ros.rules.actuation import ActuationCounters, TrajectoryProblem, duration_parts
+from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem
 from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.serve import ActuationCounters
 
 pytestmark = pytest.mark.ros
 
@@ -42,12 +44,17 @@ INPUT = f'{NS}/{ANTENNA_TRAJECTORY.name}'
 OUTPUT = f'{NS}/{trajectory_topic(CFG.trajectory_controller).name}'
 
 
+def duration(t: float) -> Duration:
+    sec, nanosec = from_ns(seconds_to_ns(t))
+    return Duration(sec=sec, nanosec=nanosec)
+
+
 def antenna_msg(times: list[float], theta: list[float], theta_dot: list[float] | None = None,
                 theta_ddot: list[float] | None = None, sec: int = 1) -> JointTrajectory:
     """An antenna trajectory stamped ``sec`` s + 7 ns (a stamp the node keeps, so both sides carry it)."""
     pts = [JointTrajectoryPoint(positions=[th], velocities=[] if theta_dot is None else [theta_dot[i]],
                                 accelerations=[] if theta_ddot is None else [theta_ddot[i]],
-                                time_from_start=Duration(sec=duration_parts(t)[0], nanosec=duration_parts(t)[1]))
+                                time_from_start=duration(t))
            for i, (t, th) in enumerate(zip(times, theta, strict=True))]
     msg = JointTrajectory(joint_names=[ANTENNA_JOINT], points=pts)
     if sec:
@@ -154,10 +161,10 @@ def assert_process_equals_the_node(tmp: Path, params: Path, counted: ActuationCo
     assert processed.returncode == 0, processed.stderr
     # process counts what the node counted for the same messages (its summary line, without the seconds).
     assert TrajectoryStats(counted).summary().rsplit(' in ', 1)[0] in processed.stderr
-    # Both convert with rules.actuation.convert on the same floats (the recorded CDR decoded by rosbags or rclpy)
-    # and write the points through rules.actuation.point_values: identical operations, so every float and every
-    # time_from_start is compared bit for bit (0 ulps). Log times differ (process writes at the input's log time,
-    # the recorder at its arrival); the header stamps are checked exactly below.
+    # Both serve them with rules.serve.serve_antenna_trajectory on the same floats (the recorded CDR decoded by
+    # rosbags or rclpy) and build the message with interface.joint_trajectory: identical operations, so every float
+    # and every time_from_start is compared bit for bit (0 ulps). Log times differ (process writes at the input's log
+    # time, the recorder at its arrival); the header stamps are checked exactly below.
     compared = fourbar('compare', tmp / 'node', tmp / 'process', '--params', params, '--ulps', '0',
                        '--ignore', 'stamps')
     assert compared.returncode == 0, compared.stdout

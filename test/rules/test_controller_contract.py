@@ -24,26 +24,20 @@ from fourbar_ros.config.controllers import (
     forward_controller,
     trajectory_controller,
 )
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.planner import JointMotionState
-from fourbar_ros.rules.actuation import (
-    ARRIVAL_MARGIN_S,
-    EndMovingError,
-    EndsInPastError,
-    actuation_contract,
-    duration_parts,
-    outgoing_refusal,
-    plan_command,
-    planned_points,
-    point_fields,
-    serve_antenna_trajectory,
-)
+from fourbar_ros.rules.antenna_trajectory import EndMovingError, EndsInPastError
 from fourbar_ros.rules.controller_contract import (
     FLOAT_EPSILON,
     ContractRule,
     check_forward_command,
     check_trajectory,
 )
+from fourbar_ros.rules.motion_plan import plan_command, planned_points
+from fourbar_ros.rules.outgoing import actuation_contract, outgoing_refusal, point_fields
+from fourbar_ros.rules.serve import antenna_motion
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S
 
 CFG = default_config()
 JOINT = CFG.driven_joint
@@ -52,7 +46,7 @@ NOW = 1_000 * 10**9  # ns
 
 
 def pts(times: list[float], positions: list[float], **fields: list[list[float]]) -> list[Point]:
-    return [Point([p], time_from_start=Duration(*duration_parts(t)), **{k: v[i] for k, v in fields.items()})
+    return [Point([p], time_from_start=Duration(*from_ns(seconds_to_ns(t))), **{k: v[i] for k, v in fields.items()})
             for i, (t, p) in enumerate(zip(times, positions, strict=True))]
 
 
@@ -218,8 +212,8 @@ def antenna(times: list[float], theta: list[float], theta_dot: list[float]) -> l
 def test_an_antenna_trajectory_ending_in_motion_is_refused_unless_the_controller_allows_it() -> None:
     moving = antenna([0.0, 1.0, 2.0], [0.0, 0.01, 0.02], [0.0, 0.01, 0.004])
     with pytest.raises(EndMovingError, match=r'theta_dot = 0\.004'):
-        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], moving, 0, NOW)
-    converted = serve_antenna_trajectory(CFG, True, [ANTENNA_JOINT], moving, 0, NOW)
+        antenna_motion(CFG, False, [ANTENNA_JOINT], moving, 0, NOW)
+    converted = antenna_motion(CFG, True, [ANTENNA_JOINT], moving, 0, NOW)
     last = point_fields(converted.trajectory, effort=False)[-1]
     theta = np.array([0.02])
     q1 = float(CFG.linkage.rates_at(theta, *CFG.linkage.rocker_angles(theta, CFG.branch)).dgamma_dtheta[0])
@@ -237,8 +231,8 @@ def test_an_antenna_trajectory_ending_in_the_past_is_refused_and_stamp_0_starts_
     # it.
     for stamp in (NOW - 3 * 10**9, NOW - 2 * 10**9):
         with pytest.raises(EndsInPastError):
-            serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], rest, stamp, NOW)
+            antenna_motion(CFG, False, [ANTENNA_JOINT], rest, stamp, NOW)
     lead = round(ARRIVAL_MARGIN_S * 1e9)
     for stamp in (0, NOW - 2 * 10**9 + lead, NOW + 10**9):  # on arrival; ending a lead from now; in the future
-        converted = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], rest, stamp, NOW)
+        converted = antenna_motion(CFG, False, [ANTENNA_JOINT], rest, stamp, NOW)
         assert outgoing_refusal(JTC, JOINT, point_fields(converted.trajectory, False), stamp, NOW) is None

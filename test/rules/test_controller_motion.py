@@ -10,7 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from support.trajectory_points import Duration, Point
+from support.trajectory_points import antenna_points
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
 from fourbar_ros.config.controllers import trajectory_controller
@@ -18,24 +18,7 @@ from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles
 from fourbar_ros.motion.trajectory import DrivenTrajectory
-from fourbar_ros.rules.actuation import (
-    ARRIVAL_MARGIN_S,
-    CannotReachError,
-    Motion,
-    Start,
-    TrajectoryProblem,
-    actuation_contract,
-    continued,
-    duration_parts,
-    motion_start,
-    outgoing_stamp,
-    plan_command,
-    planned_points,
-    point_fields,
-    problem_of,
-    serve_antenna_trajectory,
-    takeover_lead,
-)
+from fourbar_ros.rules.antenna_trajectory import CannotReachError, TrajectoryProblem, problem_of
 from fourbar_ros.rules.controller_contract import FLOAT_EPSILON, check_trajectory
 from fourbar_ros.rules.controller_motion import (
     ControllerPoint,
@@ -44,6 +27,10 @@ from fourbar_ros.rules.controller_motion import (
     motion_settings_problem,
     segment_coefficients,
 )
+from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points
+from fourbar_ros.rules.outgoing import actuation_contract, point_fields
+from fourbar_ros.rules.serve import antenna_motion
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, Start, continued, motion_start, outgoing_stamp, takeover_lead
 
 CFG = default_config()
 RETIME = config_from_values({'limit_policy': 'retime'})
@@ -55,11 +42,6 @@ EPS = float(np.finfo(np.float64).eps)
 
 def q_of(theta: float) -> float:
     return float(driven_angles(CFG, np.array([theta]))[0])
-
-
-def antenna_points(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Point]:
-    return [Point([th], [] if theta_dot is None else [theta_dot[i]], time_from_start=Duration(*duration_parts(t)))
-            for i, (t, th) in enumerate(zip(times, theta, strict=True))]
 
 
 def controller_points(traj: DrivenTrajectory) -> list[ControllerPoint]:
@@ -198,14 +180,14 @@ def test_a_one_point_trajectory_is_given_the_time_its_whole_motion_needs() -> No
     as_is = controller_reference(True, [ControllerPoint(0.05, q_of(0.1), 0.0)], None, PERIOD, rest.position, 0.0,
                                  PERIOD)
     assert worst_ratio(as_is) > 10.0  # what the controller would have done with the message as given
-    out = serve_antenna_trajectory(RETIME, False, [ANTENNA_JOINT], points, 0, 0, start)
+    out = antenna_motion(RETIME, False, [ANTENNA_JOINT], points, 0, 0, start)
     assert out.retimed and out.trajectory.positions[-1] == q_of(0.1)
     stamp = None if out.stamp_ns == 0 else 0.0
     for takeover in (1e-4, PERIOD, 3 * PERIOD):  # wherever the controller takes it over
         ref = whole_motion(out.trajectory, stamp, takeover, rest)
         assert worst_ratio(ref) <= 1.0, takeover
     with pytest.raises(CannotReachError) as refused:
-        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, 0, 0, Start(rest, 0))
+        antenna_motion(CFG, False, [ANTENNA_JOINT], points, 0, 0, Start(rest, 0))
     assert problem_of(refused.value) is TrajectoryProblem.CANNOT_REACH_IN_TIME
 
 
@@ -214,16 +196,16 @@ def test_a_stamped_trajectory_that_cannot_be_reached_in_time_is_refused_under_ei
     points = antenna_points([0.0, 1.0], [0.1, 0.1], [0.0, 0.0])
     for cfg in (CFG, RETIME):
         with pytest.raises(CannotReachError):
-            serve_antenna_trajectory(cfg, False, [ANTENNA_JOINT], points, 10**9 // 20, 0, Start(rest, 0))
+            antenna_motion(cfg, False, [ANTENNA_JOINT], points, 10**9 // 20, 0, Start(rest, 0))
     # Stamped far enough ahead, the same points are reached in time and nothing is retimed.
-    out = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, 30 * 10**9, 0, Start(rest, 0))
+    out = antenna_motion(CFG, False, [ANTENNA_JOINT], points, 30 * 10**9, 0, Start(rest, 0))
     assert not out.retimed and worst_ratio(whole_motion(out.trajectory, 0.0, PERIOD, rest)) <= 1.0
 
 
 def test_a_one_point_trajectory_as_the_motion_being_followed_has_a_state_at_every_time() -> None:
     """A motion holding a single point (a trajectory sent without a connection) answers state_at before, at and
     after its point, as the controller holds it."""
-    one = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], antenna_points([0.5], [0.05]), 0, 0).trajectory
+    one = antenna_motion(CFG, False, [ANTENNA_JOINT], antenna_points([0.5], [0.05]), 0, 0).trajectory
     assert len(one) == 1
     motion = Motion(10**9, trajectory=one)
     for t in (0, 10**9, 10**9 + 10**8, 10**10):
@@ -236,7 +218,7 @@ def test_an_end_at_rest_to_rounding_is_accepted_and_sent_as_exactly_zero() -> No
     theta = 0.05 * np.sin(0.5 * math.pi * t / 2.0)
     theta_dot = 0.05 * 0.25 * math.pi * np.cos(0.5 * math.pi * t / 2.0)
     assert 0.0 < abs(theta_dot[-1]) < 1e-16
-    out = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], antenna_points(list(t), list(theta), list(theta_dot)),
+    out = antenna_motion(CFG, False, [ANTENNA_JOINT], antenna_points(list(t), list(theta), list(theta_dot)),
                                    0, 0)
     assert out.trajectory.velocities is not None and out.trajectory.velocities[-1] == 0.0
     fields = point_fields(out.trajectory, False)
@@ -244,7 +226,7 @@ def test_an_end_at_rest_to_rounding_is_accepted_and_sent_as_exactly_zero() -> No
     moving = list(theta_dot)
     moving[-1] = 1e-3
     with pytest.raises(Exception, match='above float epsilon'):
-        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], antenna_points(list(t), list(theta), moving), 0, 0)
+        antenna_motion(CFG, False, [ANTENNA_JOINT], antenna_points(list(t), list(theta), moving), 0, 0)
     assert float(np.finfo(np.float32).eps) == FLOAT_EPSILON
 
 
@@ -313,10 +295,10 @@ def test_a_stamped_trajectory_ending_before_the_takeover_is_refused() -> None:
     points = antenna_points([0.0, 0.5], [0.0, 0.0], [0.0, 0.0])
     soon = now - 500_000_000 + round(0.5 * ARRIVAL_MARGIN_S * 1e9)  # ends half the margin from now
     with pytest.raises(Exception) as refused:
-        serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, soon, now,
+        antenna_motion(CFG, False, [ANTENNA_JOINT], points, soon, now,
                                  Start(JointMotionState(q_of(0.0)), now))
     assert problem_of(refused.value) is TrajectoryProblem.ENDS_IN_PAST  # type: ignore[arg-type]
     later = now - 500_000_000 + round(2.0 * ARRIVAL_MARGIN_S * 1e9)
-    out = serve_antenna_trajectory(CFG, False, [ANTENNA_JOINT], points, later, now,
+    out = antenna_motion(CFG, False, [ANTENNA_JOINT], points, later, now,
                                    Start(JointMotionState(q_of(0.0)), now))
     assert out.stamp_ns == now

@@ -5,43 +5,34 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from support.trajectory_points import Duration, Point
+from support.trajectory_points import antenna_points as pts
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Plan, driven_angles
-from fourbar_ros.rules.actuation import (
-    MEASURED_AGE_MAX_S,
-    ActuationCounters,
+from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem, convert, problem_of
+from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.motion_plan import (
     Motion,
-    Start,
-    TrajectoryProblem,
-    carried,
-    convert,
     driven_range,
-    duration_parts,
-    motion_start,
     plan_command,
     planned_points,
     planned_setpoints,
-    problem_of,
-    takeover_lead,
     trajectory_setpoints,
 )
-from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.outgoing import actuation_contract
+from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, MEASURED_AGE_MAX_S, Start, carried, motion_start, takeover_lead
 
 CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
-
-
-def pts(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Point]:
-    return [Point([th], [] if theta_dot is None else [theta_dot[i]], time_from_start=Duration(*duration_parts(t)))
-            for i, (t, th) in enumerate(zip(times, theta, strict=True))]
 
 
 def test_a_trajectory_converts_with_every_point_within_the_limits() -> None:
@@ -212,7 +203,7 @@ def test_forward_setpoints_of_a_trajectory_follow_the_controllers_spline() -> No
 def test_setpoint_streams_are_held_to_every_limit_by_their_divided_differences() -> None:
     from fourbar_ros.motion.errors import LimitError
     from fourbar_ros.motion.planner import Setpoints
-    from fourbar_ros.rules.actuation import checked_setpoints
+    from fourbar_ros.rules.motion_plan import checked_setpoints
 
     q = driven_angles(CFG, np.array([CFG.theta_min, CFG.theta_max]))
     plan = plan_command(CFG, JointMotionState(float(q[0])), CFG.theta_max)
@@ -232,3 +223,27 @@ def test_setpoint_streams_are_held_to_every_limit_by_their_divided_differences()
     p2 = float(q[0]) + np.where(s < 0.2, 0.5 * a * s * s, 0.5 * a * 0.04 + a * 0.2 * late - 0.5 * a * late ** 2)
     with pytest.raises(LimitError, match='motor jerk'):
         checked_setpoints(CFG, Setpoints(s, p2))
+
+
+def test_each_input_has_one_entry_returning_what_goes_out_or_a_refusal() -> None:
+    """A served command and an antenna trajectory message, each through its entry: what goes out (a trajectory
+    stamped with its start, 0 for a short motion starting now; setpoints in forward mode) or a refusal, counted."""
+    jtc, fwd = actuation_contract(CFG, 'trajectory'), actuation_contract(CFG, 'forward')
+    now, counters = 10**12, ActuationCounters()
+    rest = Drive(measured=JointMotionState(float(driven_angles(CFG, np.array([0.0]))[0])), measured_ns=now)
+    assert serve_command(CFG, jtc, Drive(), 0.03, now, counters).key == 'command no start'  # type: ignore[union-attr]
+    far, near = (serve_command(CFG, jtc, rest, theta, now, counters) for theta in (0.03, 1e-5))
+    assert isinstance(far, Outgoing) and far.stamp_ns == far.motion.start_ns == now and far.setpoints is None
+    assert isinstance(near, Outgoing) and near.stamp_ns == 0 and near.motion.duration <= ARRIVAL_MARGIN_S
+    stream = serve_command(CFG, fwd, rest, 0.03, now, counters)
+    assert isinstance(stream, Outgoing) and stream.setpoints is not None and not stream.points
+    msg = SimpleNamespace(header=SimpleNamespace(stamp=Duration()), joint_names=[ANTENNA_JOINT],
+                          points=pts([0.0, 1.0], [0.0, 0.02], [0.0, 0.0]))
+    sent = serve_antenna_trajectory(CFG, jtc, Drive(), msg, now, counters)
+    assert isinstance(sent, Outgoing) and sent.stamp_ns == 0 and sent.motion.start_ns == now
+    msg.joint_names = ['elbow']
+    assert serve_antenna_trajectory(CFG, jtc, Drive(), msg, now, counters) == Refused(
+        'antenna trajectory wrong_joint', "antenna trajectory refused (wrong_joint): joint_names ['elbow']: an "
+        f'antenna trajectory has the one joint {ANTENNA_JOINT!r}')
+    assert (counters.commands_planned, counters.commands_not_planned, counters.trajectories_sent) == (3, 1, 3)
+    assert counters.rejected[TrajectoryProblem.WRONG_JOINT] == 1

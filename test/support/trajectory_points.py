@@ -5,6 +5,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
+
 
 @dataclass
 class Duration:
@@ -23,3 +25,10 @@ class Point:
     accelerations: list[float] = field(default_factory=list)
     effort: list[float] = field(default_factory=list)
     time_from_start: Duration = field(default_factory=Duration)
+
+
+def antenna_points(times: list[float], theta: list[float], theta_dot: list[float] | None = None) -> list[Point]:
+    """An antenna trajectory's points: theta rad at times s, with theta_dot rad/s when given."""
+    return [Point([th], [] if theta_dot is None else [theta_dot[i]],
+                  time_from_start=Duration(*from_ns(seconds_to_ns(t))))
+            for i, (t, th) in enumerate(zip(times, theta, strict=True))]

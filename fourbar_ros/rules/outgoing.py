@@ -1,0 +1,66 @@
+"""What leaves for the controller: a trajectory's points as sent, checked against the controller's contract.
+
+``point_fields``, ``outgoing_refusal`` and ``actuation_contract`` (the controller each actuator mode sends to). See
+docs/how-to/ros2-control.md."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+from fourbar_ros.config.antenna_config import AntennaConfig, ConfigError
+from fourbar_ros.config.controllers import (
+    ForwardControllerSettings,
+    TrajectoryControllerSettings,
+    forward_controller,
+    trajectory_controller,
+)
+from fourbar_ros.interface.joint_trajectory import DurationFields, PointFields
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
+from fourbar_ros.motion.trajectory import DrivenTrajectory
+from fourbar_ros.rules.controller_contract import Refusal, check_trajectory
+from fourbar_ros.rules.controller_motion import motion_settings_problem
+
+
+def point_fields(traj: DrivenTrajectory, effort: bool) -> list[PointFields]:
+    """The points of the JointTrajectory sent for a driven-joint trajectory: one joint; velocities and accelerations
+    where given, else empty; the static torque as effort only when ``effort`` (the feed-forward)."""
+    vel, acc = traj.velocities, traj.accelerations
+    efforts = traj.efforts.tolist()
+    return [PointFields([p], [] if vel is None else [float(vel[i])], [] if acc is None else [float(acc[i])],
+                        [efforts[i]] if effort else [], DurationFields(*from_ns(seconds_to_ns(t))))
+            for i, (t, p) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), strict=True))]
+
+
+def outgoing_refusal(contract: TrajectoryControllerSettings, joint: str, points: Sequence[PointFields], stamp_ns: int,
+                     now_ns: int) -> Refusal | None:
+    """What the trajectory controller would refuse of a trajectory this package sends (``joint``, ``points``,
+    header stamp ``stamp_ns``), arriving at ``now_ns``: None for nothing. A refused one is not sent."""
+    return check_trajectory(contract, [joint], points, stamp_ns, now_ns)
+
+
+def actuation_contract(cfg: AntennaConfig, mode: str | None = None, namespace: str = '/',
+                       ) -> TrajectoryControllerSettings | ForwardControllerSettings:
+    """The settings of the controller that ``mode`` (default: the configured one; trajectory or forward) sends to,
+    from ``controllers_file`` as the controller manager in ``namespace`` reads it. Raises ConfigError (one line)
+    when they cannot take what the node sends: the controller's joints not the one driven joint,
+    ``effort_feedforward`` without an effort command interface, or a setting that changes the motion in a way the
+    node does not model (``rules.controller_motion.motion_settings_problem``)."""
+    if (mode or cfg.mode) == 'trajectory':
+        contract: TrajectoryControllerSettings | ForwardControllerSettings = trajectory_controller(
+            cfg.controllers_file, cfg.trajectory_controller, namespace)
+    else:
+        contract = forward_controller(cfg.controllers_file, cfg.forward_controller, namespace)
+    if isinstance(contract, TrajectoryControllerSettings):
+        problem = motion_settings_problem(contract)
+        if problem is not None:
+            raise ConfigError(f'controllers_file: {problem}', ('controllers_file',))
+    if list(contract.joints) != [cfg.driven_joint]:
+        raise ConfigError(f'controllers_file: the controller {contract.name} has joints {list(contract.joints)}; the '
+                          f'node drives the one joint {cfg.driven_joint!r}', ('controllers_file',))
+    if (cfg.effort_feedforward and isinstance(contract, TrajectoryControllerSettings)
+            and not contract.has_effort_command_interface):
+        raise ConfigError(f'effort_feedforward: the controller {contract.name} has command_interfaces '
+                          f'{list(contract.command_interfaces)}, and it refuses points with effort unless one is '
+                          'effort: give it [position, effort]', ('effort_feedforward',))
+    return contract
+

@@ -1,0 +1,192 @@
+"""What the actuator modes make of their inputs: one entry per input, what goes out or a refusal.
+
+``serve_command`` (a served command) and ``serve_antenna_trajectory`` (an antenna trajectory message) return
+``Outgoing`` (a trajectory, or setpoints in forward mode) or ``Refused``, counted in ``ActuationCounters``; the node
+calls them per message, ``fourbar process`` per recorded message. How: docs/explanation/motion.md."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any, NamedTuple
+
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.config.controllers import ForwardControllerSettings, TrajectoryControllerSettings
+from fourbar_ros.core.errors import FourBarError, one_line
+from fourbar_ros.interface.joint_trajectory import PointFields
+from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
+from fourbar_ros.interface.topics import MEASURED_JOINT_STATES
+from fourbar_ros.motion.planner import JointMotionState, Setpoints
+from fourbar_ros.rules.antenna_trajectory import Converted, EndsInPastError, TrajectoryProblem, convert, problem_of
+from fourbar_ros.rules.controller_contract import ContractRule, PointLike
+from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points, planned_setpoints, trajectory_setpoints
+from fourbar_ros.rules.outgoing import outgoing_refusal, point_fields
+from fourbar_ros.rules.takeover import (
+    ARRIVAL_MARGIN_S,
+    Start,
+    connect,
+    continued,
+    ends_soon,
+    motion_start,
+    outgoing_stamp,
+    takeover_lead,
+)
+
+#: The settings of the controller the actuator mode sends to (``rules.outgoing.actuation_contract``).
+Contract = TrajectoryControllerSettings | ForwardControllerSettings
+
+
+@dataclass
+class ActuationCounters:
+    """What the actuator modes did, counted (diagnostics keys, and ``fourbar process``'s summary)."""
+
+    trajectories_received: int = 0
+    trajectories_sent: int = 0
+    trajectories_retimed: int = 0
+    trajectory_points_sent: int = 0
+    trajectory_points_inserted: int = 0
+    commands_planned: int = 0
+    commands_not_planned: int = 0  # no start state yet, or the motion cannot stop within the range
+    commands_replanned_from_measured: int = 0  # the measured joint was off the motion by more than replan_tolerance
+    measured_start_clamped: int = 0  # a start measured outside the range by at most measured_range_tolerance
+    trajectories_connected: int = 0  # antenna trajectories given a connecting segment from the drive's state
+    setpoints_published: int = 0
+    rejected: dict[TrajectoryProblem, int] = field(default_factory=lambda: dict.fromkeys(TrajectoryProblem, 0))
+    #: messages of this package's own making the controller's contract refused (never sent)
+    refused: dict[ContractRule, int] = field(default_factory=lambda: dict.fromkeys(ContractRule, 0))
+
+    def as_dict(self) -> dict[str, int]:
+        """Counter name -> value, one ``trajectories_rejected_<problem>`` per problem and one
+        ``contract_refused_<rule>`` per contract rule."""
+        out = {k: v for k, v in asdict(self).items() if k not in ('rejected', 'refused')}
+        out.update({f'trajectories_rejected_{p.value}': n for p, n in self.rejected.items()})
+        out.update({f'contract_refused_{r.value}': n for r, n in self.refused.items()})
+        return out
+
+
+class Drive(NamedTuple):
+    """What the receiver knows of the drive: the ``motion`` it follows, and the ``measured`` driven joint at
+    ``measured_ns`` (node clock)."""
+
+    motion: Motion | None = None
+    measured: JointMotionState | None = None
+    measured_ns: int = 0
+
+
+class Outgoing(NamedTuple):
+    """What goes out, and the ``motion`` the drive then follows: a trajectory (``points``, header stamp ``stamp_ns``,
+    0: start on arrival) in trajectory mode, ``setpoints`` in forward mode."""
+
+    motion: Motion
+    points: Sequence[PointFields] = ()
+    stamp_ns: int = 0
+    setpoints: Setpoints | None = None
+
+
+class Refused(NamedTuple):
+    """Nothing goes out: the refusal's kind (one per problem or contract rule) and one line saying why."""
+
+    key: str
+    line: str
+
+
+def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: float, now_ns: int,
+                  counters: ActuationCounters) -> Outgoing | Refused:
+    """A served command to theta (rad, after the node's policy) at ``now_ns``: the plan from the drive's start
+    (``motion_start``), as trajectory points or setpoints for ``contract``'s controller."""
+    start = _start(cfg, contract, drive, now_ns, counters)
+    if start is None:
+        counters.commands_not_planned += 1
+        return Refused('command no start', f'command theta = {theta!r} rad not planned: no measured '
+                       f'{cfg.driven_joint} on {MEASURED_JOINT_STATES.name} yet')
+    try:
+        plan = plan_command(cfg, start.state, theta)
+        if start.before is not None and ends_soon(start, start.at + plan.duration, now_ns):
+            start = start.here(now_ns)  # too short to stamp (``outgoing_stamp``): from the motion's state now
+            plan = plan_command(cfg, start.state, theta)
+        if isinstance(contract, ForwardControllerSettings):
+            out: Outgoing | Refused = Outgoing(Motion(now_ns, plan=plan), setpoints=planned_setpoints(cfg, plan))
+        else:
+            points = continued(start, planned_points(cfg, plan))
+            out = _sent(cfg, contract, Motion(start.origin_ns, trajectory=points),
+                        outgoing_stamp(cfg, start, points, now_ns), now_ns, 'trajectory', counters)
+    except FourBarError as exc:
+        out = Refused(f'command {type(exc).__name__}', f'command theta = {theta!r} rad not planned: {one_line(exc)}')
+    counters.commands_planned += isinstance(out, Outgoing)
+    counters.commands_not_planned += isinstance(out, Refused)
+    return out
+
+
+def serve_antenna_trajectory(cfg: AntennaConfig, contract: Contract, drive: Drive, msg: Any, now_ns: int,
+                             counters: ActuationCounters) -> Outgoing | Refused:
+    """An antenna trajectory ``msg`` (a ``trajectory_msgs/JointTrajectory``, rclpy's or rosbags') arriving at
+    ``now_ns``: its driven-joint motion (``antenna_motion``, joined to the drive only where it is measured: a model
+    of the motion alone is not where the drive is), sent as is or as setpoints for ``contract``'s controller."""
+    stamp_ns = to_ns(msg.header.stamp)  # 0: start on arrival
+    allow_moving_end = (isinstance(contract, TrajectoryControllerSettings)
+                        and contract.allow_nonzero_velocity_at_trajectory_end)
+    try:
+        start = _start(cfg, contract, drive, now_ns, counters) if drive.measured is not None else None
+        converted = antenna_motion(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns, start)
+        motion = Motion(converted.stamp_ns or now_ns, trajectory=converted.trajectory)
+        if isinstance(contract, ForwardControllerSettings):
+            out: Outgoing | Refused = Outgoing(motion, setpoints=trajectory_setpoints(cfg, converted.trajectory))
+        else:
+            out = _sent(cfg, contract, motion, converted.stamp_ns, now_ns, 'antenna trajectory', counters)
+    except FourBarError as exc:
+        problem = problem_of(exc)
+        counters.rejected[problem] += 1
+        return Refused(f'antenna trajectory {problem.value}',
+                       f'antenna trajectory refused ({problem.value}): {one_line(exc)}')
+    if isinstance(out, Refused):
+        return out
+    counters.trajectory_points_inserted += converted.inserted
+    counters.trajectories_retimed += converted.retimed
+    counters.trajectories_connected += start is not None
+    return out
+
+
+def antenna_motion(cfg: AntennaConfig, allow_moving_end: bool, joint_names: Sequence[str],
+                   points: Sequence[PointLike], stamp_ns: int, now_ns: int, start: Start | None = None) -> Converted:
+    """An antenna trajectory's driven-joint motion (``convert``, joined to the drive's ``start`` if given: ``connect``),
+    or FourBarError (one line; ``problem_of`` classifies it), EndsInPastError when stamped (``stamp_ns`` != 0) to end
+    before ``now_ns`` plus ``ARRIVAL_MARGIN_S``. Stamps and times in ns on the receiver's clock."""
+    if points:
+        end_ns = stamp_ns + to_ns(points[-1].time_from_start)
+        if stamp_ns != 0 and end_ns < now_ns + seconds_to_ns(ARRIVAL_MARGIN_S):
+            when = 'past' if end_ns < now_ns else 'ahead, before the controller can take it over'
+            raise EndsInPastError(f'stamped to start at {ns_to_seconds(stamp_ns):.9f} s, its last point is '
+                                  f'{ns_to_seconds(abs(now_ns - end_ns)):.6g} s {when}')
+    converted = convert(cfg, joint_names, points, allow_moving_end)
+    if start is None:
+        return replace(converted, stamp_ns=stamp_ns)
+    return connect(cfg, converted, start, stamp_ns, now_ns)
+
+
+def _start(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: int,
+           counters: ActuationCounters) -> Start | None:
+    """``motion_start`` (in trajectory mode ``takeover_lead`` ahead of now when it continues the running motion),
+    counting a motion left for the measured state and a measured start moved onto the range."""
+    lead = takeover_lead(cfg) if isinstance(contract, TrajectoryControllerSettings) else 0.0
+    start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns)
+    if start is not None:
+        counters.commands_replanned_from_measured += start.from_measured
+        counters.measured_start_clamped += start.clamped
+    return start
+
+
+def _sent(cfg: AntennaConfig, contract: TrajectoryControllerSettings, motion: Motion, stamp_ns: int, now_ns: int,
+          what: str, counters: ActuationCounters) -> Outgoing | Refused:
+    """``motion``'s trajectory stamped ``stamp_ns`` if the controller's contract takes it, counted; else the
+    refusal naming ``what``, counted."""
+    traj = motion.trajectory
+    assert traj is not None
+    points = point_fields(traj, cfg.effort_feedforward)
+    refusal = outgoing_refusal(contract, cfg.driven_joint, points, stamp_ns, now_ns)
+    if refusal is not None:
+        counters.refused[refusal.rule] += 1
+        return Refused(f'{what} refused {refusal.rule.value}', f'{what} not sent: the controller would refuse it '
+                       f'({refusal.rule.value}): {refusal.reason}')
+    counters.trajectories_sent += 1
+    counters.trajectory_points_sent += len(traj)
+    return Outgoing(motion, points, stamp_ns)

@@ -1,0 +1,271 @@
+"""Where a new motion of the driven joint starts, and the stamp a trajectory goes out with.
+
+``motion_start``, ``continued``, ``connect`` and ``outgoing_stamp``. The rule and why:
+docs/explanation/motion.md#what-the-controller-does-with-a-trajectory-and-how-the-node-starts-a-new-one."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import astuple, dataclass
+
+import numpy as np
+
+from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.core.numeric import FloatArray
+from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns
+from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, rocker_states
+from fourbar_ros.motion.splines import evaluate, segment_extremes
+from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire
+from fourbar_ros.rules.antenna_trajectory import CannotReachError, Converted
+from fourbar_ros.rules.controller_motion import ControllerPoint, segment_coefficients
+from fourbar_ros.rules.motion_plan import QUANTITIES, Motion, driven_range
+
+
+@dataclass(frozen=True)
+class Start:
+    """Where a new motion starts: the driven joint's ``state`` at ``at`` s after ``origin_ns`` (node clock), the
+    time 0 of the trajectory sent. Continuing a running trajectory, ``before`` holds its points from the one at or
+    before now up to the one at ``at`` (excluded), times from ``origin_ns`` (its stamp), and ``now_state`` its state
+    now; else ``origin_ns`` is now and ``at`` 0. ``from_measured``: a running motion was left for the measured
+    state; ``clamped``: the measured state was moved onto an end of the range."""
+
+    state: JointMotionState
+    origin_ns: int
+    at: float = 0.0
+    before: DrivenTrajectory | None = None
+    now_state: JointMotionState | None = None
+    from_measured: bool = False
+    clamped: bool = False
+
+    def here(self, now_ns: int) -> Start:
+        """The same start without the continuation: the running motion's state now."""
+        if self.before is None or self.now_state is None:
+            return self
+        return Start(self.now_state, now_ns)
+
+
+#: Trajectory mode: a continuing motion starts at least this many point spacings (1/control_rate) after now.
+TAKEOVER_SPACINGS = 2
+#: The longest (s) a trajectory may take to reach the controller and be taken over.
+ARRIVAL_MARGIN_S = 0.1
+
+
+def takeover_lead(cfg: AntennaConfig) -> float:
+    """How far ahead (s) of the node's now a continuing motion starts at least, in trajectory mode."""
+    return TAKEOVER_SPACINGS / cfg.control_rate
+
+
+#: The most (s) a measurement's stamp may lie before the node's now and still stand for when it was measured: an
+#: older stamp (a stream that stopped, or a drive stamping from another clock) is taken as measured now. Three times
+#: the latest arrival seen on a 2-core machine under twice its load (0.6 s).
+MEASURED_AGE_MAX_S = 2.0
+
+
+def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotionState | None, now_ns: int,
+                 lead: float, measured_ns: int | None = None) -> Start | None:
+    """Where a new motion starts (``Start``): continuing a running quintic trajectory at its first point ``lead``
+    s or more after ``now_ns`` (``lead`` > 0), else now; on the running motion while the measured driven position
+    (at ``measured_ns``, node clock; None, or over ``MEASURED_AGE_MAX_S`` before now or after it: now) is within
+    ``replan_tolerance`` of it, else from the measured state (velocity within the planner's speed limit,
+    acceleration 0) carried on to now (``carried``), moved onto an end of the range within
+    ``measured_range_tolerance``. With no motion running: the measured state, else the end of the last motion; None
+    before any of them exists."""
+    if measured is not None:
+        speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reducer_ratio
+        if abs(measured.velocity) > speed:
+            measured = JointMotionState(measured.position, math.copysign(speed, measured.velocity))
+    at_ns = now_ns
+    if measured_ns is not None and 0 <= now_ns - measured_ns <= seconds_to_ns(MEASURED_AGE_MAX_S):
+        at_ns = measured_ns
+    age = ns_to_seconds(now_ns - at_ns)
+    if motion is not None and not motion.done(now_ns):
+        now_state = motion.state_at(now_ns)
+        if measured is None or abs(measured.position - motion.state_at(at_ns).position) <= cfg.replan_tolerance:
+            traj = motion.trajectory
+            if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC:
+                return _continuing(motion, traj, now_ns, lead, now_state)
+            return Start(now_state, now_ns)
+        return _from_measured(cfg, carried(cfg, measured, age), now_ns, left=True)
+    if measured is not None:
+        return _from_measured(cfg, carried(cfg, measured, age), now_ns, left=False)
+    return None if motion is None else Start(motion.state_at(now_ns), now_ns)
+
+
+def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float,
+                now_state: JointMotionState) -> Start:
+    t = motion.elapsed(now_ns)
+    times = traj.times
+    k0 = max(int(np.searchsorted(times, t, side='right')) - 1, 0)
+    k1 = min(int(np.searchsorted(times, t + lead, side='left')), len(traj) - 1)
+    assert traj.velocities is not None and traj.accelerations is not None
+    state = JointMotionState(float(traj.positions[k1]), float(traj.velocities[k1]), float(traj.accelerations[k1]))
+    return Start(state, motion.start_ns, float(times[k1]), _cut(traj, k0, k1), now_state)
+
+
+def carried(cfg: AntennaConfig, measured: JointMotionState, age: float) -> JointMotionState:
+    """The measured driven state ``age`` s after it was measured: its position moved on at its velocity, not past
+    an end of the range it was within (the drive stops there); velocity as measured, acceleration 0."""
+    if age == 0.0 or measured.velocity == 0.0:
+        return measured
+    q = measured.position + measured.velocity * age
+    lower, upper = driven_range(cfg)
+    if lower <= measured.position <= upper:
+        q = min(max(q, lower), upper)
+    return JointMotionState(q, measured.velocity)
+
+
+def _from_measured(cfg: AntennaConfig, measured: JointMotionState, now_ns: int, left: bool) -> Start:
+    lower, upper = driven_range(cfg)
+    q, v, tol = measured.position, measured.velocity, cfg.measured_range_tolerance
+    # Within the tolerance of an end (inside or out), a speed outward is the drive pressing on the end or settling
+    # there, not a motion that could go on: it starts at the end, at rest.
+    at_lower, at_upper = lower - tol <= q < lower + tol and v <= 0.0, upper - tol < q <= upper + tol and v >= 0.0
+    if (at_lower or at_upper) and (not lower <= q <= upper or v != 0.0):
+        clamped = JointMotionState(min(max(q, lower), upper), 0.0)
+        return Start(clamped, now_ns, from_measured=left, clamped=True)
+    return Start(measured, now_ns, from_measured=left)
+
+
+def continued(start: Start, traj: DrivenTrajectory) -> DrivenTrajectory:
+    """A trajectory ``traj`` that starts at ``start.state`` (its time 0), as the node sends it: times from
+    ``start.origin_ns``, ``start.before`` first when it continues a running trajectory, ``traj`` from ``start.at``
+    on (its first point is the running trajectory's point there, to the bit)."""
+    if start.before is None:
+        return traj
+    return _joined(start.before, traj, start.at)
+
+
+def _state_point(cfg: AntennaConfig, state: JointMotionState, like: DrivenTrajectory) -> DrivenTrajectory:
+    """One point at time 0 holding ``state``, with the fields of ``like``."""
+    q, v, a = (np.array([x]) for x in astuple(state))
+    return rocker_states(cfg, np.array([0.0]), q, v, a, like.kind, like.antenna.theta_dot is not None)
+
+
+def _joined(head: DrivenTrajectory, tail: DrivenTrajectory, shift: float) -> DrivenTrajectory:
+    """``head``'s points, then ``tail``'s ``shift`` s later (times on the wire); fields as ``tail``'s kind."""
+    def cat(a: FloatArray | None, b: FloatArray | None) -> FloatArray | None:
+        return None if a is None or b is None else np.concatenate([a, b])
+
+    times = on_wire(np.concatenate([head.times, tail.times + shift]))
+    ha, ta = head.antenna, tail.antenna
+    antenna = AntennaTrajectory(times, np.concatenate([ha.theta, ta.theta]), cat(ha.theta_dot, ta.theta_dot),
+                                cat(ha.theta_ddot, ta.theta_ddot))
+    return DrivenTrajectory(times, np.concatenate([head.positions, tail.positions]),
+                            cat(head.velocities, tail.velocities), cat(head.accelerations, tail.accelerations),
+                            np.concatenate([head.efforts, tail.efforts]), antenna)
+
+
+def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: int, now_ns: int) -> Converted:
+    """The converted antenna trajectory joined to the drive's ``start`` by a connecting segment to its first point
+    still due (times from ``start.origin_ns``; a zero stamp puts its time 0 at the start), retimed or refused
+    (CannotReachError) when that segment is over a limit, with the stamp it goes out with."""
+    traj = converted.trajectory
+    if traj.kind is not SplineKind.QUINTIC:
+        start = start.here(now_ns)
+    at = start.at
+    offset = at if stamp_ns == 0 else ns_to_seconds(stamp_ns - start.origin_ns)  # the trajectory's time 0, from origin
+    due = offset + traj.times < at
+    keep = int(np.argmin(due)) if not due.all() else len(traj)
+    if keep == len(traj):
+        raise CannotReachError(f'every point is due before {at - ns_to_seconds(now_ns - start.origin_ns):.6g} s from '
+                               'now, when the drive can take the trajectory over')
+    tail = _cut(traj, keep)
+    gap = offset + float(tail.times[0]) - at
+    # How far the drive is from the first point, counting a step's worth of its speed.
+    step = abs(float(tail.positions[0]) - start.state.position) + abs(start.state.velocity) / cfg.control_rate
+    shift = 0.0
+    if gap <= 0.0 and step <= cfg.measured_range_tolerance and start.before is None:
+        # The first point is where the drive rests, at the takeover: it stands for the start itself.
+        joined = _joined(_cut(tail, len(tail)), tail, offset)
+    else:
+        head = _state_point(cfg, start.state, traj)
+        limits = JointLimits.from_config(cfg)
+        lower, upper = driven_range(cfg)
+        problem = _connection_problem(head, tail, gap, limits, lower, upper)
+        if problem is not None:
+            if stamp_ns != 0 or cfg.limit_policy != 'retime':
+                raise CannotReachError(f'from {float(start.state.position)!r} rad, the first point '
+                                       f'{float(tail.positions[0])!r} rad in {gap:.6g} s: {problem}')
+            shift = _least_gap(head, tail, gap, limits, lower, upper) - gap
+        joined = continued(start, _joined(head, tail, offset - at + shift))
+    if stamp_ns == 0 and start.before is not None and ends_soon(start, float(joined.times[-1]), now_ns):
+        return connect(cfg, converted, start.here(now_ns), stamp_ns, now_ns)
+    return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0,
+                     outgoing_stamp(cfg, start, joined, now_ns) if stamp_ns == 0 else start.origin_ns)
+
+
+def outgoing_stamp(cfg: AntennaConfig, start: Start, traj: DrivenTrajectory, now_ns: int) -> int:
+    """The stamp (ns) of a trajectory ``traj`` starting at ``start`` (times from ``start.origin_ns``): that origin,
+    or 0 for one starting now that ends within ``ARRIVAL_MARGIN_S``."""
+    if start.before is None and ends_soon(start, float(traj.times[-1]), now_ns):
+        return 0
+    return start.origin_ns
+
+
+def ends_soon(start: Start, end: float, now_ns: int) -> bool:
+    """Whether a motion ending ``end`` s after ``start.origin_ns`` ends within ``ARRIVAL_MARGIN_S`` of ``now_ns``."""
+    return end - ns_to_seconds(now_ns - start.origin_ns) <= ARRIVAL_MARGIN_S
+
+
+def _cut(traj: DrivenTrajectory, first: int, end: int | None = None) -> DrivenTrajectory:
+    """Points ``first`` to ``end`` (excluded; None: the last included) of ``traj``."""
+    if first == 0 and end is None:
+        return traj
+    keep = slice(first, end)
+    a = traj.antenna
+
+    def cut(x: FloatArray | None) -> FloatArray | None:
+        return None if x is None else x[keep]
+
+    antenna = AntennaTrajectory(a.times[keep], a.theta[keep], cut(a.theta_dot), cut(a.theta_ddot))
+    return DrivenTrajectory(traj.times[keep], traj.positions[keep], cut(traj.velocities),
+                            cut(traj.accelerations), traj.efforts[keep], antenna)
+
+
+def _connection_problem(head: DrivenTrajectory, tail: DrivenTrajectory, gap: float, limits: JointLimits,
+                        lower: float, upper: float) -> str | None:
+    """What of the connecting segment (``gap`` s from head's one point to tail's first) is over a limit or out of
+    the range, or None."""
+    if not gap > 0.0:
+        return 'no time to get there'
+    a, b = (ControllerPoint(0.0, float(t.positions[i]), _at(t.velocities, i), _at(t.accelerations, i))
+            for t, i in ((head, 0), (tail, 0)))
+    b = ControllerPoint(gap, b.position, b.velocity, b.acceleration)
+    c = segment_coefficients(gap, a, b)[None, :]
+    times = np.array([0.0, gap])
+    orders = (1,) if tail.kind is SplineKind.LINEAR else (1, 2, 3)
+    for order in orders:
+        value = float(segment_extremes(times, c, order)[0])
+        if value > limits.at_rocker(order):
+            name, unit = QUANTITIES[order]
+            return (f'the motor {name} {limits.ratio * value:.6g} {unit} exceeds its limit '
+                    f'{limits.motor(order):.6g} {unit}')
+    p = evaluate(c, np.linspace(0.0, 1.0, 65)[None, :])
+    if p.min() < lower or p.max() > upper:
+        return f'it passes the driven joint through [{p.min()!r}, {p.max()!r}] rad, beyond [{lower!r}, {upper!r}] rad'
+    return None
+
+
+def _at(x: FloatArray | None, i: int) -> float | None:
+    return None if x is None else float(x[i])
+
+
+def _least_gap(head: DrivenTrajectory, tail: DrivenTrajectory, gap: float, limits: JointLimits, lower: float,
+               upper: float) -> float:
+    """The least connecting time (s, to 1e-6 relative, on the wire) at least ``gap`` within the limits."""
+    bad, good = max(gap, 0.0), max(2.0 * gap, 1e-3)
+    while _connection_problem(head, tail, good, limits, lower, upper) is not None:
+        bad, good = good, 2.0 * good
+        if good > 3600.0:
+            raise CannotReachError(f'no connecting time up to 3600 s brings the motion from '
+                                   f'{float(head.positions[0])!r} rad to {float(tail.positions[0])!r} rad within '
+                                   'the limits and the range')
+    while good - bad > 1e-6 * good:
+        mid = 0.5 * (bad + good)
+        if _connection_problem(head, tail, mid, limits, lower, upper) is None:
+            good = mid
+        else:
+            bad = mid
+    return float(on_wire(np.array([good]))[0]) + 1e-9
+
