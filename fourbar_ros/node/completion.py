@@ -40,6 +40,7 @@ from fourbar_ros.interface.topics import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQU
 from fourbar_ros.rules.completion import CompletionRule, Skipped, driven_index, driven_measurement
 from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.runtime.problem_log import ProblemLog
+from fourbar_ros.runtime.publishers import publish, subscription_count
 
 
 @dataclass
@@ -75,10 +76,11 @@ class MeasuredCompletion:
         self._problems = problems
         self._timeout = cfg.measurement_timeout
         self._window = cfg.tracking_window
-        self._joint_pub = joint_pub
-        self._angle_pub = node.create_publisher(Float64, ANTENNA_ANGLE.name, qos(ANTENNA_ANGLE))
-        self._rate_pub = node.create_publisher(Float64, ANTENNA_RATE.name, qos(ANTENNA_RATE))
-        self._load_pub = node.create_publisher(Float64, LOAD_TORQUE.name, qos(LOAD_TORQUE))
+        pubs = (joint_pub, *(node.create_publisher(Float64, t.name, qos(t)) for t in (ANTENNA_ANGLE, ANTENNA_RATE,
+                                                                                      LOAD_TORQUE)))
+        # The good path calls them as single C calls (fourbar_ros.runtime.publishers).
+        self._joints_heard, self._angle_heard, self._rate_heard, self._load_heard = map(subscription_count, pubs)
+        self._send_joints, self._send_angle, self._send_rate, self._send_load = map(publish, pubs)
         on_measurement = problems.guard.wrap('sub_measured_joint_states', self.on_measurement)
         self._sub = node.create_subscription(JointState, MEASURED_JOINT_STATES.name, on_measurement,
                                              qos(MEASURED_JOINT_STATES), raw=True)
@@ -134,9 +136,9 @@ class MeasuredCompletion:
         stamp_ns = to_ns(stamp)
         if self._on_measured is not None:
             self._on_measured(q, q_dot, stamp_ns)
-        joints = self._joint_pub.get_subscription_count() > self._own
-        rate = self._rate_pub.get_subscription_count() > 0
-        load = self._load_pub.get_subscription_count() > 0
+        joints = self._joints_heard() > self._own
+        rate = self._rate_heard() > 0
+        load = self._load_heard() > 0
         try:
             done = rule.one(q, q_dot if joints or rate else None, tau if load or joints else None)
         except FourBarError as exc:
@@ -149,17 +151,17 @@ class MeasuredCompletion:
             out.position = done.positions
             out.velocity = done.velocities
             out.effort = done.efforts
-            self._joint_pub.publish(out)
+            self._send_joints(out)
         number = self._float
-        if self._angle_pub.get_subscription_count() > 0:
+        if self._angle_heard() > 0:
             number.data = done.theta
-            self._angle_pub.publish(number)
+            self._send_angle(number)
         if rate and done.theta_rate is not None:
             number.data = done.theta_rate
-            self._rate_pub.publish(number)
+            self._send_rate(number)
         if load and done.load_torque is not None:
             number.data = done.load_torque
-            self._load_pub.publish(number)
+            self._send_load(number)
         counters.measurements_completed += 1
         self.theta = done.theta
         if self._on_completed is not None:
