@@ -63,6 +63,7 @@ from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
 from fourbar_ros.rules.state_cache import StateCache
 from fourbar_ros.runtime.executor import MessageInfoCallback
 from fourbar_ros.runtime.problem_log import ProblemLog
+from fourbar_ros.runtime.publishers import publish, subscription_count
 
 WARN_THROTTLE_S = 1.0
 #: Steady-clock delay (s) after which a node on sim time without /clock says so.
@@ -129,6 +130,9 @@ class FourBarNode(Node):
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS.name, qos(MARKERS),
                                                  qos_overriding_options=qos_options)
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.name, qos(DIAGNOSTICS))
+        # A command's subscription counts and publishes as single C calls (fourbar_ros.runtime.publishers).
+        self._joints_heard, self._torque_heard = map(subscription_count, (self._joint_pub, self._torque_pub))
+        self._send_joints, self._send_torque = map(publish, (self._joint_pub, self._torque_pub))
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
         self._command_sub = self.create_subscription(
             Float64, COMMAND.name, guard.wrap('sub_antenna_angle_cmd', MessageInfoCallback(self._on_command)),
@@ -305,19 +309,19 @@ class FourBarNode(Node):
             self.actuation.command(theta)
             if self.completion is not None:
                 self.completion.set_commanded(theta)
-        elif self._joint_pub.get_subscription_count() > 0:
+        elif self._joints_heard() > 0:
             state = self._solve(theta)
             if state is not None:
                 self._publish_joints(theta, state)
         if clamped is None:
             counters.commands_received += 1
             counters.commands_accepted += 1
-        if self._torque_pub.get_subscription_count() > 0:
+        if self._torque_heard() > 0:
             if state is None:
                 state = self._solve(theta)
             if state is not None:
                 self._torque_msg.data = state.input_torque
-                self._torque_pub.publish(self._torque_msg)
+                self._send_torque(self._torque_msg)
                 counters.input_torque_published += 1
         else:
             counters.input_torque_skipped += 1
@@ -336,7 +340,7 @@ class FourBarNode(Node):
         msg = self._joint_msg
         msg.header.stamp = now.to_msg()
         msg.position, msg.velocity, msg.effort = self._joint_rule.sample(theta, state, now.nanoseconds)
-        self._joint_pub.publish(msg)
+        self._send_joints(msg)
         self.counters.joint_states_published += 1
         self._held = (theta, self._generation, state)
         self._answered = True
