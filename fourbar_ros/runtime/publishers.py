@@ -1,8 +1,8 @@
-"""A publisher's calls on the executor's thread without rclpy's per-call handle guard.
+"""A publisher's calls on a callback's good path without rclpy's per-call handle guard.
 
 rclpy's ``Publisher.publish`` and ``get_subscription_count`` enter ``with self.handle`` on every call (about 4 of the
-5 us a subscription count costs), so that no other thread destroys the publisher during the call. The bound methods
-of the handle hold the GIL for the whole call, so none can; one of a destroyed publisher raises RCLError.
+5 us of a count) so that no other thread destroys the publisher meanwhile; the handle's own methods hold the GIL for
+the whole call, so none can, and one of a destroyed publisher raises RCLError. See docs/explanation/node.md.
 """
 
 from __future__ import annotations
