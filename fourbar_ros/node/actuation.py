@@ -69,13 +69,15 @@ class Actuation:
             out = forward_topic(cfg.forward_controller)
             self._setpoint_pub = node.create_publisher(Float64MultiArray, out.name, qos(out))
             self._setpoint_msg = Float64MultiArray()
-            periodic_timer(node, 1.0 / cfg.control_rate, self._on_control_timer)
+            periodic_timer(node, 1.0 / cfg.control_rate, problems.guard.wrap('control_timer', self._on_control_timer))
         else:
             raise ValueError(f'mode {self.mode!r} is not an actuator mode')
-        node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name, self._on_antenna_trajectory,
+        node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name,
+                                 problems.guard.wrap('sub_antenna_trajectory', self._on_antenna_trajectory),
                                  qos(ANTENNA_TRAJECTORY))
         if subscribe_measured:
-            node.create_subscription(JointState, MEASURED_JOINT_STATES.name, self._on_measured,
+            node.create_subscription(JointState, MEASURED_JOINT_STATES.name,
+                                     problems.guard.wrap('sub_measured_joint_states', self._on_measured),
                                      qos(MEASURED_JOINT_STATES))
 
     def _now_ns(self) -> int:

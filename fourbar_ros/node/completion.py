@@ -35,10 +35,12 @@ from std_msgs.msg import Float64
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.interface.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
+from fourbar_ros.interface.stamps import to_ns
 from fourbar_ros.interface.topics import ANTENNA_ANGLE, ANTENNA_RATE, LOAD_TORQUE, MEASURED_JOINT_STATES, Topic
 from fourbar_ros.rules.completion import CompletionRule, Skipped, driven_index, driven_measurement
 from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.runtime.problem_log import ProblemLog
+from fourbar_ros.runtime.publishers import publish, subscription_count
 
 
 @dataclass
@@ -61,12 +63,12 @@ class MeasuredCompletion:
     def __init__(self, node: Node, cfg: AntennaConfig, joint_pub: Any, qos: Callable[[Topic], QoSProfile],
                  problems: ProblemLog,
                  on_measured: Callable[[float, float | None, int], None] | None = None,
-                 on_completed: Callable[[int, int, float], None] | None = None) -> None:
+                 on_completed: Callable[[int, float], None] | None = None) -> None:
         """``joint_pub``: the node's joint_states publisher; ``qos``: the profile of a topic;
         ``problems``: the node's log by problem kind;
         ``on_measured``: called with each measured driven joint that is finite and within reach: position rad,
         velocity rad/s (None: not measured), its header stamp (ns; 0: none); ``on_completed``: with each one
-        completed: its stamp (sec, nanosec) and position rad."""
+        completed: its stamp (ns) and position rad."""
         self._on_measured = on_measured
         self._on_completed = on_completed
         self.rule = CompletionRule(cfg)
@@ -74,11 +76,13 @@ class MeasuredCompletion:
         self._problems = problems
         self._timeout = cfg.measurement_timeout
         self._window = cfg.tracking_window
-        self._joint_pub = joint_pub
-        self._angle_pub = node.create_publisher(Float64, ANTENNA_ANGLE.name, qos(ANTENNA_ANGLE))
-        self._rate_pub = node.create_publisher(Float64, ANTENNA_RATE.name, qos(ANTENNA_RATE))
-        self._load_pub = node.create_publisher(Float64, LOAD_TORQUE.name, qos(LOAD_TORQUE))
-        self._sub = node.create_subscription(JointState, MEASURED_JOINT_STATES.name, self.on_measurement,
+        pubs = (joint_pub, *(node.create_publisher(Float64, t.name, qos(t)) for t in (ANTENNA_ANGLE, ANTENNA_RATE,
+                                                                                      LOAD_TORQUE)))
+        # The good path calls them as single C calls (fourbar_ros.runtime.publishers).
+        self._joints_heard, self._angle_heard, self._rate_heard, self._load_heard = map(subscription_count, pubs)
+        self._send_joints, self._send_angle, self._send_rate, self._send_load = map(publish, pubs)
+        on_measurement = problems.guard.wrap('sub_measured_joint_states', self.on_measurement)
+        self._sub = node.create_subscription(JointState, MEASURED_JOINT_STATES.name, on_measurement,
                                              qos(MEASURED_JOINT_STATES), raw=True)
         self._own = 1 if self._sub.topic_name == joint_pub.topic_name else 0  # our own subscription matches it
         self._driven, self._names = self.rule.driven_joint, self.rule.names
@@ -126,11 +130,15 @@ class MeasuredCompletion:
             self._range_error = rule.out_of_range(q)
             self._problems.error('measurement out of range', self._range_error)
             return
+        out = self._msg
+        stamp = out.header.stamp
+        stamp.sec, stamp.nanosec = sec, nanosec  # the completed JointState carries the measurement's stamp
+        stamp_ns = to_ns(stamp)
         if self._on_measured is not None:
-            self._on_measured(q, q_dot, sec * 1_000_000_000 + nanosec)
-        joints = self._joint_pub.get_subscription_count() > self._own
-        rate = self._rate_pub.get_subscription_count() > 0
-        load = self._load_pub.get_subscription_count() > 0
+            self._on_measured(q, q_dot, stamp_ns)
+        joints = self._joints_heard() > self._own
+        rate = self._rate_heard() > 0
+        load = self._load_heard() > 0
         try:
             done = rule.one(q, q_dot if joints or rate else None, tau if load or joints else None)
         except FourBarError as exc:
@@ -140,27 +148,24 @@ class MeasuredCompletion:
             return
         self._range_error = None
         if joints:
-            out = self._msg
-            stamp = out.header.stamp
-            stamp.sec, stamp.nanosec = sec, nanosec
             out.position = done.positions
             out.velocity = done.velocities
             out.effort = done.efforts
-            self._joint_pub.publish(out)
+            self._send_joints(out)
         number = self._float
-        if self._angle_pub.get_subscription_count() > 0:
+        if self._angle_heard() > 0:
             number.data = done.theta
-            self._angle_pub.publish(number)
+            self._send_angle(number)
         if rate and done.theta_rate is not None:
             number.data = done.theta_rate
-            self._rate_pub.publish(number)
+            self._send_rate(number)
         if load and done.load_torque is not None:
             number.data = done.load_torque
-            self._load_pub.publish(number)
+            self._send_load(number)
         counters.measurements_completed += 1
         self.theta = done.theta
         if self._on_completed is not None:
-            self._on_completed(sec, nanosec, q)
+            self._on_completed(stamp_ns, q)
         if self._commanded is not None:
             tracking = self._tracking
             tracking.append((now, abs(self._commanded - done.theta)))

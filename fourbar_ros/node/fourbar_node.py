@@ -61,10 +61,9 @@ from fourbar_ros.rules.outgoing import actuation_contract
 from fourbar_ros.rules.outputs import JointStateRule
 from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
 from fourbar_ros.rules.state_cache import StateCache
-from fourbar_ros.runtime.executor import (
-    MessageInfoCallback,
-)
-from fourbar_ros.runtime.problem_log import CallbackGuard, ProblemLog
+from fourbar_ros.runtime.executor import MessageInfoCallback
+from fourbar_ros.runtime.problem_log import ProblemLog
+from fourbar_ros.runtime.publishers import publish, subscription_count
 
 WARN_THROTTLE_S = 1.0
 #: Steady-clock delay (s) after which a node on sim time without /clock says so.
@@ -88,7 +87,8 @@ class FourBarNode(Node):
         self._error: Callable[..., object] = logger.error
         self._debug: Callable[..., object] = logger.debug
         self.problems = ProblemLog(self._log_problem, WARN_THROTTLE_S)
-        self.guard = CallbackGuard(self.problems)
+        #: the callback boundary: every callback is handed to rclpy through ``guard.wrap`` (never raises)
+        self.guard = guard = self.problems.guard
         try:
             self._config = self._validated_overrides()
             contract = (None if self._config.mode == Mode.OPEN_LOOP.value
@@ -102,8 +102,8 @@ class FourBarNode(Node):
             raise
         self._report_unknown_overrides(explicit)
         self.declare_parameters('', list(declarations(self._config.as_values())))
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.add_post_set_parameters_callback(self._after_set_parameters)
+        self.add_on_set_parameters_callback(guard.wrap('set_parameters', self._on_set_parameters, refused))
+        self.add_post_set_parameters_callback(guard.wrap('after_set_parameters', self._after_set_parameters))
         self._pending: AntennaConfig | None = None
 
         self.counters = Counters()
@@ -130,11 +130,17 @@ class FourBarNode(Node):
         self._marker_pub = self.create_publisher(MarkerArray, MARKERS.name, qos(MARKERS),
                                                  qos_overriding_options=qos_options)
         self._diag_pub = self.create_publisher(DiagnosticArray, DIAGNOSTICS.name, qos(DIAGNOSTICS))
+        # A command's subscription counts and publishes as single C calls (fourbar_ros.runtime.publishers).
+        self._joints_heard, self._torque_heard = map(subscription_count, (self._joint_pub, self._torque_pub))
+        self._send_joints, self._send_torque = map(publish, (self._joint_pub, self._torque_pub))
         # Two parameters: rclpy then passes the message info, in the form each executor uses.
-        self._command_sub = self.create_subscription(Float64, COMMAND.name, MessageInfoCallback(self._on_command),
-                                                     qos(COMMAND), qos_overriding_options=qos_options, raw=True)
-        self._diag_timer = periodic_timer(self, self._config.diagnostics_period, self._on_diagnostics_timer)
-        self._marker_timer = periodic_timer(self, self._config.marker_period, self._on_marker_timer)
+        self._command_sub = self.create_subscription(
+            Float64, COMMAND.name, guard.wrap('sub_antenna_angle_cmd', MessageInfoCallback(self._on_command)),
+            qos(COMMAND), qos_overriding_options=qos_options, raw=True)
+        self._diag_timer = periodic_timer(self, self._config.diagnostics_period,
+                                          guard.wrap('diagnostics_timer', self._on_diagnostics_timer))
+        self._marker_timer = periodic_timer(self, self._config.marker_period,
+                                            guard.wrap('marker_timer', self._on_marker_timer))
         # Actuator modes: served commands become motion (node/actuation.py); joint_states carries the measured
         # state, completed here (node/completion.py), never the commanded pose. One subscription to the measured
         # joint: the completion passes each good measurement on to the motion's start state.
@@ -152,14 +158,14 @@ class FourBarNode(Node):
                 on_completed=self.model_check.on_completed if self.model_check is not None else None)
         if self._config.joint_state_rate > 0.0 and self._publishes_pose:
             self._joint_state_timer = periodic_timer(self, 1.0 / self._config.joint_state_rate,
-                                                     self._on_joint_state_timer)
+                                                     guard.wrap('joint_state_timer', self._on_joint_state_timer))
         # Under sim time the timers above run on the ROS clock (fourbar_ros.node.timers), which stands still at 0
         # until /clock runs; this one runs on the steady clock so that case is reported, once per episode.
         self._clock_warned = False
-        self._clock_check = self.create_timer(NO_CLOCK_WARN_S, self._check_sim_clock,
+        self._clock_check = self.create_timer(NO_CLOCK_WARN_S, guard.wrap('check_sim_clock', self._check_sim_clock),
                                               clock=Clock(clock_type=ClockType.STEADY_TIME))
 
-    # ------------------------------------------------------------------ the callback boundary
+    # ------------------------------------------------------------------ logging
 
     def _log_problem(self, level: str, line: str) -> None:
         # rclpy's logger refuses two severities from one call site: one call per severity.
@@ -167,19 +173,6 @@ class FourBarNode(Node):
             self._warn(line)
         else:
             self._error(line)
-
-    def create_subscription(self, msg_type: Any, topic: str, callback: Callable[..., Any], *args: Any,
-                            **kwargs: Any) -> Any:
-        """rclpy's, with the callback guarded (``CallbackGuard``: an exception is counted, logged, swallowed)."""
-        guard = getattr(self, 'guard', None)  # rclpy's own /clock subscription comes before it
-        wrapped = callback if guard is None else guard.wrap(f'sub_{topic.strip("/").replace("/", "_")}', callback)
-        return super().create_subscription(msg_type, topic, wrapped, *args, **kwargs)
-
-    def create_timer(self, timer_period_sec: float, callback: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
-        """rclpy's, with the callback guarded."""
-        name = getattr(callback, '__name__', 'timer').strip('_').removeprefix('on_')
-        wrapped = callback if getattr(self, 'guard', None) is None else self.guard.wrap(name, callback)
-        return super().create_timer(timer_period_sec, wrapped, *args, **kwargs)
 
     # ------------------------------------------------------------------ configuration
 
@@ -233,6 +226,7 @@ class FourBarNode(Node):
         rclpy calls this only after its own checks (declared, type, range, read-only) passed; every
         rejection, theirs or ours, is counted and logged in ``set_parameters_atomically``/``set_parameters``.
         """
+        self._pending = None
         proposed: dict[str, object] = dict(self._config.as_values())
         changed = [p.name for p in params if not is_foreign(p.name)]
         for p in params:
@@ -241,12 +235,7 @@ class FourBarNode(Node):
         try:
             self._pending = config_from_values(proposed, changed)
         except ConfigError as exc:
-            self._pending = None
             return SetParametersResult(successful=False, reason=str(exc))
-        except Exception as exc:  # the callback boundary: refuse the change, keep the node up
-            self._pending = None
-            self.guard.errors['set_parameters'] = self.guard.errors.get('set_parameters', 0) + 1
-            return SetParametersResult(successful=False, reason=f'{type(exc).__name__}: {one_line(exc)}')
         return SetParametersResult(successful=True)
 
     def _count_result(self, result: SetParametersResult) -> SetParametersResult:
@@ -320,19 +309,19 @@ class FourBarNode(Node):
             self.actuation.command(theta)
             if self.completion is not None:
                 self.completion.set_commanded(theta)
-        elif self._joint_pub.get_subscription_count() > 0:
+        elif self._joints_heard() > 0:
             state = self._solve(theta)
             if state is not None:
                 self._publish_joints(theta, state)
         if clamped is None:
             counters.commands_received += 1
             counters.commands_accepted += 1
-        if self._torque_pub.get_subscription_count() > 0:
+        if self._torque_heard() > 0:
             if state is None:
                 state = self._solve(theta)
             if state is not None:
                 self._torque_msg.data = state.input_torque
-                self._torque_pub.publish(self._torque_msg)
+                self._send_torque(self._torque_msg)
                 counters.input_torque_published += 1
         else:
             counters.input_torque_skipped += 1
@@ -351,7 +340,7 @@ class FourBarNode(Node):
         msg = self._joint_msg
         msg.header.stamp = now.to_msg()
         msg.position, msg.velocity, msg.effort = self._joint_rule.sample(theta, state, now.nanoseconds)
-        self._joint_pub.publish(msg)
+        self._send_joints(msg)
         self.counters.joint_states_published += 1
         self._held = (theta, self._generation, state)
         self._answered = True
@@ -463,6 +452,11 @@ class FourBarNode(Node):
                        'joint velocities are empty and diagnostics and markers (timers on the ROS clock) are not '
                        'published until /clock runs (e.g. ros2 bag play --clock)')
         self._clock_warned = waiting
+
+
+def refused(exc: Exception) -> SetParametersResult:
+    """What a parameter-set callback that raised answers (its exception counted and logged by the guard)."""
+    return SetParametersResult(successful=False, reason=f'{type(exc).__name__}: {one_line(exc)}')
 
 
 def destroy_node(node: Node) -> None:

@@ -19,6 +19,7 @@ from sensor_msgs.msg import Imu
 from std_msgs.msg import Float64
 
 from fourbar_ros.config.antenna_config import AntennaConfig
+from fourbar_ros.interface.stamps import to_ns
 from fourbar_ros.interface.topics import ANTENNA_SENSORS, Topic
 from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.rules.model_check import ModelCheck, SensorSkipped, imu_theta
@@ -39,24 +40,25 @@ class LiveModelCheck:
         self.sensor_type = cfg.antenna_sensor_type
         topic = ANTENNA_SENSORS[self.sensor_type]
         if self.sensor_type == 'imu':
-            self._sub = node.create_subscription(Imu, topic.name, self.on_imu, qos(topic))
+            self._sub = node.create_subscription(Imu, topic.name, problems.guard.wrap(f'sub_{topic.name}', self.on_imu),
+                                                 qos(topic))
         else:
-            self._sub = node.create_subscription(Float64, topic.name, self.on_float64, qos(topic))
+            self._sub = node.create_subscription(Float64, topic.name,
+                                                 problems.guard.wrap(f'sub_{topic.name}', self.on_float64), qos(topic))
 
     def _now_ns(self) -> int:
         ns: int = self._clock.now().nanoseconds
         return ns
 
-    def on_completed(self, sec: int, nanosec: int, q: float) -> None:
-        """A completed measurement of the driven joint (rad) and its header stamp."""
-        stamp = sec * 1_000_000_000 + nanosec
-        self.check.note_measured(stamp if stamp else self._now_ns(), q)
+    def on_completed(self, stamp_ns: int, q: float) -> None:
+        """A completed measurement of the driven joint (rad) and its header stamp (ns; 0: none)."""
+        self.check.note_measured(stamp_ns if stamp_ns else self._now_ns(), q)
 
     def on_float64(self, msg: Float64) -> None:
         self._compare(self._now_ns(), float(msg.data))
 
     def on_imu(self, msg: Imu) -> None:
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp = to_ns(msg.header.stamp)
         a = msg.linear_acceleration
         self._compare(stamp if stamp else self._now_ns(), imu_theta(float(a.x), float(a.z)))
 

@@ -35,6 +35,7 @@ from fourbar_ros.config.controllers import forward_controller, trajectory_contro
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, forward_topic, trajectory_topic
 from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
@@ -101,16 +102,16 @@ class SimActuator(Node):
         self._msg.name = [s.joint]
         self._pub = self.create_publisher(JointState, BROADCASTER_JOINT_STATES.name, qos(BROADCASTER_JOINT_STATES))
         jt, fw = trajectory_topic(cfg.trajectory_controller), forward_topic(cfg.forward_controller)
-        self.create_subscription(JointTrajectory, jt.name, self._on_trajectory, qos(jt))
-        self.create_subscription(Float64MultiArray, fw.name, self._on_forward, qos(fw))
-        self._tick_clock: Any = periodic_timer(self, 1.0 / s.publish_rate, self._on_tick).clock
+        guard = self._problems.guard  # the callback boundary: an exception is counted, logged and swallowed
+        self.create_subscription(JointTrajectory, jt.name, guard.wrap('sub_trajectory', self._on_trajectory), qos(jt))
+        self.create_subscription(Float64MultiArray, fw.name, guard.wrap('sub_forward', self._on_forward), qos(fw))
+        self._tick_clock: Any = periodic_timer(self, 1.0 / s.publish_rate, guard.wrap('tick', self._on_tick)).clock
 
     def _refuse(self, kind: str, why: str) -> None:
         self._problems.warn(f'{kind} refused', f'{kind} refused: {why}')
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
-        stamp = msg.header.stamp
-        refusal = self.follower.receive(msg.joint_names, msg.points, stamp.sec * 1_000_000_000 + stamp.nanosec,
+        refusal = self.follower.receive(msg.joint_names, msg.points, to_ns(msg.header.stamp),
                                         self._clock.now().nanoseconds)
         if refusal is not None:
             self._refuse(f'trajectory ({refusal.rule.value})', refusal.reason)
@@ -144,7 +145,7 @@ class SimActuator(Node):
         now = self._clock.now()
         tick_ns: int = self._tick_clock.now().nanoseconds  # the drive's steps: the timer's clock, not the stamps'
         last, self._last_tick_ns = self._last_tick_ns, tick_ns
-        dt = 0.0 if last is None or tick_ns < last else (tick_ns - last) * 1e-9  # sim time jumping back restarts
+        dt = 0.0 if last is None or tick_ns < last else ns_to_seconds(tick_ns - last)  # sim time jumping back restarts
         reason = self.follower.holding_reason
         # A tick late by whole periods (a busy machine) first makes the running trajectory's updates it missed, as
         # the controller manager's real-time loop would have: the drive keeps following, and a late timer is no
@@ -152,15 +153,16 @@ class SimActuator(Node):
         # (so the state it starts from was published, and it arrived before). The missed updates' times are spread
         # over the node clock's interval since the last tick (counted back from now if that clock went back).
         updates = min(max(round(dt / self.follower.period), 1), MAX_CATCH_UP)
-        step_ns = round(dt / updates * 1e9)
+        step_ns = seconds_to_ns(dt / updates)
         last_ns = self._last_update_ns if self._last_update_ns is not None else now.nanoseconds
         span = now.nanoseconds - last_ns
         for j in range(1, updates):
             at_ns = last_ns + span * j // updates if span >= updates else now.nanoseconds - (updates - j) * step_ns
-            self.drive.advance(step_ns * 1e-9, self._reference)
+            self.drive.advance(ns_to_seconds(step_ns), self._reference)
             missed = self.encoder.measure(self.drive.position, self.drive.velocity, 0.0)
-            self._reference = self.follower.reference(at_ns * 1e-9, missed[0], missed[1], take_new=False).position
-        self._update(step_ns * 1e-9, now)
+            self._reference = self.follower.reference(ns_to_seconds(at_ns), missed[0], missed[1],
+                                                      take_new=False).position
+        self._update(ns_to_seconds(step_ns), now)
         self._last_update_ns = now.nanoseconds
         if self.follower.holding_reason is not None and self.follower.holding_reason != reason:
             self._problems.warn('holding', self.follower.holding_reason)
@@ -184,4 +186,4 @@ class SimActuator(Node):
         msg.position, msg.velocity, msg.effort = [measured[0]], [measured[1]], [measured[2]]
         self._pub.publish(msg)
         self.counters.joint_states_published += 1
-        self._reference = self.follower.reference(at.nanoseconds * 1e-9, measured[0], measured[1]).position
+        self._reference = self.follower.reference(ns_to_seconds(at.nanoseconds), measured[0], measured[1]).position

@@ -1,16 +1,14 @@
-"""Logging by problem kind, and the callback boundary no exception crosses.
-
-rclpy throttles a log call per call site (function, file, line): two different problems logged from one line share
-one throttle, and the second goes unlogged. ``ProblemLog`` throttles per problem kind instead: the first message of
-a kind is logged at once; later ones of the same kind at most once per period (steady clock), saying how many were
-held back since. ``CallbackGuard`` wraps a node's callbacks: an exception is counted per callback, logged once per
-(callback, exception type) through ``ProblemLog``, and swallowed, so the node stays up.
+"""Logging by problem kind (``ProblemLog``: one line per kind per period, not rclpy's one per call site), and the
+callback boundary no exception crosses (``CallbackGuard.wrap``, applied where each callback is handed to rclpy): an
+exception is counted per callback, logged once per (callback, exception type), and swallowed, so the node stays up.
+See docs/explanation/node.md.
 """
 
 from __future__ import annotations
 
 import contextlib
 import functools
+import inspect
 import time
 from collections.abc import Callable
 from typing import Any, TypeVar
@@ -35,6 +33,8 @@ class ProblemLog:
         self._period = period
         self._clock = clock
         self._kinds: dict[str, tuple[float, int]] = {}  # kind -> (time last logged, held back since)
+        #: the callback boundary of the node this log belongs to (its exceptions are logged here)
+        self.guard = CallbackGuard(self)
 
     def warn(self, kind: str, message: str) -> bool:
         """Log ``message`` as a warning unless ``kind`` was logged less than a period ago; True if logged."""
@@ -65,21 +65,31 @@ class CallbackGuard:
         self._problems = problems
         self.errors: dict[str, int] = {}
 
-    def wrap(self, name: str, callback: F) -> F:
+    def wrap(self, name: str, callback: F, failed: Callable[[Exception], Any] | None = None) -> F:
         """``callback`` such that an Exception it raises is counted under ``name``, logged once per kind, and
-        swallowed (the call returns None). The signature is kept (rclpy reads it to pass message info)."""
-        @functools.wraps(callback)
-        def guarded(*args: Any, **kwargs: Any) -> Any:
+        swallowed: the call returns ``failed(exc)`` (default None). The signature is kept (rclpy reads it to pass
+        message info). The good path is one call and a try block: nothing allocated, nothing looked up."""
+        def caught(exc: Exception) -> Any:
+            self.errors[name] = self.errors.get(name, 0) + 1
+            with contextlib.suppress(Exception):  # a failing logger must not carry it past the boundary
+                self._problems.error(f'callback {name} {type(exc).__name__}', f'callback {name} failed '
+                                     f'({self.errors[name]} so far): {type(exc).__name__}: {one_line(exc)}')
+            return None if failed is None else failed(exc)
+
+        if len(inspect.signature(callback).parameters) == 1:  # a subscription's: no argument tuple per call
+            def guarded_one(msg: Any) -> Any:
+                try:
+                    return callback(msg)
+                except Exception as exc:  # the boundary: nothing may stop the node
+                    return caught(exc)
+            return functools.wraps(callback)(guarded_one)  # type: ignore[return-value]
+
+        def guarded(*args: Any) -> Any:
             try:
-                return callback(*args, **kwargs)
+                return callback(*args)
             except Exception as exc:  # the boundary: nothing may stop the node
-                self.errors[name] = self.errors.get(name, 0) + 1
-                with contextlib.suppress(Exception):  # a failing logger must not carry it past the boundary
-                    self._problems.error(f'callback {name} {type(exc).__name__}',
-                                         f'callback {name} failed ({self.errors[name]} so far): '
-                                         f'{type(exc).__name__}: {one_line(exc)}')
-                return None
-        return guarded  # type: ignore[return-value]
+                return caught(exc)
+        return functools.wraps(callback)(guarded)  # type: ignore[return-value]
 
     @property
     def total(self) -> int:

@@ -70,3 +70,12 @@ def test_the_node_logs_both_severities_through_its_problem_log(ros: RosSession) 
         assert node.problems.warn('another warning', 'another warning line')
     finally:
         node.destroy_node()
+
+
+def test_a_guarded_callback_answers_what_failed_says_and_keeps_one_parameter() -> None:
+    guard = ProblemLog(lambda level, line: None, 1.0, Clock()).guard
+    wrapped = guard.wrap('set_parameters', lambda params: params[0], lambda exc: type(exc).__name__)
+    assert wrapped([7]) == 7 and wrapped([]) == 'IndexError'
+    assert guard.errors == {'set_parameters': 1}
+    import inspect
+    assert list(inspect.signature(wrapped).parameters) == ['params']
