@@ -1,23 +1,8 @@
 """The actuator modes' completion: the measured driven joint in, the whole linkage out (fourbar_node composes it).
 
-Reads ``measured_joint_states`` (the driven joint, as joint_state_broadcaster publishes it; remappable) and for
-every measurement publishes one complete ``joint_states`` (every joint of the linkage at the measurement's stamp),
-``antenna_angle``, ``antenna_rate`` (with a measured velocity) and ``load_torque`` (with a measured effort): what
-they hold is ``fourbar_ros.rules.completion``; topics and types: docs/reference/topics.md. Each output is computed
-and published only while it has a subscriber (the node's own subscription, if remapped onto joint_states, is not
-counted).
-
-Read raw: the subscription takes the CDR bytes and ``fourbar_ros.interface.cdr`` reads the stamp and names first, the
-float arrays only for a measurement. Skipped without reading the arrays: the node's own complete JointState (its
-names exactly; if ``measured_joint_states`` is remapped onto ``joint_states``), counted as
-``measurements_own_skipped``; one without the driven joint (``measurements_ignored_no_driven_joint``, one throttled
-line). A payload that is not a little-endian CDR JointState is counted (``measurements_ignored_malformed``). Bad
-measurements publish nothing, are counted and logged in one throttled line: a position NaN or inf, an infinite
-velocity or effort (refused), mismatched array lengths (ignored), an angle the driven rocker cannot take (out of
-range: diagnostics ERROR naming the value and the range until a good measurement arrives). No measurement for
-``measurement_timeout`` s: WARN. ``set_commanded(theta)`` (rad) gives the commanded antenna angle; diagnostics then
-report commanded minus measured theta, now and the worst over ``tracking_window`` s.
-"""
+Measurements are read raw and each output is published only while subscribed; what the outputs hold is
+``fourbar_ros.rules.completion``. Topics: docs/reference/topics.md; counters: docs/reference/diagnostics.md; why:
+docs/explanation/node.md."""
 
 from __future__ import annotations
 

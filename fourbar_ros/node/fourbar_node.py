@@ -1,11 +1,8 @@
-"""fourbar_node: antenna angle commands in; joint states, input torque, diagnostics and markers out; in the
-actuator modes, the front end of a ros2_control drive (node.actuation, node.completion).
+"""fourbar_node: antenna angle commands in; joint states, input torque, diagnostics and markers out.
 
-Topics, QoS and directions per mode: docs/reference/topics.md (from fourbar_ros.interface.topics); parameters:
-docs/reference/parameters.md (from fourbar_ros.config.params). The node only adapts messages and parameters: the
-math is fourbar_ros.core, what a message becomes is fourbar_ros.rules, its bookkeeping state_cache and
-diagnostic_values; start, spin and stop: fourbar_ros.node.run and fourbar_ros.runtime.
-"""
+In the actuator modes the front end of a ros2_control drive (node.actuation, node.completion). It only adapts
+messages and parameters: what a message becomes is fourbar_ros.rules. Topics: docs/reference/topics.md;
+parameters: docs/reference/parameters.md; why: docs/explanation/node.md."""
 
 from __future__ import annotations
 

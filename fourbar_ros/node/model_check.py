@@ -1,12 +1,7 @@
-"""The actuator modes' live check of the model (fourbar_node composes it when ``antenna_sensor_type`` is not
-``none``): an antenna angle sensor on ``antenna_angle_sensor`` against the angle completed from the measured driven
-joint at the reading's time. What is compared and when a reading is skipped: ``fourbar_ros.rules.model_check``.
+"""The actuator modes' live check of the model: an antenna angle sensor against the completed angle.
 
-A ``float64`` sensor (std_msgs/Float64, rad in theta's sense) has no stamp: it is timed by its arrival on the
-node's clock. An ``imu`` (sensor_msgs/Imu, axes as the coupler frame) is timed by its header stamp (its arrival if
-zero) and read as ``fourbar calibrate`` reads it (``core.calibration.imu_tilt``). The measured joints' stamps are
-their header stamps (their arrival if zero), so the sensor and the drive must stamp from the same clock.
-"""
+Composed by fourbar_node when ``antenna_sensor_type`` is not ``none``; what is compared and when a reading is
+skipped: ``fourbar_ros.rules.model_check``; how readings are timed: docs/reference/topics.md."""
 
 from __future__ import annotations
 

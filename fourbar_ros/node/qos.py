@@ -1,5 +1,4 @@
-"""The rclpy QoS profile of one of the package's topics (``fourbar_ros.interface.topics.Topic``: keep-last depth and
-reliability), for every node of the package."""
+"""The rclpy QoS profile of one of the package's topics (``fourbar_ros.interface.topics.Topic``)."""
 
 from __future__ import annotations
 

@@ -1,20 +1,7 @@
-"""sim_actuator: a simulated drive of the linkage's driven joint, standing in for ros2_control's hardware, its
-joint_trajectory_controller, its forward_command_controller and its joint_state_broadcaster.
+"""sim_actuator: a simulated drive standing in for ros2_control's hardware, controllers and broadcaster.
 
-Interface (relative names, so namespaces and remapping apply; ``<joint>`` is the ``joint`` parameter):
-  sub  <trajectory_controller>/joint_trajectory  trajectory_msgs/JointTrajectory   what joint_trajectory_controller
-                                                 accepts (the controllers YAML ``controllers_file``), followed as
-                                                 it follows it (``sim_actuator_model.TrajectoryFollower``)
-  sub  <forward_controller>/commands             std_msgs/Float64MultiArray        one position (rad) per joint of
-                                                 the forward controller
-  pub  joint_state_broadcaster/joint_states      sensor_msgs/JointState            every 1/publish_rate s: name
-                                                 [<joint>], measured position (rad), velocity (rad/s), effort (N m:
-                                                 the torque the linkage needs at the true pose, plus noise), as
-                                                 joint_state_broadcaster publishes with ``use_local_topics: true``
-The latest accepted command wins, whichever controller it came for. A refused message (the controller's contract,
-or a value that is not finite, or a forward command of the wrong size) is counted, logged in one throttled line and
-changes nothing. What it cannot imitate: ``sim_actuator_model``'s docstring.
-"""
+Its behaviour is ``fourbar_ros.rules.simulated_drive``; its topics, what it imitates and what not:
+docs/how-to/ros2-control.md#without-hardware-the-simulated-actuator."""
 
 from __future__ import annotations
 

@@ -1,16 +1,7 @@
 """The clock that periodic work runs on, and timers on it.
 
-Periodic work (the simulated actuator's control loop, fourbar_node's joint_states republish, diagnostics, markers,
-forward mode's setpoint stream) is meant to keep its rate, not to follow the calendar: with ``use_sim_time`` false
-its timers run on the steady clock, so a step of the system clock (NTP, a virtual machine resumed, a user setting
-the date) neither stalls them for the step (a backward step: a ROS-clock timer waits until the clock is back where
-it was) nor fires them early. With ``use_sim_time`` true they run on the node's ROS clock and follow ``/clock``, as
-sim time is meant to: they fire as sim time advances, and not while it stands still.
-
-What is read from the clock for stamps (``joint_states``, ``/diagnostics``) stays ROS time either way. The choice is
-made when a timer is created: ``use_sim_time`` given at start (as launch files do) is followed; changing it on a
-running node does not move its timers to the other clock.
-"""
+The steady clock without ``use_sim_time`` (a step of the system clock neither stalls nor hurries them), the node's
+ROS clock with it; stamps stay ROS time either way. Why: docs/explanation/node.md."""
 
 from __future__ import annotations
 

@@ -1,24 +1,8 @@
 """The executor a process spins, chosen by the user, and how it is spun (rclpy 7.1.6 wheels).
 
-- ``events``: ``rclpy.experimental.EventsExecutor``. The middleware's new-data callbacks feed a queue in
-  C++; a wake-up runs the ready callback and nothing else. The default.
-- ``single``: ``rclpy.executors.SingleThreadedExecutor``. Every wake-up rebuilds, in Python, a wait set
-  over every entity of its nodes (subscriptions, timers, parameter services, guard conditions).
-
-Never call ``EventsExecutor.spin()``, or ``spin_once()`` without a timeout, with these wheels: an
-unbounded wait is a deadline of ``steady_clock::time_point::max()``, which the wheel's condition variable
-(built without ``pthread_cond_clockwait``) converts to the system clock; the sum overflows to a negative
-time, ``pthread_cond_timedwait`` fails at once (EINVAL) without releasing the queue's mutex, and the wait
-loop retries forever. One core stays busy, the middleware threads that enqueue new messages and rclpy's
-signal thread block on that mutex: no callback runs and SIGINT/SIGTERM are never seen. Any finite timeout
-(below about 7.4e9 s) waits correctly, so everything here spins in bounded slices.
-
-The same conversion makes a backward step of the system clock (NTP, a virtual machine resumed) stall timers, also
-timers on the steady clock and with either executor: a wait for a steady deadline is turned into a system-clock
-deadline when it starts, and the kernel ends it when the system clock reaches that deadline, the step later. The
-SingleThreadedExecutor waits so in the middleware's wait set (librmw_fastrtps_shared_cpp), the EventsExecutor in
-the thread that waits for its next timer. ``StallWatch`` ends such waits (see there).
-"""
+``events`` (``rclpy.experimental.EventsExecutor``, the default) or ``single`` (``SingleThreadedExecutor``), always
+in bounded slices, with ``StallWatch`` restarting timers a backward step of the system clock stalled: both work
+around the wheels' condition variable built without ``pthread_cond_clockwait``. Why: docs/explanation/node.md."""
 
 from __future__ import annotations
 

@@ -1,8 +1,7 @@
-"""Logging by problem kind (``ProblemLog``: one line per kind per period, not rclpy's one per call site), and the
-callback boundary no exception crosses (``CallbackGuard.wrap``, applied where each callback is handed to rclpy): an
-exception is counted per callback, logged once per (callback, exception type), and swallowed, so the node stays up.
-See docs/explanation/node.md.
-"""
+"""Logging by problem kind, and the callback boundary no exception crosses.
+
+``ProblemLog`` logs one line per kind per period (not rclpy's one per call site); ``CallbackGuard.wrap``, applied
+where each callback is handed to rclpy, counts, logs once and swallows an exception. See docs/explanation/node.md."""
 
 from __future__ import annotations
 

@@ -145,7 +145,7 @@ def _resolved(names: set[str], namespace: str, node: str) -> set[str]:
 
 def _used(node: object) -> dict[str, set[str]]:
     """The node's topics and services, resolved; ``/rosout`` too (rcl's logging publisher is not an rclpy
-    Publisher, so ``node.publishers`` does not list it)."""
+    Publisher, so the node's ``publishers`` list leaves it out)."""
     resolve = node.resolve_service_name  # type: ignore[attr-defined]
     return {'publish': {p.topic_name for p in node.publishers} | {'/rosout'},  # type: ignore[attr-defined]
             'subscribe': {s.topic_name for s in node.subscriptions},  # type: ignore[attr-defined]

@@ -22,12 +22,7 @@ EXEMPT_UNTIL_MERGE = frozenset({
     'fourbar_ros/bags/storage/mcap_storage.py', 'fourbar_ros/bags/storage/protocol.py',
     'fourbar_ros/bags/storage/read.py', 'fourbar_ros/bags/storage/reindex.py',
     'fourbar_ros/bags/storage/sqlite3_storage.py', 'fourbar_ros/bags/storage/write.py',
-    'fourbar_ros/commands/process.py', 'fourbar_ros/node/actuation.py', 'fourbar_ros/node/completion.py',
-    'fourbar_ros/node/fourbar_node.py', 'fourbar_ros/node/markers.py', 'fourbar_ros/node/model_check.py',
-    'fourbar_ros/node/param_descriptors.py', 'fourbar_ros/node/qos.py', 'fourbar_ros/node/run.py',
-    'fourbar_ros/node/sim_actuator.py', 'fourbar_ros/node/timers.py',
-    'fourbar_ros/runtime/executor.py', 'fourbar_ros/runtime/problem_log.py', 'fourbar_ros/runtime/spin.py',
-    'fourbar_ros/runtime/stop.py',
+    'fourbar_ros/commands/process.py', 'fourbar_ros/node/actuation.py',
 })
 
 
