@@ -21,7 +21,7 @@ import pytest
 import yaml
 from support.colcon_support import CliEnv, launch_missing, ros2, ros2_cli_missing
 from support.paths import REPO
-from support.real_controller import Judged, judged, message_points, random_steps
+from support.real_controller import Judged, judged, message_points, random_steps, takeovers
 from support.ros2_control_support import ros2_control_missing
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
@@ -31,7 +31,7 @@ from support.ros_cli_support import Background, wait_node  # psutil: with ros2cl
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.controllers import trajectory_controller
-from fourbar_ros.rules.controller_contract import check_trajectory
+from fourbar_ros.rules.controller_contract import ContractRule, check_trajectory
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -46,8 +46,9 @@ QUICK, STRESS = 12, int(os.environ.get('FOURBAR_JUDGE_TRAJECTORIES', '200'))
 
 
 @pytest.fixture(scope='module')
-def bringup(ros2_cli: CliEnv) -> Iterator[CliEnv]:
-    """The package's ros2_control bringup in /judge (trajectory mode, mock hardware), shared by the module."""
+def launched(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
+    """The package's ros2_control bringup in /judge (trajectory mode, mock hardware), shared by the module, and the
+    ``ros2 launch`` running it (its output holds the controller's log)."""
     if (why := ros2_control_missing(ros2_cli.env)) is not None:
         pytest.skip(why)
     launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={NAMESPACE}',
@@ -56,10 +57,16 @@ def bringup(ros2_cli: CliEnv) -> Iterator[CliEnv]:
         wait_node(ros2_cli.env, f'/{NAMESPACE}/fourbar_node')
         launch.wait_output(lambda t: 'Configured and activated joint_trajectory_controller' in t,
                            'the trajectory controller active')
-        yield ros2_cli
+        yield ros2_cli, launch
         assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
     finally:
         launch.kill()
+
+
+@pytest.fixture
+def bringup(launched: tuple[CliEnv, Background]) -> CliEnv:
+    """The shared bringup's command-line environment."""
+    return launched[0]
 
 
 def _judge(env: CliEnv, steps: list[dict[str, object]], tmp_path: Path) -> dict[str, object]:
@@ -87,17 +94,20 @@ def _check(env: CliEnv, steps: list[dict[str, object]], tmp_path: Path) -> list[
     settings = trajectory_controller(str(path), 'joint_trajectory_controller')
     rate = yaml.safe_load(path.read_text(encoding='utf-8'))['/**/controller_manager']['ros__parameters']['update_rate']
     recording = _judge(env, steps, tmp_path)
+    found = takeovers(recording, True, 1.0 / rate)
     results = judged(recording, settings, cfg.driven_joint, 1.0 / rate)
     report = _report(results)
-    print(report)
-    assert results, 'no trajectory was taken over'
+    missing = len(found.taken) - len(results)
+    print(f'{report}\n{missing} taken over where the controller published no state; {len(found.unknown)} unknown')
+    # The realtime publisher drops a state now and then on a busy machine; most takeovers are recorded.
+    assert len(results) >= len(found.taken) / 2, f'only {len(results)} of {len(found.taken)} takeovers recorded'
     # What the package's contract accepts, the real controller took over, and what it refuses, the controller did not.
-    verdicts = [check_trajectory(settings, [cfg.driven_joint], message_points(t['points']), t['stamp'], t['received'])
-                for t in recording['trajectories']]
-    taken = {r.index for r in results}
+    verdicts = [check_trajectory(settings, t.get('joints', [cfg.driven_joint]), message_points(t['points']),
+                                 t['stamp'], t['received']) for t in recording['trajectories']]
     refused = [f'{i}: {v.reason}' for i, v in enumerate(verdicts) if v is not None]
-    print(f'{len(recording["trajectories"])} trajectories, {len(taken)} taken over; refused by the contract:', refused)
-    disagree = [(i, v) for i, v in enumerate(verdicts) if (v is None) != (i in taken)]
+    print(f'{len(recording["trajectories"])} trajectories, {len(found.taken)} taken over; refused by the contract:',
+          refused)
+    disagree = [(i, v) for i, v in enumerate(verdicts) if (v is None) != (i in found.taken) and i not in found.unknown]
     assert not disagree, f'the contract and the real controller disagree on {len(disagree)}: {disagree[:5]}'
     off = [r for r in results if r.model > BOUND_RAD or r.follower > BOUND_RAD]
     assert not off, f'{len(off)} trajectories off the real controller by more than {BOUND_RAD} rad:\n{report}'
@@ -120,3 +130,55 @@ def test_the_model_follows_the_real_controller_on_the_nodes_plans(bringup: CliEn
 def test_the_model_follows_the_real_controller_on_many_random_trajectories(bringup: CliEnv, tmp_path: Path) -> None:
     steps = random_steps(np.random.default_rng(7), STRESS, 0.76, 0.96)
     _check(bringup, steps, tmp_path)
+
+
+#: One trajectory per rule of the contract, each sent after a good one (so that a wrong takeover would show):
+#: [t, p, v, a(, effort)] rows, the stamp (None: zero; s from the send) and the joints where not the driven one.
+BROKEN: dict[ContractRule, dict[str, object]] = {
+    ContractRule.PARTIAL_JOINTS: {'points': [[0.3, [0.85, 0.85], None, None]], 'joints': ['rocker_ab_joint', 'other']},
+    ContractRule.FOREIGN_JOINT: {'points': [[0.3, 0.85, None, None]], 'joints': ['elbow_joint']},
+    ContractRule.NO_POINTS: {'points': []},
+    ContractRule.END_MOVING: {'points': [[0.3, 0.85, 0.1, None]]},
+    ContractRule.ENDS_IN_PAST: {'points': [[0.3, 0.85, None, None]], 'stamp': -5.0},
+    ContractRule.TIME_NOT_INCREASING: {'points': [[0.3, 0.85, None, None], [0.3, 0.86, None, None]]},
+    ContractRule.FIELD_SIZE: {'points': [[0.3, [0.85, 0.86], None, None]]},
+    ContractRule.EFFORT_FIELD: {'points': [[0.3, 0.85, None, None, 1.0]]},
+}
+
+
+def test_the_real_controller_refuses_what_the_contract_refuses(launched: tuple[CliEnv, Background],
+                                                                tmp_path: Path) -> None:
+    bringup, launch = launched
+    cfg = load_config(bringup.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
+    path = bringup.prefix / 'share' / 'fourbar_ros' / 'config' / 'controllers.yaml'
+    settings = trajectory_controller(str(path), 'joint_trajectory_controller')
+    steps: list[dict[str, object]] = []
+    for i, broken in enumerate(BROKEN.values()):
+        steps.append({'points': [[0.2, 0.8 + 0.01 * i, None, None]], 'stamp': None, 'after': 0.3})
+        steps.append({'stamp': None, 'after': 0.3, **broken})
+    # Taken by the controller but mishandled (ContractRule.MISHANDLED): positions and accelerations without
+    # velocities. Its reference is 0 rad; with the shipped path tolerance it holds where it is and logs an error
+    # (without one it would command 0 rad), so it goes last, and a good one follows.
+    steps.append({'points': [[0.3, 0.85, None, 0.0], [0.6, 0.86, None, 0.0]], 'stamp': None, 'after': 0.3})
+    steps.append({'points': [[1.0, 0.85, None, None]], 'stamp': None, 'after': 1.0})
+    recording = _judge(bringup, steps, tmp_path)
+    trajectories, states = recording['trajectories'], recording['states']
+    found = takeovers(recording, True, 0.01)
+    assert not found.unknown, f'no controller state after trajectories {sorted(found.unknown)}'
+    taken = found.taken
+    verdicts = [check_trajectory(settings, t.get('joints', [cfg.driven_joint]), message_points(t['points']),
+                                 t['stamp'], t['received']) for t in trajectories]
+    rules = [None if v is None else v.rule for v in verdicts]
+    expected = [r for rule in BROKEN for r in (None, rule)] + [ContractRule.MISHANDLED, None]
+    assert rules == expected, f'the contract: {rules}'
+    # Refused by the contract and by the controller, but for the mishandled one: the controller takes it over...
+    seen = [(i, r) for i, r in enumerate(rules) if (i in taken) != (r in (None, ContractRule.MISHANDLED))]
+    assert not seen, f'taken over by the real controller against the contract\'s verdict (index, rule): {seen}'
+    # ... its reference at the takeover is 0 rad (no interpolation branch runs), which the state tolerance catches:
+    # from the next update on it holds where the drive is, and logs it.
+    k, _ = taken[len(trajectories) - 2]
+    held = [s['ref'][0][0] for s in states[k + 1:] if s['stamp'] < trajectories[-1]['received']]
+    assert states[k]['ref'][0][0] == 0.0 or states[k]['fb_tfs'] != 0, f'at the takeover: {states[k]}'
+    assert held and max(abs(p - held[0]) for p in held) == 0.0, f'the reference moved: {held[:5]} ...'
+    launch.wait_output(lambda t: 'Holding position due to state tolerance violation' in t,
+                       'the controller holding on a trajectory without velocities')

@@ -103,6 +103,9 @@ def message_points(points: list[list[Any]]) -> list[_Point]:
 #: How much earlier, or later, than the judge's receive time the controller takes a passing trajectory over (ns):
 #: both receive it from the node, in either order, and the controller at its next update.
 ECHO_EARLY_NS, ECHO_LATE_NS = 20_000_000, 30_000_000
+#: How much earlier than its send time an update may take the judge's own trajectory over (ns): an update is stamped
+#: when it starts and takes what arrived before it reads the trajectory, up to one period later.
+SENT_EARLY_NS = 10_000_000
 
 
 def _candidates(states: list[dict[str, Any]], traj: dict[str, Any], since: int, until: int) -> list[int]:
@@ -136,44 +139,88 @@ def _worst(states: list[dict[str, Any]], model: Reference, start: int, stop: int
                default=0.0)
 
 
-def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) -> list[tuple[int, int]]:
-    """(trajectory index, update index) of every recorded trajectory the controller took over, in order (a
-    trajectory the controller refused has none).
+@dataclass(frozen=True)
+class Takeovers:
+    """Which recorded trajectories the controller took over: ``taken`` maps a trajectory's index to the first recorded
+    update following it and whether that update took it over (false where the takeover's state is missing from the
+    recording: the controller's realtime publisher drops a state while the previous one is still being sent);
+    ``unknown`` holds those the recording cannot tell (no state between its arrival and the next one's); the rest
+    were refused."""
 
-    The judge's own trajectories are taken over at the first candidate update after they were sent. The node's
-    are seen passing and reach the controller up to a few updates before or after the judge; a plan that continues
-    the running one is stamped at that one's origin, so several updates in that window can qualify: the one the
-    model follows best up to the window's end is taken (a model wrong at every candidate still fails)."""
+    taken: dict[int, tuple[int, bool]]
+    unknown: frozenset[int]
+
+
+def _start(s: dict[str, Any]) -> int:
+    """The start (ns, header clock) of the trajectory an update follows: its time less its ``time_from_start``."""
+    return int(s['stamp']) - int(s['fb_tfs'])
+
+
+def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) -> Takeovers:
+    """Every recorded trajectory's fate (``Takeovers``).
+
+    The judge's own trajectories: taken over when an update after its arrival (one period of slack: an update is
+    stamped as it starts) follows a trajectory that starts where this one does (its stamp, or for a zero stamp an
+    update after its arrival); the takeover is the first such update when it is recorded (``time_from_start`` 0 for
+    a zero stamp; else the reference and feedback times equal, right after an update of the previous one). The
+    node's are seen passing and reach the controller up to a few updates before or after the judge; a plan that
+    continues the running one starts where that one does, so several updates can qualify: the one the model follows
+    best up to the window's end is taken (a model wrong at every candidate still fails)."""
     states = recording['states']
     trajectories = recording['trajectories']
-    arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else 0) for t in trajectories] + [2**63]
-    taken: list[tuple[int, int]] = []
+    arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else SENT_EARLY_NS) for t in trajectories] + [2**63]
+    taken: dict[int, tuple[int, bool]] = {}
+    unknown: set[int] = set()
+    last_stamp = 0
     for i, t in enumerate(trajectories):
-        since = max(arrivals[i], states[taken[-1][1]]['stamp'] if taken else 0)
+        since = max(arrivals[i], last_stamp)
         until = min(arrivals[i + 1], t['received'] + ECHO_LATE_NS) if t['echoed'] else arrivals[i + 1]
-        found = _candidates(states, t, since, until)
-        if not found:
+        window = [k for k, s in enumerate(states) if since < s['stamp'] < until]
+        if t['echoed']:
+            found = _candidates(states, t, since, until)
+            if not found:
+                unknown.add(i)
+                continue
+            if len(found) > 1:
+                stop = window[-1] + 1
+                found = [min(found, key=lambda k: _worst(states, _reference_from(states, t, k, velocity_state,
+                                                                                   period)[1], k, stop))]
+            taken[i] = (found[0], True)
+            last_stamp = states[found[0]]['stamp']
             continue
-        if t['echoed'] and len(found) > 1:
-            stop = next((j for j, s in enumerate(states) if s['stamp'] >= until), len(states))
-            found = [min(found, key=lambda k: _worst(states, _reference_from(states, t, k, velocity_state,
-                                                                               period)[1], k, stop))]
-        taken.append((i, found[0]))
-    return taken
+        if not window:
+            unknown.add(i)
+            continue
+        owned = [k for k in window if (_start(states[k]) >= arrivals[i] if t['stamp'] == 0
+                                       else abs(_start(states[k]) - t['stamp']) < 1_000_000)]
+        if not owned:
+            continue  # refused: the updates after its arrival follow another trajectory
+        k = owned[0]
+        s, before = states[k], states[k - 1] if k > 0 else None
+        exact = s['ref_tfs'] == s['fb_tfs'] and (
+            s['fb_tfs'] == 0 if t['stamp'] == 0 else
+            before is not None and s['stamp'] - before['stamp'] < 1.5 * period * NS_PER_S and k - 1 not in owned)
+        taken[i] = (k, exact)
+        last_stamp = s['stamp']
+    return Takeovers(taken, frozenset(unknown))
 
 
 def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, joint: str,
            period: float) -> list[Judged]:
-    """Every recorded trajectory the controller took over (``takeovers``), compared update by update until the next
-    one's takeover."""
+    """Every recorded trajectory the controller took over at a recorded update (``takeovers``), compared update by
+    update until the next one's takeover."""
     states = recording['states']
     trajectories = recording['trajectories']
     velocity_state = 'velocity' in settings.state_interfaces
-    taken = takeovers(recording, velocity_state, period)
+    found = takeovers(recording, velocity_state, period)
+    firsts = sorted(k for k, _ in found.taken.values())
     out: list[Judged] = []
-    for n, (index, k) in enumerate(taken):
+    for index, (k, exact) in found.taken.items():
+        if not exact:
+            continue
         traj = trajectories[index]
-        upto = taken[n + 1][1] if n + 1 < len(taken) else len(states)
+        later = [j for j in firsts if j > k]
+        upto = later[0] if later else len(states)
         tau0, model = _reference_from(states, traj, k, velocity_state, period)
         position, velocity = states[k]['fb'][0][0], (states[k]['fb'][1] or [None])[0]
         follower = TrajectoryFollower(settings, joint, position, period)
