@@ -19,6 +19,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from itertools import islice
 
 import numpy as np
 import numpy.typing as npt
@@ -88,16 +89,9 @@ class ProcessStats:
 
 def _command_blocks(bag: BagReader, topic: str, block: int) -> Iterator[tuple[IntArray, FloatArray]]:
     """(log times ns, values rad) of the commands, ``block`` at a time."""
-    stamps: list[int] = []
-    raws: list[bytes] = []
-    for _, stamp, data in bag.messages([topic]):
-        stamps.append(stamp)
-        raws.append(data)
-        if len(raws) == block:
-            yield _block(bag, topic, stamps, raws)
-            stamps, raws = [], []
-    if raws:
-        yield _block(bag, topic, stamps, raws)
+    messages = bag.messages([topic])
+    while chunk := list(islice(messages, block)):
+        yield _block(bag, topic, [m[1] for m in chunk], [m[2] for m in chunk])
 
 
 def _block(bag: BagReader, topic: str, stamps: list[int], raws: list[bytes]) -> tuple[IntArray, FloatArray]:

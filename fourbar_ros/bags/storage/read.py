@@ -111,9 +111,9 @@ class BagReader:
         conns = [c for c in self.connections if not topics or c.topic in topics]
         self.count, self._on = 0, f' on {topics[0]}' if len(topics) == 1 else ''
         with self.guard():
-            for conn, stamp, data in self.rosbags.messages(connections=conns):
+            for message in self.rosbags.messages(connections=conns):
                 self.count += 1
-                yield conn, stamp, data
+                yield message
 
 
 @contextmanager
