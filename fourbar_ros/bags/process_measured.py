@@ -1,15 +1,9 @@
 """The completion fourbar_node publishes in its actuator modes, for a bag of measured joint states (no rclpy).
 
-For every ``sensor_msgs/JointState`` of the measured topic (``/measured_joint_states`` or joint_state_broadcaster's
-``/joint_state_broadcaster/joint_states``, else the one such topic in a namespace: ``storage.find_topic``) in bag
-order, the node's rules for a measurement (``fourbar_ros.rules.completion``, on blocks): the node's own complete
-JointStates and JointStates without the driven joint or with mismatched array lengths are skipped, refused ones
-(``measured``: a position NaN or inf, an infinite velocity or effort; a NaN velocity or effort is not measured)
-skipped, angles the driven rocker cannot take publish nothing; the others give the complete ``joint_states`` (the
-measurement's header stamp), ``antenna_angle``, ``antenna_rate`` (with a measured velocity) and ``load_torque``
-(with a measured effort), in the measured topic's namespace and at its log time, in that order. Every output
-is written (a recording has every subscriber). Blocks of ``BLOCK`` measurements at a time; the output appears
-atomically.
+Each ``sensor_msgs/JointState`` of the measured topic (``storage.find_topic``), in bag order and blocks of ``BLOCK``,
+goes through the node's decoder and rules (``fourbar_ros.rules.completion``); the completed ``joint_states``,
+``antenna_angle``, ``antenna_rate`` and ``load_torque`` go to the measured topic's namespace at its log time.
+docs/how-to/bags.md ("Process a bag without the middleware") explains what is skipped, refused and written.
 """
 
 from __future__ import annotations
