@@ -1,20 +1,16 @@
-"""`fourbar process` against a plain rosbags copy of the same command bag, same run; peak memory.
+"""`fourbar process` against a plain rosbags copy of the same command bag and against the storage floor, same run.
 
-    .venv/bin/python -m benchmarks.process_bench [--rounds 3] [--storage mcap]
+    .venv/bin/python -m benchmarks.process_bench [--rounds 5] [--storage mcap] [--markdown]
     .venv/bin/python -m benchmarks.process_bench --memory 200000 2000000
 
-- copy: rosbags reads every raw message of a 200,000-command bag and writes it to a new bag (same storage),
-  nothing decoded: the least any tool that rewrites the bag must spend;
-- process: ``fourbar_ros.bags.process.process_bag`` (what `fourbar process IN OUT` runs) with
-  config/antenna.yaml: every command read, decided, solved, a JointState and a Float64 written per command
-  (twice the messages of the copy);
-- ratio process/copy from the medians over ``--rounds`` interleaved rounds (copy, process, copy, ...),
-  every round listed. Target: <= 2.
-- ``--memory N...``: peak RSS (VmHWM) of a fresh Python process that imports the package and then
-  processes, or copies, an N-command bag; the difference between N shows whether memory grows with the bag.
+- copy: rosbags reads every raw message of a 200,000-command bag and writes it to a new bag (same storage);
+- floor: rosbags reads every raw message of the same bag and writes the messages `fourbar process` writes for it
+  (joint_states and input_torque per command, precomputed bytes): the storage cost of the output alone;
+- process: `fourbar process IN OUT --params config/antenna.yaml` in-process (``fourbar_ros.commands.main``);
+- ratios process/copy, floor/copy and process/floor of the median CPU times over ``--rounds`` interleaved rounds;
+- ``--memory N...``: peak RSS (VmHWM) of a fresh process copying, or processing, an N-command bag.
 
-Figures printed as JSON. The bag is a deterministic sweep over the tilt range at 100 Hz written to a temporary
-directory (with the block CDR encoder, so a 2,000,000-command bag takes seconds). No figure is asserted by a test.
+Figures as JSON (``--markdown``: as the table of docs/benchmarks.md), which explains them.
 """
 
 from __future__ import annotations
@@ -84,40 +80,109 @@ def copy_bag(src: Path, dst: Path, storage: Storage) -> int:
 
 
 def process(src: Path, dst: Path, storage: Storage) -> int:
-    """`fourbar process SRC DST --params config/antenna.yaml --storage STORAGE`; the commands processed."""
-    from fourbar_ros.bags.process import process_bag
-    from fourbar_ros.config.antenna_config import load_config
+    """`fourbar process SRC DST --params config/antenna.yaml --storage STORAGE`; its exit status."""
+    import contextlib
+    import io
 
-    return process_bag(src, dst, load_config(CONFIG), storage=storage).commands
+    from fourbar_ros.commands import main
+
+    with contextlib.redirect_stderr(io.StringIO()):
+        return main(['process', str(src), str(dst), '--params', str(CONFIG), '--storage', storage.value])
 
 
-KINDS: dict[str, Callable[[Path, Path, str], int]] = {'copy': copy_bag, 'process': process}
+def outputs_of(src: Path, storage: Storage) -> tuple[list[tuple[str, str]], dict[int, list[tuple[int, bytes]]]]:
+    """The (topic, type) `fourbar process` writes for ``src`` and its messages by log time (ns): (topic index, raw)."""
+    from rosbags.rosbag2 import Reader
+
+    with tempfile.TemporaryDirectory(prefix='process_bench.') as tmp:
+        process(src, Path(tmp) / 'out', storage)
+        with Reader(Path(tmp) / 'out') as reader:
+            index = {c.id: i for i, c in enumerate(reader.connections)}
+            by_log: dict[int, list[tuple[int, bytes]]] = {}
+            for conn, stamp, data in reader.messages():
+                by_log.setdefault(stamp, []).append((index[conn.id], bytes(data)))
+            return [(c.topic, c.msgtype) for c in reader.connections], by_log
 
 
-def timed(kind: str, src: Path, out: Path, storage: Storage) -> float:
-    """Seconds of one copy or process into ``out`` (removed before and after)."""
+def floor(src: Path, dst: Path, storage: Storage, outputs: Any) -> int:
+    """Read every raw message of ``src`` with rosbags and write its precomputed ``outputs`` (``outputs_of``) with
+    rosbags' writer (same storage); the number of messages written."""
+    from rosbags.rosbag2 import Reader, Writer
+
+    from fourbar_ros.bags.storage import jazzy_typestore, recorded_qos
+    from fourbar_ros.bags.storage.adapters import adapter
+
+    topics, by_log = outputs
+    count = 0
+    with Reader(src) as reader, Writer(dst, version=9, storage_plugin=adapter(storage).plugin) as writer:
+        conns = [writer.add_connection(t, m, typestore=jazzy_typestore(), offered_qos_profiles=[recorded_qos()])
+                 for t, m in topics]
+        for _, stamp, _ in reader.messages():
+            for i, raw in by_log.get(stamp, ()):
+                writer.write(conns[i], stamp, raw)
+                count += 1
+    return count
+
+
+def read(src: Path, dst: Path, storage: Storage) -> int:
+    """Read every raw message of ``src`` with rosbags (nothing written); the number of messages."""
+    from rosbags.rosbag2 import Reader
+
+    with Reader(src) as reader:
+        return sum(1 for _ in reader.messages())
+
+
+KINDS: dict[str, Callable[..., int]] = {'read': read, 'copy': copy_bag, 'floor': floor, 'process': process}
+
+
+def timed(kind: str, src: Path, out: Path, storage: Storage, *extra: Any) -> tuple[float, float]:
+    """(CPU seconds of this process, wall seconds) of one read, copy, floor or process into ``out`` (removed before and
+    after). The ratios use CPU time: time the scheduler gives other jobs on a shared machine is left out."""
     shutil.rmtree(out, ignore_errors=True)
-    start = time.perf_counter()
-    KINDS[kind](src, out, storage)
-    seconds = time.perf_counter() - start
+    cpu, wall = time.process_time(), time.perf_counter()
+    KINDS[kind](src, out, storage, *extra)
+    cpu, wall = time.process_time() - cpu, time.perf_counter() - wall
     shutil.rmtree(out, ignore_errors=True)
-    return seconds
+    return cpu, wall
 
 
 def speed(n: int, rounds: int, storage: Storage) -> dict[str, Any]:
-    """Interleaved rounds of copy and process on one n-command bag."""
+    """Interleaved rounds of read, copy, floor and process on one n-command bag."""
     with tempfile.TemporaryDirectory(prefix='process_bench.') as tmp:
         bag = make_bag(Path(tmp) / 'commands', n, storage)
         out = Path(tmp) / 'out'
-        timed('process', bag, out, storage)  # warm-up: imports, page cache
-        times: dict[str, list[float]] = {'copy': [], 'process': []}
+        outputs = outputs_of(bag, storage)  # also the warm-up: imports, page cache
+        times: dict[str, list[tuple[float, float]]] = {kind: [] for kind in KINDS}
         for _ in range(rounds):
             for kind, row in times.items():
-                row.append(timed(kind, bag, out, storage))
-    copy_s, process_s = statistics.median(times['copy']), statistics.median(times['process'])
-    return {'commands': n, 'storage': storage.value, 'rounds': rounds, 'copy_s': times['copy'],
-            'process_s': times['process'], 'copy_median_s': copy_s, 'process_median_s': process_s,
-            'ratio': process_s / copy_s}
+                row.append(timed(kind, bag, out, storage, *((outputs,) if kind == 'floor' else ())))
+    cpu = {kind: statistics.median(c for c, _ in row) for kind, row in times.items()}
+    written = sum(map(len, outputs[1].values()))
+    return {'commands': n, 'storage': storage.value, 'rounds': rounds,
+            'messages_written': {'copy': n, 'floor_and_process': written},
+            'write_us_per_message': {'copy': (cpu['copy'] - cpu['read']) / n * 1e6,
+                                     'floor': (cpu['floor'] - cpu['read']) / written * 1e6},
+            'rules_and_cdr_us_per_command': (cpu['process'] - cpu['floor']) / n * 1e6,
+            **{f'{kind}_cpu_s': [c for c, _ in row] for kind, row in times.items()},
+            **{f'{kind}_median_cpu_s': m for kind, m in cpu.items()},
+            **{f'{kind}_median_wall_s': statistics.median(w for _, w in row) for kind, row in times.items()},
+            'ratio': cpu['process'] / cpu['copy'], 'floor_ratio': cpu['floor'] / cpu['copy'],
+            'process_over_floor': cpu['process'] / cpu['floor']}
+
+
+def where_the_time_goes(f: dict[str, Any]) -> str:
+    """The speed figures in words: what the copy and the floor cost and what is left for process (markdown)."""
+    return (f'`fourbar process` of a {f["commands"]:,}-command {f["storage"]} bag takes **{f["ratio"]:.2f}x** the '
+            f'CPU time of a rosbags copy of it and **{f["process_over_floor"]:.2f}x the floor**, a rosbags read of the '
+            f'input plus rosbags\' writer writing the same output messages (precomputed bytes; floor/copy '
+            f'{f["floor_ratio"]:.2f}). '
+            f'The output holds {f["messages_written"]["floor_and_process"]:,} messages (joint_states and input_torque '
+            f'per served command) against the copy\'s {f["commands"]:,}, and rosbags\' writer costs '
+            f'{f["write_us_per_message"]["floor"]:.1f} us per message ({f["write_us_per_message"]["copy"]:.1f} us in '
+            f'the copy) against {f["read_median_cpu_s"] / f["commands"] * 1e6:.1f} us to read one: writing twice the '
+            f'messages is what sets the floor above the copy. What process adds to the floor (decoding, the node\'s '
+            f'rules on blocks, CDR encoding, the atomic commit) is '
+            f'{f["rules_and_cdr_us_per_command"]:.2f} us per command.\n')
 
 
 def child(kind: str, src: Path, dst: Path, storage: Storage) -> None:
@@ -127,7 +192,7 @@ def child(kind: str, src: Path, dst: Path, storage: Storage) -> None:
     exec, so a child started by a big parent would report that."""
     import fourbar_ros.bags.process  # noqa: F401  (the same imports in both kinds)
 
-    seconds = timed(kind, src, dst, storage)
+    seconds = timed(kind, src, dst, storage)[1]
     peak = next(line for line in Path('/proc/self/status').read_text().splitlines() if line.startswith('VmHWM:'))
     print(json.dumps({'kind': kind, 'seconds': seconds, 'max_rss_mib': int(peak.split()[1]) / 1024}))
 
@@ -138,7 +203,7 @@ def memory(sizes: list[int], storage: Storage) -> list[dict[str, Any]]:
     for n in sizes:
         with tempfile.TemporaryDirectory(prefix='process_bench.') as tmp:
             bag = make_bag(Path(tmp) / 'commands', n, storage)
-            for kind in KINDS:
+            for kind in ('copy', 'process'):
                 done = subprocess.run([sys.executable, '-m', 'benchmarks.process_bench', '--child', kind,
                                        str(bag), str(Path(tmp) / kind), '--storage', storage.value],
                                       cwd=REPO, capture_output=True, text=True, check=True)
@@ -147,10 +212,11 @@ def memory(sizes: list[int], storage: Storage) -> list[dict[str, Any]]:
 
 
 def run(quick: bool) -> dict[str, Any]:
-    """For ``python -m benchmarks.run``: the speed ratio and peak memory (at two bag sizes in a full run)."""
+    """For ``python -m benchmarks.run``: the speed ratios and peak memory (at two bag sizes in a full run)."""
     n, rounds = (20_000, 3) if quick else (200_000, 5)
     figures: dict[str, Any] = {'speed': speed(n, rounds, DEFAULT_STORAGE)}
     figures['process_over_copy_ratio'] = figures['speed']['ratio']
+    figures['floor_over_copy_ratio'] = figures['speed']['floor_ratio']
     figures['memory'] = {f'{r["kind"]}_{r["commands"]}_peak_rss_mib': r['max_rss_mib']
                          for r in memory([20_000] if quick else [200_000, 2_000_000], DEFAULT_STORAGE)}
     return figures
@@ -158,7 +224,8 @@ def run(quick: bool) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=(__doc__ or '').splitlines()[0])
-    parser.add_argument('--rounds', type=int, default=3)
+    parser.add_argument('--rounds', type=int, default=5)
+    parser.add_argument('--markdown', action='store_true', help='print the table of docs/benchmarks.md')
     parser.add_argument('--storage', type=Storage, choices=tuple(Storage), default=DEFAULT_STORAGE)
     parser.add_argument('--memory', type=int, nargs='+', metavar='N', help='peak RSS for these bag sizes')
     parser.add_argument('--child', nargs=3, metavar=('KIND', 'IN', 'OUT'), help=argparse.SUPPRESS)
@@ -166,7 +233,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.child:
         child(args.child[0], Path(args.child[1]), Path(args.child[2]), args.storage)
         return 0
-    return print_json(memory(args.memory, args.storage) if args.memory else speed(200_000, args.rounds, args.storage))
+    if args.memory:
+        return print_json(memory(args.memory, args.storage))
+    figures = speed(200_000, args.rounds, args.storage)
+    if args.markdown:
+        from benchmarks.report import figures_table
+
+        print(where_the_time_goes(figures), figures_table(
+            f'fourbar process (python -m benchmarks.process_bench --rounds {args.rounds})', figures), sep='\n')
+        return 0
+    return print_json(figures)
 
 
 if __name__ == '__main__':

@@ -4,7 +4,7 @@ The recording holds
 
 - the measured driven joint: ``sensor_msgs/msg/JointState`` (position rad, effort N m) on the measured topic
   (``--measured-topic``; by default joint_state_broadcaster's ``/joint_state_broadcaster/joint_states`` or
-  ``/measured_joint_states``, else the one such topic in a namespace: ``process_measured.measured_topic``), the
+  ``/measured_joint_states``, else the one such topic in a namespace: ``storage.find_topic``), the
   driven joint found by its name (``gamma_joint`` or ``delta_joint`` of the parameter file);
 - the antenna angle sensor on ``angle_topic``: ``std_msgs/msg/Float64`` (rad, in theta's sense: positive tilts the
   antenna down), or ``sensor_msgs/msg/Imu``, whose tilt is taken from gravity (``core.calibration.imu_tilt``).
@@ -26,8 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from fourbar_ros.bags.process_measured import measured_topic
-from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, BagError, jazzy_typestore, open_bag, topic_types
+from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, MEASURED, BagError, jazzy_typestore, open_bag
 from fourbar_ros.core.calibration import CalibrationError, imu_tilt
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.core.numeric import FloatArray
@@ -122,24 +121,19 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
                           joint_topic: str | None = None) -> CalibrationData:
     """Read a recording (see the module docstring) and pair its streams. Raises BagError for an unreadable bag and
     CalibrationError (one line) for data that cannot calibrate."""
-    p = Path(path)
-    with open_bag(p) as reader:
-        types = topic_types(reader)
+    with open_bag(path) as bag:
+        p, types = bag.path, bag.types
         if angle_topic not in types:
             raise CalibrationError(f'{p}: no sensor topic {angle_topic} ({_topics(types)})')
         sensor_type = types[angle_topic]
         if sensor_type not in SENSOR_TYPES:
             raise CalibrationError(f'{p}: sensor topic {angle_topic} has type {sensor_type}, expected '
                                    f'{" or ".join(SENSOR_TYPES)}')
-        chosen = measured_topic(p, types, joint_topic)
-        if chosen is None:
-            want = joint_topic or '/joint_state_broadcaster/joint_states'
-            raise CalibrationError(f'{p}: no measured {JOINT_STATE} topic {want} ({_topics(types)})')
-        conns = [c for c in reader.connections if c.topic in (chosen, angle_topic)]
         try:
-            messages = [(conn.topic == chosen, log, data) for conn, log, data in reader.messages(connections=conns)]
-        except Exception as exc:
-            raise BagError(f'{p}: unreadable bag ({one_line(exc)})') from exc
+            chosen = bag.find(MEASURED, joint_topic)
+        except BagError as exc:
+            raise CalibrationError(str(exc)) from None
+        messages = [(conn.topic == chosen, log, data) for conn, log, data in bag.messages([chosen, angle_topic])]
     raws = {topic: [bytes(d) for is_joint, _, d in messages if is_joint is (topic == chosen)]
             for topic in (chosen, angle_topic)}
     logs = {topic: [t for is_joint, t, _ in messages if is_joint is (topic == chosen)]

@@ -101,8 +101,8 @@ def _rows(seqs: list[Any], width: int) -> FloatArray:
 
 def topic_types_of(path: str | os.PathLike[str]) -> dict[str, str]:
     """Topic -> type of the JointState, Float64 and JointTrajectory topics of a bag. Raises BagError (one line)."""
-    with open_bag(path) as reader:
-        return {c.topic: c.msgtype for c in reader.connections if c.msgtype in (JOINT_STATE, FLOAT64, JOINT_TRAJECTORY)}
+    with open_bag(path) as bag:
+        return {t: m for t, m in bag.types.items() if m in (JOINT_STATE, FLOAT64, JOINT_TRAJECTORY)}
 
 
 def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[bytes], start: int) -> TopicData:
@@ -152,27 +152,17 @@ def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[by
 def topic_blocks(path: str | os.PathLike[str], topic: str, msgtype: str,
                  block: int = BLOCK) -> Generator[TopicData, None, None]:
     """The messages of one topic, ``block`` at a time, as arrays. Raises BagError (one line)."""
-    p = Path(path)
-    with open_bag(p) as reader:
-        conns = [c for c in reader.connections if c.topic == topic]
+    with open_bag(path) as bag:
         logs: list[int] = []
         raws: list[bytes] = []
-        done = 0
-        try:
-            for _, stamp, data in reader.messages(connections=conns):
-                logs.append(int(stamp))
-                raws.append(bytes(data))
-                if len(raws) == block:
-                    yield _decode(p, topic, msgtype, logs, raws, done)
-                    done += len(raws)
-                    logs, raws = [], []
-        except BagError:
-            raise
-        except Exception as exc:
-            raise BagError(f'{p}: unreadable bag after {done + len(raws)} messages on {topic} '
-                           f'({one_line(exc)})') from exc
+        for _, stamp, data in bag.messages([topic]):
+            logs.append(int(stamp))
+            raws.append(bytes(data))
+            if len(raws) == block:
+                yield _decode(bag.path, topic, msgtype, logs, raws, bag.count - block)
+                logs, raws = [], []
         if raws:
-            yield _decode(p, topic, msgtype, logs, raws, done)
+            yield _decode(bag.path, topic, msgtype, logs, raws, bag.count - len(raws))
 
 
 # --------------------------------------------------------------------------- scales

@@ -19,24 +19,22 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from pathlib import Path
-from typing import Any
+from itertools import islice
 
 import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.bags.storage import (
+    COMMANDS,
     FLOAT64,
     JOINT_STATE,
     AtomicBagWriter,
     BagError,
+    BagReader,
     Storage,
     jazzy_typestore,
     open_bag,
-    pick_command_topic,
     recorded_qos,
-    storage_of,
-    topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.errors import one_line
@@ -89,71 +87,51 @@ class ProcessStats:
 
 # --------------------------------------------------------------------------- reading and writing
 
-def _command_blocks(reader: Any, conns: list[Any], path: Path, topic: str,
-                    block: int) -> Iterator[tuple[IntArray, FloatArray]]:
+def _command_blocks(bag: BagReader, topic: str, block: int) -> Iterator[tuple[IntArray, FloatArray]]:
     """(log times ns, values rad) of the commands, ``block`` at a time."""
-    store = jazzy_typestore()
-    stamps: list[int] = []
-    raws: list[bytes] = []
-    done = 0
-
-    def flush() -> tuple[IntArray, FloatArray]:
-        values = decode_float64s(raws)
-        if values is None:  # not the plain little-endian form: the full deserializer, message by message
-            out = np.empty(len(raws))
-            for j, raw in enumerate(raws):
-                try:
-                    msg: Any = store.deserialize_cdr(raw, FLOAT64)
-                    out[j] = float(msg.data)
-                except Exception as exc:
-                    raise BagError(f'{path}: message {done + j} on {topic} is not a valid {FLOAT64} '
-                                   f'({one_line(exc)})') from exc
-            values = out
-        return np.array(stamps, dtype=np.int64), values
-
-    try:
-        for _, stamp, data in reader.messages(connections=conns):
-            stamps.append(stamp)
-            raws.append(bytes(data))
-            if len(raws) == block:
-                yield flush()
-                done += len(raws)
-                stamps.clear()
-                raws.clear()
-    except BagError:
-        raise
-    except Exception as exc:
-        raise BagError(f'{path}: unreadable bag after {done + len(raws)} messages ({one_line(exc)})') from exc
-    if raws:
-        yield flush()
+    messages = bag.messages([topic])
+    while chunk := list(islice(messages, block)):
+        yield _block(bag, topic, [m[1] for m in chunk], [m[2] for m in chunk])
 
 
-def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
+def _block(bag: BagReader, topic: str, stamps: list[int], raws: list[bytes]) -> tuple[IntArray, FloatArray]:
+    """(log times ns, values rad) of one block of raw commands."""
+    values = decode_float64s(raws)
+    if values is None:  # not the plain little-endian form: the full deserializer, message by message
+        store, values = jazzy_typestore(), np.empty(len(raws))
+        for j, raw in enumerate(raws):
+            try:
+                values[j] = float(store.deserialize_cdr(bytes(raw), FLOAT64).data)  # type: ignore[attr-defined]
+            except Exception as exc:
+                raise BagError(f'{bag.path}: message {bag.count - len(raws) + j} on {topic} is not a valid '
+                               f'{FLOAT64} ({one_line(exc)})') from exc
+    return np.array(stamps, dtype=np.int64), values
+
+
+def process_bag(src: str | os.PathLike[str] | BagReader, dst: str | os.PathLike[str], cfg: AntennaConfig,
                 topic: str | None = None, storage: Storage | None = None, block: int = BLOCK,
                 on_block: Callable[[int], None] | None = None) -> ProcessStats:
     """Write to ``dst`` the joint_states and input_torque fourbar_node would publish for the commands of
-    ``src`` (see the module docstring). ``topic``: the command topic (default: pick_command_topic's choice of
-    ``/antenna_angle_cmd``); ``storage``: the output's (default: the input's). ``on_block(n)`` is
+    ``src`` (a path or an open bag; see the module docstring). ``topic``: the command topic (default:
+    ``find_topic``'s ``/antenna_angle_cmd``); ``storage``: the output's (default: the input's). ``on_block(n)`` is
     called with the number of commands done after each block. Raises BagError (one line) for bad input;
     ``dst`` then does not appear.
     """
     start = time.perf_counter()
-    src_path = Path(src)
     stats = ProcessStats()
     names = cfg.joint_names
     policy, reach = Policy(cfg.out_of_limits), cfg.linkage.reach()
     anchor = VelocityState()
-    with open_bag(src_path) as reader:
-        chosen = pick_command_topic(src_path, topic_types(reader), topic)
-        conns = [c for c in reader.connections if c.topic == chosen]
+    with open_bag(src) as reader:
+        chosen = reader.find(COMMANDS, topic)
         joint_topic, torque_topic = (sibling_topic(chosen, t.name) for t in PER_COMMAND_OUTPUTS)
         stats.topics = (joint_topic, torque_topic)
-        with AtomicBagWriter(dst, storage or storage_of(reader)) as bag:
+        with AtomicBagWriter(dst, storage or reader.storage) as bag:
             qos = [recorded_qos()]  # the node's publishers: reliable, volatile
             js_conn = bag.add_topic(joint_topic, JOINT_STATE, qos)
             tq_conn = bag.add_topic(torque_topic, FLOAT64, qos)
             write = bag.writer.write
-            for stamps, values in _command_blocks(reader, conns, src_path, chosen, block):
+            for stamps, values in _command_blocks(reader, chosen, block):
                 served = serve(values, cfg.theta_min, cfg.theta_max, policy, reach)
                 stats.count(served.outcomes)
                 out = outputs_block(cfg, served.theta, stamps[served.index], anchor)
@@ -162,7 +140,7 @@ def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: A
                     js = encode_joint_states(out.stamps_ns, '', names, out.positions, out.efforts, out.velocities,
                                              out.has_velocity)
                 except ValueError as exc:
-                    raise BagError(f'{src_path}: {exc}') from None
+                    raise BagError(f'{reader.path}: {exc}') from None
                 tq = encode_float64s(out.input_torque)
                 for stamp, js_raw, tq_raw in zip(out.stamps_ns.tolist(), js, tq, strict=True):
                     write(js_conn, stamp, js_raw)
@@ -172,7 +150,7 @@ def process_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: A
                 if on_block is not None:
                     on_block(stats.commands)
             if stats.commands == 0:
-                raise BagError(f'{src_path}: topic {chosen} has no messages')
+                raise BagError(f'{reader.path}: topic {chosen} has no messages')
             bag.counts[joint_topic] = bag.counts[torque_topic] = stats.published
     stats.seconds = time.perf_counter() - start
     return stats

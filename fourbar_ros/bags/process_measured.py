@@ -1,15 +1,9 @@
 """The completion fourbar_node publishes in its actuator modes, for a bag of measured joint states (no rclpy).
 
-For every ``sensor_msgs/JointState`` of the measured topic (``measured_topic``: ``/measured_joint_states`` or
-joint_state_broadcaster's ``/joint_state_broadcaster/joint_states``, else the one such topic in a namespace) in bag
-order, the node's rules for a measurement (``fourbar_ros.rules.completion``, on blocks): the node's own complete
-JointStates and JointStates without the driven joint or with mismatched array lengths are skipped, refused ones
-(``measured``: a position NaN or inf, an infinite velocity or effort; a NaN velocity or effort is not measured)
-skipped, angles the driven rocker cannot take publish nothing; the others give the complete ``joint_states`` (the
-measurement's header stamp), ``antenna_angle``, ``antenna_rate`` (with a measured velocity) and ``load_torque``
-(with a measured effort), in the measured topic's namespace and at its log time, in that order. Every output
-is written (a recording has every subscriber). Blocks of ``BLOCK`` measurements at a time; the output appears
-atomically.
+Each ``sensor_msgs/JointState`` of the measured topic (``storage.find_topic``), in bag order and blocks of ``BLOCK``,
+goes through the node's decoder and rules (``fourbar_ros.rules.completion``); the completed ``joint_states``,
+``antenna_angle``, ``antenna_rate`` and ``load_torque`` go to the measured topic's namespace at its log time.
+docs/how-to/bags.md ("Process a bag without the middleware") explains what is skipped, refused and written.
 """
 
 from __future__ import annotations
@@ -18,7 +12,6 @@ import math
 import os
 import time
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -26,24 +19,18 @@ import numpy as np
 from fourbar_ros.bags.storage import (
     FLOAT64,
     JOINT_STATE,
+    MEASURED,
     AtomicBagWriter,
     BagError,
+    BagReader,
     Storage,
     jazzy_typestore,
     open_bag,
     recorded_qos,
-    storage_of,
-    topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.core.errors import one_line
 from fourbar_ros.interface.cdr import MalformedCdrError, read_joint_state_arrays, read_joint_state_head
-from fourbar_ros.interface.topics import (
-    BROADCASTER_JOINT_STATES,
-    JOINT_STATES,
-    MEASURED_JOINT_STATES,
-    PER_MEASUREMENT_OUTPUTS,
-)
+from fourbar_ros.interface.topics import JOINT_STATES, PER_MEASUREMENT_OUTPUTS
 from fourbar_ros.rules.completion import CompletionRule, Skipped, complete_block, driven_index, driven_measurement
 
 #: Measurements per block.
@@ -79,20 +66,7 @@ class MeasuredStats:
 
 
 #: The names the measured joint states go by: the node's input, and joint_state_broadcaster's local topic.
-MEASURED_NAMES = (MEASURED_JOINT_STATES.name, BROADCASTER_JOINT_STATES.name)
-
-
-def measured_topic(path: Path, types: dict[str, str], topic: str | None) -> str | None:
-    """The measured JointState topic of a bag: ``topic``, else ``/measured_joint_states`` or
-    ``/joint_state_broadcaster/joint_states``, else the one JointState topic ending in either; None if none."""
-    if topic is not None:
-        return topic if types.get(topic) == JOINT_STATE else None
-    for name in MEASURED_NAMES:
-        if types.get(f'/{name}') == JOINT_STATE:
-            return f'/{name}'
-    ends = tuple(f'/{n}' for n in MEASURED_NAMES)
-    candidates = [t for t, ty in types.items() if ty == JOINT_STATE and t.endswith(ends)]
-    return candidates[0] if len(candidates) == 1 else None
+MEASURED_NAMES = tuple(t.name for t in MEASURED.topics)
 
 
 def output_namespace(topic: str) -> str:
@@ -113,51 +87,42 @@ class _Block:
         self.values: list[tuple[float, float, float]] = []
 
 
-def process_measured_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
+def process_measured_bag(src: str | os.PathLike[str] | BagReader, dst: str | os.PathLike[str], cfg: AntennaConfig,
                          topic: str | None = None, storage: Storage | None = None, block: int = BLOCK) -> MeasuredStats:
     """Write to ``dst`` what fourbar_node in an actuator mode publishes for the measured joint states of ``src``
-    (see the module docstring). Raises BagError (one line) for bad input; ``dst`` then does not appear."""
+    (a path or an open bag; see the module docstring). Raises BagError (one line) for bad input; ``dst`` then does
+    not appear."""
     start = time.perf_counter()
-    src_path = Path(src)
     stats = MeasuredStats()
     rule = CompletionRule(cfg)
-    with open_bag(src_path) as reader:
-        chosen = measured_topic(src_path, topic_types(reader), topic)
-        if chosen is None:
-            raise BagError(f'{src_path}: no measured {JOINT_STATE} topic {topic or "/" + MEASURED_JOINT_STATES.name}')
-        conns = [c for c in reader.connections if c.topic == chosen]
+    with open_bag(src) as reader:
+        chosen = reader.find(MEASURED, topic)
         ns = output_namespace(chosen)
         names = [f'{ns}/{t.name}' for t in PER_MEASUREMENT_OUTPUTS]
         if chosen in names:
-            raise BagError(f'{src_path}: the measured topic {chosen} is where the completed joint states go; '
+            raise BagError(f'{reader.path}: the measured topic {chosen} is where the completed joint states go; '
                            'record the measured joint states on measured_joint_states')
-        with AtomicBagWriter(dst, storage or storage_of(reader)) as bag:
+        with AtomicBagWriter(dst, storage or reader.storage) as bag:
             qos = [recorded_qos()]
             outs = [bag.add_topic(name, JOINT_STATE if t is JOINT_STATES else FLOAT64, qos)
                     for name, t in zip(names, PER_MEASUREMENT_OUTPUTS, strict=True)]
             pending = _Block()
-            try:
-                for _, log, data in reader.messages(connections=conns):
-                    stats.measurements += 1
-                    taken = _measurement(rule, bytes(data))
-                    if isinstance(taken, Skipped):
-                        stats.skip(taken)
-                    else:
-                        stamp, values = taken
-                        pending.log.append(log)
-                        pending.stamp.append(stamp)
-                        pending.values.append(values)
-                    if len(pending.log) == block:
-                        _write(bag, outs, cfg, rule, pending, stats)
-                        pending = _Block()
-            except BagError:
-                raise
-            except Exception as exc:
-                raise BagError(f'{src_path}: unreadable bag after {stats.measurements} messages ({one_line(exc)})'
-                               ) from exc
+            for _, log, data in reader.messages([chosen]):
+                taken = _measurement(rule, bytes(data))
+                if isinstance(taken, Skipped):
+                    stats.skip(taken)
+                else:
+                    stamp, values = taken
+                    pending.log.append(log)
+                    pending.stamp.append(stamp)
+                    pending.values.append(values)
+                if len(pending.log) == block:
+                    _write(bag, outs, cfg, rule, pending, stats)
+                    pending = _Block()
+            stats.measurements = reader.count
             _write(bag, outs, cfg, rule, pending, stats)
             if stats.measurements == 0:
-                raise BagError(f'{src_path}: topic {chosen} has no messages')
+                raise BagError(f'{reader.path}: topic {chosen} has no messages')
     stats.seconds = time.perf_counter() - start
     return stats
 

@@ -13,25 +13,23 @@ import os
 import time
 from dataclasses import dataclass, field
 from functools import partial
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from fourbar_ros.bags.storage import (
+    TRAJECTORIES,
     AtomicBagWriter,
     BagError,
+    BagReader,
     Storage,
     jazzy_typestore,
     open_bag,
     recorded_qos,
-    storage_of,
-    topic_types,
 )
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.core.errors import one_line
 from fourbar_ros.interface.joint_trajectory import joint_trajectory
-from fourbar_ros.interface.topics import ANTENNA_TRAJECTORY, JOINT_TRAJECTORY, sibling_topic, trajectory_topic
+from fourbar_ros.interface.topics import JOINT_TRAJECTORY, sibling_topic, trajectory_topic
 from fourbar_ros.rules.outgoing import actuation_contract
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, serve_antenna_trajectory
 
@@ -52,49 +50,30 @@ class TrajectoryStats:
                 f'{c.trajectories_retimed} retimed; refused: {refused}) in {self.seconds:.2f} s')
 
 
-def antenna_trajectory_topic(types: dict[str, str], topic: str | None) -> str | None:
-    """The antenna trajectory topic of a bag: ``topic``, else ``/antenna_trajectory``, else the one
-    ``*/antenna_trajectory``; None if there is none."""
-    if topic is not None:
-        return topic if types.get(topic) == JOINT_TRAJECTORY else None
-    name = ANTENNA_TRAJECTORY.name
-    candidates = [t for t, ty in types.items() if ty == JOINT_TRAJECTORY and t.rsplit('/', 1)[-1] == name]
-    return f'/{name}' if f'/{name}' in candidates else (candidates[0] if len(candidates) == 1 else None)
-
-
-def process_trajectory_bag(src: str | os.PathLike[str], dst: str | os.PathLike[str], cfg: AntennaConfig,
+def process_trajectory_bag(src: str | os.PathLike[str] | BagReader, dst: str | os.PathLike[str], cfg: AntennaConfig,
                            topic: str | None = None, storage: Storage | None = None) -> TrajectoryStats:
     """Write to ``dst`` what fourbar_node in trajectory mode publishes for the antenna trajectories of ``src``
     (see the module docstring). Raises BagError (one line) for bad input; ``dst`` then does not appear."""
     start = time.perf_counter()
-    src_path = Path(src)
     stats = TrajectoryStats()
     counters = stats.counters
     store = jazzy_typestore()
     contract = actuation_contract(cfg, 'trajectory')
     floats = partial(np.array, dtype=np.float64)  # rosbags serializes float64[] from numpy arrays
-    with open_bag(src_path) as reader:
-        chosen = antenna_trajectory_topic(topic_types(reader), topic)
-        if chosen is None:
-            raise BagError(f'{src_path}: no {JOINT_TRAJECTORY} topic {topic or "/" + ANTENNA_TRAJECTORY.name}')
-        conns = [c for c in reader.connections if c.topic == chosen]
-        with AtomicBagWriter(dst, storage or storage_of(reader)) as bag:
+    with open_bag(src) as reader:
+        chosen = reader.find(TRAJECTORIES, topic)
+        with AtomicBagWriter(dst, storage or reader.storage) as bag:
             out = bag.add_topic(sibling_topic(chosen, trajectory_topic(cfg.trajectory_controller).name),
                                 JOINT_TRAJECTORY, [recorded_qos()])
-            try:
-                for _, log, data in reader.messages(connections=conns):
+            with reader.guard():
+                for _, log, data in reader.messages([chosen]):
                     counters.trajectories_received += 1
                     msg: Any = store.deserialize_cdr(bytes(data), JOINT_TRAJECTORY)
                     sent = serve_antenna_trajectory(cfg, contract, Drive(), msg, int(log), counters)
                     if isinstance(sent, Outgoing):
                         msg = joint_trajectory(store.types, cfg.driven_joint, sent.points, sent.stamp_ns, floats)
                         bag.write(out, log, bytes(store.serialize_cdr(msg, JOINT_TRAJECTORY)))
-            except BagError:
-                raise
-            except Exception as exc:
-                raise BagError(f'{src_path}: unreadable bag after {counters.trajectories_received} messages '
-                               f'({one_line(exc)})') from exc
             if counters.trajectories_received == 0:
-                raise BagError(f'{src_path}: topic {chosen} has no messages')
+                raise BagError(f'{reader.path}: topic {chosen} has no messages')
     stats.seconds = time.perf_counter() - start
     return stats

@@ -9,14 +9,17 @@ from fourbar_ros.bags.storage.common import (
     time_from_ns,
 )
 from fourbar_ros.bags.storage.read import (
+    COMMANDS,
+    MEASURED,
+    TRAJECTORIES,
+    BagReader,
     CommandStream,
+    Kind,
+    find_topic,
     fingerprint,
     open_bag,
-    pick_command_topic,
     read_commands,
     read_messages,
-    storage_of,
-    topic_types,
 )
 from fourbar_ros.bags.storage.reindex import ReindexResult, partial_dirs, reindex
 from fourbar_ros.bags.storage.write import AtomicBagWriter, float64_cdr, write_command_bag
@@ -30,9 +33,9 @@ from fourbar_ros.interface.topics import (  # re-exported
 )
 
 __all__ = [
-    'COMMAND_TOPIC', 'DEFAULT_STORAGE', 'DIAGNOSTIC_ARRAY', 'FLOAT64', 'JOINT_STATE', 'METADATA_VERSION',
-    'AtomicBagWriter', 'BagError', 'CommandStream', 'ReindexResult', 'Storage', 'fingerprint', 'float64_cdr',
-    'jazzy_typestore', 'open_bag', 'partial_dirs', 'pick_command_topic', 'read_commands', 'read_messages',
-    'recorded_qos', 'reindex', 'sibling_topic', 'storage_of', 'time_from_ns', 'topic_types',
+    'COMMANDS', 'COMMAND_TOPIC', 'DEFAULT_STORAGE', 'DIAGNOSTIC_ARRAY', 'FLOAT64', 'JOINT_STATE', 'MEASURED',
+    'METADATA_VERSION', 'TRAJECTORIES', 'AtomicBagWriter', 'BagError', 'BagReader', 'CommandStream', 'Kind',
+    'ReindexResult', 'Storage', 'find_topic', 'fingerprint', 'float64_cdr', 'jazzy_typestore', 'open_bag',
+    'partial_dirs', 'read_commands', 'read_messages', 'recorded_qos', 'reindex', 'sibling_topic', 'time_from_ns',
     'write_command_bag',
 ]

@@ -1,9 +1,8 @@
-"""Read and validate rosbag2 bags with ``rosbags`` (mcap or sqlite3; no rclpy here).
+"""Read rosbag2 bags with ``rosbags`` (mcap or sqlite3; no rclpy here): one way in for every bag reader.
 
-Command bags carry ``std_msgs/msg/Float64`` antenna angle commands (radians) on
-``/antenna_angle_cmd``: the name the node's relative subscription ``antenna_angle_cmd``
-resolves to in the root namespace, so ``ros2 bag play BAG`` reaches a node started without a
-namespace (for a namespaced node: ``ros2 bag play BAG --remap /antenna_angle_cmd:=/NS/antenna_angle_cmd``).
+``open_bag`` gives a ``BagReader`` (its messages with rosbags' errors as one-line BagErrors); ``find_topic`` picks
+the input topic of a kind (commands on ``/antenna_angle_cmd``, measured joint states, antenna trajectories).
+docs/how-to/bags.md explains the bags.
 """
 
 from __future__ import annotations
@@ -16,21 +15,116 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from rosbags.interfaces import ConnectionExtRosbag2, Qos
+from rosbags.interfaces import Connection, ConnectionExtRosbag2, Qos
 from rosbags.rosbag2 import Reader
 
 from fourbar_ros.bags.storage.adapters import adapter_of_file
-from fourbar_ros.bags.storage.common import COMMAND_TOPIC, BagError, jazzy_typestore
+from fourbar_ros.bags.storage.common import BagError, jazzy_typestore
 from fourbar_ros.core.errors import one_line
-from fourbar_ros.interface.topics import COMMAND, FLOAT64, Storage
+from fourbar_ros.interface.topics import (
+    ANTENNA_TRAJECTORY,
+    BROADCASTER_JOINT_STATES,
+    COMMAND,
+    FLOAT64,
+    JOINT_STATE,
+    JOINT_TRAJECTORY,
+    MEASURED_JOINT_STATES,
+    Storage,
+    Topic,
+)
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A kind of input topic: what errors call it and its topics (name, type), by preference."""
+
+    label: str
+    topics: tuple[Topic, ...]
+
+
+COMMANDS = Kind('command', (COMMAND,))
+MEASURED = Kind(f'measured {JOINT_STATE}', (MEASURED_JOINT_STATES, BROADCASTER_JOINT_STATES))
+TRAJECTORIES = Kind(JOINT_TRAJECTORY, (ANTENNA_TRAJECTORY,))
+
+
+def find_topic(path: Path, types: dict[str, str], kind: Kind, topic: str | None = None) -> str:
+    """The topic of ``kind`` in a bag of topic -> type ``types``: ``topic``, else the first of the kind's names at the
+    root, else the one topic (of the kind's type, else of any) ending in one. BagError (one line) if none fits."""
+    msgtype = kind.topics[0].msgtype
+    if topic is None:
+        ends = tuple(f'/{t.name}' for t in kind.topics)
+        candidates = [t for t in types if t.endswith(ends)]
+        typed = [t for t in candidates if types[t] == msgtype]
+        topic = next((n for n in ends if n in types), None) or next(
+            (c[0] for c in (typed, candidates) if len(c) == 1), None)
+        if topic is None:
+            raise BagError(f'{path}: no {kind.label} topic {ends[0]} ({_describe_topics(types)})')
+    elif topic not in types:
+        raise BagError(f'{path}: no topic {topic} ({_describe_topics(types)})')
+    if types[topic] != msgtype:
+        raise BagError(f'{path}: topic {topic} has type {types[topic]}, expected {msgtype}')
+    return topic
+
+
+class BagReader:
+    """An open bag (``open_bag``): path, topic -> type, storage, and messages with rosbags' errors as BagErrors."""
+
+    def __init__(self, path: Path, reader: Reader) -> None:
+        self.path, self.rosbags = path, reader
+        self.connections = reader.connections
+        self.types = {c.topic: c.msgtype for c in reader.connections}
+        self.count = 0  #: messages the latest ``messages`` has given
+        self._on = ''
+
+    @property
+    def storage(self) -> Storage:
+        """The bag's storage plugin; BagError for one the bag tools do not write."""
+        return storage_of(self.rosbags)
+
+    def find(self, kind: Kind, topic: str | None = None) -> str:
+        """The topic of ``kind`` (``find_topic``)."""
+        return find_topic(self.path, self.types, kind, topic)
+
+    def first(self, kinds: Sequence[Kind], topic: str | None = None) -> tuple[Kind, str]:
+        """The first of ``kinds`` the bag has and its topic; else the first kind's BagError."""
+        errors: list[BagError] = []
+        for kind in kinds:
+            try:
+                return kind, self.find(kind, topic)
+            except BagError as exc:
+                errors.append(exc)
+        raise errors[0]
+
+    @contextmanager
+    def guard(self) -> Iterator[None]:
+        """Raise any error but a BagError in the block as 'unreadable bag after N messages' (one line)."""
+        try:
+            yield
+        except BagError:
+            raise
+        except Exception as exc:  # rosbags raises ReaderError, OSError, sqlite3, mcap and CDR errors
+            raise BagError(f'{self.path}: unreadable bag after {self.count} messages{self._on} '
+                           f'({one_line(exc)})') from exc
+
+    def messages(self, topics: Sequence[str] = ()) -> Iterator[tuple[Connection, int, bytes]]:
+        """(connection, log time ns, raw CDR) of ``topics`` (default: all) in bag order; counted in ``count``."""
+        conns = [c for c in self.connections if not topics or c.topic in topics]
+        self.count, self._on = 0, f' on {topics[0]}' if len(topics) == 1 else ''
+        with self.guard():
+            for message in self.rosbags.messages(connections=conns):
+                self.count += 1
+                yield message
 
 
 @contextmanager
-def open_bag(path: str | os.PathLike[str]) -> Iterator[Reader]:
-    """Open a rosbag2 bag (directory, or a bare ``.mcap``/``.db3`` file) for reading.
+def open_bag(path: str | os.PathLike[str] | BagReader) -> Iterator[BagReader]:
+    """Open a rosbag2 bag (directory, or a bare ``.mcap``/``.db3`` file) for reading; an open one as it is.
 
     Raises BagError with one line naming the path and the problem.
     """
+    if isinstance(path, BagReader):
+        yield path
+        return
     p = Path(path)
     if not p.exists():
         raise BagError(f'{p}: no such bag')
@@ -42,39 +136,16 @@ def open_bag(path: str | os.PathLike[str]) -> Iterator[Reader]:
     except Exception as exc:  # rosbags raises ReaderError, OSError, sqlite3 and YAML errors
         raise BagError(f'{p}: unreadable bag ({one_line(exc)})') from exc
     try:
-        yield reader
+        yield BagReader(p, reader)
     finally:
         with contextlib.suppress(Exception):  # closing a reader that failed mid-read
             reader.close()
-
-
-def topic_types(reader: Reader) -> dict[str, str]:
-    """Topic name -> message type of every connection in an open bag."""
-    return {c.topic: c.msgtype for c in reader.connections}
 
 
 def _describe_topics(types: dict[str, str]) -> str:
     if not types:
         return 'the bag has no topics'
     return 'topics: ' + ', '.join(f'{t} [{m}]' for t, m in sorted(types.items()))
-
-
-def pick_command_topic(path: Path, types: dict[str, str], topic: str | None) -> str:
-    if topic is not None:
-        if topic not in types:
-            raise BagError(f'{path}: no topic {topic} ({_describe_topics(types)})')
-        chosen = topic
-    elif COMMAND_TOPIC in types:
-        chosen = COMMAND_TOPIC
-    else:
-        # A recording of a namespaced node (/NS/antenna_angle_cmd) is accepted when unambiguous.
-        candidates = [t for t in types if t.rsplit('/', 1)[-1] == COMMAND.name]
-        if len(candidates) != 1:
-            raise BagError(f'{path}: no command topic {COMMAND_TOPIC} ({_describe_topics(types)})')
-        chosen = candidates[0]
-    if types[chosen] != FLOAT64:
-        raise BagError(f'{path}: topic {chosen} has type {types[chosen]}, expected {FLOAT64}')
-    return chosen
 
 
 @dataclass(frozen=True)
@@ -101,43 +172,30 @@ class CommandStream:
 def read_commands(path: str | os.PathLike[str], topic: str | None = None) -> CommandStream:
     """Read and validate the command stream of a bag (every message decoded before returning).
 
-    ``topic``: the command topic to use (default: ``/antenna_angle_cmd``, else the one topic
-    named ``*/antenna_angle_cmd``). Raises BagError (one line) for a missing, truncated or corrupt
-    bag, a bag without the command topic, a wrong message type, an empty stream or an
-    undecodable message.
+    ``topic``: the command topic (default: ``find_topic``'s). Raises BagError (one line) for a missing, truncated or
+    corrupt bag, a bag without the command topic, a wrong message type, an empty stream or an undecodable message.
     """
-    p = Path(path)
     store = jazzy_typestore()
-    with open_bag(p) as reader:
-        chosen = pick_command_topic(p, topic_types(reader), topic)
-        conns = [c for c in reader.connections if c.topic == chosen]
-        qos: list[Qos] = []
-        for c in conns:
-            if isinstance(c.ext, ConnectionExtRosbag2):
-                qos.extend(c.ext.offered_qos_profiles)
+    with open_bag(path) as bag:
+        chosen = bag.find(COMMANDS, topic)
+        qos = tuple(q for c in bag.connections if c.topic == chosen and isinstance(c.ext, ConnectionExtRosbag2)
+                    for q in c.ext.offered_qos_profiles)
         stamps: list[int] = []
         values: list[float] = []
         raws: list[bytes] = []
-        try:
-            for _, stamp, data in reader.messages(connections=conns):
-                raw = bytes(data)
-                try:
-                    msg: Any = store.deserialize_cdr(raw, FLOAT64)
-                except Exception as exc:
-                    raise BagError(f'{p}: message {len(values)} on {chosen} is not a valid '
-                                   f'{FLOAT64} ({one_line(exc)})') from exc
-                stamps.append(int(stamp))
-                values.append(float(msg.data))
-                raws.append(raw)
-        except BagError:
-            raise
-        except Exception as exc:
-            raise BagError(f'{p}: unreadable bag after {len(values)} messages '
-                           f'({one_line(exc)})') from exc
-        storage = storage_of(reader)
-    if not values:
-        raise BagError(f'{p}: topic {chosen} has no messages')
-    return CommandStream(p, chosen, storage, tuple(stamps), tuple(values), tuple(raws), tuple(qos))
+        for _, stamp, data in bag.messages([chosen]):
+            raw = bytes(data)
+            try:
+                msg: Any = store.deserialize_cdr(raw, FLOAT64)
+            except Exception as exc:
+                raise BagError(f'{bag.path}: message {len(values)} on {chosen} is not a valid '
+                               f'{FLOAT64} ({one_line(exc)})') from exc
+            stamps.append(int(stamp))
+            values.append(float(msg.data))
+            raws.append(raw)
+        if not values:
+            raise BagError(f'{bag.path}: topic {chosen} has no messages')
+        return CommandStream(bag.path, chosen, bag.storage, tuple(stamps), tuple(values), tuple(raws), qos)
 
 
 def storage_of(reader: Reader) -> Storage:
@@ -161,22 +219,14 @@ def read_messages(path: str | os.PathLike[str],
     """Decode every message of ``topics`` (default: all) as ``topic -> [(stamp_ns, msg), ...]``.
 
     Every requested topic (default: every topic of the bag) has an entry, empty without messages.
-
     Raises BagError (one line) for unreadable bags or messages.
     """
-    p = Path(path)
     store = jazzy_typestore()
     out: dict[str, list[tuple[int, Any]]] = {t: [] for t in topics}
-    with open_bag(p) as reader:
-        conns = [c for c in reader.connections if not topics or c.topic in topics]
-        for c in conns:
-            out.setdefault(c.topic, [])
-        try:
-            for conn, stamp, data in reader.messages(connections=conns):
-                out.setdefault(conn.topic, []).append(
-                    (int(stamp), store.deserialize_cdr(bytes(data), conn.msgtype)))
-        except Exception as exc:
-            raise BagError(f'{p}: unreadable bag ({one_line(exc)})') from exc
+    with open_bag(path) as bag, bag.guard():
+        out.update({t: [] for t in bag.types if not topics or t in topics})
+        for conn, stamp, data in bag.messages(topics):
+            out[conn.topic].append((int(stamp), store.deserialize_cdr(bytes(data), conn.msgtype)))
     return out
 
 
@@ -188,16 +238,16 @@ def fingerprint(path: str | os.PathLike[str]) -> dict[str, Any]:
     the bag's custom data. Two bags with equal fingerprints replay identically.
     """
     p = Path(path)
-    with open_bag(p) as reader:
+    with open_bag(p) as bag:
         topics = {}
-        for c in reader.connections:
+        for c in bag.connections:
             ext = c.ext
             assert isinstance(ext, ConnectionExtRosbag2)
             topics[c.topic] = (c.msgtype, c.digest, c.msgdef.format.name, c.msgdef.data,
                                ext.serialization_format, tuple(ext.offered_qos_profiles))
-        msgs = [(c.topic, int(t), bytes(d)) for c, t, d in reader.messages()]
+        msgs = [(c.topic, int(t), bytes(d)) for c, t, d in bag.messages()]
         meta = bag_metadata(p) if p.is_dir() else {}
-        return {'version': meta.get('version'), 'storage': storage_of(reader),
+        return {'version': meta.get('version'), 'storage': bag.storage,
                 'topics': topics, 'messages': msgs, 'custom_data': meta.get('custom_data') or {}}
 
 
