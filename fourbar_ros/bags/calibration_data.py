@@ -1,19 +1,7 @@
 """A calibration recording read and paired: the measured driven joint and an antenna angle sensor (no rclpy).
 
-The recording holds
-
-- the measured driven joint: ``sensor_msgs/msg/JointState`` (position rad, effort N m) on the measured topic
-  (``--measured-topic``; by default joint_state_broadcaster's ``/joint_state_broadcaster/joint_states`` or
-  ``/measured_joint_states``, else the one such topic in a namespace: ``storage.find_topic``), the
-  driven joint found by its name (``gamma_joint`` or ``delta_joint`` of the parameter file);
-- the antenna angle sensor on ``angle_topic``: ``std_msgs/msg/Float64`` (rad, in theta's sense: positive tilts the
-  antenna down), or ``sensor_msgs/msg/Imu``, whose tilt is taken from gravity (``core.calibration.imu_tilt``).
-
-Each message is timed by its header stamp when it has one (a JointState's or an Imu's, unless zero), else by the
-recording's receive time (a Float64's). The encoder is interpolated linearly at the sensor's times, only inside its
-own span and not across a gap longer than ``GAP_FACTOR`` of its median interval. Problems of the data (a missing
-topic, a topic of the wrong type, streams that do not overlap) raise ``CalibrationError`` (one line).
-"""
+Messages are timed by their header stamps (a Float64 by its receive time) and the encoder interpolated at the
+sensor's times; a problem of the data raises ``CalibrationError`` (one line). See docs/how-to/calibrate.md."""
 
 from __future__ import annotations
 

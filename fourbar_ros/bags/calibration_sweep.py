@@ -1,12 +1,7 @@
-"""A synthetic calibration recording with a known truth: the tests', the benchmark's and the how-to's stand-in for a
-slow sweep recorded with a sensor strapped to the antenna (no rclpy).
+"""A synthetic calibration recording with a known truth, a slow sweep with a sensor on the antenna (no rclpy).
 
-The true linkage (``truth``: PARAMETER_NAMES values, m and rad) sweeps the antenna between two angles; the encoder
-reports the driven joint with its zero off (measured = true - driven_joint_offset) rounded to its counts, at its
-rate and stamps; the sensor reads the true angle plus its offset and Gaussian noise at its own rate: a Float64
-(rad, timed by the receive time) or an Imu (gravity's reaction in the coupler frame, ``calibration_data.imu_tilt``;
-header stamps). Deterministic for a seed.
-"""
+The tests', the benchmark's and the how-to's stand-in: the true linkage swept, an encoder with its zero off and its
+counts, a Float64 or Imu sensor with its offset and noise; deterministic for a seed. See docs/how-to/calibrate.md."""
 
 from __future__ import annotations
 

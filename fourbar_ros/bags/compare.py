@@ -1,41 +1,7 @@
-r"""Compare two bags of the node's outputs message by message (no rclpy): joint_states and input_torque, and the
-completion's antenna_angle, antenna_rate and load_torque.
+"""Compare two bags of the node's outputs message by message, each float in ulps of its scale (no rclpy).
 
-Per topic (every ``sensor_msgs/JointState`` and ``std_msgs/Float64`` topic of either bag), in bag order, the
-i-th message of A against the i-th of B: the message count, joint names, frame_id and whether a velocity is
-present must be equal; the stamps (JointState header stamps and every message's log time, ns) exactly equal;
-the floats within a tolerance: ``--atol`` absolute, or by default ``ulps`` units in the last place of each
-value's *scale*, the magnitude its rounding errors are relative to when two correct implementations compute it
-(numpy's SIMD transcendentals against libm, another CPU, another association of a product):
-
-- position q (rad): scale = |q| + pi. The rocker angles are sums of atan2 results in [-pi, pi], so their
-  rounding error is an absolute few ulps of pi, not of |q| (a q near 0 is not known to ulps of itself);
-- velocity v = (q - q_anchor) / dt (rad/s): scale = |v| + (|q| + |q_anchor| + 2 pi) / dt: the difference of two
-  positions, each known to ulps of |q| + pi, divided by the interval (dt and the anchor, the first message of
-  the run of equal stamps before it, as the velocity rule (fourbar_ros.rules.velocity) picks it, taken from A);
-- effort and input torque tau = tau_load * lever * sin(s) / sin(r) (N m), s = gamma + delta and r the driven
-  rocker's angle to the coupler (delta - theta driving gamma, gamma + theta driving delta; theta recovered from
-  the positions with the configuration's geometry): scale = |tau| (1 + pi (|cot s| + |cot r|)): an angle error
-  of e rad moves tau by |tau| |cot| e, and the angles carry errors of ulps of pi. Near a dead point
-  (sin r -> 0) the scale, like the true uncertainty, grows without bound. The input_torque message i takes
-  the condition of joint_states message i of A; a Float64 topic without one, and an effort of 0.0 at the
-  rocker that is not driven, have scale |value|;
-- antenna_angle theta (rad), completed from a measured rocker: scale = |theta| + pi, as a position;
-- any other Float64 (antenna_rate, load_torque: their rounding is relative to themselves away from the dead points
-  and the reach limit): scale = |value|.
-
-Actuator trajectories (``trajectory_msgs/JointTrajectory``, what ``fourbar process`` makes of antenna
-trajectories): joint names, header stamp, log time, the number of points and each point's field lengths and
-time_from_start exactly; per point the positions as positions (scale |q| + pi), velocities, accelerations and
-efforts with scale |value| (chain-rule products and the static torque, relative to themselves away from the dead
-points).
-
-Values equal as floats (same NaN or inf included) always match. Each topic is read ``BLOCK`` messages at a time
-from both bags at once (the fixed JointState layouts decoded on arrays, see config.cdr), so memory does not
-grow with the bags; a longer topic's extra messages are counted, not compared. The default of 16 ulps allows a 1-2 ulp
-difference in each of the up to four transcendental results (sin, cos, two atan2) that feed a value, with the
-factor <= 2 by which atan2 and the torque's sine ratio can pass a relative error on within the tilt range.
-"""
+What is compared, each quantity's scale and why: docs/how-to/bags.md#compare-two-output-bags; read ``BLOCK`` messages at
+a time from both bags, so memory does not grow with them."""
 
 from __future__ import annotations
 
@@ -106,7 +72,7 @@ def topic_types_of(path: str | os.PathLike[str]) -> dict[str, str]:
 
 
 def _decode(path: Path, topic: str, msgtype: str, logs: list[int], raws: list[bytes], start: int) -> TopicData:
-    """One block of messages as arrays: the block decoders of config.cdr, else rosbags message by message."""
+    """One block of messages as arrays: the block decoders of interface.cdr, else rosbags message by message."""
     store = jazzy_typestore()
 
     def full(j: int, raw: bytes) -> Any:

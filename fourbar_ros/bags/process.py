@@ -1,16 +1,7 @@
 """The bag fourbar_node would publish for a command bag, computed without the middleware (no rclpy).
 
-For every command of the bag, in bag order and at its log time (the time the recorder received it,
-which stands for the time the node would receive it), this applies the node's rules (``fourbar_ros.rules``, on
-blocks): the command policy, the published pose (an angle the core cannot solve publishes nothing, as in the
-node) and the velocity rule over the published samples, with the command's log time as the JointState stamp;
-and writes ``joint_states`` (sensor_msgs/JointState: name = the joint names, position [gamma, delta,
-gamma + theta], velocity, effort with the torque at the driven rocker and 0.0 at the other joints, empty frame_id
-as the node sends) and ``input_torque`` (std_msgs/Float64, N m) next to the command topic (``/antenna_angle_cmd`` ->
-``/joint_states``, ``/input_torque``), both at the command's log time, joint_states first.
-Blocks of ``BLOCK`` commands are read, solved, serialized (config.cdr) and written at a time, so
-memory does not grow with the bag; the output appears atomically (bags.storage.AtomicBagWriter).
-"""
+The node's rules (``fourbar_ros.rules``) on blocks of ``BLOCK`` commands at their log times, written next to the
+command topic, atomically. What is written: docs/how-to/bags.md."""
 
 from __future__ import annotations
 

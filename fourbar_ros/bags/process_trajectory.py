@@ -1,11 +1,7 @@
 """The actuator trajectories fourbar_node publishes in trajectory mode, for a bag of antenna trajectories (no rclpy).
 
-For every ``trajectory_msgs/JointTrajectory`` of the antenna trajectory topic (``/antenna_trajectory``, else the one
-``*/antenna_trajectory``) in bag order, what the node sends for it (``rules.serve.serve_antenna_trajectory``, the
-log time standing for the node's clock at arrival, no measured drive) on ``<trajectory_controller>/joint_trajectory``
-next to the input topic, at the input's log time; a refusal is counted and writes nothing. The output appears
-atomically.
-"""
+Each goes through the node's ``rules.serve.serve_antenna_trajectory`` at its log time, with no measured drive; what
+is written: docs/how-to/bags.md."""
 
 from __future__ import annotations
 

@@ -1,11 +1,6 @@
 """Write rosbag2 bags atomically: built in a hidden directory next to the target, renamed into place when complete.
 
-Every bag written here is a rosbag2 bag of metadata version 9 (ROS 2 Jazzy) with the message definitions
-(``ros2msg``), type hashes (RIHS01) and offered QoS profiles a ``ros2 bag record`` of the same publishers
-would store. A writer can ``flush()`` what it has so far (recordings do it every second by default), so a
-process killed mid-recording leaves its data in that hidden directory; ``reindex()`` turns it into a
-complete bag (see docs/how-to/bags.md).
-"""
+A recording flushes what it has, so a killed one leaves its data for ``reindex()``. The format: docs/how-to/bags.md."""
 
 from __future__ import annotations
 
