@@ -14,19 +14,13 @@ from support.paths import REPO
 PACKAGE = REPO / 'fourbar_ros'
 MODULES = {p.relative_to(REPO).as_posix(): p for p in sorted(PACKAGE.rglob('*.py'))}
 MAX_LINES = 6
-#: Modules allowed a longer docstring until they are shortened too; empty it then.
-EXEMPT_UNTIL_MERGE = frozenset({'fourbar_ros/node/actuation.py'})
 
 
 def _docstring(path: Path) -> str:
     return ast.get_docstring(ast.parse(path.read_text(encoding='utf-8'))) or ''
 
 
-def test_the_exemptions_are_modules() -> None:
-    assert MODULES.keys() >= EXEMPT_UNTIL_MERGE
-
-
-@pytest.mark.parametrize('name', sorted(MODULES.keys() - EXEMPT_UNTIL_MERGE))
+@pytest.mark.parametrize('name', sorted(MODULES))
 def test_a_module_docstring_is_short_and_starts_with_a_summary_line(name: str) -> None:
     lines = _docstring(MODULES[name]).splitlines()
     assert lines and lines[0].strip(), f'{name}: no docstring'
@@ -89,8 +83,6 @@ def test_every_module_named_by_its_layer_exists() -> None:
     layers = {m.partition('.')[0] for m in modules if '.' in m}
     wrong = []
     for path in FILES:
-        if path.relative_to(REPO).as_posix() in EXEMPT_UNTIL_MERGE:
-            continue
         for chain in re.findall(r'(?<![\w.])\w+(?:\.\w+)+', _prose(path)):
             parts = [*chain.removeprefix('fourbar_ros.').split('.'), '']
             if parts[0] in layers and parts[1] in leaves | layers and f'{parts[0]}.{parts[1]}' not in modules:
