@@ -1,7 +1,7 @@
-"""The actuator modes of fourbar_node: the rclpy side of ``fourbar_ros.rules.serve``, which says what a served command
-or an antenna trajectory becomes. This module only adapts messages, clocks, timers and publishers. Topics per mode:
-docs/reference/topics.md; the motion: docs/explanation/motion.md.
-"""
+"""The actuator modes of fourbar_node: the rclpy side of ``fourbar_ros.rules.serve``.
+
+That module says what a served command or an antenna trajectory becomes; this one adapts messages, clocks, timers
+and publishers. Topics per mode: docs/reference/topics.md; the motion: docs/explanation/motion.md."""
 
 from __future__ import annotations
 
