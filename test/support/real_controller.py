@@ -160,9 +160,10 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     """Every recorded trajectory's fate (``Takeovers``).
 
     The judge's own trajectories: taken over when an update after its arrival (one period of slack: an update is
-    stamped as it starts) follows a trajectory that starts where this one does (its stamp, or for a zero stamp an
-    update after its arrival); the takeover is the first such update when it is recorded (``time_from_start`` 0 for
-    a zero stamp; else the reference and feedback times equal, right after an update of the previous one). The
+    stamped as it starts) follows a trajectory that starts where this one does (its stamp; for a zero stamp, the
+    takeover of the latest such one to arrive before); the takeover is the first such update when it is recorded
+    (``time_from_start`` 0 for a zero stamp; else the reference and feedback times equal, right after an update of
+    the previous one). The
     node's are seen passing and reach the controller up to a few updates before or after the judge; a plan that
     continues the running one starts where that one does, so several updates can qualify: the one the model follows
     best up to the window's end is taken (a model wrong at every candidate still fails)."""
@@ -171,37 +172,45 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else SENT_EARLY_NS) for t in trajectories] + [2**63]
     taken: dict[int, tuple[int, bool]] = {}
     unknown: set[int] = set()
+    # The judge's own: each update follows the stamped trajectory that starts where it does, else the latest
+    # zero-stamped one that arrived before the update's trajectory started (at its takeover).
+    own = [i for i, t in enumerate(trajectories) if not t['echoed']]
+    stamped = {t['stamp']: i for i, t in enumerate(trajectories) if not t['echoed'] and t['stamp'] != 0}
+    zero = [i for i in own if trajectories[i]['stamp'] == 0]
+    follows: dict[int, list[int]] = {}
+    for k, s in enumerate(states):
+        at = _start(s)
+        match = [i for x, i in stamped.items() if abs(at - x) < 1_000_000]
+        if not match:
+            match = [i for i in zero if arrivals[i] < at][-1:]
+        if match and states[k]['stamp'] > arrivals[match[0]]:
+            follows.setdefault(match[0], []).append(k)
+    for i in own:
+        if i in follows:
+            k = follows[i][0]
+            s, before = states[k], states[k - 1] if k > 0 else None
+            exact = s['ref_tfs'] == s['fb_tfs'] and (
+                s['fb_tfs'] == 0 if trajectories[i]['stamp'] == 0 else
+                before is not None and s['stamp'] - before['stamp'] < 1.5 * period * NS_PER_S and k - 1 not in follows[i])
+            taken[i] = (k, exact)
+        elif not any(arrivals[i] < s['stamp'] < arrivals[i + 1] for s in states):
+            unknown.add(i)
     last_stamp = 0
     for i, t in enumerate(trajectories):
-        since = max(arrivals[i], last_stamp)
-        until = min(arrivals[i + 1], t['received'] + ECHO_LATE_NS) if t['echoed'] else arrivals[i + 1]
-        window = [k for k, s in enumerate(states) if since < s['stamp'] < until]
-        if t['echoed']:
-            found = _candidates(states, t, since, until)
-            if not found:
-                unknown.add(i)
-                continue
-            if len(found) > 1:
-                stop = window[-1] + 1
-                found = [min(found, key=lambda k: _worst(states, _reference_from(states, t, k, velocity_state,
-                                                                                   period)[1], k, stop))]
-            taken[i] = (found[0], True)
-            last_stamp = states[found[0]]['stamp']
+        if not t['echoed']:
             continue
-        if not window:
+        since = max(arrivals[i], last_stamp)
+        until = min(arrivals[i + 1], t['received'] + ECHO_LATE_NS)
+        found = _candidates(states, t, since, until)
+        if not found:
             unknown.add(i)
             continue
-        owned = [k for k in window if (_start(states[k]) >= arrivals[i] if t['stamp'] == 0
-                                       else abs(_start(states[k]) - t['stamp']) < 1_000_000)]
-        if not owned:
-            continue  # refused: the updates after its arrival follow another trajectory
-        k = owned[0]
-        s, before = states[k], states[k - 1] if k > 0 else None
-        exact = s['ref_tfs'] == s['fb_tfs'] and (
-            s['fb_tfs'] == 0 if t['stamp'] == 0 else
-            before is not None and s['stamp'] - before['stamp'] < 1.5 * period * NS_PER_S and k - 1 not in owned)
-        taken[i] = (k, exact)
-        last_stamp = s['stamp']
+        if len(found) > 1:
+            stop = next((j for j, s in enumerate(states) if s['stamp'] >= until), len(states))
+            found = [min(found, key=lambda k: _worst(states, _reference_from(states, t, k, velocity_state,
+                                                                               period)[1], k, stop))]
+        taken[i] = (found[0], True)
+        last_stamp = states[found[0]]['stamp']
     return Takeovers(taken, frozenset(unknown))
 
 
