@@ -90,7 +90,3 @@ class TrajectoryGoals:
     def diagnostic_values(self) -> list[tuple[str, str]]:
         """The goal counters and the last goal that did not succeed."""
         return self.counters.as_pairs()
-
-    def destroy(self) -> None:
-        """Destroy the action client (its late answers are then dropped)."""
-        self._client.destroy()
