@@ -117,10 +117,11 @@ def test_a_goal_that_completes_is_counted_succeeded(bringup: Bringup, tmp_path: 
 
 @pytest.mark.parametrize('bringup', ['package'], indirect=True)
 def test_a_goal_the_next_command_supersedes_is_counted_preempted(bringup: Bringup, tmp_path: Path) -> None:
-    # The second command arrives while the first goal's motion runs (a 0.07 rad tilt takes over a second at the
-    # default limits): the controller accepts the new goal and ends the running one as ABORTED with INVALID_GOAL,
-    # "Current goal preempted by new incoming action."; the node counts that as preempted, and the second succeeds.
-    result = _probe(bringup.cli, NAMESPACE, [(-0.02, 0.0), (0.0, 0.4)], {'goals_succeeded': 1, 'goals_preempted': 1},
+    # The second command arrives while the first goal's motion runs (a tilt to -0.06 rad from level or above takes
+    # over a second at the default limits): the controller accepts the new goal and ends the running one as ABORTED
+    # with INVALID_GOAL, "Current goal preempted by new incoming action."; the node counts that as preempted, and
+    # the second succeeds.
+    result = _probe(bringup.cli, NAMESPACE, [(-0.06, 0.0), (0.0, 0.4)], {'goals_succeeded': 1, 'goals_preempted': 1},
                     tmp_path, settle=0.3)
     assert _grown(result, *KEYS) == {**dict.fromkeys(KEYS, 0), 'goals_sent': 2, 'goals_accepted': 2,
                                      'goals_succeeded': 1, 'goals_preempted': 1}, result
