@@ -5,6 +5,7 @@ file), RViz, the simulated actuator (for users without the drive's hardware) or 
         [robot_state_publisher:=true|false] [rviz:=true|false] [mode:=open_loop|trajectory|forward]
         [sim_actuator:=true|false]
         [use_ros2_control:=true|false] [hardware_plugin:=PLUGIN] [controllers_file:=FILE] [effort_feedforward:=true]
+        [trajectory_interface:=topic|action]
 
 mode (fourbar_node's parameter, default: the parameter file's, else open_loop): trajectory or forward send the
 motion to the drive's controllers. In an actuator mode the node reads the measured driven joint where
@@ -15,7 +16,8 @@ sends what that controller accepts), the description from robot_state_publisher'
 joint_state_broadcaster and the mode's controller, and hardware_plugin in the URDF's <ros2_control> tag (default
 mock_components/GenericSystem, a mock that echoes commands: announced at startup). effort_feedforward:=true adds the
 effort command interface to the URDF and sets the node's parameter; the controllers file must then give
-joint_trajectory_controller command_interfaces [position, effort].
+joint_trajectory_controller command_interfaces [position, effort]. trajectory_interface (the node's parameter,
+default: the parameter file's): action sends trajectories as FollowJointTrajectory goals.
 
 robot_state_publisher, RViz and ros2_control start only where they are installed; otherwise one log line says so
 (ros2_control's bringup then does not start). Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
@@ -124,6 +126,8 @@ def _setup(context: LaunchContext) -> list[object]:
     node_overrides: dict[str, object] = {'use_sim_time': use_sim_time, 'mode': mode}
     if actuated:
         node_overrides.update({'controllers_file': controllers, 'effort_feedforward': effort})
+    if arg('trajectory_interface'):
+        node_overrides['trajectory_interface'] = arg('trajectory_interface')
     actions: list[object] = [
         Node(package='fourbar_ros', executable=NODE_EXECUTABLE, name=NODE_NAME, namespace=ros_namespace,
              parameters=[params_file, node_overrides], output='screen', emulate_tty=False,
@@ -213,5 +217,8 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument('effort_feedforward', default_value='false',
                               description='trajectory points carry the static torque as effort (the controller '
                                           'needs command_interfaces [position, effort])'),
+        DeclareLaunchArgument('trajectory_interface', default_value='',
+                              description='fourbar_node\'s trajectory_interface (topic, or action: '
+                                          'FollowJointTrajectory goals); empty: the parameter file\'s'),
         OpaqueFunction(function=_setup),
     ])

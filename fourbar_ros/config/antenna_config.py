@@ -79,6 +79,7 @@ class AntennaConfig:
     max_trajectory_points: int
     mode: str
     trajectory_controller: str
+    trajectory_interface: str
     forward_controller: str
     controllers_file: str
     effort_feedforward: bool

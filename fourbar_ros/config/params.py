@@ -166,6 +166,12 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('trajectory_controller', str, DEFAULT_TRAJECTORY_CONTROLLER, '',
               'Controller name (trajectory mode): driven-joint trajectories go to <this>/joint_trajectory.',
               read_only=True),
+    ParamSpec('trajectory_interface', str, 'topic', '',
+              'Trajectory mode: how trajectories reach the controller: topic (<trajectory_controller>/'
+              'joint_trajectory) or action (each a FollowJointTrajectory goal on <trajectory_controller>/'
+              'follow_joint_trajectory; '
+              'diagnostics count how the controller ends them; needs control_msgs).',
+              choices=('topic', 'action'), read_only=True),
     ParamSpec('forward_controller', str, DEFAULT_FORWARD_CONTROLLER, '',
               'Controller name (forward mode): driven-joint setpoints go to <this>/commands.', read_only=True),
     ParamSpec('controllers_file', str, '', '',

@@ -96,6 +96,12 @@ def trajectory_topic(controller: str) -> Topic:
     return Topic(f'{controller}/joint_trajectory', JOINT_TRAJECTORY, CONTROLLER_DEPTH)
 
 
+def trajectory_action(controller: str) -> str:
+    """The FollowJointTrajectory action of joint_trajectory_controller: ``<controller>/follow_joint_trajectory``
+    (trajectory mode, ``trajectory_interface: action``)."""
+    return f'{controller}/follow_joint_trajectory'
+
+
 def forward_topic(controller: str) -> Topic:
     """Driven-joint setpoints out (forward mode): ``<controller>/commands`` (one position, rad), as
     forward_command_controller reads them."""

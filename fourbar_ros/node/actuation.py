@@ -29,6 +29,7 @@ from fourbar_ros.interface.topics import (
 from fourbar_ros.motion.planner import JointMotionState, Setpoints
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.timers import periodic_timer
+from fourbar_ros.node.trajectory_goals import TrajectoryGoals
 from fourbar_ros.rules.controller_contract import check_forward_command
 from fourbar_ros.rules.motion_plan import Motion
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
@@ -62,7 +63,11 @@ class Actuation:
         self._setpoints: Setpoints | None = None
         #: (time on the node clock the setpoint stands for, ns; position rad) of the setpoints published
         self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
-        if self.mode == Mode.TRAJECTORY.value:
+        #: trajectory_interface action: the trajectories go out as FollowJointTrajectory goals
+        self.goals: TrajectoryGoals | None = None
+        if self.mode == Mode.TRAJECTORY.value and cfg.trajectory_interface == 'action':
+            self.goals = TrajectoryGoals(node, cfg.trajectory_controller, problems)
+        elif self.mode == Mode.TRAJECTORY.value:
             out = trajectory_topic(cfg.trajectory_controller)
             self._trajectory_pub = node.create_publisher(JointTrajectory, out.name, qos(out))
         elif self.mode == Mode.FORWARD.value:
@@ -122,7 +127,11 @@ class Actuation:
             self._problems.warn(out.key, out.line)
             return
         if out.setpoints is None:
-            self._trajectory_pub.publish(joint_trajectory(MESSAGE_CLASSES, cfg.driven_joint, out.points, out.stamp_ns))
+            msg = joint_trajectory(MESSAGE_CLASSES, cfg.driven_joint, out.points, out.stamp_ns)
+            if self.goals is not None:
+                self.goals.send(msg)
+            else:
+                self._trajectory_pub.publish(msg)
         self.motion = out.motion
         if out.setpoints is not None:
             self._stream(out.setpoints)
@@ -156,5 +165,6 @@ class Actuation:
     # ------------------------------------------------------------------ diagnostics
 
     def diagnostic_values(self) -> list[tuple[str, str]]:
-        """Key/value pairs for the node's status: the mode and the counters."""
-        return [('mode', self.mode), *((k, str(v)) for k, v in self.counters.as_dict().items())]
+        """Key/value pairs for the node's status: the mode and the counters (and the goals', action interface)."""
+        values = [('mode', self.mode), *((k, str(v)) for k, v in self.counters.as_dict().items())]
+        return values if self.goals is None else values + self.goals.diagnostic_values()

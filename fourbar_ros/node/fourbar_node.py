@@ -52,6 +52,7 @@ from fourbar_ros.node.model_check import LiveModelCheck
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.timers import periodic_timer
+from fourbar_ros.node.trajectory_goals import follow_joint_trajectory
 from fourbar_ros.rules.diagnostics import DIAGNOSTIC_TASK, Counters, Level, SequenceGaps, command_rate, summarize
 from fourbar_ros.rules.marker_geometry import linkage_points
 from fourbar_ros.rules.outgoing import actuation_contract
@@ -90,6 +91,8 @@ class FourBarNode(Node):
             self._config = self._validated_overrides()
             contract = (None if self._config.mode == Mode.OPEN_LOOP.value
                         else actuation_contract(self._config, namespace=self.get_namespace()))
+            if self._config.mode == Mode.TRAJECTORY.value and self._config.trajectory_interface == 'action':
+                follow_joint_trajectory()  # refuses to start, in one line, where control_msgs is missing
             constructor_overrides: list[Parameter] = kwargs.get('parameter_overrides') or []
             explicit = set(command_line_names) | {p.name for p in constructor_overrides}
             for path in params_files:

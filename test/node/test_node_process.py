@@ -5,6 +5,7 @@ The joint_states republish is off here (``ONE_JOINT_STATE_PER_COMMAND``): answer
 from __future__ import annotations
 
 import math
+import os
 import signal
 from pathlib import Path
 from typing import Any
@@ -221,6 +222,24 @@ def test_malformed_params_file_exits_with_one_line(ros: RosSession, tmp_path: Pa
     path = tmp_path / 'broken.yaml'
     path.write_text('/**:\n  ros__parameters:\n    load_torque: [1.0\n', encoding='utf-8')
     assert _error_line(ros, '--params-file', str(path)).startswith(f'fourbar_node: error: {path}: not valid YAML')
+
+
+def test_the_action_interface_without_control_msgs_exits_with_one_line(ros: RosSession, tmp_path: Path) -> None:
+    stub = tmp_path / 'control_msgs'  # a control_msgs that cannot be imported, wherever one is installed
+    stub.mkdir()
+    (stub / '__init__.py').write_text("raise ImportError('no control_msgs here')\n", encoding='utf-8')
+    env = ros.env()
+    env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(tmp_path), env.get('PYTHONPATH', '')]))
+    proc = NodeProcess(['--ros-args', '-p', 'mode:=trajectory', '-p', 'trajectory_interface:=action'], env)
+    proc.start()
+    try:
+        status = proc.wait_exit()
+    finally:
+        proc.kill()
+    lines = proc.stderr.strip().splitlines()
+    assert status == 2 and len(lines) == 1 and 'Traceback' not in proc.stderr, (status, proc.stderr)
+    assert lines[0].startswith('fourbar_node: error: trajectory_interface: action needs control_msgs'), lines
+    assert 'no control_msgs here' in lines[0]
 
 
 def test_command_line_override_is_validated_too(ros: RosSession) -> None:

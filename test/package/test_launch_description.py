@@ -162,6 +162,13 @@ def test_effort_feedforward_reaches_the_node_and_the_urdf() -> None:
     assert '<command_interface name="effort"/>' in urdf
 
 
+def test_trajectory_interface_reaches_the_node_only_when_given() -> None:
+    s = Started(everything, use_ros2_control='true', trajectory_interface='action')
+    assert s.parameters(s.one('fourbar_ros', 'fourbar_node'))[1]['trajectory_interface'] == 'action'
+    s = Started(everything, use_ros2_control='true')
+    assert 'trajectory_interface' not in s.parameters(s.one('fourbar_ros', 'fourbar_node'))[1]  # the file's
+
+
 def test_without_ros2_control_installed_one_line_says_so() -> None:
     s = Started(nothing_but_ours, use_ros2_control='true')
     assert s.node('controller_manager', 'ros2_control_node') == [] and s.node('controller_manager', 'spawner') == []

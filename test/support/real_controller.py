@@ -183,15 +183,15 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
         match = [i for x, i in stamped.items() if abs(at - x) < 1_000_000]
         if not match:
             match = [i for i in zero if arrivals[i] < at][-1:]
-        if match and states[k]['stamp'] > arrivals[match[0]]:
+        if match and s['stamp'] > arrivals[match[0]]:
             follows.setdefault(match[0], []).append(k)
     for i in own:
         if i in follows:
             k = follows[i][0]
             s, before = states[k], states[k - 1] if k > 0 else None
+            gapless = before is not None and s['stamp'] - before['stamp'] < 1.5 * period * NS_PER_S
             exact = s['ref_tfs'] == s['fb_tfs'] and (
-                s['fb_tfs'] == 0 if trajectories[i]['stamp'] == 0 else
-                before is not None and s['stamp'] - before['stamp'] < 1.5 * period * NS_PER_S and k - 1 not in follows[i])
+                s['fb_tfs'] == 0 if trajectories[i]['stamp'] == 0 else gapless and k - 1 not in follows[i])
             taken[i] = (k, exact)
         elif not any(arrivals[i] < s['stamp'] < arrivals[i + 1] for s in states):
             unknown.add(i)

@@ -1,0 +1,148 @@
+"""fourbar_node with ``trajectory_interface: action`` on the real joint_trajectory_controller (the package's launch
+file, mock hardware): a goal that completes, a goal the next command preempts, and a goal the controller aborts, each
+as the node's diagnostics count it, with the controller's own error code and string.
+
+Runs where the ros2 command line, launch_ros and ros2_control are installed; skipped elsewhere with the reason.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import pytest
+import yaml
+from support.colcon_support import CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.paths import REPO
+from support.ros2_control_support import ros2_control_missing
+
+if (_why := ros2_cli_missing() or launch_missing()) is not None:
+    pytest.skip(_why, allow_module_level=True)
+
+from support.ros_cli_support import Background, wait_node  # psutil: with ros2cli
+
+from fourbar_ros.config.antenna_config import load_config
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+PROBE = REPO / 'test' / 'support' / 'goal_probe.py'
+CONTROLLERS = REPO / 'config' / 'controllers.yaml'
+ANTENNA = REPO / 'config' / 'antenna.yaml'
+#: joint_trajectory_controller's path tolerance (rad) in the aborting controllers file; see the test.
+TIGHT_PATH_TOLERANCE = 1e-6
+NAMESPACE = 'goals'
+
+
+class Bringup(NamedTuple):
+    """The command line's environment and the running launch (its output so far)."""
+
+    cli: CliEnv
+    launch: Background
+
+
+def _bringup(env: CliEnv, namespace: str, *extra: str) -> Iterator[Bringup]:
+    if (why := ros2_control_missing(env.env)) is not None:
+        pytest.skip(why)
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={namespace}',
+                         'use_ros2_control:=true', 'mode:=trajectory', 'trajectory_interface:=action', 'rviz:=false',
+                         *extra], env.env, cwd=env.cwd)
+    try:
+        wait_node(env.env, f'/{namespace}/fourbar_node')
+        launch.wait_output(lambda t: 'Configured and activated joint_trajectory_controller' in t,
+                           'the trajectory controller active')
+        yield Bringup(env, launch)
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+    finally:
+        launch.kill()
+
+
+def _tight_controllers(tmp_path: Path) -> Path:
+    """The package's controllers file with joint_trajectory_controller's path tolerance TIGHT_PATH_TOLERANCE."""
+    settings = yaml.safe_load(CONTROLLERS.read_text(encoding='utf-8'))
+    settings['/**/joint_trajectory_controller']['ros__parameters']['constraints']['rocker_ab_joint'][
+        'trajectory'] = TIGHT_PATH_TOLERANCE
+    path = tmp_path / 'tight_controllers.yaml'
+    path.write_text(yaml.safe_dump(settings), encoding='utf-8')
+    return path
+
+
+@pytest.fixture(scope='module')
+def bringup(request: pytest.FixtureRequest, ros2_cli: CliEnv, tmp_path_factory: pytest.TempPathFactory,
+            ) -> Iterator[Bringup]:
+    """The package's ros2_control bringup in /goals, the node sending goals, with the package's controllers file
+    ('package') or one with a path tolerance of TIGHT_PATH_TOLERANCE ('tight'); one at a time (both would publish
+    the same status name on /diagnostics), each shared by the tests that ask for it."""
+    extra = [] if request.param == 'package' else [
+        f'controllers_file:={_tight_controllers(tmp_path_factory.mktemp("tight"))}']
+    yield from _bringup(ros2_cli, NAMESPACE, *extra)
+
+
+def _probe(env: CliEnv, namespace: str, commands: list[tuple[float, float]], until: dict[str, int],
+           tmp_path: Path, settle: float = 0.0) -> dict[str, Any]:
+    steps, out = tmp_path / 'steps.json', tmp_path / 'out.json'
+    steps.write_text(json.dumps({'commands': [{'command': c, 'after': a} for c, a in commands], 'until': until,
+                                 'timeout': 30.0, 'settle': settle}), encoding='utf-8')
+    done = subprocess.run([sys.executable, str(PROBE), f'/{namespace}', str(steps), str(out)], env=env.env,
+                          capture_output=True, text=True, timeout=150, check=False)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    return dict(json.loads(out.read_text(encoding='utf-8')))
+
+
+def _grown(result: dict[str, Any], *keys: str) -> dict[str, int]:
+    return {k: int(result['status'][k]) - int(result['before'][k]) for k in keys}
+
+
+def _driven(theta: float) -> float:
+    cfg = load_config(ANTENNA)
+    return float(cfg.linkage.rocker_angles(theta, cfg.branch)[0])
+
+
+KEYS = ('goals_sent', 'goals_accepted', 'goals_rejected', 'goals_succeeded', 'goals_aborted', 'goals_preempted',
+        'goals_canceled', 'goals_lost', 'goals_not_sent_no_server')
+
+
+@pytest.mark.parametrize('bringup', ['package'], indirect=True)
+def test_a_goal_that_completes_is_counted_succeeded(bringup: Bringup, tmp_path: Path) -> None:
+    result = _probe(bringup.cli, NAMESPACE, [(0.05, 0.0)], {'goals_succeeded': 1}, tmp_path, settle=0.3)
+    assert _grown(result, *KEYS) == {**dict.fromkeys(KEYS, 0), 'goals_sent': 1, 'goals_accepted': 1,
+                                     'goals_succeeded': 1}, result
+    assert abs(result['measured'] - _driven(0.05)) < 1e-3, result  # the mock joint at the commanded angle
+    assert int(result['status']['trajectories_sent']) >= 1
+
+
+@pytest.mark.parametrize('bringup', ['package'], indirect=True)
+def test_a_goal_the_next_command_supersedes_is_counted_preempted(bringup: Bringup, tmp_path: Path) -> None:
+    # The second command arrives while the first goal's motion runs (a tilt to -0.06 rad from level or above takes
+    # over a second at the default limits): the controller accepts the new goal and ends the running one as ABORTED
+    # with INVALID_GOAL, "Current goal preempted by new incoming action."; the node counts that as preempted, and
+    # the second succeeds.
+    result = _probe(bringup.cli, NAMESPACE, [(-0.06, 0.0), (0.0, 0.4)], {'goals_succeeded': 1, 'goals_preempted': 1},
+                    tmp_path, settle=0.3)
+    assert _grown(result, *KEYS) == {**dict.fromkeys(KEYS, 0), 'goals_sent': 2, 'goals_accepted': 2,
+                                     'goals_succeeded': 1, 'goals_preempted': 1}, result
+    assert abs(result['measured'] - _driven(0.0)) < 1e-3, result
+
+
+@pytest.mark.parametrize('bringup', ['tight'], indirect=True)
+def test_a_goal_the_controller_aborts_is_counted_with_its_reason(bringup: Bringup, tmp_path: Path) -> None:
+    # Why it aborts: with the mock hardware the measured position is the previous update's command, while the
+    # controller's reference is sampled one period ahead, so a moving joint is behind the reference by about its
+    # speed times one period (up to 6e-4 rad at the default limits at 100 Hz). A path tolerance of 1e-6 rad is
+    # violated as soon as the joint moves: the controller aborts the goal with PATH_TOLERANCE_VIOLATED (-4) and
+    # holds the joint where it is.
+    result = _probe(bringup.cli, NAMESPACE, [(0.05, 0.0)], {'goals_aborted': 1}, tmp_path, settle=1.5)
+    assert _grown(result, *KEYS) == {**dict.fromkeys(KEYS, 0), 'goals_sent': 1, 'goals_accepted': 1,
+                                     'goals_aborted': 1}, result
+    status = result['status']
+    assert status['last_goal_failure'] == 'aborted', status
+    assert status['last_goal_error_code'] == '-4 (PATH_TOLERANCE_VIOLATED)', status
+    assert status['last_goal_error_string'] == 'Aborted due to path tolerance violation', status
+    assert abs(result['measured'] - _driven(0.05)) > 1e-3, result  # held short of the commanded angle
+    bringup.launch.wait_output(lambda t: 'joint_trajectory_controller aborted a FollowJointTrajectory goal: error_code '
+                               '-4 (PATH_TOLERANCE_VIOLATED): Aborted due to path tolerance violation' in t,
+                               "the node's warning naming the controller's reason")
