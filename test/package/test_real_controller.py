@@ -63,12 +63,6 @@ def launched(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
         launch.kill()
 
 
-@pytest.fixture
-def bringup(launched: tuple[CliEnv, Background]) -> CliEnv:
-    """The shared bringup's command-line environment."""
-    return launched[0]
-
-
 def _judge(env: CliEnv, steps: list[dict[str, object]], tmp_path: Path) -> dict[str, object]:
     cases, out = tmp_path / 'steps.json', tmp_path / 'recording.json'
     cases.write_text(json.dumps(steps), encoding='utf-8')
@@ -88,7 +82,8 @@ def _report(results: list[Judged]) -> str:
                      f'simulated {f:.2e} rad' for (kind, stamp), (n, m, f, u) in sorted(rows.items()))
 
 
-def _check(env: CliEnv, steps: list[dict[str, object]], tmp_path: Path) -> list[Judged]:
+def _check(launched: tuple[CliEnv, Background], steps: list[dict[str, object]], tmp_path: Path) -> list[Judged]:
+    env, launch = launched
     cfg = load_config(env.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
     path = env.prefix / 'share' / 'fourbar_ros' / 'config' / 'controllers.yaml'
     settings = trajectory_controller(str(path), 'joint_trajectory_controller')
@@ -109,27 +104,37 @@ def _check(env: CliEnv, steps: list[dict[str, object]], tmp_path: Path) -> list[
           refused)
     disagree = [(i, v) for i, v in enumerate(verdicts) if (v is None) != (i in found.taken) and i not in found.unknown]
     assert not disagree, f'the contract and the real controller disagree on {len(disagree)}: {disagree[:5]}'
-    off = [r for r in results if r.model > BOUND_RAD or r.follower > BOUND_RAD]
-    assert not off, f'{len(off)} trajectories off the real controller by more than {BOUND_RAD} rad:\n{report}'
+    off = [r for r in results if (r.model > BOUND_RAD or r.follower > BOUND_RAD) and not r.held]
+    assert not off, f'{len(off)} trajectories off the real controller by more than {BOUND_RAD} rad:\n{report}\n{off}'
+    held = [r for r in results if r.held and r.model > BOUND_RAD]
+    if held:  # the controller's tolerance check, which the model leaves out: it says so in its log
+        launch.wait_output(lambda t: 'Holding position due to state tolerance violation' in t,
+                           f'the controller\'s log of the hold it made on {held}')
+        print(f'held by the controller at the takeover: {held}')
     return results
 
 
-def test_the_model_follows_the_real_controller_on_random_trajectories(bringup: CliEnv, tmp_path: Path) -> None:
+def test_the_model_follows_the_real_controller_on_random_trajectories(launched: tuple[CliEnv, Background],
+                                                                      tmp_path: Path) -> None:
     steps = random_steps(np.random.default_rng(2026), QUICK, 0.76, 0.96)
-    _check(bringup, steps, tmp_path)
+    _check(launched, steps, tmp_path)
 
 
-def test_the_model_follows_the_real_controller_on_the_nodes_plans(bringup: CliEnv, tmp_path: Path) -> None:
-    commands = [0.05, -0.02, 0.06, 0.0]
-    steps = [{'command': theta, 'after': 0.0 if i == 0 else 0.4} for i, theta in enumerate(commands)]
-    results = _check(bringup, steps, tmp_path)
+def test_the_model_follows_the_real_controller_on_the_nodes_plans(launched: tuple[CliEnv, Background],
+                                                                  tmp_path: Path) -> None:
+    # Each from rest (a plan that continues a running one starts where that one does, and the judge, seeing it pass,
+    # cannot always tell at which update the controller took it over).
+    commands = [0.05, -0.02, 0.03]
+    steps = [{'command': theta, 'after': 0.0 if i == 0 else 3.0} for i, theta in enumerate(commands)]
+    results = _check(launched, steps, tmp_path)
     assert len(results) >= len(commands), f'{len(commands)} commands, {len(results)} trajectories taken over'
 
 
 @pytest.mark.stress
-def test_the_model_follows_the_real_controller_on_many_random_trajectories(bringup: CliEnv, tmp_path: Path) -> None:
+def test_the_model_follows_the_real_controller_on_many_random_trajectories(launched: tuple[CliEnv, Background],
+                                                                           tmp_path: Path) -> None:
     steps = random_steps(np.random.default_rng(7), STRESS, 0.76, 0.96)
-    _check(bringup, steps, tmp_path)
+    _check(launched, steps, tmp_path)
 
 
 #: One trajectory per rule of the contract, each sent after a good one (so that a wrong takeover would show):

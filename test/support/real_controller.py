@@ -64,8 +64,9 @@ def random_steps(rng: np.random.Generator, count: int, low: float, high: float) 
 @dataclass(frozen=True)
 class Judged:
     """One recorded trajectory against the real controller: its index in the recording, its kind, stamp kind
-    ('zero', 'future', 'past'), whether it took over a running one, the updates compared, and the largest
-    |model - real| and |simulated follower - real| of the reference position (rad)."""
+    ('zero', 'future', 'past'), whether it took over a running one, the updates compared, the largest
+    |model - real| and |simulated follower - real| of the reference position (rad), and whether the controller held
+    the measured position from the takeover on instead (its tolerance check, which the model leaves out)."""
 
     index: int
     kind: str
@@ -74,6 +75,7 @@ class Judged:
     updates: int
     model: float
     follower: float
+    held: bool = False
 
 
 def _kind(points: list[list[float | None]]) -> str:
@@ -202,6 +204,10 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
         since = max(arrivals[i], last_stamp)
         until = min(arrivals[i + 1], t['received'] + ECHO_LATE_NS)
         found = _candidates(states, t, since, until)
+        unique = t['stamp'] != 0 and sum(u['stamp'] == t['stamp'] for u in trajectories) == 1
+        if unique:  # the first update that follows its start, wherever the judge saw it pass
+            found = [k for k, s in enumerate(states) if s['stamp'] > since and abs(_start(s) - t['stamp']) < 1_000_000
+                     and s['ref_tfs'] == s['fb_tfs']][:1]
         if not found:
             unknown.add(i)
             continue
@@ -245,6 +251,8 @@ def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, jo
         worst_follower = max((abs(simulated.sample(s['ref_tfs'] / NS_PER_S - tau0)[0] - s['ref'][0][0])
                               for s in states[k:upto]), default=0.0)
         stamp = 'zero' if traj['stamp'] == 0 else ('future' if traj['stamp'] > traj['received'] else 'past')
+        here = states[k]['fb'][0][0]
+        held = all(s['ref'][0][0] == here and s['ref'][1][0] == 0.0 for s in states[k + 1:upto])
         out.append(Judged(index, _kind(traj['points']), stamp, k > 0 and states[k - 1]['ref'][1][0] != 0.0, upto - k,
-                          _worst(states, model, k, upto), worst_follower))
+                          _worst(states, model, k, upto), worst_follower, held))
     return out
