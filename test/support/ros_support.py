@@ -443,11 +443,16 @@ class RosSession:
                     break
                 arrived.wait(left)
                 arrived.clear()
+            # The latest status per name and publisher: nodes of one name in two namespaces publish the same name.
             statuses: dict[str, dict[str, str]] = {}
             for col in collectors:
+                latest: dict[tuple[str, str], dict[str, str]] = {}
                 for msg in list(col.messages):
                     for status in msg.status:
-                        statuses[status.name] = {kv.key: kv.value for kv in status.values}
+                        values = {kv.key: kv.value for kv in status.values}
+                        latest[(status.name, values.get('mode', ''))] = values
+                for (name, mode), values in latest.items():
+                    statuses[f'{name} (mode {mode})' if mode else name] = values
             return statuses
         finally:
             self.destroy(*collectors)
