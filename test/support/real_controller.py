@@ -165,8 +165,8 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     stamped as it starts) follows a trajectory that starts where this one does (its stamp; for a zero stamp, the
     takeover of the latest such one to arrive before); the takeover is the first such update when it is recorded
     (``time_from_start`` 0 for a zero stamp; else the reference and feedback times equal, right after an update of
-    the previous one). The
-    node's are seen passing and reach the controller up to a few updates before or after the judge; a plan that
+    the previous one). The node's are seen passing and reach the controller up to a few updates before or after the
+    judge: one with a stamp of its own is taken over at the first update that follows its start; a plan that
     continues the running one starts where that one does, so several updates can qualify: the one the model follows
     best up to the window's end is taken (a model wrong at every candidate still fails)."""
     states = recording['states']
