@@ -174,15 +174,17 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else SENT_EARLY_NS) for t in trajectories] + [2**63]
     taken: dict[int, tuple[int, bool]] = {}
     unknown: set[int] = set()
-    # The judge's own: each update follows the stamped trajectory that starts where it does, else the latest
-    # zero-stamped one that arrived before the update's trajectory started (at its takeover).
+    # The judge's own: each update follows the stamped trajectory that starts where it does and had arrived, else the
+    # latest zero-stamped one that arrived before the update's trajectory started (at its takeover). A stamp in the
+    # past can equal an earlier zero-stamped trajectory's takeover time to the millisecond: before its own arrival
+    # the updates follow that one.
     own = [i for i, t in enumerate(trajectories) if not t['echoed']]
     stamped = {t['stamp']: i for i, t in enumerate(trajectories) if not t['echoed'] and t['stamp'] != 0}
     zero = [i for i in own if trajectories[i]['stamp'] == 0]
     follows: dict[int, list[int]] = {}
     for k, s in enumerate(states):
         at = _start(s)
-        match = [i for x, i in stamped.items() if abs(at - x) < 1_000_000]
+        match = [i for x, i in stamped.items() if abs(at - x) < 1_000_000 and s['stamp'] > arrivals[i]]
         if not match:
             match = [i for i in zero if arrivals[i] < at][-1:]
         if match and s['stamp'] > arrivals[match[0]]:
