@@ -184,9 +184,10 @@ BAD_STARTS = [
 ]
 
 
-def _error_line(ros: RosSession, *ros_args: str) -> str:
-    """Start the node with ``--ros-args ROS_ARGS``; it must exit 2 with one stderr line, no traceback: that line."""
-    proc = NodeProcess(['--ros-args', *ros_args], ros.env())
+def _error_line(ros: RosSession, *ros_args: str, env: dict[str, str] | None = None) -> str:
+    """Start the node with ``--ros-args ROS_ARGS`` (in ``env``, else the session's); it must exit 2 with one stderr
+    line, no traceback: that line."""
+    proc = NodeProcess(['--ros-args', *ros_args], ros.env() if env is None else env)
     proc.start()
     try:
         status = proc.wait_exit()
@@ -230,16 +231,9 @@ def test_the_action_interface_without_control_msgs_exits_with_one_line(ros: RosS
     (stub / '__init__.py').write_text("raise ImportError('no control_msgs here')\n", encoding='utf-8')
     env = ros.env()
     env['PYTHONPATH'] = os.pathsep.join(filter(None, [str(tmp_path), env.get('PYTHONPATH', '')]))
-    proc = NodeProcess(['--ros-args', '-p', 'mode:=trajectory', '-p', 'trajectory_interface:=action'], env)
-    proc.start()
-    try:
-        status = proc.wait_exit()
-    finally:
-        proc.kill()
-    lines = proc.stderr.strip().splitlines()
-    assert status == 2 and len(lines) == 1 and 'Traceback' not in proc.stderr, (status, proc.stderr)
-    assert lines[0].startswith('fourbar_node: error: trajectory_interface: action needs control_msgs'), lines
-    assert 'no control_msgs here' in lines[0]
+    line = _error_line(ros, '-p', 'mode:=trajectory', '-p', 'trajectory_interface:=action', env=env)
+    assert line.startswith('fourbar_node: error: trajectory_interface: action needs control_msgs'), line
+    assert 'no control_msgs here' in line
 
 
 def test_command_line_override_is_validated_too(ros: RosSession) -> None:
