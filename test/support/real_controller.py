@@ -103,8 +103,10 @@ def message_points(points: list[list[Any]]) -> list[_Point]:
 
 
 #: How much earlier, or later, than the judge's receive time the controller takes a passing trajectory over (ns):
-#: both receive it from the node, in either order, and the controller at its next update.
-ECHO_EARLY_NS, ECHO_LATE_NS = 20_000_000, 30_000_000
+#: both receive it from the node, in either order, the controller at its next update, and the judge's callback as
+#: its process gets the CPU (tens of ms behind on a loaded machine; the window also starts after the previous
+#: takeover).
+ECHO_EARLY_NS, ECHO_LATE_NS = 500_000_000, 30_000_000
 #: How much earlier than its send time an update may take the judge's own trajectory over (ns): an update is stamped
 #: when it starts and takes what arrived before it reads the trajectory, up to one period later.
 SENT_EARLY_NS = 10_000_000
@@ -165,10 +167,11 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     stamped as it starts) follows a trajectory that starts where this one does (its stamp; for a zero stamp, the
     takeover of the latest such one to arrive before); the takeover is the first such update when it is recorded
     (``time_from_start`` 0 for a zero stamp; else the reference and feedback times equal, right after an update of
-    the previous one). The node's are seen passing and reach the controller up to a few updates before or after the
-    judge: one with a stamp of its own is taken over at the first update that follows its start; a plan that
-    continues the running one starts where that one does, so several updates can qualify: the one the model follows
-    best up to the window's end is taken (a model wrong at every candidate still fails)."""
+    the previous one). The node's are seen passing and reach the controller before the judge (by up to
+    ``ECHO_EARLY_NS``, after the previous takeover) or a few updates after: one with a stamp of its own is taken over
+    at the first update that follows its start (exactly there when that update's reference and feedback times are
+    equal); a plan that continues the running one starts where that one does, so several updates can qualify: the one
+    the model follows best up to the window's end is taken (a model wrong at every candidate still fails)."""
     states = recording['states']
     trajectories = recording['trajectories']
     arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else SENT_EARLY_NS) for t in trajectories] + [2**63]
@@ -207,9 +210,11 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
         until = min(arrivals[i + 1], t['received'] + ECHO_LATE_NS)
         found = _candidates(states, t, since, until)
         unique = t['stamp'] != 0 and sum(u['stamp'] == t['stamp'] for u in trajectories) == 1
+        exact = True
         if unique:  # the first update that follows its start, wherever the judge saw it pass
             found = [k for k, s in enumerate(states) if s['stamp'] > since and abs(_start(s) - t['stamp']) < 1_000_000
-                     and s['ref_tfs'] == s['fb_tfs']][:1]
+                     ][:1]
+            exact = bool(found) and states[found[0]]['ref_tfs'] == states[found[0]]['fb_tfs']
         if not found:
             unknown.add(i)
             continue
@@ -217,7 +222,7 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
             stop = next((j for j, s in enumerate(states) if s['stamp'] >= until), len(states))
             found = [min(found, key=lambda k: _worst(states, _reference_from(states, t, k, velocity_state,
                                                                                period)[1], k, stop))]
-        taken[i] = (found[0], True)
+        taken[i] = (found[0], exact)
         last_stamp = states[found[0]]['stamp']
     return Takeovers(taken, frozenset(unknown))
 
@@ -230,7 +235,11 @@ def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, jo
     trajectories = recording['trajectories']
     velocity_state = 'velocity' in settings.state_interfaces
     found = takeovers(recording, velocity_state, period)
-    firsts = sorted(k for k, _ in found.taken.values())
+    # A segment ends at the next takeover, or where a trajectory the recording cannot place may have taken over.
+    lost = [next((k for k, s in enumerate(states) if s['stamp'] > trajectories[i]['received']
+                  - (ECHO_EARLY_NS if trajectories[i]['echoed'] else SENT_EARLY_NS)), len(states))
+            for i in found.unknown]
+    firsts = sorted([k for k, _ in found.taken.values()] + lost)
     out: list[Judged] = []
     for index, (k, exact) in found.taken.items():
         if not exact:
