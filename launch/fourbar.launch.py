@@ -12,8 +12,9 @@ motion to the drive's controllers. In an actuator mode the node reads the measur
 joint_state_broadcaster publishes it (measured_joint_states remapped to joint_state_broadcaster/joint_states).
 sim_actuator:=true: the simulated actuator stands in for the controllers and the hardware. use_ros2_control:=true
 (trajectory mode unless mode says forward): ros2_control_node with controllers_file (also the node's, so the node
-sends what that controller accepts), the description from robot_state_publisher's topic, spawners for
-joint_state_broadcaster and the mode's controller, and hardware_plugin in the URDF's <ros2_control> tag (default
+sends what that controller accepts; respawned 2 s after it dies), the description from robot_state_publisher's
+topic, spawners for joint_state_broadcaster and the mode's controller (at every start of the manager), and
+hardware_plugin in the URDF's <ros2_control> tag (default
 mock_components/GenericSystem, a mock that echoes commands: announced at startup). effort_feedforward:=true adds the
 effort command interface to the URDF and sets the node's parameter; the controllers file must then give
 joint_trajectory_controller command_interfaces [position, effort]. trajectory_interface (the node's parameter,
@@ -35,7 +36,8 @@ from pathlib import Path
 from launch import LaunchContext, LaunchDescription
 from dataclasses import replace
 
-from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessStart
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -159,6 +161,10 @@ def _setup(context: LaunchContext) -> list[object]:
     return actions
 
 
+#: Seconds before a controller manager that died is started again (and its controllers spawned again).
+CONTROLLER_MANAGER_RESPAWN_S = 2.0
+
+
 def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, plugin: str,
                   use_sim_time: bool) -> list[object]:
     """ros2_control_node with ``controllers`` (the description from robot_state_publisher's topic) and the
@@ -178,12 +184,18 @@ def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, 
                                    'ros-jazzy-ros2-controllers)'))
         return actions
     controller = cfg.trajectory_controller if mode == Mode.TRAJECTORY.value else cfg.forward_controller
-    actions.append(Node(package='controller_manager', executable='ros2_control_node', namespace=ros_namespace,
-                        output='screen', parameters=[controllers, {'use_sim_time': use_sim_time}],
-                        remappings=[('~/robot_description', 'robot_description')]))
-    for name in ('joint_state_broadcaster', controller):
-        actions.append(Node(package='controller_manager', executable='spawner', namespace=ros_namespace,
-                            output='screen', arguments=[name, '--controller-manager', 'controller_manager']))
+    manager = Node(package='controller_manager', executable='ros2_control_node', namespace=ros_namespace,
+                   output='screen', parameters=[controllers, {'use_sim_time': use_sim_time}],
+                   remappings=[('~/robot_description', 'robot_description')],
+                   respawn=True, respawn_delay=CONTROLLER_MANAGER_RESPAWN_S)
+
+    def spawners(*_: object) -> list[Node]:
+        return [Node(package='controller_manager', executable='spawner', namespace=ros_namespace, output='screen',
+                     arguments=[name, '--controller-manager', 'controller_manager'])
+                for name in ('joint_state_broadcaster', controller)]
+
+    # At every start of the manager, its respawns included, new spawners bring the controllers up again.
+    actions += [manager, RegisterEventHandler(OnProcessStart(target_action=manager, on_start=spawners))]
     return actions
 
 

@@ -82,6 +82,11 @@ class AntennaConfig:
     trajectory_interface: str
     forward_controller: str
     controllers_file: str
+    controller_manager: str
+    command_hold_timeout: float
+    resume_interrupted: bool
+    reached_tolerance: float
+    reach_timeout: float
     effort_feedforward: bool
     replan_tolerance: float
     measured_range_tolerance: float

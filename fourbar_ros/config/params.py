@@ -178,6 +178,25 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Actuator modes: the ros2_control controllers YAML the drive runs (the controller\'s joints, command '
               'interfaces and options decide what it accepts); empty: the package\'s config/controllers.yaml.',
               read_only=True),
+    ParamSpec('controller_manager', str, 'controller_manager', '',
+              'Actuator modes: the controller manager whose ~/activity says whether the mode\'s controller (and '
+              'its hardware) is active; relative names follow the node\'s namespace. A command waits while that '
+              'controller is not active; empty: not followed (commands go out as they come, as they also do while '
+              'no such manager was ever seen).', read_only=True),
+    ParamSpec('command_hold_timeout', float, 15.0, 's',
+              'Actuator modes: how long a command waits for its controller to be active (from its arrival, or from '
+              'its interruption) before it is dropped; a drive should not move on its own long after it was told.',
+              0.0, 86400.0),
+    ParamSpec('resume_interrupted', bool, True, '',
+              'Actuator modes: a command whose motion was interrupted (its controller deactivated, the controller '
+              'manager gone, a hardware component deactivated) waits again and is re-planned from the measured '
+              'state when the controller is active; false: it ends interrupted.'),
+    ParamSpec('reached_tolerance', float, 0.001, 'rad',
+              'Actuator modes: a command is reached when its motion has ended and the measured antenna angle is '
+              'within this of it.', 1e-9, 0.5),
+    ParamSpec('reach_timeout', float, 2.0, 's',
+              'Actuator modes: a sent command not reached this long after its motion\'s planned end ends '
+              'interrupted (the drive did not follow).', 0.001, 3600.0),
     ParamSpec('effort_feedforward', bool, False, '',
               'Trajectory mode: send the static input torque as each point\'s effort (a feed-forward). The '
               'controller must then have an effort command interface ([position, effort]); off: no effort field.',

@@ -18,7 +18,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.controllers import ForwardControllerSettings, TrajectoryControllerSettings
 from fourbar_ros.interface.joint_trajectory import TYPE_NAMES, joint_trajectory
-from fourbar_ros.interface.stamps import seconds_to_ns, to_ns
+from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import (
     ANTENNA_TRAJECTORY,
     MEASURED_JOINT_STATES,
@@ -27,16 +27,22 @@ from fourbar_ros.interface.topics import (
     trajectory_topic,
 )
 from fourbar_ros.motion.planner import JointMotionState, Setpoints
+from fourbar_ros.node.controller_watch import ControllerWatch
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.node.trajectory_goals import TrajectoryGoals
+from fourbar_ros.rules.command_fate import CommandFates, Fate, FateSettings, Readiness
 from fourbar_ros.rules.controller_contract import check_forward_command
+from fourbar_ros.rules.diagnostics import Level
+from fourbar_ros.rules.goal_outcomes import GoalOutcome
 from fourbar_ros.rules.motion_plan import Motion
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
 from fourbar_ros.runtime.problem_log import ProblemLog
 
 #: Setpoints kept in ``recent_setpoints`` (the last seconds of the stream at the default rate).
 RECENT_SETPOINTS = 1000
+#: Period (s, node clock) of the check for a held command that expired or a sent one not reached.
+FATE_CHECK_S = 0.1
 #: rclpy's classes of the JointTrajectory sent (``joint_trajectory``).
 MESSAGE_CLASSES = dict(zip(TYPE_NAMES, (JointTrajectory, JointTrajectoryPoint, Header, Time, Duration), strict=True))
 
@@ -45,7 +51,9 @@ class Actuation:
     """The trajectory or forward mode of a node (``cfg.mode``); ``config`` returns the node's running
     configuration, ``contract`` the settings of the controller the mode sends to (``actuation_contract``).
     ``subscribe_measured``: read the measured driven joint on measured_joint_states here (a component that already
-    does can call ``note_measured`` instead)."""
+    does can call ``note_measured`` instead). Each served command's fate is in ``fates``: it waits while the
+    controller (``watch``) is not active or nothing is measured, and is planned from the measured state once it can
+    go (``rules.command_fate``)."""
 
     def __init__(self, node: Node, config: Callable[[], AntennaConfig], problems: ProblemLog,
                  contract: TrajectoryControllerSettings | ForwardControllerSettings,
@@ -54,6 +62,9 @@ class Actuation:
         self._config = config
         self._problems = problems
         self._clock: Any = node.get_clock()
+        get_logger: Callable[[], Any] = node.get_logger  # rclpy's logger accessor is unannotated
+        self._info: Callable[..., object] = get_logger().info
+        self._told_not_followed = False
         self.mode = cfg.mode
         self.contract = contract
         self.counters = ActuationCounters()
@@ -65,8 +76,11 @@ class Actuation:
         self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
         #: trajectory_interface action: the trajectories go out as FollowJointTrajectory goals
         self.goals: TrajectoryGoals | None = None
+        self.fates = CommandFates(FateSettings.of(cfg))
+        self.theta: float | None = None  # the last measured antenna angle (rad), for the fates
         if self.mode == Mode.TRAJECTORY.value and cfg.trajectory_interface == 'action':
             self.goals = TrajectoryGoals(node, cfg.trajectory_controller, problems)
+            self.goals.on_end = self._on_goal_end
         elif self.mode == Mode.TRAJECTORY.value:
             out = trajectory_topic(cfg.trajectory_controller)
             self._trajectory_pub = node.create_publisher(JointTrajectory, out.name, qos(out))
@@ -77,6 +91,9 @@ class Actuation:
             periodic_timer(node, 1.0 / cfg.control_rate, problems.guard.wrap('control_timer', self._on_control_timer))
         else:
             raise ValueError(f'mode {self.mode!r} is not an actuator mode')
+        controller = cfg.forward_controller if self.mode == Mode.FORWARD.value else cfg.trajectory_controller
+        self.watch = ControllerWatch(node, cfg.controller_manager, controller, problems, self._on_readiness)
+        periodic_timer(node, FATE_CHECK_S, problems.guard.wrap('command_fate_timer', self._on_fate_timer))
         node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name,
                                  problems.guard.wrap('sub_antenna_trajectory', self._on_antenna_trajectory),
                                  qos(ANTENNA_TRAJECTORY))
@@ -105,36 +122,121 @@ class Actuation:
             v = velocity if velocity is not None and velocity - velocity == 0.0 else 0.0
             self.measured = JointMotionState(position, v)
             self.measured_ns = stamp_ns if stamp_ns else self._now_ns()
+            if not self.fates.measured:
+                self.fates.measured = True
+                self._resume()
+
+    def note_theta(self, theta: float) -> None:
+        """The measured antenna angle (rad), completed from the measured driven joint: a sent command is reached
+        there."""
+        self.theta = theta
+        cmd = self.fates.current
+        if cmd is not None and cmd.fate is Fate.SENT:
+            self.fates.reached(theta, self._now_ns())
 
     # ------------------------------------------------------------------ served commands and antenna trajectories
 
     def command(self, theta: float) -> None:
-        """Plan and send the motion to a served antenna angle theta (rad)."""
+        """Plan and send the motion to a served antenna angle theta (rad), or hold it until it can go."""
+        fates = self.fates
+        fates.settings = FateSettings.of(self._config())
+        if fates.receive(theta, self._now_ns()):
+            self._send(theta)
+        else:
+            self._said(Fate.SENT)
+
+    def _send(self, theta: float) -> None:
+        """Plan the current command and send it (its fate: sent, or dropped with the refusal)."""
         cfg, now_ns = self._config(), self._now_ns()
-        self._emit(cfg, serve_command(cfg, self.contract, self._drive(), theta, now_ns, self.counters))
+        if self.fates.readiness is Readiness.NOT_FOLLOWED and not self._told_not_followed:
+            self._told_not_followed = True
+            self._info(f'controller {self.watch.controller} not followed ('
+                       f'{self.watch.why_not_followed or "no controller manager seen on " + self.watch.topic}): '
+                       'commands go out as they come')
+        out = serve_command(cfg, self.contract, self._drive(), theta, now_ns, self.counters)
+        if self._emit(cfg, out):
+            assert not isinstance(out, Refused)
+            self.fates.sent(out.motion.start_ns + seconds_to_ns(out.motion.duration))
+        else:
+            self.fates.drop(out.line if isinstance(out, Refused) else 'no action server')
+
+    def _resume(self) -> None:
+        """Send a held command that can now go, planned from the measured state (the motion followed before, if
+        any, is stale: the controller held the drive where it was)."""
+        if self.fates.due():
+            assert self.fates.current is not None
+            self.motion, self._setpoints = None, None
+            self._send(self.fates.current.theta)
+
+    def _on_readiness(self, new: Readiness) -> None:
+        """The controller's readiness changed: a motion it no longer runs is forgotten, a held command resumed."""
+        before = self.fates.current.fate if self.fates.current is not None else None
+        old = self.fates.readiness
+        self.fates.controller(new, self._now_ns())
+        self._info(f'controller {self.watch.controller}: {old.value} -> {new.value}')
+        if not new.sendable:  # the drive's state is measured again before anything is planned (a manager that
+            self.motion, self._setpoints = None, None  # restarts starts its hardware afresh)
+            self.fates.measured = False
+        self._said(before)
+        self._resume()
+
+    def _on_goal_end(self, how: GoalOutcome, line: str) -> None:
+        """The latest action goal ended otherwise than succeeded: its command is dropped (rejected) or
+        interrupted (aborted or canceled, not resumed: the controller said why)."""
+        if how is GoalOutcome.REJECTED:  # the goal's line is logged already
+            self.fates.drop(line)
+        else:
+            self.fates.interrupt(line, self._now_ns(), resumable=False)
+
+    def _on_fate_timer(self) -> None:
+        fates = self.fates
+        if fates.current is None or fates.current.fate.final:
+            return
+        before, cfg, now_ns = fates.current.fate, self._config(), self._now_ns()
+        fates.settings = FateSettings.of(cfg)
+        age = now_ns - self.measured_ns
+        if fates.measured and age > seconds_to_ns(cfg.measurement_timeout):
+            fates.unmeasured(f'no measured driven joint for {ns_to_seconds(age):.3g} s', now_ns)
+        fates.tick(now_ns, self.theta)
+        self._said(before)
+
+    def _said(self, before: Fate | None) -> None:
+        """A WARN (one line) when the current command's fate moved from ``before`` to held, dropped or
+        interrupted."""
+        cmd = self.fates.current
+        if cmd is None or cmd.fate is before or cmd.fate not in (Fate.HELD, Fate.DROPPED, Fate.INTERRUPTED):
+            return
+        self._problems.warn(f'command {cmd.fate.value}', f'command theta = {cmd.theta!r} rad {cmd.fate.value}: '
+                            f'{cmd.reason}')
 
     def _on_antenna_trajectory(self, msg: JointTrajectory) -> None:
         self.counters.trajectories_received += 1
         cfg, now_ns = self._config(), self._now_ns()
-        self._emit(cfg, serve_antenna_trajectory(cfg, self.contract, self._drive(), msg, now_ns, self.counters))
+        out = serve_antenna_trajectory(cfg, self.contract, self._drive(), msg, now_ns, self.counters)
+        if not isinstance(out, Refused):
+            self.fates.supersede('by an antenna trajectory')
+        self._emit(cfg, out)
 
     def _drive(self) -> Drive:
         return Drive(self.motion, self.measured, self.measured_ns)
 
-    def _emit(self, cfg: AntennaConfig, out: Outgoing | Refused) -> None:
-        """Publish what goes out and follow its motion, or log the refusal (one line)."""
+    def _emit(self, cfg: AntennaConfig, out: Outgoing | Refused) -> bool:
+        """Publish what goes out and follow its motion, or log the refusal (one line); False if nothing went out
+        (a refusal, or no action server)."""
         if isinstance(out, Refused):
             self._problems.warn(out.key, out.line)
-            return
+            return False
         if out.setpoints is None:
             msg = joint_trajectory(MESSAGE_CLASSES, cfg.driven_joint, out.points, out.stamp_ns)
             if self.goals is not None:
-                self.goals.send(msg)
+                if not self.goals.send(msg):
+                    return False
             else:
                 self._trajectory_pub.publish(msg)
         self.motion = out.motion
         if out.setpoints is not None:
             self._stream(out.setpoints)
+        return True
 
     def _stream(self, stream: Setpoints) -> None:
         """Start a setpoint stream (forward mode): the first setpoint now, not one period later."""
@@ -164,7 +266,16 @@ class Actuation:
 
     # ------------------------------------------------------------------ diagnostics
 
-    def diagnostic_values(self) -> list[tuple[str, str]]:
-        """Key/value pairs for the node's status: the mode and the counters (and the goals', action interface)."""
-        values = [('mode', self.mode), *((k, str(v)) for k, v in self.counters.as_dict().items())]
-        return values if self.goals is None else values + self.goals.diagnostic_values()
+    def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
+        """(level, message, key/value pairs) for the node's status: the mode, the controller's readiness and the
+        current command's fate, the counters (and the goals', action interface). WARN while a command is held, or
+        when the latest one was dropped or interrupted."""
+        values = [('mode', self.mode), ('controller', self.watch.controller),
+                  ('controller_activity', self.watch.topic or f'not followed: {self.watch.why_not_followed}'),
+                  *self.fates.values(), *((k, str(v)) for k, v in self.counters.as_dict().items())]
+        if self.goals is not None:
+            values += self.goals.diagnostic_values()
+        cmd = self.fates.current
+        if cmd is not None and cmd.fate in (Fate.HELD, Fate.DROPPED, Fate.INTERRUPTED):
+            return Level.WARN, f'command theta = {cmd.theta!r} rad {cmd.fate.value}: {cmd.reason}', values
+        return Level.OK, 'ok', values

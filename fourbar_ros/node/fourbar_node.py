@@ -155,7 +155,7 @@ class FourBarNode(Node):
                 self.model_check = LiveModelCheck(self, self._config, lambda: self._config, qos, self.problems)
             self.completion = MeasuredCompletion(
                 self, self._config, self._joint_pub, qos, self.problems, on_measured=self.actuation.note_measured,
-                on_completed=self.model_check.on_completed if self.model_check is not None else None)
+                on_completed=self._on_completed)
         if self._config.joint_state_rate > 0.0 and self._publishes_pose:
             self._joint_state_timer = periodic_timer(self, 1.0 / self._config.joint_state_rate,
                                                      guard.wrap('joint_state_timer', self._on_joint_state_timer))
@@ -328,6 +328,13 @@ class FourBarNode(Node):
             if state is None:
                 counters.commands_not_solved += 1
 
+    def _on_completed(self, stamp_ns: int, position: float) -> None:
+        """A measurement completed (its stamp ns, the driven joint rad): the command's fate and the model check."""
+        assert self.actuation is not None and self.completion is not None and self.completion.theta is not None
+        self.actuation.note_theta(self.completion.theta)
+        if self.model_check is not None:
+            self.model_check.on_completed(stamp_ns, position)
+
     def _solve(self, theta: float) -> Pose | None:
         try:
             return self.cache.get(theta)
@@ -420,7 +427,10 @@ class FourBarNode(Node):
             if check_level > level:
                 level, message = check_level, check_message
         if self.actuation is not None:
-            values += self.actuation.diagnostic_values()
+            actuation_level, actuation_message, actuation_values = self.actuation.diagnostics()
+            values += actuation_values
+            if actuation_level > level:
+                level, message = actuation_level, actuation_message
         values += self.guard.diagnostic_values()
         if self.guard.total and level < Level.WARN:
             level, message = Level.WARN, f'{self.guard.total} callback errors (see callback_errors_<callback>)'

@@ -43,6 +43,8 @@ class TrajectoryGoals:
         self._client: Any = make_client(node, self._action, trajectory_action(controller))
         self.counters = GoalCounters()
         self._latest = 0  # number of the latest goal sent; goals are numbered from 1
+        #: called with how the latest goal ended, and the line logged, when it ended otherwise than succeeded
+        self.on_end: Callable[[GoalOutcome, str], None] | None = None
         wrap = problems.guard.wrap
         self._on_response = wrap('goal_response', self._response)
         self._on_result = wrap('goal_result', self._result)
@@ -68,7 +70,7 @@ class TrajectoryGoals:
             self.counters.goals_lost += 1
             return
         if not handle.accepted:
-            self._ended(GoalOutcome.REJECTED, None, '')
+            self._ended(GoalOutcome.REJECTED, None, '', number == self._latest)
             return
         self.counters.goals_accepted += 1
         handle.get_result_async().add_done_callback(functools.partial(self._on_result, number))
@@ -80,12 +82,15 @@ class TrajectoryGoals:
             return
         result = response.result
         code, text = int(result.error_code), str(result.error_string)
-        self._ended(outcome(int(response.status), code, number < self._latest), code, text)
+        self._ended(outcome(int(response.status), code, number < self._latest), code, text, number == self._latest)
 
-    def _ended(self, how: GoalOutcome, code: int | None, text: str) -> None:
+    def _ended(self, how: GoalOutcome, code: int | None, text: str, latest: bool) -> None:
         self.counters.ended(how, code, text)
         if how in (GoalOutcome.REJECTED, GoalOutcome.ABORTED, GoalOutcome.CANCELED):
-            self._problems.warn(f'goal {how.value}', outcome_line(self._controller, how, code, text))
+            line = outcome_line(self._controller, how, code, text)
+            self._problems.warn(f'goal {how.value}', line)
+            if latest and self.on_end is not None:
+                self.on_end(how, line)
 
     def diagnostic_values(self) -> list[tuple[str, str]]:
         """The goal counters and the last goal that did not succeed."""

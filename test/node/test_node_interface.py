@@ -111,6 +111,8 @@ def test_the_status_keys_are_exactly_the_documented_ones(ros: RosSession) -> Non
             if node.completion is not None:
                 node.completion.on_measurement(measurement)
                 node.completion.set_commanded(theta)
+            if node.actuation is not None:  # a command's fate
+                node.actuation.command(theta)
             if node.model_check is not None:
                 node.model_check.on_float64(Float64(data=theta))  # a reading, timed by its arrival
             node.guard.wrap('probe', lambda: 1 / 0)()  # a callback that raises: counted under its name

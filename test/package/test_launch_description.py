@@ -21,7 +21,7 @@ from support.paths import REPO
 if (_why := launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction
+from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction, RegisterEventHandler
 from launch.utilities import perform_substitutions
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterFile
@@ -57,6 +57,10 @@ class Started:
         self.context.launch_configurations.update(arguments)
         (setup,) = [e for e in description.entities if isinstance(e, OpaqueFunction)]
         actions = setup.execute(self.context) or []
+        # What starts once another process has (the spawners, at each start of the controller manager): as the
+        # handler would start it the first time.
+        actions += [a for r in actions if isinstance(r, RegisterEventHandler)
+                    for a in r.event_handler.handle(None, self.context) or []]  # type: ignore[arg-type]
         self.nodes = [a for a in actions if isinstance(a, Node)]
         self.logs = [self.text(a.msg) for a in actions if isinstance(a, LogInfo)]
 

@@ -1,0 +1,170 @@
+"""fourbar_node across its controller's lifecycle, on the real ros2_control stack (the package's launch file, mock
+hardware, one controller manager for the module): a command while the controller is inactive or not yet spawned,
+one interrupted by a deactivation, by its hardware component's deactivation and by the controller manager's death
+and respawn; each ends reached (or interrupted, as the parameter says), and the node's diagnostics say so.
+
+Runs where the ros2 command line, launch_ros and ros2_control are installed; skipped elsewhere with the reason.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from support.colcon_support import CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.paths import REPO
+from support.ros2_control_support import ros2_control_missing
+
+if (_why := ros2_cli_missing() or launch_missing()) is not None:
+    pytest.skip(_why, allow_module_level=True)
+
+from support.ros_cli_support import Background, wait_node  # psutil: with ros2cli
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+
+PROBE = REPO / 'test' / 'support' / 'lifecycle_probe.py'
+NAMESPACE = 'life'
+JTC = 'joint_trajectory_controller'
+HARDWARE = 'fourbar_antenna_tilt'
+#: The node's reached_tolerance (rad, the shipped default): a reached command's measured angle is within it.
+REACHED_TOLERANCE = 1e-3
+
+
+@pytest.fixture(scope='module')
+def bringup(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
+    """The package's ros2_control bringup in /life (trajectory mode, mock hardware), shared by the module."""
+    if (why := ros2_control_missing(ros2_cli.env)) is not None:
+        pytest.skip(why)
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={NAMESPACE}',
+                         'use_ros2_control:=true', 'mode:=trajectory', 'rviz:=false'], ros2_cli.env, cwd=ros2_cli.cwd)
+    try:
+        wait_node(ros2_cli.env, f'/{NAMESPACE}/fourbar_node')
+        launch.wait_output(lambda t: f'Configured and activated {JTC}' in t, 'the trajectory controller active')
+        yield ros2_cli, launch
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+    finally:
+        launch.kill()
+
+
+def _probe(env: CliEnv, steps: list[dict[str, Any]], tmp_path: Path) -> dict[str, Any]:
+    """Run the steps; every step must have done what it asked (the failure shows the log and the node's states)."""
+    path, out = tmp_path / 'steps.json', tmp_path / 'out.json'
+    path.write_text(json.dumps(steps), encoding='utf-8')
+    done = subprocess.run([sys.executable, str(PROBE), f'/{NAMESPACE}', str(path), str(out)], env=env.env,
+                          capture_output=True, text=True, timeout=120 + 40 * len(steps), check=False)
+    assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
+    result = dict(json.loads(out.read_text(encoding='utf-8')))
+    bad = [e for e in result['log'] if isinstance(e['result'], str)
+           or (isinstance(e['result'], dict) and (e['result'].get('seen') is False or e['result'].get('ok') is False
+                                                   or e['result'].get('returncode', 0) != 0))]
+    assert len(result['log']) == len(steps) and not bad, (
+        f'steps done {len(result["log"])} of {len(steps)}; failed: {bad}\nthe node\'s controller state, command '
+        f'fate and reason over time: {result["statuses"]}\nlast status: {result["status"]}')
+    return result
+
+
+def _until(timeout: float = 30.0, **values: object) -> dict[str, Any]:
+    return {'until': values, 'timeout': timeout}
+
+
+def _fate(fate: str, theta: float, timeout: float = 30.0, **values: object) -> dict[str, Any]:
+    """Wait until the node's status shows command ``theta`` (rad) with ``fate`` (a status a period old shows the
+    command before)."""
+    return _until(timeout, command_theta_rad=repr(theta), command_fate=fate, **values)
+
+
+def _reached(result: dict[str, Any], theta: float) -> None:
+    status = result['status']
+    assert status['command_fate'] == 'reached', status
+    assert abs(float(status['measured_theta_rad']) - theta) <= REACHED_TOLERANCE, status
+
+
+ACTIVE = _until(controller_state='active')
+
+
+def test_a_command_while_the_controller_is_inactive_is_reached_once_it_is_active(
+        bringup: tuple[CliEnv, Background], tmp_path: Path) -> None:
+    result = _probe(bringup[0], [
+        ACTIVE,
+        {'switch': {'deactivate': [JTC]}}, _until(controller_state='inactive'),
+        {'command': 0.04}, _fate('held', 0.04, command_fate_reason='controller inactive'),
+        {'switch': {'activate': [JTC]}}, _fate('reached', 0.04),
+    ], tmp_path)
+    _reached(result, 0.04)
+
+
+def test_a_command_before_the_controller_is_spawned_is_reached_once_the_spawner_has_run(
+        bringup: tuple[CliEnv, Background], tmp_path: Path) -> None:
+    env = bringup[0]
+    result = _probe(env, [
+        ACTIVE,
+        {'switch': {'deactivate': [JTC]}}, {'unload': JTC}, _until(controller_state='absent'),
+        {'command': -0.03}, _fate('held', -0.03, command_fate_reason='controller absent'),
+        {'run': [ros2(), 'run', 'controller_manager', 'spawner', JTC, '--controller-manager',
+                 f'/{NAMESPACE}/controller_manager']},
+        _fate('reached', -0.03),
+    ], tmp_path)
+    _reached(result, -0.03)
+
+
+def test_a_command_interrupted_by_a_deactivation_resumes_and_is_reached(
+        bringup: tuple[CliEnv, Background], tmp_path: Path) -> None:
+    result = _probe(bringup[0], [
+        ACTIVE, {'command': 0.0}, _fate('reached', 0.0),
+        {'command': -0.09}, {'moving': True},
+        {'switch': {'deactivate': [JTC]}}, _fate('held', -0.09, controller_state='inactive'),
+        {'switch': {'activate': [JTC]}}, _fate('reached', -0.09),
+    ], tmp_path)
+    _reached(result, -0.09)
+    assert any(s[2] == 'held' and s[3].startswith('interrupted (controller active -> inactive)')
+               for s in result['statuses']), result['statuses']
+
+
+def test_a_command_interrupted_ends_interrupted_where_the_parameter_says_so(
+        bringup: tuple[CliEnv, Background], tmp_path: Path) -> None:
+    env = bringup[0]
+    node = f'/{NAMESPACE}/fourbar_node'
+    param = [ros2(), 'param', 'set', node, 'resume_interrupted']
+    result = _probe(env, [
+        ACTIVE, {'command': 0.0}, _fate('reached', 0.0),
+        {'run': [*param, 'false']},
+        {'command': -0.09}, {'moving': True},
+        {'switch': {'deactivate': [JTC]}}, _fate('interrupted', -0.09),
+        {'switch': {'activate': [JTC]}}, ACTIVE,
+        {'run': [*param, 'true']},
+    ], tmp_path)
+    assert result['status']['command_fate'] == 'interrupted', result['status']
+    assert abs(float(result['status']['measured_theta_rad']) + 0.09) > REACHED_TOLERANCE, result['status']
+
+
+def test_a_command_interrupted_by_its_hardware_component_resumes_and_is_reached(
+        bringup: tuple[CliEnv, Background], tmp_path: Path) -> None:
+    result = _probe(bringup[0], [
+        ACTIVE, {'command': 0.0}, _fate('reached', 0.0),
+        {'command': 0.08}, {'moving': True},
+        {'hardware': [HARDWARE, 'inactive']}, _fate('held', 0.08, controller_state='inactive'),
+        {'hardware': [HARDWARE, 'active']}, _fate('reached', 0.08),
+    ], tmp_path)
+    _reached(result, 0.08)
+
+
+def test_a_command_held_across_the_controller_managers_death_and_respawn_is_reached(
+        bringup: tuple[CliEnv, Background], tmp_path: Path) -> None:
+    # A manager killed (SIGKILL) stays in the graph until its participant's lease ends; the node hears of it first
+    # by its broadcaster's silence (no measurement for measurement_timeout), then by its successor: the command is
+    # held once (counted) and resumed once the respawned manager's spawners are done.
+    result = _probe(bringup[0], [
+        ACTIVE, {'command': 0.0}, _fate('reached', 0.0),
+        {'command': -0.07}, {'moving': True},
+        {'kill_manager': True}, _fate('reached', -0.07, timeout=60.0),
+    ], tmp_path)
+    _reached(result, -0.07)
+    killed = next(e for e in result['log'] if 'kill_manager' in e['step'])
+    assert killed['result']['killed'], killed
+    held = int(result['status']['commands_held']) - int(killed['status']['commands_held'])
+    assert held == 1, f'held {held} times after the kill; the node\'s states: {result["statuses"]}'
