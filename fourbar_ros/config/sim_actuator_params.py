@@ -1,7 +1,7 @@
 """The sim_actuator node's own parameters (it also reads the linkage's, ``fourbar_ros.config.params``). No ROS.
 
 Angles, speeds and accelerations are the driven joint's (rad, rad/s, rad/s^2: the reducer's output side), times in
-seconds, torques in N m. Every parameter is read once, at startup.
+seconds, torques in N m. Every parameter is read once, at startup, but ``controller_active`` (settable at run time).
 """
 
 from __future__ import annotations
@@ -48,6 +48,10 @@ SIM_PARAMETERS: tuple[ParamSpec, ...] = (
               'Standard deviation of Gaussian noise on the measured effort (0: none).', 0.0, 1.0e6),
     ParamSpec('noise_seed', int, 0, '',
               'Seed of the noise generator (the same seed gives the same noise).', 0, 2**63 - 1),
+    ParamSpec('controller_active', bool, True, '',
+              'Whether its controllers (trajectory and forward) are active; settable at run time. False: what is sent '
+              'to them is dropped and the drive holds where it is, as deactivated controllers do. Published as a '
+              'controller manager\'s controller_manager/activity where controller_manager_msgs is installed.'),
 )
 
 SIM_PARAMETERS_BY_NAME: dict[str, ParamSpec] = {p.name: p for p in SIM_PARAMETERS}
@@ -69,6 +73,7 @@ class SimSettings:
     velocity_noise: float
     effort_noise: float
     noise_seed: int
+    controller_active: bool
 
     def as_values(self) -> dict[str, ParamValue]:
         """Parameter name -> value."""

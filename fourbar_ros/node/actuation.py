@@ -5,6 +5,7 @@ and publishers. Topics per mode: docs/reference/topics.md; the motion: docs/expl
 
 from __future__ import annotations
 
+import time
 from collections import deque
 from collections.abc import Callable
 from typing import Any
@@ -18,7 +19,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.controllers import ForwardControllerSettings, TrajectoryControllerSettings
 from fourbar_ros.interface.joint_trajectory import TYPE_NAMES, joint_trajectory
-from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
+from fourbar_ros.interface.stamps import seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import (
     ANTENNA_TRAJECTORY,
     MEASURED_JOINT_STATES,
@@ -71,6 +72,7 @@ class Actuation:
         self.motion: Motion | None = None
         self.measured: JointMotionState | None = None
         self.measured_ns = 0  # when self.measured was measured, node clock
+        self._measured_at = 0.0  # when it arrived, steady clock (s)
         self._setpoints: Setpoints | None = None
         #: (time on the node clock the setpoint stands for, ns; position rad) of the setpoints published
         self.recent_setpoints: deque[tuple[int, float]] = deque(maxlen=RECENT_SETPOINTS)
@@ -122,6 +124,7 @@ class Actuation:
             v = velocity if velocity is not None and velocity - velocity == 0.0 else 0.0
             self.measured = JointMotionState(position, v)
             self.measured_ns = stamp_ns if stamp_ns else self._now_ns()
+            self._measured_at = time.monotonic()
             if not self.fates.measured:
                 self.fates.measured = True
                 self._resume()
@@ -194,9 +197,9 @@ class Actuation:
             return
         before, cfg, now_ns = fates.current.fate, self._config(), self._now_ns()
         fates.settings = FateSettings.of(cfg)
-        age = now_ns - self.measured_ns
-        if fates.measured and age > seconds_to_ns(cfg.measurement_timeout):
-            fates.unmeasured(f'no measured driven joint for {ns_to_seconds(age):.3g} s', now_ns)
+        age = time.monotonic() - self._measured_at
+        if fates.readiness is Readiness.ACTIVE and fates.measured and age > cfg.measurement_timeout:
+            fates.unmeasured(f'no measured driven joint for {age:.3g} s', now_ns)
         fates.tick(now_ns, self.theta)
         self._said(before)
 

@@ -24,10 +24,12 @@ from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, si
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, forward_topic, trajectory_topic
+from fourbar_ros.node.controller_watch import ACTIVITY_QOS, activity_type
 from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.timers import periodic_timer
+from fourbar_ros.rules.command_fate import ACTIVE_LABEL
 from fourbar_ros.rules.controller_contract import check_forward_command
 from fourbar_ros.rules.simulated_drive import DriveLimits, Encoder, LagActuator, TrajectoryFollower, effort_at
 from fourbar_ros.runtime.problem_log import ProblemLog
@@ -48,6 +50,8 @@ class SimCounters:
     forward_deactivations: int = 0
     joint_states_published: int = 0
     joint_states_skipped: int = 0
+    #: trajectories and forward commands sent while its controllers are inactive (``controller_active`` false)
+    dropped_inactive: int = 0
 
 
 class SimActuator(Node):
@@ -71,7 +75,10 @@ class SimActuator(Node):
             destroy_node(self)
             raise
         self.declare_parameters('', list(declarations(self.config.as_values(), read_only=True)))
-        self.declare_parameters('', list(declarations(self.settings.as_values(), SIM_PARAMETERS, read_only=True)))
+        own = declarations(self.settings.as_values(), SIM_PARAMETERS, read_only=True)
+        for name, _, descriptor in own:
+            descriptor.read_only = name != 'controller_active'
+        self.declare_parameters('', list(own))
         cfg, s = self.config, self.settings
         lim = joint_limits(cfg)[cfg.driven_joint]
         self.drive = LagActuator(DriveLimits(lim.lower, lim.upper, s.max_velocity, s.max_acceleration,
@@ -80,6 +87,7 @@ class SimActuator(Node):
                                s.velocity_noise, s.effort_noise, s.noise_seed)
         self.counters = SimCounters()
         self.forward_active = True
+        self.controller_active = s.controller_active
         self.follower = TrajectoryFollower(jtc, s.joint, self.drive.position, 1.0 / s.publish_rate)
         self._clock: Any = self.get_clock()
         self._last_tick_ns: int | None = None
@@ -93,11 +101,46 @@ class SimActuator(Node):
         self.create_subscription(JointTrajectory, jt.name, guard.wrap('sub_trajectory', self._on_trajectory), qos(jt))
         self.create_subscription(Float64MultiArray, fw.name, guard.wrap('sub_forward', self._on_forward), qos(fw))
         self._tick_clock: Any = periodic_timer(self, 1.0 / s.publish_rate, guard.wrap('tick', self._on_tick)).clock
+        self.add_post_set_parameters_callback(guard.wrap('after_set_parameters', self._after_set_parameters))
+        # Where controller_manager_msgs is installed, it says what a controller manager would of its controllers.
+        self._activity_type, _ = activity_type()
+        self._activity_pub = (None if self._activity_type is None else
+                              self.create_publisher(self._activity_type, 'controller_manager/activity', ACTIVITY_QOS))
+        self._publish_activity()
+
+    def _after_set_parameters(self, params: list[Any]) -> None:
+        for p in params:
+            if p.name == 'controller_active' and p.value != self.controller_active:
+                self.controller_active = bool(p.value)
+                # deactivated or activated, the controller holds the drive where it is
+                self.follower.hold(self.drive.position)
+                self._publish_activity()
+
+    def _publish_activity(self) -> None:
+        """controller_manager/activity as a manager with this node's controllers and one active hardware component."""
+        if self._activity_pub is None:
+            return
+        from controller_manager_msgs.msg import NamedLifecycleState  # type: ignore[import-not-found,unused-ignore]
+        from lifecycle_msgs.msg import State  # type: ignore[import-untyped,unused-ignore]
+
+        def named(name: str, active: bool) -> Any:
+            return NamedLifecycleState(name=name, state=State(
+                id=State.PRIMARY_STATE_ACTIVE if active else State.PRIMARY_STATE_INACTIVE,
+                label=ACTIVE_LABEL if active else 'inactive'))
+        cfg = self.config
+        msg = self._activity_type(controllers=[named(cfg.trajectory_controller, self.controller_active),
+                                               named(cfg.forward_controller, self.controller_active)],
+                                  hardware_components=[named(cfg.hardware_id, True)])
+        msg.header.stamp = self._clock.now().to_msg()
+        self._activity_pub.publish(msg)
 
     def _refuse(self, kind: str, why: str) -> None:
         self._problems.warn(f'{kind} refused', f'{kind} refused: {why}')
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
+        if not self.controller_active:  # an inactive controller drops what it is sent
+            self.counters.dropped_inactive += 1
+            return
         refusal = self.follower.receive(msg.joint_names, msg.points, to_ns(msg.header.stamp),
                                         self._clock.now().nanoseconds)
         if refusal is not None:
@@ -107,6 +150,9 @@ class SimActuator(Node):
         # forward_command_controller's update (jazzy): a command of NaN only is no command; a wrong size fails the
         # update, and the controller manager deactivates the controller (further commands are not written).
         data = list(msg.data)
+        if not self.controller_active:
+            self.counters.dropped_inactive += 1
+            return
         if not self.forward_active:
             self.counters.commands_rejected += 1
             self._refuse('forward command', 'the forward controller was deactivated by a command of the wrong size')

@@ -390,3 +390,29 @@ def test_a_drive_that_cannot_follow_is_held_where_it_is(rig: Any) -> None:
     first = len(r.states)
     r.settle_at(held, first)
     assert held < Q0 + 0.02 and r.node.follower.holding_reason is not None
+
+
+def test_an_inactive_controller_drops_what_it_is_sent_and_holds_the_drive(rig: Any) -> None:
+    # As a deactivated joint_trajectory_controller or forward_command_controller: what arrives is dropped (never
+    # taken over later), the drive holds where it is; once active again a trajectory is followed.
+    r = rig()
+    result = r.node.set_parameters([Parameter('controller_active', value=False)])[0]
+    assert result.successful, result.reason
+    msg = JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.03, 0.3)])
+    r.traj_pub.publish(msg)
+    r.forward([Q0 + 0.03])
+    r.ros.wait_for(lambda: r.node.counters.dropped_inactive == 2, what='both dropped')
+    start = len(r.states)
+    r.states.wait_count(start + 50)  # 0.5 s at 100 Hz, past the trajectory's end
+    assert all(abs(m.position[0] - Q0) <= SETTLED for m in r.states.messages[start:]), 'the drive moved'
+    assert r.node.set_parameters([Parameter('controller_active', value=True)])[0].successful
+    r.traj_pub.publish(msg)
+    r.settle_at(Q0 + 0.03, len(r.states))
+    assert r.node.counters.dropped_inactive == 2
+
+
+def test_only_controller_active_is_settable_at_run_time(rig: Any) -> None:
+    r = rig()
+    assert not r.node.set_parameters([Parameter('publish_rate', value=50.0)])[0].successful
+    assert not r.node.set_parameters([Parameter('controller_active', value=3.0)])[0].successful
+    assert r.node.controller_active

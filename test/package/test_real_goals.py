@@ -142,6 +142,9 @@ def test_a_goal_the_controller_aborts_is_counted_with_its_reason(bringup: Bringu
     assert status['last_goal_failure'] == 'aborted', status
     assert status['last_goal_error_code'] == '-4 (PATH_TOLERANCE_VIOLATED)', status
     assert status['last_goal_error_string'] == 'Aborted due to path tolerance violation', status
+    # the command's fate, from the same callback: interrupted with the controller's reason, not resumed
+    assert status['command_fate'] == 'interrupted', status
+    assert 'PATH_TOLERANCE_VIOLATED' in status['command_fate_reason'], status
     assert abs(result['measured'] - _driven(0.05)) > 1e-3, result  # held short of the commanded angle
     bringup.launch.wait_output(lambda t: 'joint_trajectory_controller aborted a FollowJointTrajectory goal: error_code '
                                '-4 (PATH_TOLERANCE_VIOLATED): Aborted due to path tolerance violation' in t,

@@ -1,7 +1,8 @@
 """fourbar_node across its controller's lifecycle, on the real ros2_control stack (the package's launch file, mock
 hardware, one controller manager for the module): a command while the controller is inactive or not yet spawned,
 one interrupted by a deactivation, by its hardware component's deactivation and by the controller manager's death
-and respawn; each ends reached (or interrupted, as the parameter says), and the node's diagnostics say so.
+and respawn; each ends reached (or interrupted, as the parameter says), and the node's diagnostics say so. The
+simulated actuator, playing a controller manager where controller_manager_msgs is installed, gives the same fates.
 
 Runs where the ros2 command line, launch_ros and ros2_control are installed; skipped elsewhere with the reason.
 """
@@ -9,12 +10,14 @@ Runs where the ros2 command line, launch_ros and ros2_control are installed; ski
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
 from support.colcon_support import CliEnv, launch_missing, ros2, ros2_cli_missing
 from support.paths import REPO
@@ -33,6 +36,9 @@ JTC = 'joint_trajectory_controller'
 HARDWARE = 'fourbar_antenna_tilt'
 #: The node's reached_tolerance (rad, the shipped default): a reached command's measured angle is within it.
 REACHED_TOLERANCE = 1e-3
+#: Random lifecycle sequences in `make test`; `make test-stress` runs FOURBAR_LIFECYCLE_SEQUENCES (default 100).
+QUICK, STRESS = 3, int(os.environ.get('FOURBAR_LIFECYCLE_SEQUENCES', '100'))
+FATES = ('reached', 'interrupted', 'superseded', 'dropped')
 
 
 @pytest.fixture(scope='module')
@@ -51,11 +57,11 @@ def bringup(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
         launch.kill()
 
 
-def _probe(env: CliEnv, steps: list[dict[str, Any]], tmp_path: Path) -> dict[str, Any]:
+def _probe(env: CliEnv, steps: list[dict[str, Any]], tmp_path: Path, namespace: str = NAMESPACE) -> dict[str, Any]:
     """Run the steps; every step must have done what it asked (the failure shows the log and the node's states)."""
     path, out = tmp_path / 'steps.json', tmp_path / 'out.json'
     path.write_text(json.dumps(steps), encoding='utf-8')
-    done = subprocess.run([sys.executable, str(PROBE), f'/{NAMESPACE}', str(path), str(out)], env=env.env,
+    done = subprocess.run([sys.executable, str(PROBE), f'/{namespace}', str(path), str(out)], env=env.env,
                           capture_output=True, text=True, timeout=120 + 40 * len(steps), check=False)
     assert done.returncode == 0, done.stdout[-3000:] + done.stderr[-3000:]
     result = dict(json.loads(out.read_text(encoding='utf-8')))
@@ -168,3 +174,95 @@ def test_a_command_held_across_the_controller_managers_death_and_respawn_is_reac
     assert killed['result']['killed'], killed
     held = int(result['status']['commands_held']) - int(killed['status']['commands_held'])
     assert held == 1, f'held {held} times after the kill; the node\'s states: {result["statuses"]}'
+
+
+def _random_sequence(rng: np.random.Generator) -> list[dict[str, Any]]:
+    """2-6 events at random times (0-0.8 s apart): commands in the tilt range, the controller and the hardware
+    component switched off and on (the controller not activated while the hardware is inactive); then both active
+    again. The whole spans well under the hold timeout (15 s)."""
+    steps: list[dict[str, Any]] = []
+    controller = hardware = True
+    for _ in range(int(rng.integers(2, 7))):
+        steps.append({'pause': round(float(rng.uniform(0.0, 0.8)), 3)})
+        kind = rng.choice(['command', 'command', 'controller', 'hardware'])
+        if kind == 'command':
+            steps.append({'command': round(float(rng.uniform(-0.09, 0.09)), 4)})
+        elif kind == 'controller' and (controller or hardware):
+            # the manager refuses to activate it while its hardware component is inactive ("prepare command mode
+            # switch was rejected")
+            steps.append({'switch': {'deactivate' if controller else 'activate': [JTC]}})
+            controller = not controller
+        else:
+            hardware = not hardware
+            steps.append({'hardware': [HARDWARE, 'active' if hardware else 'inactive']})
+    if not hardware:
+        steps.append({'hardware': [HARDWARE, 'active']})
+    if not controller:
+        steps.append({'switch': {'activate': [JTC]}})
+    return steps
+
+
+def _sequences(bringup: tuple[CliEnv, Background], tmp_path: Path, count: int, seed: int) -> None:
+    """``count`` random sequences, each started from a reached command and ended with the controller active: the
+    last command is reached, every command of the sequence has one final fate, nothing was refused by the
+    controller's contract and no callback failed."""
+    rng = np.random.default_rng(seed)
+    steps: list[dict[str, Any]] = []
+    for i in range(count):
+        theta = round(float(rng.uniform(-0.09, 0.09)), 4)
+        sequence = _random_sequence(rng)
+        last = [s['command'] for s in sequence if 'command' in s]
+        end = last[-1] if last else theta
+        steps += [{'mark': i}, ACTIVE, {'command': theta}, _fate('reached', theta), {'mark': 'start'}, *sequence,
+                  _fate('reached', end), {'mark': 'end'}]
+    result = _probe(bringup[0], steps, tmp_path)
+    marks = [e for e in result['log'] if 'mark' in e['step']]
+    for start, end in zip(marks[1::3], marks[2::3], strict=True):
+        i = result['log'].index(start)
+        sequence = result['log'][i:result['log'].index(end)]
+        commands = sum('command' in e['step'] for e in sequence)
+        before, after = start['status'], end['status']
+        grown = {f: int(after[f'commands_{f}']) - int(before[f'commands_{f}']) for f in FATES}
+        assert sum(grown.values()) == commands, (
+            f'{commands} commands, final fates {grown}: {[e["step"] for e in sequence]}')
+        refused = {k: v for k, v in after.items() if k.startswith('contract_refused_') and v != before[k]}
+        assert not refused and after['callback_errors'] == '0', (refused, after['callback_errors'])
+
+
+def test_random_lifecycles_end_with_the_last_command_reached(bringup: tuple[CliEnv, Background],
+                                                               tmp_path: Path) -> None:
+    _sequences(bringup, tmp_path, QUICK, 2026)
+
+
+@pytest.mark.stress
+def test_many_random_lifecycles_end_with_the_last_command_reached(bringup: tuple[CliEnv, Background],
+                                                                  tmp_path: Path) -> None:
+    _sequences(bringup, tmp_path, STRESS, 7)
+
+
+@pytest.fixture(scope='module')
+def simulated(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
+    """The package's launch with the simulated actuator in /simlife, controller_manager_msgs on the paths."""
+    if (why := ros2_control_missing(ros2_cli.env)) is not None:
+        pytest.skip(why)
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=simlife',
+                         'sim_actuator:=true', 'mode:=trajectory', 'robot_state_publisher:=false', 'rviz:=false'],
+                        ros2_cli.env, cwd=ros2_cli.cwd)
+    try:
+        wait_node(ros2_cli.env, '/simlife/fourbar_node')
+        yield ros2_cli, launch
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+    finally:
+        launch.kill()
+
+
+def test_the_simulated_actuator_inactive_gives_the_real_controllers_fates(simulated: tuple[CliEnv, Background],
+                                                                           tmp_path: Path) -> None:
+    param = [ros2(), 'param', 'set', '/simlife/sim_actuator', 'controller_active']
+    result = _probe(simulated[0], [
+        ACTIVE,
+        {'run': [*param, 'false']}, _until(controller_state='inactive'),
+        {'command': 0.04}, _fate('held', 0.04, command_fate_reason='controller inactive'),
+        {'run': [*param, 'true']}, _fate('reached', 0.04),
+    ], tmp_path, namespace='simlife')
+    _reached(result, 0.04)

@@ -12,7 +12,9 @@ deadline (never on time alone):
 - ``{"run": [...]}``: a command line (e.g. the spawner), to its exit;
 - ``{"kill_manager": true}``: SIGKILL to this namespace's ros2_control_node;
 - ``{"until": {key: value, ...}, "timeout": s}``: wait until the node's diagnostics show every value;
-- ``{"moving": true, "timeout": s}``: wait until the measured driven joint moves.
+- ``{"moving": true, "timeout": s}``: wait until the measured driven joint moves;
+- ``{"pause": s}``: let time pass (a random sequence's spacing; not a wait for anything);
+- ``{"mark": anything}``: nothing (a boundary in the log).
 OUT.json: ``log`` (per step: the step, its time, what it returned and the node's status after it), ``statuses``
 (time, the node's controller state, command fate and its reason, every status change), ``measured`` (time,
 driven joint rad, at most every 10 ms), ``status`` (the last status: key -> value). Times in s on the steady
@@ -158,6 +160,8 @@ def main(namespace: str, steps_path: str, out_path: str) -> int:
                     with lock:
                         return all(status.get(k) == v for k, v in want.items())
                 result = {'seen': wait(shows, float(step.get('timeout', 30.0)))}
+            elif 'pause' in step:
+                time.sleep(float(step['pause']))
             elif 'moving' in step:
                 first = measured[-1][1]
                 result = {'seen': wait(lambda first=first: abs(measured[-1][1] - first) > 1e-4,
