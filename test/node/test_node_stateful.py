@@ -111,12 +111,14 @@ class Rig:
         last one it accepted."""
         node, follower = self.node.actuation.counters, self.sim.follower
         self.ros.wait_for(lambda: follower.counters.accepted + sum(follower.counters.refused.values())
-                          + follower.counters.refused_not_finite >= node.trajectories_sent
+                          + follower.counters.refused_not_finite + self.sim.counters.dropped_inactive
+                          >= node.trajectories_sent
                           and follower._pending is None,
                           what=f'the sim to take over the node\'s {node.trajectories_sent} trajectories '
                                f'(accepted {follower.counters.accepted}, refused {follower.counters.refused})')
 
     def close(self) -> None:
+        self.sim.set_parameters([Parameter('controller_active', value=True)])
         self.ros.destroy(self.cmd, self.antenna, self.fake)
         self.ros.remove_node(self.node)
         self.ros.remove_node(self.sim)
@@ -198,6 +200,13 @@ class Sequences(RuleBasedStateMachine):
                                                 Parameter('replan_tolerance', value=tolerance)])
         assert all(r.successful for r in results), [r.reason for r in results]
 
+    @rule(active=st.booleans())
+    def controller(self, active: bool) -> None:
+        """The simulated controllers deactivated or activated (as `switch_controllers` does): while inactive what the
+        node sends is dropped and the drive holds."""
+        results = self.rig.sim.set_parameters([Parameter('controller_active', value=active)])
+        assert all(r.successful for r in results), [r.reason for r in results]
+
     @invariant()
     def nothing_broke(self) -> None:
         rig = self.rig
@@ -208,6 +217,12 @@ class Sequences(RuleBasedStateMachine):
         follower = rig.sim.follower.counters
         assert sum(follower.refused.values()) + follower.refused_not_finite == 0, rig.refusals
         assert rig.worst <= 1.0 + ROUNDING, (rig.worst, rig.worst_reference)
+        # every served command has one fate: final, but for the latest
+        fates = node.actuation.fates
+        served = node.counters.commands_accepted + node.counters.commands_clamped
+        finals = sum(n for f, n in fates.counts.items() if f.final)
+        pending = fates.current is not None and not fates.current.fate.final
+        assert finals + pending == served, (served, fates.counts, fates.current)
 
 
 def _run(rig: Rig, examples: int, steps: int) -> None:
