@@ -102,6 +102,16 @@ def test_a_command_while_the_controller_is_inactive_is_reached_once_it_is_active
         {'switch': {'activate': [JTC]}}, _fate('reached', 0.04),
     ], tmp_path)
     _reached(result, 0.04)
+    print(f'from the activation to the motion: {_motion_after(result, "switch", -1):.3f} s')
+
+
+def _motion_after(result: dict[str, Any], kind: str, which: int) -> float:
+    """Seconds from the start of the step of ``kind`` (the ``which``th) to the first measured driven joint
+    1e-6 rad or more from where it was then (the probe samples it every 10 ms or so)."""
+    at = [e['at'] for e in result['log'] if kind in e['step']][which]
+    measured = [m for m in result['measured'] if m[0] >= at]
+    moved = next(t for t, q in measured if abs(q - measured[0][1]) >= 1e-6)
+    return float(moved - at)
 
 
 def test_a_command_before_the_controller_is_spawned_is_reached_once_the_spawner_has_run(
@@ -238,6 +248,38 @@ def test_random_lifecycles_end_with_the_last_command_reached(bringup: tuple[CliE
 def test_many_random_lifecycles_end_with_the_last_command_reached(bringup: tuple[CliEnv, Background],
                                                                   tmp_path: Path) -> None:
     _sequences(bringup, tmp_path, STRESS, 7)
+
+
+@pytest.fixture(scope='module')
+def forward(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
+    """The package's ros2_control bringup in forward mode, in /lifefwd."""
+    if (why := ros2_control_missing(ros2_cli.env)) is not None:
+        pytest.skip(why)
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=lifefwd',
+                         'use_ros2_control:=true', 'mode:=forward', 'rviz:=false'], ros2_cli.env, cwd=ros2_cli.cwd)
+    try:
+        wait_node(ros2_cli.env, '/lifefwd/fourbar_node')
+        launch.wait_output(lambda t: 'Configured and activated forward_position_controller' in t,
+                           'the forward controller active')
+        yield ros2_cli, launch
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+    finally:
+        launch.kill()
+
+
+def test_forward_mode_holds_a_command_while_its_controller_is_inactive_and_resumes_an_interrupted_one(
+        forward: tuple[CliEnv, Background], tmp_path: Path) -> None:
+    fwd = 'forward_position_controller'
+    result = _probe(forward[0], [
+        ACTIVE,
+        {'switch': {'deactivate': [fwd]}}, _until(controller_state='inactive'),
+        {'command': 0.04}, _fate('held', 0.04, command_fate_reason='controller inactive'),
+        {'switch': {'activate': [fwd]}}, _fate('reached', 0.04),
+        {'command': -0.08}, {'moving': True},
+        {'switch': {'deactivate': [fwd]}}, _fate('held', -0.08, controller_state='inactive'),
+        {'switch': {'activate': [fwd]}}, _fate('reached', -0.08),
+    ], tmp_path, namespace='lifefwd')
+    _reached(result, -0.08)
 
 
 @pytest.fixture(scope='module')
