@@ -9,6 +9,7 @@ Runs where the ros2 command line, launch_ros and ros2_control are installed; ski
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import subprocess
@@ -27,6 +28,8 @@ if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
 from support.ros_cli_support import Background, wait_node  # psutil: with ros2cli
+
+from fourbar_ros.config.antenna_config import load_config
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -102,7 +105,17 @@ def test_a_command_while_the_controller_is_inactive_is_reached_once_it_is_active
         {'switch': {'activate': [JTC]}}, _fate('reached', 0.04),
     ], tmp_path)
     _reached(result, 0.04)
-    print(f'from the activation to the motion: {_motion_after(result, "switch", -1):.3f} s')
+    print(f'from the activation to the motion: {_motion_after(result, "switch", -1):.3f} s; the largest step of '
+          f'the controller\'s reference acceleration in one update: {_largest_step(result):.1%} of the limit')
+
+
+def _largest_step(result: dict[str, Any]) -> float:
+    """The largest change of joint_trajectory_controller's reference acceleration between two updates, as a
+    fraction of the driven joint's acceleration limit (motor_acceleration_limit through reducer_ratio)."""
+    cfg = load_config(REPO / 'config' / 'antenna.yaml')
+    limit = cfg.motor_acceleration_limit / abs(cfg.reducer_ratio)
+    a = [r[1] for r in result['references']]
+    return max((abs(y - x) for x, y in itertools.pairwise(a)), default=0.0) / limit
 
 
 def _motion_after(result: dict[str, Any], kind: str, which: int) -> float:

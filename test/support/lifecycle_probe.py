@@ -17,7 +17,8 @@ deadline (never on time alone):
 - ``{"mark": anything}``: nothing (a boundary in the log).
 OUT.json: ``log`` (per step: the step, its time, what it returned and the node's status after it), ``statuses``
 (time, the node's controller state, command fate and its reason, every status change), ``measured`` (time,
-driven joint rad, at most every 10 ms), ``status`` (the last status: key -> value). Times in s on the steady
+driven joint rad, at most every 10 ms), ``references`` (time, joint_trajectory_controller's reference
+acceleration rad/s^2, every update), ``status`` (the last status: key -> value). Times in s on the steady
 clock from the start.
 """
 
@@ -36,6 +37,7 @@ from typing import Any
 import psutil
 import rclpy
 from builtin_interfaces.msg import Duration
+from control_msgs.msg import JointTrajectoryControllerState
 from controller_manager_msgs.srv import SetHardwareComponentState, SwitchController, UnloadController
 from diagnostic_msgs.msg import DiagnosticArray
 from lifecycle_msgs.msg import State
@@ -59,6 +61,7 @@ def main(namespace: str, steps_path: str, out_path: str) -> int:
     status: dict[str, str] = {}
     statuses: list[list[Any]] = []
     measured: list[list[float]] = []
+    references: list[list[float]] = []
     lock = threading.Lock()
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
@@ -79,7 +82,13 @@ def main(namespace: str, steps_path: str, out_path: str) -> int:
             if not measured or now - measured[-1][0] >= 0.01:
                 measured.append([now, float(msg.position[list(msg.name).index(JOINT)])])
 
+    def on_reference(msg: JointTrajectoryControllerState) -> None:
+        if msg.reference.accelerations:
+            references.append([time.monotonic() - t0, float(msg.reference.accelerations[0])])
+
     reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    node.create_subscription(JointTrajectoryControllerState, 'joint_trajectory_controller/controller_state',
+                             on_reference, QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE))
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, reliable)
     node.create_subscription(JointState, 'joint_state_broadcaster/joint_states', on_joints, 10)
     to_node = node.create_publisher(Float64, 'antenna_angle_cmd', reliable)
@@ -171,7 +180,8 @@ def main(namespace: str, steps_path: str, out_path: str) -> int:
             if isinstance(result, str) or (isinstance(result, dict) and not result.get('seen', True)):
                 break
         with lock:
-            out = {'log': log, 'statuses': statuses, 'measured': measured, 'status': dict(status)}
+            out = {'log': log, 'statuses': statuses, 'measured': measured, 'references': references,
+                   'status': dict(status)}
         Path(out_path).write_text(json.dumps(out), encoding='utf-8')
         return 0
     finally:
