@@ -79,6 +79,11 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     if measured_ns is not None and 0 <= now_ns - measured_ns <= seconds_to_ns(MEASURED_AGE_MAX_S):
         at_ns = measured_ns
     age = ns_to_seconds(now_ns - at_ns)
+    # In trajectory mode a start from the measured state lies ARRIVAL_MARGIN_S ahead: the controller holds the drive
+    # until then (its lead-in to a first point where the drive is), so the motion starts at its beginning, not
+    # part-way in, whenever the trajectory arrives within the margin.
+    ahead = ARRIVAL_MARGIN_S if lead > 0.0 else 0.0
+    origin_ns = now_ns + seconds_to_ns(ahead)
     if motion is not None and not motion.done(now_ns):
         now_state = motion.state_at(now_ns)
         if measured is None or abs(measured.position - motion.state_at(at_ns).position) <= cfg.replan_tolerance:
@@ -86,9 +91,9 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
             if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC:
                 return _continuing(motion, traj, now_ns, lead, now_state)
             return Start(now_state, now_ns)
-        return _from_measured(cfg, carried(cfg, measured, age), now_ns, left=True)
+        return _from_measured(cfg, carried(cfg, measured, age + ahead), origin_ns, left=True)
     if measured is not None:
-        return _from_measured(cfg, carried(cfg, measured, age), now_ns, left=False)
+        return _from_measured(cfg, carried(cfg, measured, age + ahead), origin_ns, left=False)
     return None if motion is None else Start(motion.state_at(now_ns), now_ns)
 
 

@@ -14,6 +14,7 @@ from support.trajectory_points import antenna_points
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
 from fourbar_ros.config.controllers import trajectory_controller
+from fourbar_ros.interface.stamps import seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles
@@ -175,7 +176,7 @@ def test_a_one_point_trajectory_is_given_the_time_its_whole_motion_needs() -> No
     refused under its own problem."""
     rest = JointMotionState(q_of(0.0))
     start = motion_start(RETIME, None, rest, 0, takeover_lead(RETIME))
-    assert start == Start(rest, 0)
+    assert start == Start(rest, seconds_to_ns(ARRIVAL_MARGIN_S))  # the controller holds the drive until then
     points = antenna_points([0.05], [0.1], [0.0])
     as_is = controller_reference(True, [ControllerPoint(0.05, q_of(0.1), 0.0)], None, PERIOD, rest.position, 0.0,
                                  PERIOD)

@@ -14,6 +14,7 @@ from support.trajectory_points import antenna_points as pts
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.stamps import seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Plan, driven_angles
@@ -142,10 +143,14 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
                                            float(sent.trajectory.accelerations[k]))  # type: ignore[union-attr, index]
     # Held at the start (a refused trajectory, or a hold after a tolerance violation): the measured state.
     held = JointMotionState(q)
-    assert motion_start(CFG, motion, held, now, lead) == Start(held, now, from_measured=True)
+    # (in trajectory mode ARRIVAL_MARGIN_S ahead: the controller holds the drive until the motion's beginning)
+    ahead = now + seconds_to_ns(ARRIVAL_MARGIN_S)
+    assert motion_start(CFG, motion, held, now, lead) == Start(held, ahead, from_measured=True)
+    assert motion_start(CFG, motion, held, now, 0.0) == Start(held, now, from_measured=True)
     assert motion_start(CFG, motion, None, now, 0.0) == Start(model, now)  # nothing measured: the motion
     done = start_ns + round(plan.duration * 1e9) + 1
-    assert motion_start(CFG, motion, held, done, lead) == Start(held, done)  # no motion running: the measurement
+    assert motion_start(CFG, motion, held, done, lead) == Start(held, done + seconds_to_ns(ARRIVAL_MARGIN_S))
+    assert motion_start(CFG, motion, held, done, 0.0) == Start(held, done)  # no motion running: the measurement
     assert motion_start(CFG, None, None, now, lead) is None
     # The plan from the held state starts there: the drive is sent no step.
     assert plan_command(CFG, held, 0.0).state_at(0.0) == held
@@ -227,14 +232,16 @@ def test_setpoint_streams_are_held_to_every_limit_by_their_divided_differences()
 
 def test_each_input_has_one_entry_returning_what_goes_out_or_a_refusal() -> None:
     """A served command and an antenna trajectory message, each through its entry: what goes out (a trajectory
-    stamped with its start, 0 for a short motion starting now; setpoints in forward mode) or a refusal, counted."""
+    stamped with its start, ARRIVAL_MARGIN_S ahead from the measured state; 0 for one starting on arrival;
+    setpoints in forward mode) or a refusal, counted."""
     jtc, fwd = actuation_contract(CFG, 'trajectory'), actuation_contract(CFG, 'forward')
     now, counters = 10**12, ActuationCounters()
     rest = Drive(measured=JointMotionState(float(driven_angles(CFG, np.array([0.0]))[0])), measured_ns=now)
     assert serve_command(CFG, jtc, Drive(), 0.03, now, counters).key == 'command no start'  # type: ignore[union-attr]
     far, near = (serve_command(CFG, jtc, rest, theta, now, counters) for theta in (0.03, 1e-5))
-    assert isinstance(far, Outgoing) and far.stamp_ns == far.motion.start_ns == now and far.setpoints is None
-    assert isinstance(near, Outgoing) and near.stamp_ns == 0 and near.motion.duration <= ARRIVAL_MARGIN_S
+    ahead = now + seconds_to_ns(ARRIVAL_MARGIN_S)
+    assert isinstance(far, Outgoing) and far.stamp_ns == far.motion.start_ns == ahead and far.setpoints is None
+    assert isinstance(near, Outgoing) and near.stamp_ns == near.motion.start_ns == ahead
     stream = serve_command(CFG, fwd, rest, 0.03, now, counters)
     assert isinstance(stream, Outgoing) and stream.setpoints is not None and not stream.points
     msg = SimpleNamespace(header=SimpleNamespace(stamp=Duration()), joint_names=[ANTENNA_JOINT],
