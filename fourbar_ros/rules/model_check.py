@@ -46,14 +46,14 @@ class SensorCounters:
     sensor_readings_skipped_out_of_reach: int = 0
 
 
-def imu_theta(ax: float, az: float) -> float | SensorSkipped:
-    """The antenna angle (rad) from an Imu's linear acceleration at rest (``core.calibration.imu_tilt``, the same
-    convention as ``fourbar calibrate``), or why there is none."""
-    if not (math.isfinite(ax) and math.isfinite(az)):
+def imu_theta(ax: float, ay: float, az: float) -> float | SensorSkipped:
+    """The antenna angle (rad) from an Imu's linear acceleration at rest (m/s^2; ``core.calibration.imu_tilt``, the
+    same convention as ``fourbar calibrate``, independent of the IMU's roll), or why there is none."""
+    if not (math.isfinite(ax) and math.isfinite(ay) and math.isfinite(az)):
         return SensorSkipped.NOT_FINITE
-    if math.hypot(ax, az) < MIN_GRAVITY:
+    if math.hypot(ax, ay, az) < MIN_GRAVITY:
         return SensorSkipped.NO_GRAVITY
-    return float(imu_tilt(ax, az))  # type: ignore[arg-type]
+    return float(imu_tilt(ax, ay, az))
 
 
 class ModelCheck:
