@@ -157,9 +157,9 @@ def _warnings(data: CalibrationData, fit: Calibration) -> list[str]:
     both = one_way(data.q[fit.kept])
     if both >= BOTH_WAYS_FRACTION:
         return []
-    return [f'the recording sweeps the joint one way only (its smaller of the largest rise and fall covers '
-            f'{100.0 * both:.0f}% of the span, below {100.0 * BOTH_WAYS_FRACTION:.0f}%): a lag or backlash of the '
-            'sensor or the drive cannot show and shifts the offsets; sweep both ways']
+    return [f'the recording sweeps the joint one way only (the way back covers {100.0 * both:.0f}% of the span, '
+            f'below {100.0 * BOTH_WAYS_FRACTION:.0f}%): a lag or backlash of the sensor or the drive cannot show and '
+            'shifts the offsets; sweep both ways']
 
 
 def _offsets(cfg: AntennaConfig, fit: Calibration) -> dict[str, float]:
@@ -243,7 +243,7 @@ def _parameters(fit: Calibration) -> dict[str, dict[str, Any]]:
 
 
 def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[str, Any]:
-    from fourbar_ros.core.calibration import DETERMINED_RATIO, PARAMETER_NAMES, SET_ASIDE_SDS
+    from fourbar_ros.core.calibration import DEFAULT_LOSS, DETERMINED_RATIO, PARAMETER_NAMES, SET_ASIDE_SDS
 
     kept = fit.kept
     before, after = fit.residuals_before[kept], fit.residuals_after[kept]
@@ -262,8 +262,8 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
         'joint_readings_invalid': data.joint_invalid,
         'imu_roll_rad': data.imu_roll if math.isfinite(data.imu_roll) else None,
         'readings_set_aside': fit.set_aside,
-        'set_aside_rule': (f'a robust fit (soft_l1) first; readings whose residual exceeds {SET_ASIDE_SDS:g} robust '
-                           'noise sds are set aside, the fit and its sds use the rest'),
+        'set_aside_rule': (f'a robust fit ({DEFAULT_LOSS} loss) first; readings whose residual exceeds '
+                           f'{SET_ASIDE_SDS:g} robust noise sds are set aside, the fit and its sds use the rest'),
         'tilt_span_rad': [float(theta.min()), float(theta.max())],
         'parameters': _parameters(fit),
         'residual_rms_rad': float(math.sqrt(float((after * after).mean()))),

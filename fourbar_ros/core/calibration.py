@@ -17,10 +17,11 @@ from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.numeric import ArrayLike, FloatArray
 
 __all__ = [
-    'DETERMINED_RATIO', 'LENGTH_BOUND', 'LENGTH_NAMES', 'LOSSES', 'OFFSET_SD', 'PARAMETER_NAMES', 'PRIOR_SDS_LIMIT',
-    'SET_ASIDE_SDS', 'Calibration', 'CalibrationError', 'FittedParameter', 'MapFit', 'Reference', 'calibrate',
-    'check_sensor_scale', 'far_from_prior', 'imu_roll', 'imu_tilt', 'imu_valid', 'map_fit', 'model_jacobian',
-    'model_mismatch', 'one_way', 'predict', 'sensor_scale',
+    'BOTH_WAYS_FRACTION', 'DEFAULT_LOSS', 'DETERMINED_RATIO', 'GRAVITY', 'LENGTH_BOUND', 'LENGTH_NAMES', 'LOSSES',
+    'OFFSET_SD', 'PARAMETER_NAMES', 'PRIOR_SDS_LIMIT', 'SCALE_LIMITS', 'SET_ASIDE_SDS', 'Calibration',
+    'CalibrationError', 'FittedParameter', 'MapFit', 'Reference', 'calibrate', 'check_sensor_scale', 'far_from_prior',
+    'imu_roll', 'imu_tilt', 'imu_valid', 'map_fit', 'model_jacobian', 'model_mismatch', 'one_way', 'predict',
+    'sensor_scale',
 ]
 
 #: The fitted parameters, in order: the four lengths (m, named as the node's parameters), then the offsets (rad).
@@ -45,7 +46,11 @@ LENGTH_BOUND = 0.5
 #: Robust losses of the first stage (rho of u^2, u = residual / (F_SCALE noise sd)): 'soft_l1' 2(sqrt(1 + u^2) - 1),
 #: 'huber' u^2 within 1 and 2|u| - 1 beyond, 'cauchy' log(1 + u^2); 'linear' u^2 (no robust stage).
 LOSSES = ('soft_l1', 'huber', 'cauchy', 'linear')
+DEFAULT_LOSS = 'soft_l1'
 F_SCALE = 1.0
+#: The robust stage ends when a pass moves the parameters less than this (prior sds), after MAX_PASSES at most: it
+#: only finds the outliers and the start of the Gaussian fit.
+ROBUST_TOL = 1e-3
 #: After the robust stage, readings whose residual exceeds this many robust noise sds are set aside; the Gaussian
 #: fit (and its sds) uses the rest. Gaussian noise passes 6 sd once in 5e8 readings.
 SET_ASIDE_SDS = 6.0
@@ -260,7 +265,7 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
               driven: Driven, branch: Branch, length_sd: float = 5e-4, offset_sd: float = OFFSET_SD,
               max_iterations: int | None = None, *, sensor_offset: float = 0.0,
               sensor_offset_sd: float = OFFSET_SD, references: Sequence[Reference] = (),
-              loss: str = 'soft_l1') -> Calibration:
+              loss: str = DEFAULT_LOSS) -> Calibration:
     """Fit the lengths (m, prior ``lengths`` in LENGTH_NAMES order, sd ``length_sd`` m) and the offsets (rad:
     driven_joint_offset prior 0 sd ``offset_sd``, sensor_offset prior ``sensor_offset`` sd ``sensor_offset_sd``)
     to paired readings: measured driven joint ``q_measured`` (rad) and sensor ``sensor_theta`` (rad), arrays of
@@ -310,7 +315,7 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
                                f'reach (first q={first!r} rad): check the parameter file and the joint')
     fit = map_fit(model, np.concatenate((y, y_ref)), p0, sd, PARAMETER_NAMES, max_iterations, unit='rad',
                   known_sd=np.array([r.sd for r in references], dtype=np.float64), loss=loss)
-    sources = [('the sensor readings', fit.data_information)]
+    sources = [(f'the noise of the {int(np.count_nonzero(fit.kept))} readings', fit.data_information)]
     sources += [(f'the prior of {name} (sd {sd[i]:.3g} {"m" if i < 4 else "rad"})',
                  np.diag(np.eye(len(sd))[i] / sd[i] ** 2)) for i, name in enumerate(PARAMETER_NAMES)]
     sources += [(f'the reference at joint {r.joint:.6g} rad (sd {r.sd:.3g} rad)', np.outer(row, row))
@@ -459,7 +464,7 @@ def map_fit(model: Model, y: FloatArray, p0: FloatArray, sd: FloatArray, names: 
             weights = _weights(r / (F_SCALE * sigma), loss)
             moved = float(np.max(np.abs(new_z - z)))
             z = new_z
-            if moved < STEP_TOL * 100.0:
+            if moved < ROBUST_TOL:
                 break
         kept = np.abs(r) <= SET_ASIDE_SDS * sigma
         if int(np.count_nonzero(kept)) <= k:
