@@ -59,6 +59,8 @@ class Sweep:
     sensor_scale: float = 1.0
     imu_roll: float = 0.0
     glitches: tuple[tuple[int, float], ...] = ()
+    #: The sensor's noise from one reading to the next, AR(1) with this lag-1 correlation (its sd sensor_noise).
+    noise_correlation: float = 0.0
 
     def linkage(self) -> AntennaLinkage:
         t = self.truth
@@ -103,7 +105,12 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     ts = np.arange(sweep.sensor_delay, sweep.duration, 1.0 / sweep.sensor_rate)
     qm = sweep.measured_q(sweep.true_q(sweep.theta(tj)))
     velocity, effort, has_velocity = _load(sweep, tj, rng)
-    reading = sweep.theta(ts) + sweep.truth['sensor_offset'] + rng.normal(0.0, sweep.sensor_noise, ts.size)
+    noise = rng.normal(0.0, sweep.sensor_noise, ts.size)
+    if sweep.noise_correlation:
+        rho, fresh = sweep.noise_correlation, math.sqrt(1.0 - sweep.noise_correlation ** 2)
+        for i in range(1, noise.size):
+            noise[i] = rho * noise[i - 1] + fresh * noise[i]
+    reading = sweep.theta(ts) + sweep.truth['sensor_offset'] + noise
     for i, added in sweep.glitches:
         reading[i] = math.nan if math.isnan(added) else reading[i] + added
     j_ns = _START_NS + seconds_to_ns(tj)

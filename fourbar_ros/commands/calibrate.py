@@ -271,6 +271,8 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
         'residual_rms_before_rad': float(math.sqrt(float((before * before).mean()))),
         'largest_residual_before_rad': float(abs(before).max()),
         'noise_sd_rad': fit.sigma,
+        'noise_lag1_correlation': fit.correlation,
+        'independent_readings': fit.independent * int(kept.sum()),
         'singular_values': [float(s) for s in fit.singular_values],
         'singular_directions': {'parameters': list(PARAMETER_NAMES),
                                 'rows': [[float(x) for x in row] for row in fit.directions]},
@@ -430,6 +432,9 @@ def _summary(report: dict[str, Any], files: dict[Path, bytes]) -> str:
                  'of its variance (1 sd, the largest over the swept range)')
     dropped = [f'{report["readings_set_aside"]} set aside as outliers', f'{report["sensor_readings_invalid"]} '
                'invalid sensor readings dropped']
+    if report['independent_readings'] < report['paired_readings'] - report['readings_set_aside']:
+        dropped.append(f'the residuals\' lag-1 correlation {report["noise_lag1_correlation"]:.2f} counts them as '
+                       f'{report["independent_readings"]:.0f} independent readings')
     if report['imu_roll_rad'] is not None:
         dropped.append(f'the IMU rolled {math.degrees(report["imu_roll_rad"]):.2f} deg about its x axis (the tilt '
                        'does not depend on it)')

@@ -58,6 +58,10 @@ SET_ASIDE_SDS = 6.0
 SCALE_LIMITS = (0.8, 1.25)
 #: A fitted parameter further than this many prior sds from its prior is refused: the prior or the data are wrong.
 PRIOR_SDS_LIMIT = 4.0
+#: Residuals correlated from one reading to the next (a sensor's own filter, a misfit smooth along the sweep) hold
+#: fewer independent readings: when their lag-1 correlation rho exceeds this many times 1/sqrt(n) (white noise's sd
+#: of it), each reading's weight is (1 - rho) / (1 + rho), an AR(1) noise's share of independent readings.
+CORRELATION_SDS = 2.0
 #: A recording sweeps both ways when its largest rise and its largest fall of the joint each cover this fraction of
 #: the joint's span.
 BOTH_WAYS_FRACTION = 0.5
@@ -196,7 +200,8 @@ class Calibration:
     (J diag(prior sd) / sigma), largest first; ``directions``: the matching right singular vectors (rows, in the
     scaled parameters). ``sigma``: the readings' noise sd estimated from the residuals (rad). ``residuals_before``
     / ``residuals_after``: sensor minus prediction (rad) with the given lengths and zero offsets, and at the fit;
-    ``kept``: the readings the fit used (the rest set aside as outliers). ``sources``: each source of information
+    ``kept``: the readings the fit used (the rest set aside as outliers); ``correlation`` / ``independent``: the
+    residuals' lag-1 correlation and the weight it left each reading (map_fit). ``sources``: each source of information
     (the readings, each prior, each reference) and its information matrix (k x k, 1/(parameter units)^2), whose sum
     is the inverse of ``covariance``.
     """
@@ -215,6 +220,8 @@ class Calibration:
     driven: Driven
     branch: Branch
     references: tuple[Reference, ...] = ()
+    correlation: float = 0.0
+    independent: float = 1.0
 
     @property
     def values(self) -> FloatArray:
@@ -322,7 +329,7 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
                 for r, row in zip(references, fit.known_rows, strict=True)]
     return Calibration(fit.parameters, fit.covariance, fit.singular_values, fit.directions, fit.sigma, r0[:n],
                        fit.residuals[:n], fit.iterations, fit.passes, fit.kept, tuple(sources), driven, branch,
-                       tuple(references))
+                       tuple(references), fit.correlation, fit.independent)
 
 
 def sensor_scale(q_measured: FloatArray, sensor_theta: FloatArray, link: AntennaLinkage, driven: Driven,
@@ -389,8 +396,10 @@ class MapFit:
     """What ``map_fit`` found: the parameters (value, posterior sd, prior), their covariance, the singular values
     and right singular vectors of the data part of the scaled Jacobian, the noise sd estimated from the residuals
     (the data's unit), the residuals (data minus model, every row) at the fit, and the work done; ``kept``: the data
-    rows used (the rest set aside); ``data_information``: J^T J / sigma^2 of the kept rows (k x k, in the
-    parameters' units); ``known_rows``: the known-sd rows' Jacobian over their sd (m x k)."""
+    rows used (the rest set aside); ``data_information``: J^T J / sigma^2 of the kept rows, times
+    ``independent`` (k x k, in the parameters' units); ``known_rows``: the known-sd rows' Jacobian over their sd
+    (m x k); ``correlation``: the kept residuals' lag-1 correlation, ``independent`` the weight it gives each
+    reading (CORRELATION_SDS)."""
 
     parameters: tuple[FittedParameter, ...]
     covariance: FloatArray
@@ -403,6 +412,8 @@ class MapFit:
     kept: npt.NDArray[np.bool_]
     data_information: FloatArray
     known_rows: FloatArray
+    correlation: float = 0.0
+    independent: float = 1.0
 
 
 Model = Callable[[FloatArray], tuple[FloatArray, FloatArray]]
@@ -472,15 +483,20 @@ def map_fit(model: Model, y: FloatArray, p0: FloatArray, sd: FloatArray, names: 
                                    f'sds of the robust fit: too few for the Gaussian fit')
         sigma = max(math.sqrt(_square(r[kept]) / (int(np.count_nonzero(kept)) - k)), floor)
     n_kept = int(np.count_nonzero(kept))
+    independent = 1.0
     for _ in range(MAX_PASSES):
         passes += 1
-        scale = np.concatenate((kept / sigma, 1.0 / known))
+        scale = np.concatenate((kept * math.sqrt(independent) / sigma, 1.0 / known))
         z, used = _levenberg_marquardt(z, p0, sd, scale, y, model, iteration_limit)
         iterations += used
         r = y[:n] - model(p0 + sd * z)[0][:n]
         new_sigma = max(math.sqrt(_square(r[kept]) / (n_kept - k)), 1e-300)
-        settled = abs(new_sigma - sigma) <= SIGMA_TOL * sigma
-        sigma = new_sigma
+        correlation = _lag1(r[kept])
+        new_independent = ((1.0 - correlation) / (1.0 + correlation)
+                           if correlation > CORRELATION_SDS / math.sqrt(n_kept) else 1.0)
+        settled = (abs(new_sigma - sigma) <= SIGMA_TOL * sigma
+                   and abs(new_independent - independent) <= SIGMA_TOL * independent)
+        sigma, independent = new_sigma, new_independent
         if settled:
             break
     else:
@@ -488,16 +504,23 @@ def map_fit(model: Model, y: FloatArray, p0: FloatArray, sd: FloatArray, names: 
                                f'passes (sigma {sigma:.3g} {unit})')
     p = p0 + sd * z
     pred, jac = model(p)
-    js = jac[:n][kept] * (sd / sigma)
+    js = jac[:n][kept] * (sd * math.sqrt(independent) / sigma)
     jk = jac[n:] / known[:, None]
     cov_scaled = np.linalg.inv(_normal(js) + _normal(jk * sd) + np.eye(k))
     covariance: FloatArray = np.asarray(cov_scaled * np.outer(sd, sd), dtype=np.float64)
     singular, directions = np.linalg.svd(js, full_matrices=False)[1:]
     params = tuple(FittedParameter(name, float(p[i]), float(math.sqrt(covariance[i, i])), float(p0[i]),
                                    float(sd[i])) for i, name in enumerate(names))
-    data_information = _normal(jac[:n][kept] / sigma)
+    data_information = _normal(jac[:n][kept] * (math.sqrt(independent) / sigma))
     return MapFit(params, covariance, singular, directions, sigma, y - pred, iterations, passes, kept,
-                  data_information, jk)
+                  data_information, jk, correlation, independent)
+
+
+def _lag1(r: FloatArray) -> float:
+    """The lag-1 autocorrelation of ``r`` (in time order): sum r_i r_(i+1) over sum r_i^2, about its mean."""
+    d = r - float(np.mean(r)) if r.size else r
+    total = _square(d)
+    return float(np.einsum('i,i->', d[1:], d[:-1])) / total if total > 0.0 else 0.0
 
 
 def _normal(js: FloatArray) -> FloatArray:

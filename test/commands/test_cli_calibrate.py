@@ -338,3 +338,19 @@ def test_a_malformed_reference_is_status_2(tmp_path: Path, out: Path, capsys: py
     assert calibrate(tmp_path, tmp_path / 'missing', f'--reference={bad}') == 2
     assert capsys.readouterr().err == (f"fourbar calibrate: error: --reference '{bad}': expected JOINT:THETA:SD in "
                                        'rad, finite, SD positive\n')
+
+
+def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The sensor's noise filtered, AR(1) with a lag-1 correlation of 0.9: the 6000 readings count as about
+    6000 (1 - 0.9) / (1 + 0.9) = 316 independent ones, and the map and the absolute angle stay within 4 of their
+    widened sds (counted as 6000, the map's sds would be 4.4 times narrower: on this recording its error would be
+    6 of them)."""
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP, noise_correlation=0.9))
+    assert calibrate(tmp_path, bag) == 0
+    report = json.loads((out / 'report.json').read_text())
+    # the lag-1 estimate's own sd is sqrt((1 - 0.81) / 6000) = 0.006
+    assert report['noise_lag1_correlation'] == pytest.approx(0.9, abs=0.03)
+    assert report['independent_readings'] == pytest.approx(316, rel=0.25)
+    assert map_error_in_sd(report) <= 4.0
+    assert absolute_error_in_sd(report)[0] <= 4.0
+    assert 'counts them as' in capsys.readouterr().out

@@ -289,3 +289,23 @@ def test_one_way_sweeps() -> None:
     assert one_way(down_up[:500]) < 0.01 < BOTH_WAYS_FRACTION  # down only: the counts' jitter at most
     assert one_way(np.cos(np.linspace(0.0, 1.3 * math.pi, 1000))) == pytest.approx((1.0 - math.cos(0.3 * math.pi))
                                                                                    / 2.0, rel=1e-3)
+
+
+def test_correlated_noise_widens_the_sds_white_noise_does_not() -> None:
+    """AR(1) noise of lag-1 correlation 0.9 holds (1 - 0.9) / (1 + 0.9) of the readings' information: the map's sds
+    are sqrt(19) = 4.4 times a white noise's; white noise's correlation is not significant and leaves them."""
+    q, white = sweep_readings(seed=5)
+    rng = np.random.default_rng(5)
+    noise = rng.normal(0.0, 1e-3, q.size)
+    for i in range(1, q.size):
+        noise[i] = 0.9 * noise[i - 1] + math.sqrt(1.0 - 0.81) * noise[i]
+    correlated = predict(TRUTH, q, Driven.GAMMA, CFG.measured_branch) + noise  # the encoder's counts aside
+    plain = calibrate(q, white, DESIGN, Driven.GAMMA, CFG.measured_branch)
+    filtered = calibrate(q, correlated, DESIGN, Driven.GAMMA, CFG.measured_branch)
+    assert plain.independent == 1.0 and abs(plain.correlation) < 2.0 / math.sqrt(q.size)
+    assert filtered.correlation == pytest.approx(0.9, abs=0.03)  # the estimate's sd: 0.006
+    grid = np.linspace(q.min(), q.max(), 41)
+    ratio = filtered.angle(grid, with_sensor=True)[1] / plain.angle(grid, with_sensor=True)[1]
+    assert np.all((ratio > 3.5) & (ratio < 5.5))  # sqrt(19) = 4.36, the noise sds alike within a few %
+    in_sd = np.abs(filtered.angle(grid, with_sensor=True)[0] - predict(TRUTH, grid, Driven.GAMMA, CFG.measured_branch))
+    assert np.all(in_sd <= 4.0 * filtered.angle(grid, with_sensor=True)[1])
