@@ -314,12 +314,11 @@ def calibrate(q_measured: FloatArray, sensor_theta: FloatArray, lengths: tuple[f
 
     pred0 = model(p0)[0]
     r0 = np.concatenate((y, y_ref)) - pred0
-    if not np.all(np.isfinite(r0)):
-        bad = ~np.isfinite(r0)
-        what = 'measured joint angles' if bad[:n].any() else 'reference joint angles'
-        first = float(np.concatenate((q, q_ref))[bad][0])
-        raise CalibrationError(f'{int(np.count_nonzero(bad))} of {r0.size} {what} are out of the given geometry\'s '
-                               f'reach (first q={first!r} rad): check the parameter file and the joint')
+    for what, joints, bad in (('measured', q, ~np.isfinite(r0[:n])), ('reference', q_ref, ~np.isfinite(r0[n:]))):
+        if bad.any():
+            raise CalibrationError(f'{int(np.count_nonzero(bad))} of {bad.size} {what} joint angles are out of the '
+                                   f'given geometry\'s reach (first q={float(joints[bad][0])!r} rad): check the '
+                                   'parameter file and the joint')
     fit = map_fit(model, np.concatenate((y, y_ref)), p0, sd, PARAMETER_NAMES, max_iterations, unit='rad',
                   known_sd=np.array([r.sd for r in references], dtype=np.float64), loss=loss)
     sources = [(f'the noise of the {int(np.count_nonzero(fit.kept))} readings', fit.data_information)]

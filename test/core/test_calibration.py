@@ -142,6 +142,11 @@ def test_a_joint_the_given_geometry_cannot_take_is_refused() -> None:
     q[7] = 3.0
     with pytest.raises(CalibrationError, match=r"1 of 100 measured joint angles are out of the given geometry's"):
         calibrate(q, y, DESIGN, Driven.GAMMA, CFG.measured_branch)
+    q[7] = q[6]
+    with pytest.raises(CalibrationError, match=r"^1 of 2 reference joint angles are out of the given geometry's "
+                       r"reach \(first q=3\.0 rad\)"):
+        calibrate(q, y, DESIGN, Driven.GAMMA, CFG.measured_branch,
+                  references=[Reference(float(q[0]), 0.0, 1e-3), Reference(3.0, 0.0, 1e-3)])
 
 
 def test_too_few_readings() -> None:
