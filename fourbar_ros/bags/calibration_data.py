@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, MEASURED, BagError, jazzy_typestore, open_bag
-from fourbar_ros.core.calibration import CalibrationError, imu_tilt
+from fourbar_ros.core.calibration import CalibrationError, imu_roll, imu_tilt, imu_valid
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.interface.cdr import (
@@ -47,7 +47,9 @@ class CalibrationData:
 
     ``q``: the driven joint at the sensor's paired times (rad, interpolated); ``theta``: the sensor's readings there
     (rad); ``joint_times``/``joint_q``/``joint_velocity``/``joint_effort``: the encoder's own stream (rad, rad/s,
-    N m; velocity and effort NaN where not measured).
+    N m; velocity and effort NaN where not measured). ``sensor_invalid`` / ``joint_invalid``: readings dropped
+    (non-finite; for an IMU also an acceleration not gravity-sized, ``imu_valid``); ``imu_roll``: the IMU's median
+    roll about its x axis (rad, ``imu_roll``; NaN for a Float64 sensor).
     """
 
     path: Path
@@ -64,6 +66,9 @@ class CalibrationData:
     times: FloatArray
     q: FloatArray
     theta: FloatArray
+    sensor_invalid: int = 0
+    joint_invalid: int = 0
+    imu_roll: float = math.nan
 
     @property
     def outside(self) -> int:
@@ -136,21 +141,31 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
     s_log = np.array(logs[angle_topic], dtype=np.int64)
     s_ns: Any
     theta: FloatArray
-    s_ns, theta = (_imus(p, angle_topic, raws[angle_topic], s_log) if sensor_type == IMU
-                   else (s_log, _float64s(p, angle_topic, raws[angle_topic])))
+    roll = math.nan
+    if sensor_type == IMU:
+        s_ns, acc = _imus(p, angle_topic, raws[angle_topic], s_log)
+        ax, ay, az = acc.T
+        valid = imu_valid(ax, ay, az)
+        theta = np.where(valid, imu_tilt(ax, ay, az), np.nan)
+        if valid.any():
+            roll = float(np.median(imu_roll(ay[valid], az[valid])))
+    else:
+        s_ns, theta = s_log, _float64s(p, angle_topic, raws[angle_topic])
     finite_j, finite_s = np.isfinite(q), np.isfinite(theta)
     j_ns, q, velocity, effort = j_ns[finite_j], q[finite_j], velocity[finite_j], effort[finite_j]
     order = np.argsort(j_ns, kind='stable')
     j_ns, q, velocity, effort = j_ns[order], q[order], velocity[order], effort[order]
     s_ns, theta = s_ns[finite_s], theta[finite_s]
     if q.size == 0 or theta.size == 0:
-        raise CalibrationError(f'{p}: no finite {"joint position" if q.size == 0 else "sensor reading"}')
+        raise CalibrationError(f'{p}: no finite {"joint position" if q.size == 0 else "sensor reading"}'
+                               + ('' if q.size or sensor_type != IMU else ' (an IMU reading counts when its '
+                                  'acceleration is gravity-sized, m/s^2)'))
     t0 = int(min(j_ns.min(), s_ns.min()))
     jt = (j_ns - t0) * 1e-9
     st = (s_ns - t0) * 1e-9
     times, qp, thp = pair(jt, q, st, theta)
     return CalibrationData(p, chosen, angle_topic, sensor_type, t0, jt, q, velocity, effort, st, theta, times, qp,
-                           thp)
+                           thp, int(np.count_nonzero(~finite_s)), int(np.count_nonzero(~finite_j)), roll)
 
 
 def _topics(types: dict[str, str]) -> str:
@@ -205,8 +220,8 @@ def _float64s(p: Path, topic: str, raws: list[bytes]) -> FloatArray:
 
 
 def _imus(p: Path, topic: str, raws: list[bytes], logs: Any) -> tuple[Any, FloatArray]:
-    """(times ns, theta rad) of little-endian CDR Imu messages: the header stamp (else the receive time) and the
-    tilt from linear_acceleration (``imu_tilt``)."""
+    """(times ns, linear_acceleration (N, 3) m/s^2) of little-endian CDR Imu messages: the header stamp, else the
+    receive time."""
     n = len(raws)
     stamps = np.empty(n, dtype=np.int64)
     acc = np.empty((n, 3))
@@ -223,4 +238,4 @@ def _imus(p: Path, topic: str, raws: list[bytes], logs: Any) -> tuple[Any, Float
             raise CalibrationError(f'{p}: message {k} on {topic} is not a valid {IMU} ({one_line(exc)})') from None
         stamps[k] = sec * 1_000_000_000 + nanosec
     stamps = np.where(stamps != 0, stamps, logs)
-    return stamps, np.asarray(imu_tilt(acc[:, 0], acc[:, 2]), dtype=np.float64)
+    return stamps, acc

@@ -16,7 +16,7 @@ import numpy as np
 from fourbar_ros.bags.calibration_data import IMU
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, AtomicBagWriter, jazzy_typestore, recorded_qos
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
-from fourbar_ros.core.calibration import PARAMETER_NAMES
+from fourbar_ros.core.calibration import GRAVITY, PARAMETER_NAMES
 from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.load_calibration import LOAD_NAMES, effort_model, load_pose
 from fourbar_ros.interface.cdr import encode_float64s, encode_joint_states
@@ -25,7 +25,6 @@ from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, DEFAULT_STORA
 
 __all__ = ['GRAVITY', 'Sweep', 'write_calibration_bag']
 
-GRAVITY = 9.80665
 _START_NS = 1_700_000_000_000_000_000
 
 
@@ -54,6 +53,14 @@ class Sweep:
     #: then carry the joint's velocity (rad/s) and the effort it takes (N m, ``effort_model``) plus noise.
     load: dict[str, float] | None = None
     effort_noise: float = 0.02
+    #: A real sensor's faults: a Float64 sensor's readings multiplied by ``sensor_scale`` (-1: the sign flipped,
+    #: 180/pi: degrees); an IMU rolled by ``imu_roll`` (rad) about its x axis; ``glitches``: (reading index, rad
+    #: added), NaN making the reading invalid (a Float64 NaN, an IMU's all-zero acceleration).
+    sensor_scale: float = 1.0
+    imu_roll: float = 0.0
+    glitches: tuple[tuple[int, float], ...] = ()
+    #: The sensor's noise from one reading to the next, AR(1) with this lag-1 correlation (its sd sensor_noise).
+    noise_correlation: float = 0.0
 
     def linkage(self) -> AntennaLinkage:
         t = self.truth
@@ -98,7 +105,14 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     ts = np.arange(sweep.sensor_delay, sweep.duration, 1.0 / sweep.sensor_rate)
     qm = sweep.measured_q(sweep.true_q(sweep.theta(tj)))
     velocity, effort, has_velocity = _load(sweep, tj, rng)
-    reading = sweep.theta(ts) + sweep.truth['sensor_offset'] + rng.normal(0.0, sweep.sensor_noise, ts.size)
+    noise = rng.normal(0.0, sweep.sensor_noise, ts.size)
+    if sweep.noise_correlation:
+        rho, fresh = sweep.noise_correlation, math.sqrt(1.0 - sweep.noise_correlation ** 2)
+        for i in range(1, noise.size):
+            noise[i] = rho * noise[i - 1] + fresh * noise[i]
+    reading = sweep.theta(ts) + sweep.truth['sensor_offset'] + noise
+    for i, added in sweep.glitches:
+        reading[i] = math.nan if math.isnan(added) else reading[i] + added
     j_ns = _START_NS + seconds_to_ns(tj)
     s_ns = _START_NS + seconds_to_ns(ts + sweep.sensor_clock_offset)
     k = len(sweep.names)
@@ -110,10 +124,10 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     joint_raws = encode_joint_states(j_ns, '', sweep.names, position, efforts, velocities,
                                      np.full(tj.size, has_velocity))
     if sweep.sensor == 'imu':
-        sensor_raws = _imus(s_ns, reading)
+        sensor_raws = _imus(s_ns, reading, sweep.imu_roll)
         sensor_type = IMU
     elif sweep.sensor == 'float64':
-        sensor_raws = encode_float64s(reading)
+        sensor_raws = encode_float64s(reading * sweep.sensor_scale)
         sensor_type = FLOAT64
     else:
         raise ValueError(f'sensor {sweep.sensor!r}: float64 or imu')
@@ -151,8 +165,9 @@ def _load(sweep: Sweep, tj: np.ndarray, rng: np.random.Generator) -> tuple[np.nd
     return q_rate, effort, True
 
 
-def _imus(stamps_ns: np.ndarray, theta: np.ndarray) -> list[bytes]:
-    """CDR Imu messages at rest on the antenna at ``theta`` (rad): linear_acceleration = g (-sin, 0, cos)."""
+def _imus(stamps_ns: np.ndarray, theta: np.ndarray, roll: float = 0.0) -> list[bytes]:
+    """CDR Imu messages at rest on the antenna at ``theta`` (rad), rolled by ``roll`` (rad) about x:
+    linear_acceleration = g (-sin theta, cos theta sin roll, cos theta cos roll); all zero where theta is NaN."""
     store = jazzy_typestore()
     t = store.types
     msg = t[IMU](header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=0, nanosec=0),
@@ -172,6 +187,9 @@ def _imus(stamps_ns: np.ndarray, theta: np.ndarray) -> list[bytes]:
     for s, ns, th in zip(sec.tolist(), nanosec.tolist(), theta.tolist(), strict=True):
         raw = bytearray(template)
         struct.pack_into('<iI', raw, 4, s, ns)
-        struct.pack_into('<3d', raw, accel_at, -GRAVITY * math.sin(th), 0.0, GRAVITY * math.cos(th))
+        accel = ((0.0, 0.0, 0.0) if math.isnan(th) else
+                 (-GRAVITY * math.sin(th), GRAVITY * math.cos(th) * math.sin(roll),
+                  GRAVITY * math.cos(th) * math.cos(roll)))
+        struct.pack_into('<3d', raw, accel_at, *accel)
         out.append(bytes(raw))
     return out

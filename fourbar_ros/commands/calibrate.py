@@ -8,6 +8,7 @@ import json
 import math
 import os
 import re
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -18,7 +19,7 @@ from fourbar_ros.commands import CommandError
 if TYPE_CHECKING:
     from fourbar_ros.bags.calibration_data import CalibrationData
     from fourbar_ros.config.antenna_config import AntennaConfig
-    from fourbar_ros.core.calibration import Calibration
+    from fourbar_ros.core.calibration import Calibration, Reference
 
 HELP = ('fit the linkage as built (the four lengths, the driven joint\'s offset and the sensor\'s) to a recorded '
         'sweep of the measured driven joint and an antenna angle sensor; write the calibrated parameter file, a '
@@ -26,6 +27,8 @@ HELP = ('fit the linkage as built (the four lengths, the driven joint\'s offset 
 
 #: A recording must sweep at least this much tilt (rad, 1 deg) to say anything about the geometry.
 MIN_TILT_SPAN = math.radians(1.0)
+#: Points of the measured joint's swept range at which the report gives the antenna angle and its sd.
+GRID_POINTS = 41
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -47,6 +50,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument('--report', type=Path, metavar='OUT.json', help='write the report as JSON')
     parser.add_argument('--length-tolerance', type=float, default=5e-4, metavar='M',
                         help='standard deviation of each given length, the prior (m, default 0.0005)')
+    parser.add_argument('--sensor-offset', type=float, default=0.0, metavar='RAD',
+                        help='the sensor\'s reading with the antenna level as its datasheet or mounting gives it, the '
+                        'prior (rad, default 0)')
+    parser.add_argument('--sensor-offset-sd', type=float, default=0.1, metavar='RAD',
+                        help='standard deviation of --sensor-offset (rad, default 0.1: weak); the antenna\'s absolute '
+                        'angle is no better than this unless a --reference pins it')
+    parser.add_argument('--reference', action='append', default=[], metavar='JOINT:THETA:SD',
+                        help='a known antenna angle, e.g. from a precision level: the measured driven joint JOINT '
+                        '(rad, as the joint states report it with this parameter file), the antenna angle THETA there '
+                        '(rad, positive tilts the antenna down) and its SD (rad); repeat for more poses; write '
+                        '--reference=-0.1:... when JOINT is negative')
 
 
 def run(args: argparse.Namespace) -> int:
@@ -57,10 +71,22 @@ def run(args: argparse.Namespace) -> int:
     from fourbar_ros.analysis.residual_plot import draw
     from fourbar_ros.bags.calibration_data import read_calibration_data
     from fourbar_ros.config.antenna_config import load_config
-    from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, calibrate
+    from fourbar_ros.core.calibration import (
+        LENGTH_NAMES,
+        CalibrationError,
+        calibrate,
+        check_sensor_scale,
+        far_from_prior,
+        sensor_scale,
+    )
 
-    if not (math.isfinite(args.length_tolerance) and args.length_tolerance > 0.0):
-        raise CommandError(f'--length-tolerance {args.length_tolerance!r} m must be finite and positive')
+    for option, value, unit in (('--length-tolerance', args.length_tolerance, 'm'),
+                                ('--sensor-offset-sd', args.sensor_offset_sd, 'rad')):
+        if not (math.isfinite(value) and value > 0.0):
+            raise CommandError(f'{option} {value!r} {unit} must be finite and positive')
+    if not math.isfinite(args.sensor_offset):
+        raise CommandError(f'--sensor-offset {args.sensor_offset!r} rad must be finite')
+    references = [_reference(text) for text in args.reference]
     for out in (args.output, args.report):
         if out is not None and not out.parent.is_dir():
             raise CommandError(f'{out}: directory {out.parent} does not exist')
@@ -69,8 +95,16 @@ def run(args: argparse.Namespace) -> int:
     try:
         data = read_calibration_data(args.bag, cfg.driven_joint, args.angle_topic, args.measured_topic)
         _check_span(cfg, data)
+        check_sensor_scale(sensor_scale(data.q, data.theta, cfg.linkage, cfg.driven, cfg.measured_branch))
         lengths = (cfg.frame_length, cfg.rocker_ab_length, cfg.coupler_length, cfg.rocker_cd_length)
-        fit = calibrate(data.q, data.theta, lengths, cfg.driven, cfg.measured_branch, args.length_tolerance)
+        fit = calibrate(data.q, data.theta, lengths, cfg.driven, cfg.measured_branch, args.length_tolerance,
+                        sensor_offset=args.sensor_offset, sensor_offset_sd=args.sensor_offset_sd,
+                        references=references)
+        far = far_from_prior(fit)
+        if far:
+            raise CalibrationError(f'{"; ".join(far)}: the prior or the recording is wrong (check the parameter '
+                                   'file, --length-tolerance, --sensor-offset and --sensor-offset-sd)')
+        warnings = _warnings(data, fit)
         load = _load(cfg, data, fit)
         values = {name: fit.parameter(name).value for name in LENGTH_NAMES}
         values.update(_offsets(cfg, fit))
@@ -80,22 +114,52 @@ def run(args: argparse.Namespace) -> int:
         if args.output is not None:
             files[args.output] = _calibrated_yaml(args.params, args.bag, values).encode()
         report = _report(args, cfg, data, fit)
+        report['warnings'] = warnings
         report['load'] = load
         if args.report is not None:
             files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
         if plot is not None:
-            # x: the calibrated model's angle (from the encoder), not the noisy reading, which would bias the bins
-            theta = np.degrees(data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)
-            title = f'fourbar calibrate: {data.path.name}, {data.times.size} readings, {cfg.driven_joint}'
-            files[plot] = draw(theta, fit.residuals_before, fit.residuals_after, title)
+            # x: the calibrated model's angle (from the encoder), not the noisy reading, which would bias the bins;
+            # the readings set aside are left out (their residuals would set the scale)
+            kept = fit.kept
+            theta = np.degrees(data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)[kept]
+            title = (f'fourbar calibrate: {data.path.name}, {int(kept.sum())} readings '
+                     f'({fit.set_aside} set aside), {cfg.driven_joint}')
+            files[plot] = draw(theta, fit.residuals_before[kept], fit.residuals_after[kept], title)
             report['plot'] = str(plot)
             if args.report is not None:
                 files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
     except CalibrationError as exc:
         raise CommandError(str(exc), status=1) from None
     write_atomically(files)
+    for warning in warnings:
+        print(f'fourbar calibrate: warning: {warning}', file=sys.stderr)
     print(_summary(report, files))
     return 0
+
+
+def _reference(text: str) -> Reference:
+    """A ``--reference JOINT:THETA:SD`` (rad, rad, rad) parsed; CommandError (status 2) when malformed."""
+    from fourbar_ros.core.calibration import Reference
+
+    values: list[float] = []
+    with contextlib.suppress(ValueError):
+        values = [float(x) for x in text.split(':')]
+    if len(values) != 3 or not all(map(math.isfinite, values)) or not values[2] > 0.0:
+        raise CommandError(f'--reference {text!r}: expected JOINT:THETA:SD in rad, finite, SD positive')
+    return Reference(*values)
+
+
+def _warnings(data: CalibrationData, fit: Calibration) -> list[str]:
+    """What the user should know but does not stop the calibration: a recording swept one way only."""
+    from fourbar_ros.core.calibration import BOTH_WAYS_FRACTION, one_way
+
+    both = one_way(data.q[fit.kept])
+    if both >= BOTH_WAYS_FRACTION:
+        return []
+    return [f'the recording sweeps the joint one way only (the way back covers {100.0 * both:.0f}% of the span, '
+            f'below {100.0 * BOTH_WAYS_FRACTION:.0f}%): a lag or backlash of the sensor or the drive cannot show and '
+            'shifts the offsets; sweep both ways']
 
 
 def _offsets(cfg: AntennaConfig, fit: Calibration) -> dict[str, float]:
@@ -179,10 +243,12 @@ def _parameters(fit: Calibration) -> dict[str, dict[str, Any]]:
 
 
 def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[str, Any]:
-    from fourbar_ros.core.calibration import DETERMINED_RATIO, PARAMETER_NAMES
+    from fourbar_ros.core.calibration import DEFAULT_LOSS, DETERMINED_RATIO, PARAMETER_NAMES, SET_ASIDE_SDS
 
-    before, after = fit.residuals_before, fit.residuals_after
-    theta = data.theta - fit.residuals_after - fit.parameter('sensor_offset').value  # the calibrated model's angle
+    kept = fit.kept
+    before, after = fit.residuals_before[kept], fit.residuals_after[kept]
+    # the calibrated model's angle at the readings kept
+    theta = (data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)[kept]
     return {
         'bag': str(args.bag),
         'params': str(args.params),
@@ -192,6 +258,12 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
         'driven_joint': cfg.driven_joint,
         'paired_readings': int(data.times.size),
         'readings_left_out': int(data.outside),
+        'sensor_readings_invalid': data.sensor_invalid,
+        'joint_readings_invalid': data.joint_invalid,
+        'imu_roll_rad': data.imu_roll if math.isfinite(data.imu_roll) else None,
+        'readings_set_aside': fit.set_aside,
+        'set_aside_rule': (f'a robust fit ({DEFAULT_LOSS} loss) first; readings whose residual exceeds '
+                           f'{SET_ASIDE_SDS:g} robust noise sds are set aside, the fit and its sds use the rest'),
         'tilt_span_rad': [float(theta.min()), float(theta.max())],
         'parameters': _parameters(fit),
         'residual_rms_rad': float(math.sqrt(float((after * after).mean()))),
@@ -199,6 +271,8 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
         'residual_rms_before_rad': float(math.sqrt(float((before * before).mean()))),
         'largest_residual_before_rad': float(abs(before).max()),
         'noise_sd_rad': fit.sigma,
+        'noise_lag1_correlation': fit.correlation,
+        'independent_readings': fit.independent * int(kept.sum()),
         'singular_values': [float(s) for s in fit.singular_values],
         'singular_directions': {'parameters': list(PARAMETER_NAMES),
                                 'rows': [[float(x) for x in row] for row in fit.directions]},
@@ -214,7 +288,40 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
                         'the node\'s antenna_sensor_offset'),
         'driven_joint_offset_recorded_rad': cfg.driven_joint_offset,
         'offsets_in_parameter_file': _offsets(cfg, fit),
+        'absolute_angle': _absolute_angle(data.q[kept], fit),
+        'references': [{'joint_rad': r.joint, 'theta_rad': r.theta, 'sd_rad': r.sd,
+                        'calibrated_theta_rad': float(fit.angle(r.joint)[0][0])} for r in fit.references],
         'iterations': fit.iterations,
+    }
+
+
+def _absolute_angle(q: Any, fit: Calibration) -> dict[str, Any]:
+    """The antenna angle the node computes with the calibration over the swept joint range, with its sd, beside
+    the sensor's predicted reading; the largest sds and what sets the angle's (the largest variance source)."""
+    import numpy as np
+
+    grid = np.linspace(float(q.min()), float(q.max()), GRID_POINTS)
+    theta, sd = fit.angle(grid)
+    reading, reading_sd = fit.angle(grid, with_sensor=True)
+    worst = int(np.argmax(sd))
+    sources = fit.variance_sources(float(grid[worst]))
+    total = sum(sources.values())
+    return {
+        'joint_rad': grid.tolist(),
+        'theta_rad': theta.tolist(),
+        'sd_rad': sd.tolist(),
+        'sensor_reading_rad': reading.tolist(),
+        'sensor_reading_sd_rad': reading_sd.tolist(),
+        'largest_sd_rad': float(sd[worst]),
+        'sensor_map_largest_sd_rad': float(reading_sd.max()),
+        'set_by': max(sources, key=lambda name: sources[name]),
+        'variance_shares_at_largest_sd': {name: v / total for name, v in sources.items()},
+        'meaning': ('theta_rad: the antenna angle the node computes from the measured joint with the calibrated '
+                    'parameters (the model without the sensor offset); sensor_reading_rad: the sensor\'s reading '
+                    'the calibration predicts (with it); each sd (1 sd, rad) from the full posterior covariance '
+                    'through the model\'s Jacobian; the variance shares split the angle\'s variance by the source '
+                    'of information whose uncertainty it comes from (the readings\' noise, each prior, each '
+                    'reference)'),
     }
 
 
@@ -318,6 +425,20 @@ def _summary(report: dict[str, Any], files: dict[Path, bytes]) -> str:
              f'residual RMS {report["residual_rms_before_rad"]:.3g} rad before, {report["residual_rms_rad"]:.3g} rad '
              f'after (largest {report["largest_residual_rad"]:.3g} rad); the data determine '
              f'{report["directions_determined_by_data"]} of {len(report["singular_values"])} directions']
+    absolute = report['absolute_angle']
+    lines.append(f'  the joint-to-sensor map is fixed to {1e3 * absolute["sensor_map_largest_sd_rad"]:.2g} mrad; the '
+                 f'antenna\'s absolute angle to {1e3 * absolute["largest_sd_rad"]:.2g} mrad, set by '
+                 f'{absolute["set_by"]}: {100.0 * absolute["variance_shares_at_largest_sd"][absolute["set_by"]]:.0f}% '
+                 'of its variance (1 sd, the largest over the swept range)')
+    dropped = [f'{report["readings_set_aside"]} set aside as outliers', f'{report["sensor_readings_invalid"]} '
+               'invalid sensor readings dropped']
+    if report['independent_readings'] < report['paired_readings'] - report['readings_set_aside']:
+        dropped.append(f'the residuals\' lag-1 correlation {report["noise_lag1_correlation"]:.2f} counts them as '
+                       f'{report["independent_readings"]:.0f} independent readings')
+    if report['imu_roll_rad'] is not None:
+        dropped.append(f'the IMU rolled {math.degrees(report["imu_roll_rad"]):.2f} deg about its x axis (the tilt '
+                       'does not depend on it)')
+    lines.append(f'  {", ".join(dropped)}')
     for name, p in report['parameters'].items():
         by = 'data' if p['determined_by_data'] else 'prior'
         lines.append(f'  {name:<20} {p["value"]:.9g} {p["unit"]} (sd {p["sd"]:.2g}, prior {p["prior"]:.6g} sd '

@@ -55,7 +55,7 @@ class LiveModelCheck:
     def on_imu(self, msg: Imu) -> None:
         stamp = to_ns(msg.header.stamp)
         a = msg.linear_acceleration
-        self._compare(stamp if stamp else self._now_ns(), imu_theta(float(a.x), float(a.z)))
+        self._compare(stamp if stamp else self._now_ns(), imu_theta(float(a.x), float(a.y), float(a.z)))
 
     def _compare(self, stamp_ns: int, theta: float | SensorSkipped) -> None:
         outcome = self.check.compare(self._config(), stamp_ns, theta, time.monotonic())

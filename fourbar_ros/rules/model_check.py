@@ -12,18 +12,16 @@ from collections import deque
 from dataclasses import asdict, dataclass
 
 from fourbar_ros.config.antenna_config import AntennaConfig
-from fourbar_ros.core.calibration import imu_tilt, model_mismatch
+from fourbar_ros.core.calibration import imu_tilt, imu_valid, model_mismatch
 from fourbar_ros.core.errors import FourBarError
 
-__all__ = ['HISTORY', 'MIN_GRAVITY', 'WINDOW_READINGS', 'ModelCheck', 'SensorCounters', 'SensorSkipped',
+__all__ = ['HISTORY', 'WINDOW_READINGS', 'ModelCheck', 'SensorCounters', 'SensorSkipped',
            'imu_theta']
 
 #: Completed measurements held for pairing: 10 s of joint_state_broadcaster at 100 Hz.
 HISTORY = 1000
 #: Most readings the window RMS is taken over (bounds memory under a long tracking_window and a fast sensor).
 WINDOW_READINGS = 10000
-#: An Imu whose acceleration in its x-z plane is below this (m/s^2) gives no tilt.
-MIN_GRAVITY = 1.0
 
 
 class SensorSkipped(enum.Enum):
@@ -46,14 +44,14 @@ class SensorCounters:
     sensor_readings_skipped_out_of_reach: int = 0
 
 
-def imu_theta(ax: float, az: float) -> float | SensorSkipped:
-    """The antenna angle (rad) from an Imu's linear acceleration at rest (``core.calibration.imu_tilt``, the same
-    convention as ``fourbar calibrate``), or why there is none."""
-    if not (math.isfinite(ax) and math.isfinite(az)):
+def imu_theta(ax: float, ay: float, az: float) -> float | SensorSkipped:
+    """The antenna angle (rad) from an Imu's linear acceleration at rest (m/s^2; ``core.calibration.imu_tilt``, the
+    same convention as ``fourbar calibrate``, independent of the IMU's roll), or why there is none."""
+    if not (math.isfinite(ax) and math.isfinite(ay) and math.isfinite(az)):
         return SensorSkipped.NOT_FINITE
-    if math.hypot(ax, az) < MIN_GRAVITY:
+    if not imu_valid(ax, ay, az):  # not gravity-sized: an all-zero vector, not at rest
         return SensorSkipped.NO_GRAVITY
-    return float(imu_tilt(ax, az))  # type: ignore[arg-type]
+    return float(imu_tilt(ax, ay, az))
 
 
 class ModelCheck:

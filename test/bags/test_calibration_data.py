@@ -12,7 +12,7 @@ import pytest
 from fourbar_ros.bags.calibration_data import imu_tilt, pair, read_calibration_data
 from fourbar_ros.bags.calibration_sweep import GRAVITY, Sweep, write_calibration_bag
 from fourbar_ros.bags.storage import JOINT_STATE
-from fourbar_ros.core.calibration import CalibrationError
+from fourbar_ros.core.calibration import CalibrationError, imu_roll, imu_valid
 from fourbar_ros.interface.topics import Storage
 
 TRUTH = {'frame_length': 0.1803, 'rocker_ab_length': 0.0598, 'coupler_length': 0.1021, 'rocker_cd_length': 0.0602,
@@ -20,12 +20,38 @@ TRUTH = {'frame_length': 0.1803, 'rocker_ab_length': 0.0598, 'coupler_length': 0
 JOINT = 'rocker_ab_joint'
 
 
-def test_imu_tilt_sign_follows_the_coupler_frame() -> None:
+@pytest.mark.parametrize('roll_deg', [0.0, 15.0, -30.0])
+def test_imu_tilt_sign_follows_the_coupler_frame(roll_deg: float) -> None:
     """theta > 0 tilts the antenna down: the coupler frame's x axis (along the antenna) turns toward -z, and the
-    accelerometer at rest reads (-g sin theta, 0, g cos theta)."""
+    accelerometer at rest reads (-g sin theta, 0, g cos theta); rolled by phi about x, (-g sin theta,
+    g cos theta sin phi, g cos theta cos phi): the tilt is the same and the roll is phi."""
+    roll = math.radians(roll_deg)
     for theta in (-0.1, 0.0, 0.05, 0.12):
-        ax, az = -GRAVITY * math.sin(theta), GRAVITY * math.cos(theta)
-        assert float(imu_tilt(np.array([ax]), np.array([az]))[0]) == pytest.approx(theta, abs=1e-15)
+        a = (-GRAVITY * math.sin(theta), GRAVITY * math.cos(theta) * math.sin(roll),
+             GRAVITY * math.cos(theta) * math.cos(roll))
+        # a few ulps of the components' rounding through hypot and atan2
+        assert float(imu_tilt(*a)) == pytest.approx(theta, abs=1e-15)
+        assert float(imu_roll(a[1], a[2])) == pytest.approx(roll, abs=1e-15)
+        assert bool(imu_valid(*a))
+    assert not imu_valid(0.0, 0.0, 0.0)
+    assert not imu_valid(math.nan, 0.0, GRAVITY)
+    assert not imu_valid(0.0, 0.0, 1.0)  # in g, not m/s^2
+
+
+@pytest.mark.parametrize('sensor', ['float64', 'imu'])
+def test_invalid_readings_are_dropped_and_counted(tmp_path: Path, sensor: str) -> None:
+    """Non-finite Float64 readings and all-zero IMU vectors are dropped, counted; the IMU's roll is reported."""
+    sweep = Sweep(TRUTH, duration=10.0, cycles=1.0, sensor=sensor, sensor_noise=0.0, imu_roll=math.radians(15.0),
+                  glitches=((3, math.nan), (40, math.nan), (41, math.nan)))
+    topic = '/imu/data' if sensor == 'imu' else '/antenna_inclinometer'
+    data = read_calibration_data(write_calibration_bag(tmp_path / sensor, sweep, angle_topic=topic), JOINT, topic)
+    assert data.sensor_invalid == 3 and data.joint_invalid == 0
+    assert data.sensor_times.size == 500 - 3
+    assert np.max(np.abs(data.theta - (sweep.theta(data.times) + TRUTH['sensor_offset']))) < 1e-12
+    if sensor == 'imu':
+        assert data.imu_roll == pytest.approx(math.radians(15.0), abs=1e-12)
+    else:
+        assert math.isnan(data.imu_roll)
 
 
 @pytest.mark.parametrize('storage', list(Storage))

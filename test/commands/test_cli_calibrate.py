@@ -1,11 +1,13 @@
 """`fourbar calibrate` end to end on synthetic recordings (in process): the calibrated parameter file the node's
-own reader accepts, the report, the plot; and the recordings that cannot calibrate (one line, exit 1, nothing
-written)."""
+own reader accepts, the report, the plot; a real sensor's faults, each giving the node's absolute angle within its
+reported 4 sd of the truth or refused; the absolute angle pinned by a reference; and the recordings that cannot
+calibrate (one line, exit 1, nothing written)."""
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -180,3 +182,175 @@ def test_no_effort_no_load_model(tmp_path: Path, out: Path) -> None:
     assert calibrate(tmp_path, bag) == 0
     assert json.loads((out / 'report.json').read_text())['load'] is None
     assert load_config(out / 'calibrated.yaml').antenna_mass == load_config(CONFIG).antenna_mass
+
+
+# ---------------------------------------------------------------- a real sensor's faults
+
+#: A sweep of 2 minutes, -6..+7 deg down and up twice: 6000 readings at 50 Hz.
+FAULT_SWEEP = {'duration': 120.0, 'cycles': 2.0}
+
+
+def absolute_error_in_sd(report: dict[str, object], truth: dict[str, float] = TRUTH) -> tuple[float, float]:
+    """(largest |the node's angle - the truth| / its reported sd, largest error (rad)) over the report's grid: the
+    truth is the true linkage at the measured joint plus the true correction, without the sensor's offset."""
+    absolute = report['absolute_angle']
+    assert isinstance(absolute, dict)
+    cfg = load_config(CONFIG)
+    joint = np.array(absolute['joint_rad'])
+    antenna = np.array([*(truth[n] for n in PARAMETER_NAMES[:5]), 0.0])
+    error = np.abs(np.array(absolute['theta_rad']) - predict(antenna, joint, cfg.driven, cfg.measured_branch))
+    return float(np.max(error / np.array(absolute['sd_rad']))), float(np.max(error))
+
+
+def map_error_in_sd(report: dict[str, object]) -> float:
+    """The largest |the predicted sensor reading - the true noiseless one| over its reported sd, over the grid."""
+    absolute = report['absolute_angle']
+    assert isinstance(absolute, dict)
+    cfg = load_config(CONFIG)
+    truth = np.array([TRUTH[n] for n in PARAMETER_NAMES])
+    error = np.abs(np.array(absolute['sensor_reading_rad'])
+                   - predict(truth, np.array(absolute['joint_rad']), cfg.driven, cfg.measured_branch))
+    return float(np.max(error / np.array(absolute['sensor_reading_sd_rad'])))
+
+
+def test_the_summary_gives_the_map_and_the_absolute_angle(tmp_path: Path, out: Path,
+                                                          capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP))
+    assert calibrate(tmp_path, bag) == 0
+    report = json.loads((out / 'report.json').read_text())
+    absolute = report['absolute_angle']
+    in_sd, _ = absolute_error_in_sd(report)
+    assert in_sd <= 4.0  # a Gaussian error passes 4 sd once in 16000
+    assert map_error_in_sd(report) <= 4.0
+    assert absolute['sensor_map_largest_sd_rad'] < 1e-4  # hundredths of a mrad
+    assert absolute['largest_sd_rad'] > 1e-3  # mrad: the offsets trade against each other
+    assert sum(absolute['variance_shares_at_largest_sd'].values()) == pytest.approx(1.0, rel=1e-9)
+    printed = capsys.readouterr().out
+    assert (f'the joint-to-sensor map is fixed to {1e3 * absolute["sensor_map_largest_sd_rad"]:.2g} mrad; the '
+            f'antenna\'s absolute angle to {1e3 * absolute["largest_sd_rad"]:.2g} mrad, set by '
+            f'{absolute["set_by"]}: ') in printed
+
+
+def test_a_reference_pins_the_absolute_angle(tmp_path: Path, out: Path) -> None:
+    """A precision level on the antenna at one pose (0.05 mrad): the node's angle within 0.2 mrad of the truth over
+    the whole range."""
+    sweep = Sweep(TRUTH, **FAULT_SWEEP)
+    bag = write_calibration_bag(tmp_path / 'rec', sweep)
+    cfg = load_config(CONFIG)
+    joint = float(sweep.measured_q(sweep.true_q(np.array([0.02])))[0])
+    antenna = np.array([*(TRUTH[n] for n in PARAMETER_NAMES[:5]), 0.0])
+    theta = float(predict(antenna, np.array([joint]), cfg.driven, cfg.measured_branch)[0])
+    assert calibrate(tmp_path, bag, f'--reference={joint!r}:{theta!r}:5e-5') == 0
+    report = json.loads((out / 'report.json').read_text())
+    in_sd, error = absolute_error_in_sd(report)
+    assert error < 2e-4 and in_sd <= 4.0
+    assert report['absolute_angle']['set_by'] != 'the prior of sensor_offset (sd 0.1 rad)'
+    assert report['references'][0]['joint_rad'] == joint
+
+
+def test_a_datasheet_sensor_offset(tmp_path: Path, out: Path) -> None:
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP))
+    assert calibrate(tmp_path, bag, '--sensor-offset', '0.0041', '--sensor-offset-sd', '2e-4') == 0
+    report = json.loads((out / 'report.json').read_text())
+    assert absolute_error_in_sd(report)[0] <= 4.0
+    assert report['absolute_angle']['set_by'] == 'the prior of sensor_offset (sd 0.0002 rad)'
+    assert report['parameters']['sensor_offset']['prior'] == 0.0041
+
+
+def test_spikes_and_invalid_readings(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """Three +0.4 rad spikes, one +0.2 rad glitch and three NaN readings among 6000: the NaN dropped, the spikes set
+    aside, both counted; the noise is the sensor's and the absolute angle within 4 sd."""
+    glitches = ((700, 0.4), (2500, 0.4), (4100, 0.4), (3333, 0.2), (10, math.nan), (11, math.nan), (5000, math.nan))
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP, glitches=glitches))
+    assert calibrate(tmp_path, bag) == 0
+    report = json.loads((out / 'report.json').read_text())
+    assert report['sensor_readings_invalid'] == 3 and report['readings_set_aside'] == 4
+    assert report['noise_sd_rad'] == pytest.approx(1e-3, rel=0.05)  # 6000 readings: the sd's own sd is 0.9%
+    assert report['largest_residual_rad'] < 6e-3
+    assert absolute_error_in_sd(report)[0] <= 4.0
+    assert '4 set aside as outliers, 3 invalid sensor readings dropped' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(('scale', 'cause'), [
+    (-1.0, 'its sign is flipped (theta is positive tilting the antenna down)'),
+    (math.degrees(1.0), 'it reports degrees, not rad')])
+def test_a_sensor_of_the_wrong_sign_or_unit_is_refused(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                                       scale: float, cause: str) -> None:
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP, sensor_scale=scale))
+    assert calibrate(tmp_path, bag) == 1
+    err = capsys.readouterr().err
+    found = re.fullmatch(r'fourbar calibrate: error: the sensor moves (\S+) times as far as the model over the same '
+                         r'joint motion \(expected 0\.8\.\.1\.25\): (.*)\n', err)
+    assert found is not None, err
+    # the design's model against the true linkage (lengths, the encoder's zero 0.7 deg off): 2.2% less span
+    assert float(found[1]) == pytest.approx(scale * 0.978, rel=0.01)
+    assert found[2] == cause
+    assert list(out.iterdir()) == []
+
+
+def test_an_imu_rolled_15_deg(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The IMU turned 15 deg about the antenna's axis, with two all-zero readings: the tilt does not depend on the
+    roll, which is reported; the driven joint's offset and the absolute angle within 4 sd of the truth."""
+    sweep = Sweep(TRUTH, **FAULT_SWEEP, sensor='imu', imu_roll=math.radians(15.0), glitches=((99, math.nan),
+                                                                                            (100, math.nan)))
+    bag = write_calibration_bag(tmp_path / 'imu', sweep, angle_topic='/imu/data')
+    assert calibrate(tmp_path, bag, topic='/imu/data') == 0
+    report = json.loads((out / 'report.json').read_text())
+    assert report['imu_roll_rad'] == pytest.approx(math.radians(15.0), abs=1e-3)  # 1 mrad noise on the tilt only
+    assert report['sensor_readings_invalid'] == 2
+    offset = report['parameters']['driven_joint_offset']
+    assert abs(offset['value'] - TRUTH['driven_joint_offset']) <= 4.0 * offset['sd']
+    assert absolute_error_in_sd(report)[0] <= 4.0
+    # atan2(-a_x, a_z) would read the tilt 1/cos(15 deg) = 3.5% too large: the map would miss by 100s of its sds
+    assert map_error_in_sd(report) <= 4.0
+    assert 'the IMU rolled 15.00 deg about its x axis' in capsys.readouterr().out
+
+
+def test_a_one_way_sweep_is_a_warning(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, duration=120.0, cycles=0.5))
+    assert calibrate(tmp_path, bag) == 0
+    err = capsys.readouterr().err
+    assert err.startswith('fourbar calibrate: warning: the recording sweeps the joint one way only')
+    assert err.count('\n') == 1
+    report = json.loads((out / 'report.json').read_text())
+    assert report['warnings'] == [err.removeprefix('fourbar calibrate: warning: ').rstrip('\n')]
+    assert absolute_error_in_sd(report)[0] <= 4.0
+
+
+def test_a_parameter_far_from_its_prior_is_refused(tmp_path: Path, out: Path,
+                                                   capsys: pytest.CaptureFixture[str]) -> None:
+    """The sensor mounted 0.5 rad off, the prior 0 sd 0.1 rad: refused in one line naming it."""
+    truth = {**TRUTH, 'sensor_offset': 0.5}
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(truth, **FAULT_SWEEP))
+    assert calibrate(tmp_path, bag) == 1
+    err = capsys.readouterr().err
+    assert err.startswith('fourbar calibrate: error: sensor_offset 0.49') and err.count('\n') == 1
+    assert 'prior sds from its prior 0 (sd 0.1): the prior or the recording is wrong' in err
+    assert list(out.iterdir()) == []
+    # given as the mounting's prior, it calibrates
+    assert calibrate(tmp_path, bag, '--sensor-offset', '0.5') == 0
+    assert absolute_error_in_sd(json.loads((out / 'report.json').read_text()), truth)[0] <= 4.0
+
+
+@pytest.mark.parametrize('bad', ['1:2', '0.1:0.2:0', 'a:b:c', '0.1:nan:1e-3'])
+def test_a_malformed_reference_is_status_2(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                           bad: str) -> None:
+    assert calibrate(tmp_path, tmp_path / 'missing', f'--reference={bad}') == 2
+    assert capsys.readouterr().err == (f"fourbar calibrate: error: --reference '{bad}': expected JOINT:THETA:SD in "
+                                       'rad, finite, SD positive\n')
+
+
+def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The sensor's noise filtered, AR(1) with a lag-1 correlation of 0.9: the 6000 readings count as about
+    6000 (1 - 0.9) / (1 + 0.9) = 316 independent ones, and the map and the absolute angle stay within 4 of their
+    widened sds (counted as 6000, the map's sds would be 4.4 times narrower: on this recording its error would be
+    6 of them)."""
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP, noise_correlation=0.9))
+    assert calibrate(tmp_path, bag) == 0
+    report = json.loads((out / 'report.json').read_text())
+    # the lag-1 estimate's own sd is sqrt((1 - 0.81) / 6000) = 0.006
+    assert report['noise_lag1_correlation'] == pytest.approx(0.9, abs=0.03)
+    assert report['independent_readings'] == pytest.approx(316, rel=0.25)
+    assert map_error_in_sd(report) <= 4.0
+    assert absolute_error_in_sd(report)[0] <= 4.0
+    assert 'counts them as' in capsys.readouterr().out

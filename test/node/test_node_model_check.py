@@ -153,9 +153,11 @@ def test_a_float64_sensor_off_by_0_01_rad_is_warn_and_past_the_error_threshold_e
     assert float(values['model_mismatch_rad']) == pytest.approx(0.03, abs=1e-12)
 
 
-def _imu(theta: float, sec: int, nanosec: int, g: float = G) -> Imu:
-    """An Imu at rest on the antenna tilted by theta (rad): gravity's reaction in the coupler frame."""
-    msg = Imu(linear_acceleration=Vector3(x=-g * math.sin(theta), y=0.0, z=g * math.cos(theta)))
+def _imu(theta: float, sec: int, nanosec: int, g: float = G, roll: float = 0.0) -> Imu:
+    """An Imu at rest on the antenna tilted by theta (rad), rolled by ``roll`` (rad) about its x axis: gravity's
+    reaction in the coupler frame turned by the roll."""
+    msg = Imu(linear_acceleration=Vector3(x=-g * math.sin(theta), y=g * math.cos(theta) * math.sin(roll),
+                                          z=g * math.cos(theta) * math.cos(roll)))
     msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
     return msg
 
@@ -184,3 +186,15 @@ def test_an_imu_is_compared_with_the_joint_interpolated_at_its_stamp(rig: Any) -
     assert float(values['model_mismatch_rad']) == pytest.approx(0.01, abs=1e-12)
     assert float(values['model_mismatch_rms_rad']) == pytest.approx(0.01 * math.sqrt(2.0 / 3.0), abs=1e-12)
     assert values['antenna_sensor_type'] == 'imu' and values['sensor_readings_skipped_no_gravity'] == '1'
+
+
+def test_an_imu_rolled_about_the_antenna_reads_the_same_angle(rig: Any) -> None:
+    """Turned 15 deg about its x axis the IMU reads the same tilt: atan2(-a_x, a_z) would read it 3.5% large."""
+    r = rig('imu')
+    r.measure(Q1, 100, 0)
+    theta = core_theta(Q1)
+    assert abs(theta) > 0.01  # so that the roll would show: 3.5% of it is above 0.35 mrad
+    r.read(_imu(theta, 100, 0, roll=math.radians(15.0)))
+    level, message, values = r.status()
+    assert level is Level.OK, message
+    assert float(values['model_mismatch_rad']) == pytest.approx(0.0, abs=1e-12)
