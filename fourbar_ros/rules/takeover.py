@@ -202,15 +202,16 @@ def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: in
 
 def outgoing_stamp(cfg: AntennaConfig, start: Start, traj: DrivenTrajectory, now_ns: int) -> int:
     """The stamp (ns) of a trajectory ``traj`` starting at ``start`` (times from ``start.origin_ns``): that origin,
-    or 0 for one starting now that ends within ``ARRIVAL_MARGIN_S``."""
+    or 0 (start on arrival) for a new one that ends within ``ARRIVAL_MARGIN_S`` (``ends_soon``)."""
     if start.before is None and ends_soon(start, float(traj.times[-1]), now_ns):
         return 0
     return start.origin_ns
 
 
 def ends_soon(start: Start, end: float, now_ns: int) -> bool:
-    """Whether a motion ending ``end`` s after ``start.origin_ns`` ends within ``ARRIVAL_MARGIN_S`` of ``now_ns``."""
-    return end - ns_to_seconds(now_ns - start.origin_ns) <= ARRIVAL_MARGIN_S
+    """Whether a motion ending ``end`` s after ``start.origin_ns`` ends within ``ARRIVAL_MARGIN_S`` of ``now_ns``, or
+    of its start where that lies ahead (a short motion from the measured state)."""
+    return end - max(ns_to_seconds(now_ns - start.origin_ns), 0.0) <= ARRIVAL_MARGIN_S
 
 
 def _cut(traj: DrivenTrajectory, first: int, end: int | None = None) -> DrivenTrajectory:

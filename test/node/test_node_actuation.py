@@ -161,14 +161,16 @@ def traj(ros: RosSession) -> Iterator[Pair]:
     pair = Pair(ros, 'trajectory')
     yield pair
     # Every trajectory the node sent in this module, whatever the test: what the controller accepts (checked by
-    # the contract, and by the strict simulated actuator, which refused none), no effort field, the first point at
-    # its start (so the controller has no lead-in to make), and the interpolated motion within every limit (segment
-    # extremes, not only the points).
+    # the contract, and by the strict simulated actuator, which refused none), no effort field, the interpolated
+    # motion within every limit (segment extremes, not only the points), and so is the controller's whole reference,
+    # the lead-in it makes to a plan stamped ahead of its arrival included (a hold where the drive is).
     for msg in pair.trajectories.messages:
         assert msg.joint_names == [JOINT] and all(len(p.effort) == 0 for p in msg.points)
         assert worst_violation(as_driven(msg), LIMITS, CFG) is None
     assert sum(pair.sim.follower.counters.refused.values()) == 0
-    assert not any(ref.lead_in for ref in pair.taken_over), 'a trajectory left the controller a lead-in'
+    over = [(ref, ratio) for ref in pair.taken_over
+            if (ratio := max(LIMITS.ratio * v / LIMITS.motor(order) for order, v in ref.extremes().items())) > 1 + 1e-9]
+    assert not over, f'the controller\'s reference over a limit (the largest over it, its ratio): {over[:3]}'
     assert sum(pair.actuation.counters.refused.values()) == 0
     pair.close()
 
@@ -195,6 +197,8 @@ def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     before = len(traj.trajectories)
     traj.command(CFG.theta_max)  # a motion of seconds ...
     first = traj.trajectories.wait_count(before + 1)[-1]
+    start = as_driven(first).positions[0]  # (it begins ARRIVAL_MARGIN_S after the command: wait until it runs)
+    wait_for(lambda: traj.actuation.measured.position > start + 1e-3, what='the drive moving')
     traj.command(CFG.theta_min)  # ... interrupted by a command the other way
     second = traj.trajectories.wait_count(before + 2)[-1]
     a, b = as_driven(first), as_driven(second)
