@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from support.colcon_support import CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.colcon_support import CliEnv, launch_missing, ros2_cli_missing
 from support.paths import REPO
 from support.real_controller import Judged, judged, message_points, random_steps, takeovers
 from support.ros2_control_support import ros2_control_missing
@@ -27,7 +27,7 @@ from support.ros2_control_support import ros2_control_missing
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from support.ros_cli_support import Background, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import Background, fourbar_launch  # psutil: with ros2cli
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.controllers import trajectory_controller
@@ -51,16 +51,9 @@ def launched(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
     ``ros2 launch`` running it (its output holds the controller's log)."""
     if (why := ros2_control_missing(ros2_cli.env)) is not None:
         pytest.skip(why)
-    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={NAMESPACE}',
-                         'use_ros2_control:=true', 'mode:=trajectory', 'rviz:=false'], ros2_cli.env, cwd=ros2_cli.cwd)
-    try:
-        wait_node(ros2_cli.env, f'/{NAMESPACE}/fourbar_node')
-        launch.wait_output(lambda t: 'Configured and activated joint_trajectory_controller' in t,
-                           'the trajectory controller active')
+    with fourbar_launch(ros2_cli, NAMESPACE, ['use_ros2_control:=true', 'mode:=trajectory'],
+                        'Configured and activated joint_trajectory_controller') as launch:
         yield ros2_cli, launch
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-    finally:
-        launch.kill()
 
 
 def _judge(env: CliEnv, steps: list[dict[str, object]], tmp_path: Path) -> dict[str, object]:

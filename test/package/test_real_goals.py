@@ -16,14 +16,14 @@ from typing import Any, NamedTuple
 
 import pytest
 import yaml
-from support.colcon_support import CliEnv, launch_missing, ros2, ros2_cli_missing
+from support.colcon_support import CliEnv, launch_missing, ros2_cli_missing
 from support.paths import REPO
 from support.ros2_control_support import ros2_control_missing
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from support.ros_cli_support import Background, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import Background, fourbar_launch  # psutil: with ros2cli
 
 from fourbar_ros.config.antenna_config import load_config
 
@@ -47,18 +47,9 @@ class Bringup(NamedTuple):
 def _bringup(env: CliEnv, namespace: str, *extra: str) -> Iterator[Bringup]:
     if (why := ros2_control_missing(env.env)) is not None:
         pytest.skip(why)
-    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={namespace}',
-                         'use_ros2_control:=true', 'mode:=trajectory', 'trajectory_interface:=action', 'rviz:=false',
-                         *extra], env.env, cwd=env.cwd)
-    try:
-        wait_node(env.env, f'/{namespace}/fourbar_node')
-        launch.wait_output(lambda t: 'Configured and activated joint_trajectory_controller' in t,
-                           'the trajectory controller active')
+    arguments = ['use_ros2_control:=true', 'mode:=trajectory', 'trajectory_interface:=action', *extra]
+    with fourbar_launch(env, namespace, arguments, 'Configured and activated joint_trajectory_controller') as launch:
         yield Bringup(env, launch)
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
-    finally:
-        launch.kill()
 
 
 def _tight_controllers(tmp_path: Path) -> Path:

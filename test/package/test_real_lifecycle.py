@@ -27,7 +27,7 @@ from support.ros2_control_support import ros2_control_missing
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from support.ros_cli_support import Background, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import Background, fourbar_launch  # psutil: with ros2cli
 
 from fourbar_ros.config.antenna_config import load_config
 
@@ -49,15 +49,9 @@ def bringup(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
     """The package's ros2_control bringup in /life (trajectory mode, mock hardware), shared by the module."""
     if (why := ros2_control_missing(ros2_cli.env)) is not None:
         pytest.skip(why)
-    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={NAMESPACE}',
-                         'use_ros2_control:=true', 'mode:=trajectory', 'rviz:=false'], ros2_cli.env, cwd=ros2_cli.cwd)
-    try:
-        wait_node(ros2_cli.env, f'/{NAMESPACE}/fourbar_node')
-        launch.wait_output(lambda t: f'Configured and activated {JTC}' in t, 'the trajectory controller active')
+    with fourbar_launch(ros2_cli, NAMESPACE, ['use_ros2_control:=true', 'mode:=trajectory'],
+                        f'Configured and activated {JTC}') as launch:
         yield ros2_cli, launch
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-    finally:
-        launch.kill()
 
 
 def _probe(env: CliEnv, steps: list[dict[str, Any]], tmp_path: Path, namespace: str = NAMESPACE) -> dict[str, Any]:
@@ -198,7 +192,7 @@ def test_a_command_held_across_the_controller_managers_death_and_respawn_is_reac
     result = _probe(bringup[0], [
         ACTIVE, {'command': 0.0}, _fate('reached', 0.0),
         {'command': -0.07}, {'moving': True},
-        {'kill_manager': True}, _fate('reached', -0.07, timeout=60.0),
+        {'kill_manager': bringup[1].proc.pid}, _fate('reached', -0.07, timeout=60.0),
     ], tmp_path)
     _reached(result, -0.07)
     killed = next(e for e in result['log'] if 'kill_manager' in e['step'])
@@ -283,16 +277,9 @@ def forward(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
     """The package's ros2_control bringup in forward mode, in /lifefwd."""
     if (why := ros2_control_missing(ros2_cli.env)) is not None:
         pytest.skip(why)
-    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=lifefwd',
-                         'use_ros2_control:=true', 'mode:=forward', 'rviz:=false'], ros2_cli.env, cwd=ros2_cli.cwd)
-    try:
-        wait_node(ros2_cli.env, '/lifefwd/fourbar_node')
-        launch.wait_output(lambda t: 'Configured and activated forward_position_controller' in t,
-                           'the forward controller active')
+    with fourbar_launch(ros2_cli, 'lifefwd', ['use_ros2_control:=true', 'mode:=forward'],
+                        'Configured and activated forward_position_controller') as launch:
         yield ros2_cli, launch
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-    finally:
-        launch.kill()
 
 
 def test_forward_mode_holds_a_command_while_its_controller_is_inactive_and_resumes_an_interrupted_one(
@@ -315,15 +302,9 @@ def simulated(ros2_cli: CliEnv) -> Iterator[tuple[CliEnv, Background]]:
     """The package's launch with the simulated actuator in /simlife, controller_manager_msgs on the paths."""
     if (why := ros2_control_missing(ros2_cli.env)) is not None:
         pytest.skip(why)
-    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=simlife',
-                         'sim_actuator:=true', 'mode:=trajectory', 'robot_state_publisher:=false', 'rviz:=false'],
-                        ros2_cli.env, cwd=ros2_cli.cwd)
-    try:
-        wait_node(ros2_cli.env, '/simlife/fourbar_node')
+    arguments = ['sim_actuator:=true', 'mode:=trajectory', 'robot_state_publisher:=false']
+    with fourbar_launch(ros2_cli, 'simlife', arguments) as launch:
         yield ros2_cli, launch
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-    finally:
-        launch.kill()
 
 
 def test_the_simulated_actuator_inactive_gives_the_real_controllers_fates(simulated: tuple[CliEnv, Background],

@@ -19,9 +19,8 @@ import time
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from rclpy.executors import SingleThreadedExecutor
+from probe_node import probe_node
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -31,10 +30,8 @@ DISCOVERY_S = 60.0
 JOINT = 'rocker_ab_joint'
 
 
-def main(namespace: str, steps_path: str, out_path: str) -> int:
+def _probe(node: Node, steps_path: str, out_path: str) -> int:
     steps = json.loads(Path(steps_path).read_text(encoding='utf-8'))
-    rclpy.init()
-    node = Node('goal_probe', namespace=namespace)
     status: dict[str, Any] = {}
     measured: list[float] = []
     lock = threading.Lock()
@@ -56,48 +53,36 @@ def main(namespace: str, steps_path: str, out_path: str) -> int:
     node.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, reliable)
     node.create_subscription(JointState, 'joint_state_broadcaster/joint_states', on_joints, 10)
     to_node = node.create_publisher(Float64, 'antenna_angle_cmd', reliable)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    running = True
-
-    def spin() -> None:
-        while running:
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin)
-    spinner.start()
 
     def snapshot() -> dict[str, Any]:
         with lock:
             return dict(status)
-    try:
-        deadline = time.monotonic() + DISCOVERY_S
-        while (not snapshot() or not measured or to_node.get_subscription_count() < 1) and time.monotonic() < deadline:
-            time.sleep(0.05)  # polls the callback thread, bounded by the deadline
-        if not snapshot() or not measured:
-            print(f'goal_probe: no status or no measurement in {DISCOVERY_S} s', file=sys.stderr)
-            return 1
-        before = snapshot()
-        for step in steps['commands']:
-            time.sleep(float(step['after']))
-            to_node.publish(Float64(data=float(step['command'])))
+    deadline = time.monotonic() + DISCOVERY_S
+    while (not snapshot() or not measured or to_node.get_subscription_count() < 1) and time.monotonic() < deadline:
+        time.sleep(0.05)  # polls the callback thread, bounded by the deadline
+    if not snapshot() or not measured:
+        print(f'goal_probe: no status or no measurement in {DISCOVERY_S} s', file=sys.stderr)
+        return 1
+    before = snapshot()
+    for step in steps['commands']:
+        time.sleep(float(step['after']))
+        to_node.publish(Float64(data=float(step['command'])))
 
-        def reached() -> bool:
-            now = snapshot()
-            return all(int(now.get(k, '0')) - int(before.get(k, '0')) >= int(v) for k, v in steps['until'].items())
-        deadline = time.monotonic() + float(steps.get('timeout', 30.0))
-        while not reached() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        time.sleep(float(steps.get('settle', 0.0)))
-        Path(out_path).write_text(json.dumps({'before': before, 'status': snapshot(),
-                                                   'measured': measured[-1]}), encoding='utf-8')
-        return 0
-    finally:
-        running = False
-        spinner.join()
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
+    def reached() -> bool:
+        now = snapshot()
+        return all(int(now.get(k, '0')) - int(before.get(k, '0')) >= int(v) for k, v in steps['until'].items())
+    deadline = time.monotonic() + float(steps.get('timeout', 30.0))
+    while not reached() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(float(steps.get('settle', 0.0)))
+    Path(out_path).write_text(json.dumps({'before': before, 'status': snapshot(),
+                                               'measured': measured[-1]}), encoding='utf-8')
+    return 0
+
+
+def main(namespace: str, steps_path: str, out_path: str) -> int:
+    with probe_node('goal_probe', namespace) as node:
+        return _probe(node, steps_path, out_path)
 
 
 if __name__ == '__main__':

@@ -23,10 +23,9 @@ import time
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from builtin_interfaces.msg import Duration, Time
 from control_msgs.msg import JointTrajectoryControllerState
-from rclpy.executors import SingleThreadedExecutor
+from probe_node import probe_node
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
@@ -60,10 +59,8 @@ def _message(step: dict[str, Any], stamp_ns: int) -> JointTrajectory:
     return msg
 
 
-def main(namespace: str, cases_path: str, out_path: str, tail_s: float = 0.3) -> int:
+def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> int:
     steps = json.loads(Path(cases_path).read_text(encoding='utf-8'))
-    rclpy.init()
-    node = Node('jtc_judge', namespace=namespace)
     clock = node.get_clock()
     states: list[dict[str, Any]] = []
     trajectories: list[dict[str, Any]] = []
@@ -92,63 +89,51 @@ def main(namespace: str, cases_path: str, out_path: str, tail_s: float = 0.3) ->
         if need_node else None
     to_controller = node.create_publisher(JointTrajectory, f'{CONTROLLER}/joint_trajectory', 10)
     to_node = node.create_publisher(Float64, 'antenna_angle_cmd', 10)
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    running = True
+    deadline = time.monotonic() + DISCOVERY_S
 
-    def spin() -> None:
-        while running:
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin)
-    spinner.start()
-    try:
-        deadline = time.monotonic() + DISCOVERY_S
-
-        def ready() -> bool:
-            return (to_controller.get_subscription_count() >= 1 and got_state.is_set()
-                    and (echo is None or (to_node.get_subscription_count() >= 1 and echo.get_publisher_count() >= 1)))
-        while not ready() and time.monotonic() < deadline:
-            time.sleep(0.01)  # polls the graph and the callback thread, bounded by the deadline
-        if not ready():
-            print(f'jtc_judge: not ready in {DISCOVERY_S} s: trajectory subscribers '
-                  f'{to_controller.get_subscription_count()}, command subscribers {to_node.get_subscription_count()}, '
-                  f'trajectory publishers {echo.get_publisher_count() if echo else "-"}, states received {len(states)}',
-                  file=sys.stderr)
-            return 1
-        first = clock.now().nanoseconds
+    def ready() -> bool:
+        return (to_controller.get_subscription_count() >= 1 and got_state.is_set()
+                and (echo is None or (to_node.get_subscription_count() >= 1 and echo.get_publisher_count() >= 1)))
+    while not ready() and time.monotonic() < deadline:
+        time.sleep(0.01)  # polls the graph and the callback thread, bounded by the deadline
+    if not ready():
+        print(f'jtc_judge: not ready in {DISCOVERY_S} s: trajectory subscribers '
+              f'{to_controller.get_subscription_count()}, command subscribers {to_node.get_subscription_count()}, '
+              f'trajectory publishers {echo.get_publisher_count() if echo else "-"}, states received {len(states)}',
+              file=sys.stderr)
+        return 1
+    first = clock.now().nanoseconds
+    t_prev = time.monotonic()
+    for step in steps:
+        while time.monotonic() < t_prev + float(step['after']):
+            time.sleep(0.001)
         t_prev = time.monotonic()
-        for step in steps:
-            while time.monotonic() < t_prev + float(step['after']):
-                time.sleep(0.001)
-            t_prev = time.monotonic()
-            if 'command' in step:
-                to_node.publish(Float64(data=float(step['command'])))
-            else:
-                now = clock.now().nanoseconds
-                stamp = 0 if step['stamp'] is None else now + round(float(step['stamp']) * NS)
-                to_controller.publish(_message(step, stamp))
-                sent_points = [[round(float(p[0]) * NS) / NS, *p[1:]] for p in step['points']]  # as on the wire
-                trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points,
-                                     'joints': step.get('joints', [JOINT])})
-        if steps and 'command' in steps[-1]:  # the node's answer to the last command: wait for it to arrive
-            sent = clock.now().nanoseconds - round((time.monotonic() - t_prev) * NS)
-            deadline = time.monotonic() + 10.0
-            while not any(t['received'] >= sent for t in trajectories) and time.monotonic() < deadline:
-                time.sleep(0.01)
-        end = max((max(t['stamp'], t['received']) + round(t['points'][-1][0] * NS) for t in trajectories
-                   if t['points']), default=clock.now().nanoseconds)
-        while clock.now().nanoseconds < end + round(tail_s * NS):
+        if 'command' in step:
+            to_node.publish(Float64(data=float(step['command'])))
+        else:
+            now = clock.now().nanoseconds
+            stamp = 0 if step['stamp'] is None else now + round(float(step['stamp']) * NS)
+            to_controller.publish(_message(step, stamp))
+            sent_points = [[round(float(p[0]) * NS) / NS, *p[1:]] for p in step['points']]  # as on the wire
+            trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points,
+                                 'joints': step.get('joints', [JOINT])})
+    if steps and 'command' in steps[-1]:  # the node's answer to the last command: wait for it to arrive
+        sent = clock.now().nanoseconds - round((time.monotonic() - t_prev) * NS)
+        deadline = time.monotonic() + 10.0
+        while not any(t['received'] >= sent for t in trajectories) and time.monotonic() < deadline:
             time.sleep(0.01)
-        out = {'trajectories': trajectories, 'states': [s for s in states if s['stamp'] >= first - 50_000_000]}
-        Path(out_path).write_text(json.dumps(out), encoding='utf-8')
-        return 0
-    finally:
-        running = False
-        spinner.join()
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
+    end = max((max(t['stamp'], t['received']) + round(t['points'][-1][0] * NS) for t in trajectories
+               if t['points']), default=clock.now().nanoseconds)
+    while clock.now().nanoseconds < end + round(tail_s * NS):
+        time.sleep(0.01)
+    out = {'trajectories': trajectories, 'states': [s for s in states if s['stamp'] >= first - 50_000_000]}
+    Path(out_path).write_text(json.dumps(out), encoding='utf-8')
+    return 0
+
+
+def main(namespace: str, cases_path: str, out_path: str, tail_s: float = 0.3) -> int:
+    with probe_node('jtc_judge', namespace) as node:
+        return _probe(node, cases_path, out_path, tail_s)
 
 
 if __name__ == '__main__':

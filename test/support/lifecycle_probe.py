@@ -10,7 +10,7 @@ deadline (never on time alone):
 - ``{"unload": name}``: ``unload_controller``;
 - ``{"hardware": [name, "active" | "inactive"]}``: ``set_hardware_component_state``;
 - ``{"run": [...]}``: a command line (e.g. the spawner), to its exit;
-- ``{"kill_manager": true}``: SIGKILL to this namespace's ros2_control_node;
+- ``{"kill_manager": pid}``: SIGKILL to the ros2_control_node that process ``pid`` (the launch) started;
 - ``{"until": {key: value, ...}, "timeout": s}``: wait until the node's diagnostics show every value;
 - ``{"moving": true, "timeout": s}``: wait until the measured driven joint moves;
 - ``{"pause": s}``: let time pass (a random sequence's spacing; not a wait for anything);
@@ -35,13 +35,12 @@ from pathlib import Path
 from typing import Any
 
 import psutil
-import rclpy
 from builtin_interfaces.msg import Duration
 from control_msgs.msg import JointTrajectoryControllerState
 from controller_manager_msgs.srv import SetHardwareComponentState, SwitchController, UnloadController
 from diagnostic_msgs.msg import DiagnosticArray
 from lifecycle_msgs.msg import State
-from rclpy.executors import SingleThreadedExecutor
+from probe_node import probe_node
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -53,10 +52,8 @@ JOINT = 'rocker_ab_joint'
 STATE_IDS = {'active': State.PRIMARY_STATE_ACTIVE, 'inactive': State.PRIMARY_STATE_INACTIVE}
 
 
-def main(namespace: str, steps_path: str, out_path: str) -> int:
+def _probe(node: Node, steps_path: str, out_path: str) -> int:
     steps = json.loads(Path(steps_path).read_text(encoding='utf-8'))
-    rclpy.init()
-    node = Node('lifecycle_probe', namespace=namespace)
     t0 = time.monotonic()
     status: dict[str, str] = {}
     statuses: list[list[Any]] = []
@@ -96,16 +93,6 @@ def main(namespace: str, steps_path: str, out_path: str) -> int:
                'unload': node.create_client(UnloadController, 'controller_manager/unload_controller'),
                'hardware': node.create_client(SetHardwareComponentState,
                                               'controller_manager/set_hardware_component_state')}
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    running = True
-
-    def spin() -> None:
-        while running:
-            executor.spin_once(timeout_sec=0.05)
-
-    spinner = threading.Thread(target=spin)
-    spinner.start()
     log: list[dict[str, Any]] = []
 
     def wait(predicate: Any, timeout: float) -> bool:
@@ -125,71 +112,69 @@ def main(namespace: str, steps_path: str, out_path: str) -> int:
             return f'{client.srv_name}: no answer in {SERVICE_S} s'
         return future.result()
 
-    try:
-        if not wait(lambda: to_node.get_subscription_count() >= 1 and bool(status) and bool(measured), DISCOVERY_S):
-            print(f'lifecycle_probe: not ready in {DISCOVERY_S} s: command subscribers '
-                  f'{to_node.get_subscription_count()}, status {bool(status)}, measured {len(measured)}',
-                  file=sys.stderr)
-            return 1
-        for step in steps:
-            at = time.monotonic() - t0
-            result: Any = None
-            if 'command' in step:
-                to_node.publish(Float64(data=float(step['command'])))
-            elif 'switch' in step:
-                request = SwitchController.Request(
-                    activate_controllers=step['switch'].get('activate', []),
-                    deactivate_controllers=step['switch'].get('deactivate', []),
-                    strictness=SwitchController.Request.STRICT, timeout=Duration(sec=10))
-                answer = call('switch', request)
-                result = answer if isinstance(answer, str) else {'ok': answer.ok, 'message': answer.message}
-            elif 'unload' in step:
-                answer = call('unload', UnloadController.Request(name=step['unload']))
-                result = answer if isinstance(answer, str) else {'ok': answer.ok}
-            elif 'hardware' in step:
-                name, target = step['hardware']
-                answer = call('hardware', SetHardwareComponentState.Request(
-                    name=name, target_state=State(id=STATE_IDS[target], label=target)))
-                result = answer if isinstance(answer, str) else {'ok': answer.ok, 'state': answer.state.label}
-            elif 'run' in step:
-                done = subprocess.run(step['run'], capture_output=True, text=True, timeout=120, check=False,
-                                      env=os.environ)
-                result = {'returncode': done.returncode, 'output': (done.stdout + done.stderr)[-1500:]}
-            elif 'kill_manager' in step:
-                killed = [p.pid for p in psutil.process_iter(['cmdline'])
-                          if any('ros2_control_node' in c for c in p.info['cmdline'] or [])
-                          and f'__ns:={namespace}' in (p.info['cmdline'] or [])]
-                for pid in killed:
-                    os.kill(pid, signal.SIGKILL)
-                result = {'killed': killed}
-            elif 'until' in step:
-                want = {k: str(v) for k, v in step['until'].items()}
+    if not wait(lambda: to_node.get_subscription_count() >= 1 and bool(status) and bool(measured), DISCOVERY_S):
+        print(f'lifecycle_probe: not ready in {DISCOVERY_S} s: command subscribers '
+              f'{to_node.get_subscription_count()}, status {bool(status)}, measured {len(measured)}',
+              file=sys.stderr)
+        return 1
+    for step in steps:
+        at = time.monotonic() - t0
+        result: Any = None
+        if 'command' in step:
+            to_node.publish(Float64(data=float(step['command'])))
+        elif 'switch' in step:
+            request = SwitchController.Request(
+                activate_controllers=step['switch'].get('activate', []),
+                deactivate_controllers=step['switch'].get('deactivate', []),
+                strictness=SwitchController.Request.STRICT, timeout=Duration(sec=10))
+            answer = call('switch', request)
+            result = answer if isinstance(answer, str) else {'ok': answer.ok, 'message': answer.message}
+        elif 'unload' in step:
+            answer = call('unload', UnloadController.Request(name=step['unload']))
+            result = answer if isinstance(answer, str) else {'ok': answer.ok}
+        elif 'hardware' in step:
+            name, target = step['hardware']
+            answer = call('hardware', SetHardwareComponentState.Request(
+                name=name, target_state=State(id=STATE_IDS[target], label=target)))
+            result = answer if isinstance(answer, str) else {'ok': answer.ok, 'state': answer.state.label}
+        elif 'run' in step:
+            done = subprocess.run(step['run'], capture_output=True, text=True, timeout=120, check=False,
+                                  env=os.environ)
+            result = {'returncode': done.returncode, 'output': (done.stdout + done.stderr)[-1500:]}
+        elif 'kill_manager' in step:
+            launch = psutil.Process(int(step['kill_manager']))
+            killed = [p.pid for p in launch.children(recursive=True)
+                      if any('ros2_control_node' in c for c in p.cmdline())]
+            for pid in killed:
+                os.kill(pid, signal.SIGKILL)
+            result = {'killed': killed}
+        elif 'until' in step:
+            want = {k: str(v) for k, v in step['until'].items()}
 
-                def shows(want: dict[str, str] = want) -> bool:
-                    with lock:
-                        return all(status.get(k) == v for k, v in want.items())
-                result = {'seen': wait(shows, float(step.get('timeout', 30.0)))}
-            elif 'pause' in step:
-                time.sleep(float(step['pause']))
-            elif 'moving' in step:
-                first = measured[-1][1]
-                result = {'seen': wait(lambda first=first: abs(measured[-1][1] - first) > 1e-4,
-                                       float(step.get('timeout', 30.0)))}
-            with lock:
-                log.append({'step': step, 'at': at, 'result': result, 'status': dict(status)})
-            if isinstance(result, str) or (isinstance(result, dict) and not result.get('seen', True)):
-                break
+            def shows(want: dict[str, str] = want) -> bool:
+                with lock:
+                    return all(status.get(k) == v for k, v in want.items())
+            result = {'seen': wait(shows, float(step.get('timeout', 30.0)))}
+        elif 'pause' in step:
+            time.sleep(float(step['pause']))
+        elif 'moving' in step:
+            first = measured[-1][1]
+            result = {'seen': wait(lambda first=first: abs(measured[-1][1] - first) > 1e-4,
+                                   float(step.get('timeout', 30.0)))}
         with lock:
-            out = {'log': log, 'statuses': statuses, 'measured': measured, 'references': references,
-                   'status': dict(status)}
-        Path(out_path).write_text(json.dumps(out), encoding='utf-8')
-        return 0
-    finally:
-        running = False
-        spinner.join()
-        executor.shutdown(timeout_sec=1.0)
-        node.destroy_node()
-        rclpy.try_shutdown()
+            log.append({'step': step, 'at': at, 'result': result, 'status': dict(status)})
+        if isinstance(result, str) or (isinstance(result, dict) and not result.get('seen', True)):
+            break
+    with lock:
+        out = {'log': log, 'statuses': statuses, 'measured': measured, 'references': references,
+               'status': dict(status)}
+    Path(out_path).write_text(json.dumps(out), encoding='utf-8')
+    return 0
+
+
+def main(namespace: str, steps_path: str, out_path: str) -> int:
+    with probe_node('lifecycle_probe', namespace) as node:
+        return _probe(node, steps_path, out_path)
 
 
 if __name__ == '__main__':

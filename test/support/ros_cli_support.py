@@ -12,7 +12,7 @@ import signal
 import subprocess
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -306,3 +306,25 @@ def wait_node(env: dict[str, str], node: str, timeout: float = TIMEOUT) -> list[
             return nodes
         if time.monotonic() > deadline:
             raise AssertionError(f'{node} not listed after {timeout} s: {nodes}')
+
+
+@contextlib.contextmanager
+def fourbar_launch(env: Any, namespace: str, arguments: Sequence[str],
+                   ready: str | None = None) -> Iterator[Background]:
+    """``ros2 launch fourbar_ros fourbar.launch.py namespace:=NAMESPACE ARGUMENTS rviz:=false`` from ``env`` (a
+    colcon_support.CliEnv), once ``/NAMESPACE/fourbar_node`` is up and, if given, the line ``ready`` is in its
+    output; on leaving, Ctrl-C to its group ends it all with status 0 and no traceback (the output shows otherwise),
+    and whatever is left is killed."""
+    from support.colcon_support import ros2
+
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={namespace}',
+                         *arguments, 'rviz:=false'], env.env, cwd=env.cwd)
+    try:
+        wait_node(env.env, f'/{namespace}/fourbar_node')
+        if ready is not None:
+            launch.wait_output(lambda t: ready in t, repr(ready))
+        yield launch
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+    finally:
+        launch.kill()
