@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -48,7 +49,13 @@ ROUNDING = 1e-9
 
 
 def worst_ratio(ref: Reference) -> float:
-    """The largest of the reference's motor speed, acceleration and jerk over the limits."""
+    """The largest of the reference's motor speed, acceleration and jerk over the limits, the controller's lead-in
+    left out: a plan starts from the measured state ARRIVAL_MARGIN_S ahead, and after a faulty measurement (the
+    'jump' rule) that state is not where the drive is; the lead-in bridges the gap (and the drive's tolerance check
+    holds it). The node's own motion is what is held to the limits."""
+    if ref.lead_in and ref.knots.size > 2:
+        ref = replace(ref, takeover=float(ref.knots[1]), knots=ref.knots[1:], coefficients=ref.coefficients[1:],
+                      degrees=ref.degrees[1:], lead_in=False)
     return max(LIMITS.ratio * v / LIMITS.motor(order) for order, v in ref.extremes().items())
 
 

@@ -114,10 +114,21 @@ STEP_ALLOWED = PLANNED_STEP + 0.05 * ACCELERATION_LIMIT
 
 
 def _largest_step(result: dict[str, Any]) -> float:
-    """The largest change of joint_trajectory_controller's reference acceleration between two updates, as a
-    fraction of the driven joint's acceleration limit."""
-    a = [r[1] for r in result['references']]
-    return max((abs(y - x) for x, y in itertools.pairwise(a)), default=0.0) / ACCELERATION_LIMIT
+    """The largest change of joint_trajectory_controller's reference acceleration between two successive updates
+    after an activation (of the controller or its hardware) and before the next event, as a fraction of the driven
+    joint's acceleration limit. A deactivation stops the reference at once; that stop is not a takeover."""
+    events = [e for e in result['log'] if not {'pause', 'mark', 'until', 'moving'} & set(e['step'])]
+    worst = 0.0
+    for event, after in zip(events, [*events[1:], None], strict=True):
+        step = event['step']
+        if not (step.get('switch', {}).get('activate') or step.get('hardware', [None, None])[1] == 'active'):
+            continue
+        end = after['at'] if after is not None else float('inf')
+        window = [r for r in result['references'] if event['at'] <= r[0] < end]
+        for (_, a0, s0), (_, a1, s1) in itertools.pairwise(window):
+            if s1 - s0 < 0.015:  # successive updates (100 Hz; the controller's publisher drops one now and then)
+                worst = max(worst, abs(a1 - a0))
+    return worst / ACCELERATION_LIMIT
 
 
 def _motion_after(result: dict[str, Any], kind: str, which: int) -> float:
