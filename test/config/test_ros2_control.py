@@ -262,7 +262,8 @@ def test_a_plain_section_key_does_not_apply_in_a_namespace(tmp_path: Any) -> Non
     # Why the shipped file writes /**/: rcl reads `jtc:` as /jtc, which a controller in /tilt does not receive.
     path = tmp_path / 'plain.yaml'
     path.write_text('jtc:\n  ros__parameters:\n    joints: [j]\n    command_interfaces: [position]\n'
-                    '    state_interfaces: [position]\n', encoding='utf-8')
+                    '    state_interfaces: [position]\n'
+                    '    set_last_command_interface_value_as_state_on_activation: false\n', encoding='utf-8')
     assert trajectory_controller(str(path), 'jtc').joints == ('j',)
     with pytest.raises(ConfigError, match="no '/\\*\\*:' or '/tilt/jtc' section"):
         trajectory_controller(str(path), 'jtc', '/tilt')
