@@ -182,7 +182,7 @@ def test_activation_from_the_last_command_is_refused_in_one_line_naming_the_key(
     # the hardware's last command, not the measured position. The same file with it false is read.
     body = f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n    command_interfaces: [position]\n' \
            '    state_interfaces: [position]\n'
-    with pytest.raises(ConfigError, match='jtc.set_last_command_interface_value_as_state_on_activation is') as bad:
+    with pytest.raises(ConfigError, match=r'jtc\.set_last_command_interface_value_as_state_on_activation is') as bad:
         trajectory_controller(controllers_yaml(tmp_path, body + line), 'jtc')
     assert '\n' not in str(bad.value) and 'set it false' in str(bad.value)
     assert ('is true' if line else 'is not set') in str(bad.value), str(bad.value)
