@@ -198,10 +198,11 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Trajectory mode: send the static input torque as each point\'s effort (a feed-forward). The '
               'controller must then have an effort command interface ([position, effort]); off: no effort field.',
               read_only=True),
-    ParamSpec('replan_tolerance', float, 0.02, 'rad',
+    ParamSpec('replan_tolerance', float, 0.01, 'rad',
               'Actuator modes: a command during a motion plans on from the motion being followed while the '
               'measured driven joint is within this of it at the measurement\'s stamp; otherwise from the measured '
-              'state.', 0.0, 3.2),
+              'state. Keep it below the controller\'s path tolerance, so a drive the controller holds is planned '
+              'from where it is.', 0.0, 3.2),
     ParamSpec('measured_range_tolerance', float, 1e-5, 'rad',
               'Actuator modes: a measured driven joint outside its range for [theta_min, theta_max] by at most this '
               '(an encoder count through the reducer rounds outward) starts a motion from the nearest end of the '
@@ -233,7 +234,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'so robot_state_publisher can place the coupler of the URDF from `fourbar urdf`.'),
     ParamSpec('hardware_id', str, 'fourbar_antenna_tilt', '',
               'Diagnostics hardware_id: names the hardware (the tilt drive), not a TF frame; also the name of the '
-              'URDF\'s <ros2_control> block (the hardware component).'),
+              'URDF\'s `<ros2_control>` block (the hardware component).'),
     ParamSpec('hardware_parameters', list, [], '',
               'The hardware plugin\'s parameters: `name=value` strings, each written by `fourbar urdf` and the '
               'launch file as a `<param name="name">value</param>` of the URDF\'s `<hardware>` block (names '

@@ -323,3 +323,13 @@ def test_a_plain_section_key_does_not_apply_in_a_namespace(tmp_path: Any) -> Non
     assert trajectory_controller(str(path), 'jtc').joints == ('j',)
     with pytest.raises(ConfigError, match="no '/\\*\\*:' or '/tilt/jtc' section"):
         trajectory_controller(str(path), 'jtc', '/tilt')
+
+
+def test_the_path_tolerance_trips_above_the_nodes_replan_tolerance() -> None:
+    # A drive the controller holds on its path tolerance is then that far off the node's motion: the node's next
+    # command must see it (more than replan_tolerance off) and plan from the measured state, or the controller would
+    # get a trajectory starting up to the path tolerance away from the drive (a step). Both as shipped.
+    path = trajectory_controller('', 'joint_trajectory_controller').tolerance(default_config().driven_joint)
+    replan = load_config(REPO / 'config' / 'antenna.yaml').replan_tolerance
+    assert replan < path.trajectory < math.radians(1.0), (replan, path)
+    assert 0.0 < path.goal < path.trajectory, path
