@@ -374,7 +374,7 @@ def test_antenna_trajectories_ending_moving_or_in_the_past_are_refused_and_count
 @pytest.fixture(scope='module')
 def held(ros: RosSession) -> Iterator[Pair]:
     """A trajectory-mode node whose simulated drive is 50 times too slow: the controller holds it on its path
-    tolerance (0.75 deg, above the default replan_tolerance)."""
+    tolerance (1 deg, above the default replan_tolerance)."""
     pair = Pair(ros, 'trajectory', '_held', sim=(Parameter('max_velocity', value=LIMITS.at_rocker(1) / 50.0),))
     yield pair
     pair.close()

@@ -49,7 +49,7 @@ QUICK, STRESS = 12, int(os.environ.get('FOURBAR_JUDGE_TRAJECTORIES', '200'))
 
 #: The judge's path tolerance (rad). Its random trajectories move up to about 3 rad/s, some 50 times the drive's
 #: speed limit, on purpose: they exercise the controller's interpolation, not the drive. The mock hardware measures
-#: the previous update's command, up to 3 rad/s * 10 ms = 0.03 rad behind the reference, so the shipped 0.75 deg
+#: the previous update's command, up to 3 rad/s * 10 ms = 0.03 rad behind the reference, so the shipped 1 deg
 #: would make the controller hold in mid-trajectory; 0.05 rad lets it follow while still catching a takeover far
 #: from the drive (the holds the judge expects). The model is judged within BOUND_RAD all the same.
 JUDGE_PATH_TOLERANCE = 0.05
