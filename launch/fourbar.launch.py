@@ -95,6 +95,12 @@ def _rviz_config(template: Path, frame_id: str, namespace: str) -> str:
     return path
 
 
+def _launch_values(values: dict[str, object]) -> dict[str, object]:
+    """Parameter values as launch_ros passes them: an empty list has no type there (it refuses one), and a node
+    that declares it reads it as empty when it is not set."""
+    return {name: value for name, value in values.items() if value != []}
+
+
 def _setup(context: LaunchContext) -> list[object]:
     from fourbar_ros.config.robot_model import robot_description, robot_description_for
 
@@ -138,7 +144,8 @@ def _setup(context: LaunchContext) -> list[object]:
     if want_sim:  # the linkage fourbar_node reads; its own parameters from a sim_actuator section of the file
         actions.append(Node(package='fourbar_ros', executable=SIM_EXECUTABLE, name=SIM_NODE_NAME,
                             namespace=ros_namespace, output='screen', emulate_tty=False,
-                            parameters=[params_file, {**cfg.as_values(), 'controllers_file': controllers},
+                            parameters=[params_file,
+                                        {**_launch_values(cfg.as_values()), 'controllers_file': controllers},
                                         {'use_sim_time': use_sim_time}]))
     if want_rsp or want_control:
         if _installed_executable('robot_state_publisher', 'robot_state_publisher'):

@@ -98,6 +98,8 @@ def _default(p: ParamSpec) -> str:
         return f"`{p.default}`" if p.default != '' else "`''`"
     if p.type is bool:
         return 'true' if p.default else 'false'
+    if p.type is list:
+        return '`[]`' if not p.default else f'`{p.default!r}`'
     text = _number(p.default)  # type: ignore[arg-type]
     if p.unit == 'rad' and p.default != 0:
         text += f' ({math.degrees(float(p.default)):.6g} deg)'
@@ -111,12 +113,14 @@ def _allowed(p: ParamSpec) -> str:
         lo = '-inf' if p.minimum is None else _number(p.minimum)
         hi = 'inf' if p.maximum is None else _number(p.maximum)
         return f'[{lo}, {hi}]'
+    if p.type is list:
+        return '`name=value` strings'
     return 'non-empty' if p.type is str and p.default != '' else 'any'
 
 
 def parameters_table() -> str:
     """Every node parameter: name, type, default, unit, allowed values, when it can change, meaning."""
-    types = {float: 'double', int: 'integer', str: 'string', bool: 'bool'}
+    types = {float: 'double', int: 'integer', str: 'string', bool: 'bool', list: 'string array'}
     out = ['| Parameter | Type | Default | Unit | Allowed | Set | Meaning |', '|---|---|---|---|---|---|---|']
     for p in PARAMETERS:
         when = 'startup' if p.read_only else 'any time'

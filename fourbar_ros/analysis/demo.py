@@ -142,11 +142,11 @@ def served_driven(values: Sequence[float], cfg: AntennaConfig) -> FloatArray:
 
 def pace(values: Sequence[float], cfg: AntennaConfig) -> float:
     """Seconds between replayed commands so that the largest step between two served commands, taken in that
-    time, asks the driven joint for PACE_FRACTION of its speed limit (motor_speed_limit / reducer_ratio); at
+    time, asks the driven joint for PACE_FRACTION of its speed limit (motor_speed_limit / |reducer_ratio|); at
     least MIN_PERIOD_S."""
     q = served_driven(values, cfg)
     step = float(np.max(np.abs(np.diff(q)))) if q.size > 1 else 0.0
-    return max(step / (PACE_FRACTION * cfg.motor_speed_limit / cfg.reducer_ratio), MIN_PERIOD_S)
+    return max(step / (PACE_FRACTION * cfg.motor_speed_limit / cfg.reduction), MIN_PERIOD_S)
 
 
 def _column(values: Sequence[float], index: int) -> float:
@@ -288,7 +288,7 @@ class Summary:
     final_error: float
     worst_error: float
     worst_error_t: float  #: s
-    speed_limit: float  #: rad/s at the driven rocker: motor_speed_limit / reducer_ratio
+    speed_limit: float  #: rad/s at the driven rocker: motor_speed_limit / |reducer_ratio|
     peak_speed_measured: float  #: rad/s
     peak_speed_planned: float  #: rad/s (NaN without planned velocities)
     torque_limit: float  #: N m at the motor
@@ -359,7 +359,7 @@ def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
     return Summary(
         final_error=float(rec.command.value[-1] - rec.antenna.value[-1]),  # the last served, once settled
         worst_error=float(error[worst]), worst_error_t=float(t[worst]),
-        speed_limit=cfg.motor_speed_limit / cfg.reducer_ratio,
+        speed_limit=cfg.motor_speed_limit / cfg.reduction,
         peak_speed_measured=_peak(rec.measured.velocity), peak_speed_planned=_peak(rec.planned_velocity),
         torque_limit=cfg.motor_torque_limit, peak_motor_torque=abs(motor_torque(cfg, _peak(torque))),
         completion_position=position, completion_velocity=velocity, completed_paired=paired,
@@ -382,7 +382,7 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
         f'{cfg.trajectory_tolerance:g}), worst {_deg(s.worst_error)} at {s.worst_error_t:.2f} s',
         f'speed    peak {math.degrees(speed_peak):.3f} deg/s at the driven rocker (measured '
         f'{math.degrees(s.peak_speed_measured):.3f}, planned {math.degrees(s.peak_speed_planned):.3f}) of the '
-        f'{math.degrees(s.speed_limit):.3f} deg/s limit ({cfg.motor_speed_limit:g} rad/s / {cfg.reducer_ratio:g}): '
+        f'{math.degrees(s.speed_limit):.3f} deg/s limit ({cfg.motor_speed_limit:g} rad/s / {cfg.reduction:g}): '
         f'margin {100 * s.speed_margin:.1f}%',
         f'torque   peak {s.peak_motor_torque:.5f} N m at the motor of the {s.torque_limit:g} N m limit: '
         f'margin {100 * s.torque_margin:.1f}%',
@@ -432,7 +432,7 @@ def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str)
                   label=f'measured ({cfg.driven_joint})')
     for sign in (1.0, -1.0):
         ax_speed.axhline(sign * limit, color='tab:red', ls=':', lw=1.2,
-                         label=f'limit {cfg.motor_speed_limit:.4g} rad/s / {cfg.reducer_ratio:g}' if sign > 0 else None)
+                         label=f'limit {cfg.motor_speed_limit:.4g} rad/s / {cfg.reduction:g}' if sign > 0 else None)
     ax_speed.set_ylim(-1.25 * limit, 1.25 * limit)
     ax_speed.set_ylabel('driven joint speed (deg/s)')
     ax_speed.legend(loc='lower left', fontsize=8, ncols=3)

@@ -208,7 +208,7 @@ def _plot(cfg: AntennaConfig, report: DesignReport, path: str, samples: int) -> 
     ax_t.plot(deg, [abs(v) for v in curves.input_torque], color='tab:purple', label='|input torque| at rocker')
     ax_t.axhline(cfg.output_torque_limit, color='tab:red', ls='--',
                  label=f'reducer rating {cfg.output_torque_limit:g} N m')
-    motor_equiv = cfg.motor_torque_limit * cfg.reducer_ratio * cfg.reducer_efficiency
+    motor_equiv = cfg.motor_torque_limit * cfg.reduction * cfg.reducer_efficiency
     ax_t.axhline(motor_equiv, color='tab:orange', ls=':',
                  label=f'motor limit x ratio x efficiency = {motor_equiv:.4g} N m')
     ax_t.plot([math.degrees(report.peak_input_torque.theta)], [report.peak_input_torque.value], 'kx')

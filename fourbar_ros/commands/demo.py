@@ -180,8 +180,8 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
                                  '-r', f'{MEASURED_JOINT_STATES.name}:={BROADCASTER_JOINT_STATES.name}'), env,
                        log_path=args.out / 'node.log')
     sim = NodeProcess(node_args(args.params, '-p', f'initial_theta:={float(commands[0])!r}',
-                                '-p', f'max_velocity:={cfg.motor_speed_limit / cfg.reducer_ratio!r}',
-                                '-p', f'max_acceleration:={cfg.motor_acceleration_limit / cfg.reducer_ratio!r}'),
+                                '-p', f'max_velocity:={cfg.motor_speed_limit / cfg.reduction!r}',
+                                '-p', f'max_acceleration:={cfg.motor_acceleration_limit / cfg.reduction!r}'),
                       env, command=sim_actuator_command(), log_path=args.out / 'sim_actuator.log')
     stack = contextlib.ExitStack()
     stack.callback(_stop_process, node, NODE_EXECUTABLE)  # on every path, last

@@ -5,6 +5,7 @@ The rules the node applies, applied the same way: docs/reference/parameters.md. 
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Collection, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -12,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from fourbar_ros.config.params import (
+    MIN_REDUCTION,
     PARAMETERS,
     PARAMETERS_BY_NAME,
     RANGE_REL_TOL,
@@ -100,6 +102,7 @@ class AntennaConfig:
     delta_joint: str
     coupler_joint: str
     hardware_id: str
+    hardware_parameters: tuple[str, ...]
     frame_id: str
     out_of_limits: str
     transmission_angle_min: float
@@ -113,6 +116,12 @@ class AntennaConfig:
     def has_gravity_load(self) -> bool:
         """True when the antenna weight adds an angle-dependent load."""
         return has_gravity_load(self)
+
+    @property
+    def reduction(self) -> float:
+        """Motor turns per rocker turn whichever way the motor turns: |reducer_ratio|. The motor's speed,
+        acceleration and jerk limits (rad/s^n at the motor) over it are the driven rocker's."""
+        return abs(self.reducer_ratio)
 
     @property
     def joint_names(self) -> tuple[str, str, str]:
@@ -185,6 +194,8 @@ def check_value(spec: ParamSpec, value: object) -> ParamValue:
         if not isinstance(value, bool):
             raise ConfigError(f'{name}: expected a bool (true or false), got {_type_name(value)} {value!r}', (name,))
         return value
+    if spec.type is list:
+        return _name_values(spec, value)
     if spec.type is str:
         if not isinstance(value, str):
             raise ConfigError(f'{name}: expected a string, got {_type_name(value)} {value!r}', (name,))
@@ -194,6 +205,30 @@ def check_value(spec: ParamSpec, value: object) -> ParamValue:
             raise ConfigError(f'{name}: must not be empty', (name,))
         return value
     raise ConfigError(f'{name}: unsupported parameter type {spec.type.__name__}')  # pragma: no cover
+
+
+_PARAM_NAME = re.compile(r'[A-Za-z_][A-Za-z0-9_.\-]*')
+
+
+def _name_values(spec: ParamSpec, value: object) -> list[str]:
+    """A list of ``name=value`` strings, names distinct and plain (an XML attribute needs no escaping then).
+    ``None`` is the empty list: rcl reads ``[]`` in a parameter file as a parameter not set."""
+    name = spec.name
+    if value is None:
+        return []
+    if not isinstance(value, list | tuple) or not all(isinstance(v, str) for v in value):
+        raise ConfigError(f'{name}: expected a list of name=value strings, got {_type_name(value)} {value!r}',
+                          (name,))
+    seen: set[str] = set()
+    for entry in value:
+        key, equals, _ = entry.partition('=')
+        key = key.strip()
+        if not equals or not _PARAM_NAME.fullmatch(key):
+            raise ConfigError(f'{name}: {entry!r} is not name=value (a name of letters, digits, _, ., -)', (name,))
+        if key in seen:
+            raise ConfigError(f'{name}: {key!r} is given twice', (name,))
+        seen.add(key)
+    return list(value)
 
 
 def _deg(angle: float) -> str:
@@ -271,6 +306,9 @@ def config_from_values(values: Mapping[str, object], changed: Collection[str] | 
     except FourBarError as exc:
         raise _fault(f'the lengths do not form a linkage: {exc}', _LENGTHS, _LENGTHS, changed) from None
     _check_tilt_range(linkage, v['theta_min'], v['theta_max'], driven, branch, changed)
+    if abs(v['reducer_ratio']) < MIN_REDUCTION:
+        raise ConfigError(f"reducer_ratio: {v['reducer_ratio']!r} is within {MIN_REDUCTION!r} of 0 (negative: a "
+                          'reversed motor)', ('reducer_ratio',))
     if not v['model_mismatch_warn'] < v['model_mismatch_error']:
         mismatch = ('model_mismatch_warn', 'model_mismatch_error')
         raise _fault(f"model_mismatch_warn {v['model_mismatch_warn']!r} rad must be below model_mismatch_error "

@@ -11,8 +11,8 @@ from pathlib import Path
 from fourbar_ros.config.rcl_yaml import ConfigError, read_text, values_from_yaml
 from fourbar_ros.config.share import share_path
 
-__all__ = ['CONTROLLERS_FILE', 'ForwardControllerSettings', 'JointTolerances', 'TrajectoryControllerSettings',
-           'controllers_path', 'forward_controller', 'trajectory_controller']
+__all__ = ['CONTROLLERS_FILE', 'LAST_COMMAND_ON_ACTIVATION', 'ForwardControllerSettings', 'JointTolerances',
+           'TrajectoryControllerSettings', 'controllers_path', 'forward_controller', 'trajectory_controller']
 
 #: The package's controllers YAML, inside share/fourbar_ros.
 CONTROLLERS_FILE = 'config/controllers.yaml'
@@ -21,6 +21,10 @@ CONTROLLERS_FILE = 'config/controllers.yaml'
 #: ``command_interface_type_combinations``), as sorted tuples.
 _JTC_COMBINATIONS = frozenset({('effort',), ('velocity',), ('position',), ('position', 'velocity'),
                                ('acceleration', 'position', 'velocity'), ('effort', 'position')})
+#: joint_trajectory_controller's option (default true since 4.16) to hold, on activation, the hardware's last
+#: command when it is not NaN (``on_activate``: ``update_state_from_command_interfaces``) instead of the measured
+#: state: a plugin whose command starts at 0 would drive the rocker towards 0 rad. Refused unless false.
+LAST_COMMAND_ON_ACTIVATION = 'set_last_command_interface_value_as_state_on_activation'
 
 
 @dataclass(frozen=True)
@@ -110,9 +114,16 @@ def trajectory_controller(path: str, controller: str, namespace: str = '/') -> T
     """The joint_trajectory_controller ``controller`` of the controllers YAML ``path`` (empty: the package's), as the
     controller node ``namespace``/``controller`` receives it (the namespace of its controller manager).
 
-    Raises ConfigError (one line) for an unreadable file, no section for ``controller``, or a value of the wrong
-    type or an interface combination the controller refuses at configuration."""
+    Raises ConfigError (one line) for an unreadable file, no section for ``controller``, a value of the wrong
+    type, an interface combination the controller refuses at configuration, or ``LAST_COMMAND_ON_ACTIVATION`` not
+    set false (activation would hold the hardware's last command, not the measured position)."""
     source, values = _section(path, controller, namespace)
+    if _typed(source, controller, values, LAST_COMMAND_ON_ACTIVATION, bool, True):
+        given = 'is true' if LAST_COMMAND_ON_ACTIVATION in values else 'is not set (the controller\'s default: true)'
+        raise ConfigError(f'controllers_file: {source}: {controller}.{LAST_COMMAND_ON_ACTIVATION} {given}: on '
+                          'activation the controller then holds the hardware\'s last command, not the measured '
+                          'position (a command starting at 0 drives the rocker towards 0 rad); set it false',
+                          ('controllers_file',))
     joints = _strings(source, controller, values, 'joints', True)
     commands = _strings(source, controller, values, 'command_interfaces', True)
     if tuple(sorted(commands)) not in _JTC_COMBINATIONS or len(set(commands)) != len(commands):

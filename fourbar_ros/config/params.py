@@ -11,7 +11,10 @@ from dataclasses import dataclass
 from fourbar_ros.core.antenna import Branch, Driven
 from fourbar_ros.interface.topics import DEFAULT_FORWARD_CONTROLLER, DEFAULT_TRAJECTORY_CONTROLLER, Mode
 
-ParamValue = float | int | str | bool
+ParamValue = float | int | str | bool | list[str]
+
+#: The smallest |reducer_ratio| accepted (the ratio's sign gives the motor's direction).
+MIN_REDUCTION = 1e-6
 
 #: rclpy accepts a double at a range edge when ``math.isclose(value, edge, rel_tol=1e-6)``
 #: (``Node.PARAM_REL_TOL``); the config loader uses the same tolerance at the spec's edges.
@@ -85,6 +88,16 @@ def _branch_value(branch: object) -> ParamValue:
     return branch.name.lower()
 
 
+def _string_tuple(value: ParamValue) -> tuple[str, ...]:
+    return tuple(value) if isinstance(value, list) else (str(value),)
+
+
+def _string_list(value: object) -> ParamValue:
+    if not isinstance(value, tuple):
+        raise TypeError(f'expected a tuple of strings, got {value!r}')
+    return [str(v) for v in value]
+
+
 # Angle defaults are the correctly rounded doubles of -6, +7 and 30 degrees.
 PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('frame_length', float, 0.180, 'm',
@@ -124,11 +137,14 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('gravity', float, 9.80665, 'm/s^2',
               'Gravitational acceleration for the antenna weight.', 0.0, 100.0),
     ParamSpec('reducer_ratio', float, 500.0, '',
-              'Reducer ratio motor:rocker (motor turns per rocker turn).', 1e-6, 1.0e7),
+              'Reducer ratio motor:rocker (motor turns per rocker turn), the `<mechanical_reduction>` of the URDF\'s '
+              'SimpleTransmission; negative when the motor turns the other way (a reversed motor). Limits and '
+              'torques use its magnitude, at least 1e-6.', -1.0e7, 1.0e7),
     ParamSpec('driven_joint_offset', float, 0.0, 'rad',
               'Driven joint position where the motor position reads 0: the `<offset>` of the URDF\'s '
-              'SimpleTransmission (ros2_control: joint = motor / reducer_ratio + this). Only the URDF uses it.',
-              -math.pi, math.pi, read_only=True),
+              'SimpleTransmission (ros2_control: joint = motor / reducer_ratio + this); beyond pi for a multi-turn '
+              'absolute encoder. Only the URDF uses it.',
+              -1.0e6, 1.0e6, read_only=True),
     ParamSpec('reducer_efficiency', float, 1.0, '',
               'Reducer efficiency in (0, 1]; motor torque = rocker torque / (ratio * efficiency).',
               1e-6, 1.0),
@@ -201,10 +217,11 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Trajectory mode: send the static input torque as each point\'s effort (a feed-forward). The '
               'controller must then have an effort command interface ([position, effort]); off: no effort field.',
               read_only=True),
-    ParamSpec('replan_tolerance', float, 0.02, 'rad',
+    ParamSpec('replan_tolerance', float, 0.01, 'rad',
               'Actuator modes: a command during a motion plans on from the motion being followed while the '
               'measured driven joint is within this of it at the measurement\'s stamp; otherwise from the measured '
-              'state.', 0.0, 3.2),
+              'state. Keep it below the controller\'s path tolerance, so a drive the controller holds is planned '
+              'from where it is.', 0.0, 3.2),
     ParamSpec('measured_range_tolerance', float, 1e-5, 'rad',
               'Actuator modes: a measured driven joint outside its range for [theta_min, theta_max] by at most this '
               '(an encoder count through the reducer rounds outward) starts a motion from the nearest end of the '
@@ -235,7 +252,13 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'JointState name of the coupler joint (position gamma + theta: the coupler BC from rocker AB), '
               'so robot_state_publisher can place the coupler of the URDF from `fourbar urdf`.'),
     ParamSpec('hardware_id', str, 'fourbar_antenna_tilt', '',
-              'Diagnostics hardware_id: names the hardware (the tilt drive), not a TF frame.'),
+              'Diagnostics hardware_id: names the hardware (the tilt drive), not a TF frame; also the name of the '
+              'URDF\'s `<ros2_control>` block (the hardware component).'),
+    ParamSpec('hardware_parameters', list, [], '',
+              'The hardware plugin\'s parameters: `name=value` strings, each written by `fourbar urdf` and the '
+              'launch file as a `<param name="name">value</param>` of the URDF\'s `<hardware>` block (names '
+              'distinct; letters, digits, `_`, `.`, `-`). Only the URDF uses them.', read_only=True,
+              decode=_string_tuple, encode=_string_list),
     ParamSpec('frame_id', str, 'fourbar_base', '',
               'Frame of the markers and root link of the URDF: origin at pivot A, x along A->D, z up; '
               'the linkage lies in its x-z plane (REP-103).'),

@@ -54,7 +54,9 @@ def driven_angle(cfg: AntennaConfig, theta: float = 0.0) -> float:
 
 def joint_limits(cfg: AntennaConfig) -> dict[str, JointLimit]:
     """Limits of the three joints (by JointState name) over the configured tilt range, the motor turning at most
-    ``motor_speed_limit`` rad/s (motor side) through ``reducer_ratio``."""
+    ``motor_speed_limit`` rad/s (motor side) through |``reducer_ratio``|: the driven joint's velocity limit is the
+    planner's speed limit (``motion.limits.JointLimits.at_rocker(1)``), its effort limit ``output_torque_limit``
+    (N m, the planner's rated torque) and its position range that of [theta_min, theta_max]."""
     lo, hi = cfg.theta_min, cfg.theta_max
     # Scalar solves, the very calls the node makes per command: its published positions lie within these limits.
     thetas = [lo + (hi - lo) * i / _LIMIT_SAMPLES for i in range(_LIMIT_SAMPLES)] + [hi]
@@ -72,7 +74,7 @@ def joint_limits(cfg: AntennaConfig) -> dict[str, JointLimit]:
     sweep = {gamma_joint: (g, dg), delta_joint: (d, dd), coupler_joint: (c, dc)}
     driven = cfg.driven_joint
     driven_rate = sweep[driven][1]
-    speed = cfg.motor_speed_limit / cfg.reducer_ratio
+    speed = cfg.motor_speed_limit / cfg.reduction
     out: dict[str, JointLimit] = {}
     for name, (position, rate) in sweep.items():
         velocity = speed if name == driven else speed * float(np.max(np.abs(np.divide(rate, driven_rate))))
@@ -116,13 +118,22 @@ def _joint(name: str, kind: str, parent: str, child: str, xyz: str, rpy: str = '
 
 def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
                        hardware_plugin: str = DEFAULT_HARDWARE_PLUGIN) -> list[str]:
-    """The ``<ros2_control>`` lines of the driven joint (limits ``limit``), its hardware named ``hardware_id``: a
-    position command interface, and an effort one with ``effort_feedforward``."""
+    """The ``<ros2_control>`` lines of the driven joint (limits ``limit``), its hardware named ``hardware_id`` with
+    ``hardware_parameters`` as its ``<param>`` entries: a position command interface, and an effort one with
+    ``effort_feedforward``; the SimpleTransmission joint = motor / ``reducer_ratio`` + ``driven_joint_offset``
+    (either sign of the ratio, any offset), for the plugin to load."""
+
     joint = cfg.driven_joint
+    params = [f'      <param name={quoteattr(name.strip())}>{escape(value)}</param>'
+              for name, _, value in (entry.partition('=') for entry in cfg.hardware_parameters)]
     return [
         f'  <ros2_control name={quoteattr(cfg.hardware_id)} type="system">',
-        '    <!-- The drive\'s hardware interface goes here (mock_components/GenericSystem: commands echoed). -->',
-        f'    <hardware><plugin>{escape(hardware_plugin)}</plugin></hardware>',
+        '    <!-- The drive\'s hardware interface goes here (mock_components/GenericSystem: commands echoed); its '
+        'parameters: the parameter hardware_parameters. -->',
+        '    <hardware>',
+        f'      <plugin>{escape(hardware_plugin)}</plugin>',
+        *params,
+        '    </hardware>',
         f'    <joint name={quoteattr(joint)}>',
         '      <command_interface name="position">',
         f'        <param name="min">{_num(limit.lower)}</param>',

@@ -14,10 +14,19 @@ from fourbar_ros.config.antenna_config import AntennaConfig, ConfigError, check_
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, ParamSpec, ParamValue
 
 NODE_NAME = 'sim_actuator'
-_RATIO = float(PARAMETERS_BY_NAME['reducer_ratio'].default)
+
+
+def _default(name: str) -> float:
+    """A number parameter's default."""
+    value = PARAMETERS_BY_NAME[name].default
+    assert isinstance(value, float)
+    return value
+
+
+_RATIO = abs(_default('reducer_ratio'))
 #: The default drive is the motor the linkage's parameters describe (its speed and acceleration limits, motor side).
-_MOTOR_SPEED = float(PARAMETERS_BY_NAME['motor_speed_limit'].default)
-_MOTOR_ACCELERATION = float(PARAMETERS_BY_NAME['motor_acceleration_limit'].default)
+_MOTOR_SPEED = _default('motor_speed_limit')
+_MOTOR_ACCELERATION = _default('motor_acceleration_limit')
 
 SIM_PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('joint', str, str(PARAMETERS_BY_NAME['gamma_joint'].default), '',

@@ -44,7 +44,7 @@ class LoadSpec(Protocol):
         """Centre of mass off the coupler along its normal n (m)."""
     @property
     def reducer_ratio(self) -> float:
-        """Reducer ratio, motor turns per rocker turn (dimensionless)."""
+        """Reducer ratio, motor turns per rocker turn (dimensionless; negative for a reversed motor)."""
     @property
     def reducer_efficiency(self) -> float:
         """Reducer efficiency in (0, 1] (dimensionless)."""
@@ -183,6 +183,6 @@ def motor_torque(cfg: LoadSpec, input_torque: FloatArray) -> FloatArray: ...
 
 def motor_torque(cfg: LoadSpec, input_torque: ArrayLike) -> ArrayLike:
     """Motor-side torque (N m) for a driven-rocker torque, driving through the reducer:
-    input_torque / (reducer_ratio * reducer_efficiency); floats or arrays. (Back-driven, the motor would need
-    less.)"""
+    input_torque / (reducer_ratio * reducer_efficiency), in the motor's own sense (a negative ratio, a reversed
+    motor, flips the sign); floats or arrays. (Back-driven, the motor would need less.)"""
     return input_torque / (cfg.reducer_ratio * cfg.reducer_efficiency)

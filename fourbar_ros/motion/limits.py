@@ -41,7 +41,7 @@ class JointLimits:
     @classmethod
     def from_config(cls, cfg: AntennaConfig) -> JointLimits:
         """The configuration's limits."""
-        return cls(cfg.reducer_ratio, cfg.motor_speed_limit, cfg.motor_acceleration_limit, cfg.motor_jerk_limit,
+        return cls(cfg.reduction, cfg.motor_speed_limit, cfg.motor_acceleration_limit, cfg.motor_jerk_limit,
                    cfg.motor_torque_limit, cfg.output_torque_limit)
 
     def at_rocker(self, order: int) -> float:

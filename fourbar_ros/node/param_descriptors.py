@@ -6,11 +6,13 @@ from collections.abc import Sequence
 from typing import Any
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType
+from rclpy.parameter import Parameter
 
 from fourbar_ros.config.params import PARAMETERS, ParamSpec, ParamValue
 
 _TYPES = {float: ParameterType.PARAMETER_DOUBLE, str: ParameterType.PARAMETER_STRING,
-          int: ParameterType.PARAMETER_INTEGER, bool: ParameterType.PARAMETER_BOOL}
+          int: ParameterType.PARAMETER_INTEGER, bool: ParameterType.PARAMETER_BOOL,
+          list: ParameterType.PARAMETER_STRING_ARRAY}
 
 
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -35,5 +37,8 @@ def declarations(values: dict[str, ParamValue], specs: Sequence[ParamSpec] = PAR
     for spec in specs:
         d = descriptor(spec)
         d.read_only = d.read_only or read_only
-        out.append((spec.name, values[spec.name], d))
+        value: Any = values[spec.name]
+        if spec.type is list and not value:  # rclpy would take an empty list for a byte array: declare the type
+            value = Parameter.Type.STRING_ARRAY
+        out.append((spec.name, value, d))
     return out

@@ -64,9 +64,11 @@ class ContractRule(enum.Enum):
     FIELD_SIZE = 'field_size'  #: an array whose length is not the number of joint names (empty where allowed)
     EFFORT_FIELD = 'effort_field'  #: effort values without an effort command interface
     COMMAND_SIZE = 'command_size'  #: forward_command_controller: not one value per joint
-    #: stricter than the controller, which takes these and mishandles them: a point with accelerations but no
-    #: velocities (it commands 0 rad), a first point without positions (ros2_control_node crashes when it is due at
-    #: the takeover)
+    #: stricter than the controller, which takes it over: a point with accelerations but no velocities (no
+    #: interpolation branch of its ``sample`` runs, and it commands 0 rad)
+    ACCELERATIONS_WITHOUT_VELOCITIES = 'accelerations_without_velocities'
+    #: stricter than the controller, which takes it over and mishandles it: a first point without positions
+    #: (ros2_control_node crashes when it is due at the takeover)
     MISHANDLED = 'mishandled'
 
 
@@ -145,14 +147,15 @@ def check_trajectory(c: TrajectoryControllerSettings, joint_names: Sequence[str]
 
 
 def _mishandled(points: Sequence[TrajectoryPointLike]) -> Refusal | None:
-    """What the controller accepts but does not follow (ContractRule.MISHANDLED), or None."""
+    """What the controller takes over but does not follow (stricter than the controller), or None."""
     if not len(points[0].positions):
         return Refusal(ContractRule.MISHANDLED, 'point 0 has no positions: the controller crashes when such a first '
                                                'point is due as it takes the trajectory over')
     for i, p in enumerate(points):
         if len(p.accelerations) and not len(p.velocities):
-            return Refusal(ContractRule.MISHANDLED, f'point {i} has accelerations but no velocities: the controller '
-                                                    'then commands 0 rad; give velocities too')
+            return Refusal(ContractRule.ACCELERATIONS_WITHOUT_VELOCITIES,
+                           f'point {i} has accelerations but no velocities: the controller would take it over and '
+                           'command 0 rad (no interpolation runs without velocities); give velocities too')
     return None
 
 

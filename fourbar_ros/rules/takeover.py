@@ -72,7 +72,7 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     ``measured_range_tolerance``. With no motion running: the measured state, else the end of the last motion; None
     before any of them exists."""
     if measured is not None:
-        speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reducer_ratio
+        speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reduction
         if abs(measured.velocity) > speed:
             measured = JointMotionState(measured.position, math.copysign(speed, measured.velocity))
     at_ns = now_ns

@@ -83,6 +83,11 @@ def _offset(urdf: str) -> float:
     return float(offset.text or '')
 
 
+def _reduction(urdf: str) -> float:
+    (reduction,) = block(urdf).findall('transmission/joint/mechanical_reduction')
+    return float(reduction.text or '')
+
+
 def test_the_transmission_offset_is_the_driven_joint_offset_parameter(tmp_path: Any) -> None:
     """ros2_control's SimpleTransmission: joint = actuator / mechanical_reduction + offset (rad)."""
     assert PARAMETERS_BY_NAME['driven_joint_offset'].default == 0.0
@@ -95,8 +100,59 @@ def test_the_transmission_offset_is_the_driven_joint_offset_parameter(tmp_path: 
     out = fourbar('urdf', '--params', params)  # what the launch file and `fourbar urdf` give robot_state_publisher
     assert out.returncode == 0, out.stderr
     assert _offset(out.stdout) == -0.2618
-    with pytest.raises(ConfigError, match='driven_joint_offset'):
-        config_from_values({'driven_joint_offset': 4.0})  # rad, beyond one half turn
+    # Beyond pi (a multi-turn absolute encoder: the motor's zero many turns away) and with a reversed motor
+    # (negative reduction): SimpleTransmission takes both (it refuses a reduction of 0 only).
+    turned = config_from_values({'driven_joint_offset': 4.0 * math.pi + 0.25, 'reducer_ratio': -500.0})
+    assert _offset(robot_description(turned)) == 4.0 * math.pi + 0.25
+    assert _reduction(robot_description(turned)) == -500.0
+    with pytest.raises(ConfigError, match='reducer_ratio'):
+        config_from_values({'reducer_ratio': 0.0})
+
+
+def hardware_params(urdf: str) -> dict[str, str]:
+    """The ``<param>`` entries of the ``<hardware>`` block, name -> text."""
+    return {p.attrib['name']: p.text or '' for p in block(urdf).findall('hardware/param')}
+
+
+def test_hardware_parameters_reach_the_hardware_block(tmp_path: Any) -> None:
+    assert hardware_params(robot_description(default_config())) == {}
+    params = tmp_path / 'antenna.yaml'
+    params.write_text((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8').replace(
+        'hardware_parameters: []', "hardware_parameters: ['port=/dev/ttyUSB0', 'baud_rate=115200', 'note=a<b&c=d']",
+        1), encoding='utf-8')
+    out = fourbar('urdf', '--params', params)  # what the launch file and `fourbar urdf` give robot_state_publisher
+    assert out.returncode == 0, out.stderr
+    # The value is everything after the first '=', escaped for XML and read back as written.
+    assert hardware_params(out.stdout) == {'port': '/dev/ttyUSB0', 'baud_rate': '115200', 'note': 'a<b&c=d'}
+    assert [p.text for p in block(out.stdout).findall('hardware/plugin')] == ['mock_components/GenericSystem']
+    for bad, why in ((['port'], 'not name=value'), (['a=1', 'a=2'], 'given twice'), (['a b=1'], 'not name=value')):
+        with pytest.raises(ConfigError, match=f'hardware_parameters: .*{why}'):
+            config_from_values({'hardware_parameters': bad})
+    # rcl reads `[]` in a parameter file as a parameter not set: the node's startup value is then None.
+    assert config_from_values({'hardware_parameters': None}).hardware_parameters == ()
+
+
+@pytest.mark.parametrize('ratio', [500.0, -500.0, 37.5])
+def test_the_models_limits_are_the_planners(ratio: float) -> None:
+    # The driven joint's URDF limits and its command interface's min/max, which the controller manager enforces
+    # (enforce_command_limits), against what the node plans with: the same parameters through the planner's own
+    # code (JointLimits for speed and torque, driven_range for the range).
+    from fourbar_ros.motion.limits import JointLimits
+    from fourbar_ros.rules.motion_plan import driven_range
+
+    cfg = config_from_values({'reducer_ratio': ratio, 'motor_speed_limit': 12.5, 'output_torque_limit': 4.25})
+    planner = JointLimits.from_config(cfg)
+    urdf = robot_description(cfg)
+    el = urdf_joints(urdf)[cfg.driven_joint].find('limit')
+    assert el is not None
+    lower, upper, effort, velocity = (float(el.attrib[k]) for k in ('lower', 'upper', 'effort', 'velocity'))
+    assert velocity == planner.at_rocker(1) == 12.5 / abs(ratio), (velocity, planner.at_rocker(1))
+    assert effort == planner.output_torque == 4.25
+    # The model solves the ends one angle at a time, the planner both at once: the same double up to the last
+    # bits of the solve (a few ulps at 1 rad).
+    assert (lower, upper) == pytest.approx(driven_range(cfg), abs=8 * EPS), (lower, upper, driven_range(cfg))
+    command = {p.attrib['name']: float(p.text or '') for p in block(urdf).findall('joint/command_interface/param')}
+    assert command == {'min': lower, 'max': upper}
 
 
 def test_hardware_plugin_is_replaced_and_escaped() -> None:
@@ -262,7 +318,18 @@ def test_a_plain_section_key_does_not_apply_in_a_namespace(tmp_path: Any) -> Non
     # Why the shipped file writes /**/: rcl reads `jtc:` as /jtc, which a controller in /tilt does not receive.
     path = tmp_path / 'plain.yaml'
     path.write_text('jtc:\n  ros__parameters:\n    joints: [j]\n    command_interfaces: [position]\n'
-                    '    state_interfaces: [position]\n', encoding='utf-8')
+                    '    state_interfaces: [position]\n'
+                    '    set_last_command_interface_value_as_state_on_activation: false\n', encoding='utf-8')
     assert trajectory_controller(str(path), 'jtc').joints == ('j',)
     with pytest.raises(ConfigError, match="no '/\\*\\*:' or '/tilt/jtc' section"):
         trajectory_controller(str(path), 'jtc', '/tilt')
+
+
+def test_the_path_tolerance_trips_above_the_nodes_replan_tolerance() -> None:
+    # A drive the controller holds on its path tolerance is then that far off the node's motion: the node's next
+    # command must see it (more than replan_tolerance off) and plan from the measured state, or the controller would
+    # get a trajectory starting up to the path tolerance away from the drive (a step). Both as shipped.
+    path = trajectory_controller('', 'joint_trajectory_controller').tolerance(default_config().driven_joint)
+    replan = load_config(REPO / 'config' / 'antenna.yaml').replan_tolerance
+    assert replan < path.trajectory <= math.radians(1.0), (replan, path)
+    assert 0.0 < path.goal < path.trajectory, path

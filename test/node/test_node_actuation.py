@@ -155,7 +155,7 @@ class DelayRelay(Node):
 
 @pytest.fixture(scope='module')
 def traj(ros: RosSession) -> Iterator[Pair]:
-    """The default replan_tolerance (0.02 rad) is far above the simulated drive's lag (its speed times its 0.05 s
+    """The default replan_tolerance (0.01 rad) is far above the simulated drive's lag (its speed times its 0.05 s
     time constant, 3e-3 rad), and the node compares a measurement with the motion at the measurement's stamp, so a
     command mid-motion plans on from the motion however late the measurement arrives."""
     pair = Pair(ros, 'trajectory')
@@ -378,7 +378,7 @@ def test_antenna_trajectories_ending_moving_or_in_the_past_are_refused_and_count
 @pytest.fixture(scope='module')
 def held(ros: RosSession) -> Iterator[Pair]:
     """A trajectory-mode node whose simulated drive is 50 times too slow: the controller holds it on its path
-    tolerance (the default replan_tolerance)."""
+    tolerance (1 deg, above the default replan_tolerance)."""
     pair = Pair(ros, 'trajectory', '_held', sim=(Parameter('max_velocity', value=LIMITS.at_rocker(1) / 50.0),))
     yield pair
     pair.close()

@@ -160,8 +160,9 @@ def test_a_forward_command_is_followed_at_the_speed_limit(rig: Any) -> None:
     assert max(speeds) == VMAX  # a 0.2 rad step saturates the drive's speed
     assert all(a.position[0] <= b.position[0] for a, b in itertools.pairwise(msgs))
     assert r.node.counters.commands_accepted == 1
-    # A new trajectory starts from where the forward command left the drive: no jump.
-    back = JointTrajectory(joint_names=[JOINT], points=[point(Q0, 2.0)])
+    # A new trajectory starts from where the forward command left the drive: no jump. Its time lets the drive follow
+    # within its speed limit (its linear path at about half of it), inside the controller's path tolerance.
+    back = JointTrajectory(joint_names=[JOINT], points=[point(Q0, 2.0 * (target - Q0) / VMAX)])
     first = len(r.states)
     r.traj_pub.publish(back)
     end = r.settle_at(Q0, first)

@@ -168,7 +168,8 @@ def test_the_follower_holds_on_a_trajectory_tolerance_violation() -> None:
     f = follower(position=0.8)
     assert f.receive([J], rest([0.0, 1.0], [0.8, 0.9]), 0, 0) is None
     assert f.reference(0.0, 0.8, 0.0).position == 0.8
-    mid = f.reference(0.5, 0.81, 0.0)  # 0.04 rad behind at mid-way (the cubic is at 0.85 there): within
+    mid = f.reference(0.5, 0.85 - 0.5 * TOL.trajectory, 0.0)  # half the tolerance behind at mid-way (the cubic is
+    # at 0.85 there): within
     assert mid.position == pytest.approx(0.85, abs=1e-12)
     stuck = 0.85 - TOL.trajectory - 1e-3
     held = f.reference(0.5, stuck, 0.0)

@@ -159,6 +159,21 @@ def test_forward_mode_spawns_the_forward_controller_and_a_real_plugin_is_not_cal
     assert not any('mock' in line for line in s.logs)
 
 
+def test_the_hardware_parameters_reach_the_launched_robot_description(tmp_path: Any) -> None:
+    params = tmp_path / 'antenna.yaml'
+    params.write_text((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8').replace(
+        'hardware_parameters: []', "hardware_parameters: ['port=/dev/ttyUSB0', 'baud_rate=115200']", 1),
+        encoding='utf-8')
+    for effort in ('false', 'true'):  # effort_feedforward rebuilds the description: the parameters stay
+        s = Started(everything, use_ros2_control='true', hardware_plugin='acme/TiltDrive', params_file=str(params),
+                    effort_feedforward=effort)
+        urdf = s.parameters(s.one('robot_state_publisher', 'robot_state_publisher'))[1]['robot_description']
+        hardware = ET.fromstring(urdf).find('ros2_control/hardware')
+        assert hardware is not None, urdf
+        assert [(p.attrib['name'], p.text) for p in hardware.findall('param')] == [
+            ('port', '/dev/ttyUSB0'), ('baud_rate', '115200')], urdf
+
+
 def test_effort_feedforward_reaches_the_node_and_the_urdf() -> None:
     s = Started(everything, use_ros2_control='true', effort_feedforward='true')
     assert s.parameters(s.one('fourbar_ros', 'fourbar_node'))[1]['effort_feedforward'] is True

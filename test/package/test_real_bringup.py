@@ -1,6 +1,7 @@
 """The package's launch file with ``use_ros2_control:=true`` on the real controller manager (mock hardware), in the
 root namespace and in one, in trajectory and forward mode: the spawners activate the controllers, a command moves
-the joint, joint_states carries the completed linkage, and SIGINT ends everything with status 0.
+the joint, joint_states carries the completed linkage, SIGINT ends everything with status 0; and the controller
+manager clamps a trajectory sent straight to the controller past the joint's limit.
 
 Runs where the ros2 command line, launch_ros and ros2_control are installed; skipped elsewhere with the reason.
 """
@@ -19,10 +20,12 @@ from support.ros_cli_support import (  # psutil: with ros2cli
     echo_once,
     echoed_messages,
     publish_until_echoed,
+    run,
     wait_node,
 )
 
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.config.robot_model import driven_angle, joint_limits
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -70,4 +73,42 @@ def test_the_bringup_moves_the_joint(install: CliEnv, namespace: str, mode: str)
         assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
         assert not launch.descendants(), 'a process outlived ros2 launch'
     finally:
+        launch.kill()
+
+
+def test_a_trajectory_past_the_limit_is_clamped_by_the_controller_manager(install: CliEnv) -> None:
+    # Straight to the trajectory controller's topic, not through the node: to 1.2 rad, past the driven joint's upper
+    # limit, at a speed within its velocity limit. The controller follows it (it checks no position limit); the
+    # controller manager (the shipped enforce_command_limits) clamps the command to the URDF's upper limit, so the
+    # mock joint, which measures its last command, stops there.
+    if (why := ros2_control_missing(install.env)) is not None:
+        pytest.skip(why)
+    cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
+    limit = joint_limits(cfg)[cfg.driven_joint]
+    start = driven_angle(cfg)  # the mock's initial position: the antenna level
+    target, duration = 1.2, 8.0
+    assert target > limit.upper and (target - start) / duration < limit.velocity
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'use_ros2_control:=true',
+                         'mode:=trajectory', 'rviz:=false'], install.env, cwd=install.cwd)
+    follow = Background([ros2(), 'topic', 'echo', '/joint_state_broadcaster/joint_states',
+                         'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
+    try:
+        launch.wait_output(lambda t: 'Configured and activated joint_trajectory_controller' in t,
+                           'joint_trajectory_controller active')
+        out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', '/joint_trajectory_controller/joint_trajectory',
+                   'trajectory_msgs/msg/JointTrajectory',
+                   f'{{joint_names: [{cfg.driven_joint}], points: [{{positions: [{target!r}], '
+                   f'time_from_start: {{sec: {int(duration)}}}}}]}}'], install.env)
+        assert out.returncode == 0, out.stdout + out.stderr
+
+        def measured(text: str) -> list[float]:
+            return [float(d['position'][0]) for d in echoed_messages(text) if d.get('position')]
+        # A clamp gives the limit's double exactly; 1e-12 rad leaves room for the velocity clamp's rounding.
+        follow.wait_output(lambda t: any(abs(q - limit.upper) <= 1e-12 for q in measured(t)),
+                           f'the joint at its upper limit {limit.upper!r} rad', timeout=duration + 30.0)
+        seen = measured(follow.output())
+        assert max(seen) <= limit.upper + 1e-12, f'past the upper limit {limit.upper!r} rad: {max(seen)!r}'
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+    finally:
+        follow.kill()
         launch.kill()

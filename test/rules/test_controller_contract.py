@@ -62,8 +62,9 @@ BREAKS: dict[ContractRule, tuple[list[str], list[Point], int]] = {
     ContractRule.TIME_NOT_INCREASING: ([JOINT], pts([0.0, 1.0, 1.0], [0.8, 0.9, 0.95]), 0),
     ContractRule.FIELD_SIZE: ([JOINT], [*GOOD[:1], Point([0.9, 1.0], time_from_start=Duration(1, 0))], 0),
     ContractRule.EFFORT_FIELD: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], effort=[[0.1], [0.2]]), 0),
-    # Taken by the controller, which then commands 0 rad (no interpolation branch handles it).
-    ContractRule.MISHANDLED: ([JOINT], pts([0.0, 1.0], [0.8, 0.9], accelerations=[[0.0], [0.0]]), 0),
+    # Stricter than the controller, which takes it over and commands 0 rad (no interpolation branch handles it).
+    ContractRule.ACCELERATIONS_WITHOUT_VELOCITIES: ([JOINT], pts([0.0, 1.0], [0.8, 0.9],
+                                                                 accelerations=[[0.0], [0.0]]), 0),
 }
 
 
@@ -141,6 +142,10 @@ def test_the_forward_controller_takes_one_value_per_joint() -> None:
 
 # --------------------------------------------------------------------------- reading the YAML
 
+#: The line every controllers file must carry (config/controllers.py refuses the controller's default, true).
+HOLD_MEASURED = '    set_last_command_interface_value_as_state_on_activation: false\n'
+
+
 def controllers_yaml(tmp_path: Path, body: str) -> str:
     path = tmp_path / 'controllers.yaml'
     path.write_text(body)
@@ -150,11 +155,13 @@ def controllers_yaml(tmp_path: Path, body: str) -> str:
 def test_interface_combinations_the_controller_refuses_are_refused_at_load(tmp_path: Path) -> None:
     for interfaces in ('[velocity, effort]', '[effort, velocity, position]', '[acceleration]', '[position, position]'):
         path = controllers_yaml(tmp_path, f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n'
-                                          f'    command_interfaces: {interfaces}\n    state_interfaces: [position]\n')
+                                          f'    command_interfaces: {interfaces}\n    state_interfaces: [position]\n'
+                                          + HOLD_MEASURED)
         with pytest.raises(ConfigError, match='command_interfaces'):
             trajectory_controller(path, 'jtc')
     path = controllers_yaml(tmp_path, f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n'
-                                      '    command_interfaces: [position, effort]\n    state_interfaces: [position]\n')
+                                      '    command_interfaces: [position, effort]\n    state_interfaces: [position]\n'
+                                  + HOLD_MEASURED)
     assert trajectory_controller(path, 'jtc').has_effort_command_interface
 
 
@@ -164,16 +171,33 @@ def test_a_missing_section_or_a_wrong_type_is_one_line(tmp_path: Path) -> None:
     assert '\n' not in str(missing.value)
     path = controllers_yaml(tmp_path, f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n    command_interfaces: '
                                       '[position]\n    state_interfaces: [position]\n'
-                                      '    allow_partial_joints_goal: 1\n')
+                                      '    allow_partial_joints_goal: 1\n' + HOLD_MEASURED)
     with pytest.raises(ConfigError, match='allow_partial_joints_goal must be a bool'):
         trajectory_controller(path, 'jtc')
+
+
+@pytest.mark.parametrize('line', ['', '    set_last_command_interface_value_as_state_on_activation: true\n'])
+def test_activation_from_the_last_command_is_refused_in_one_line_naming_the_key(tmp_path: Path, line: str) -> None:
+    # Set true, or not set (the controller's default since 4.16 is true): on activation the controller would hold
+    # the hardware's last command, not the measured position. The same file with it false is read.
+    body = f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n    command_interfaces: [position]\n' \
+           '    state_interfaces: [position]\n'
+    with pytest.raises(ConfigError, match=r'jtc\.set_last_command_interface_value_as_state_on_activation is') as bad:
+        trajectory_controller(controllers_yaml(tmp_path, body + line), 'jtc')
+    assert '\n' not in str(bad.value) and 'set it false' in str(bad.value)
+    assert ('is true' if line else 'is not set') in str(bad.value), str(bad.value)
+    assert trajectory_controller(controllers_yaml(tmp_path, body + HOLD_MEASURED), 'jtc').joints == (JOINT,)
+    node = controllers_yaml(tmp_path, (body + line).replace('jtc:', 'joint_trajectory_controller:'))
+    with pytest.raises(ConfigError, match='set_last_command_interface_value_as_state_on_activation'):
+        actuation_contract(config_from_values({'mode': 'trajectory', 'controllers_file': node}))
 
 
 def test_the_node_refuses_to_start_with_a_contract_it_cannot_meet(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match='effort_feedforward'):
         actuation_contract(config_from_values({'mode': 'trajectory', 'effort_feedforward': True}))
     other = controllers_yaml(tmp_path, 'joint_trajectory_controller:\n  ros__parameters:\n    joints: [a, b]\n'
-                                       '    command_interfaces: [position]\n    state_interfaces: [position]\n')
+                                       '    command_interfaces: [position]\n    state_interfaces: [position]\n'
+                                       + HOLD_MEASURED)
     with pytest.raises(ConfigError, match='joints'):
         actuation_contract(config_from_values({'mode': 'trajectory', 'controllers_file': other}))
 
