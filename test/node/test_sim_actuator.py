@@ -399,12 +399,12 @@ def test_an_inactive_controller_drops_what_it_is_sent_and_holds_the_drive(rig: A
     r = rig()
     result = r.node.set_parameters([Parameter('controller_active', value=False)])[0]
     assert result.successful, result.reason
-    msg = JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.03, 0.3)])
+    msg = JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.03, 1.0)])  # within the drive's speed
     r.traj_pub.publish(msg)
     r.forward([Q0 + 0.03])
     r.ros.wait_for(lambda: r.node.counters.dropped_inactive == 2, what='both dropped')
     start = len(r.states)
-    r.states.wait_count(start + 50)  # 0.5 s at 100 Hz, past the trajectory's end
+    r.states.wait_count(start + 120)  # 1.2 s at 100 Hz, past the trajectory's end
     assert all(abs(m.position[0] - Q0) <= SETTLED for m in r.states.messages[start:]), 'the drive moved'
     assert r.node.set_parameters([Parameter('controller_active', value=True)])[0].successful
     r.traj_pub.publish(msg)
