@@ -164,11 +164,10 @@ class Actuation:
             self.fates.drop(out.line if isinstance(out, Refused) else 'no action server')
 
     def _resume(self) -> None:
-        """Send a held command that can now go, planned from the measured state (the motion followed before, if
-        any, is stale: the controller held the drive where it was)."""
+        """Send a held command that can now go, from the motion the controller still runs where the measured state
+        agrees with it (``motion_start``), else from the measured state."""
         if self.fates.due():
             assert self.fates.current is not None
-            self.motion, self._setpoints = None, None
             self._send(self.fates.current.theta)
 
     def _on_readiness(self, new: Readiness) -> None:
@@ -178,8 +177,11 @@ class Actuation:
         self.fates.controller(new, self._now_ns())
         self._info(f'controller {self.watch.controller}: {old.value} -> {new.value}')
         if not new.sendable:  # the drive's state is measured again before anything is planned (a manager that
-            self.motion, self._setpoints = None, None  # restarts starts its hardware afresh)
-            self.fates.measured = False
+            self.fates.measured = False  # restarts starts its hardware afresh)
+            # An active trajectory controller runs its trajectory on while its hardware is inactive; a controller
+            # that leaves active holds the drive where it is, and a stream of setpoints stops here.
+            if new is not Readiness.HARDWARE_INACTIVE or isinstance(self.contract, ForwardControllerSettings):
+                self.motion, self._setpoints = None, None
         self._said(before)
         self._resume()
 

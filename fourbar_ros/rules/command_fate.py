@@ -19,7 +19,8 @@ class Readiness(Enum):
 
     NOT_FOLLOWED = 'not followed'  # no controller manager followed (none seen yet, or following is off): send
     ACTIVE = 'active'
-    INACTIVE = 'inactive'  # loaded, not active; or a hardware component of the manager not active
+    INACTIVE = 'inactive'  # loaded, not active
+    HARDWARE_INACTIVE = 'hardware inactive'  # active, a hardware component of the manager not: it runs on, unheard
     ABSENT = 'absent'  # the controller manager runs without this controller
     GONE = 'gone'  # the controller manager seen before has gone (stopped, or restarting)
 
@@ -55,8 +56,10 @@ def readiness(controllers: Iterable[tuple[str, str]], hardware: Iterable[tuple[s
     states = dict(controllers)
     if name not in states:
         return Readiness.ABSENT
-    if states[name] != ACTIVE_LABEL or any(label != ACTIVE_LABEL for _, label in hardware):
+    if states[name] != ACTIVE_LABEL:
         return Readiness.INACTIVE
+    if any(label != ACTIVE_LABEL for _, label in hardware):
+        return Readiness.HARDWARE_INACTIVE
     return Readiness.ACTIVE
 
 
@@ -112,6 +115,8 @@ class CommandFates:
 
     def why_not(self) -> str:
         """Why a command cannot go out now ('' when it can)."""
+        if self.readiness is Readiness.HARDWARE_INACTIVE:
+            return 'a hardware component inactive'
         if not self.readiness.sendable:
             return f'controller {self.readiness.value}'
         return '' if self.measured else 'no measured driven joint yet'

@@ -22,7 +22,8 @@ def fates(resume: bool = True, ready: Readiness = Readiness.ACTIVE) -> CommandFa
     ([('jtc', 'active'), ('jsb', 'active')], [('hw', 'active')], Readiness.ACTIVE),
     ([('jtc', 'inactive')], [('hw', 'active')], Readiness.INACTIVE),
     ([('jtc', 'unconfigured')], [], Readiness.INACTIVE),
-    ([('jtc', 'active')], [('hw', 'inactive')], Readiness.INACTIVE),
+    ([('jtc', 'active')], [('hw', 'inactive')], Readiness.HARDWARE_INACTIVE),
+    ([('jtc', 'inactive')], [('hw', 'inactive')], Readiness.INACTIVE),
     ([('jsb', 'active')], [('hw', 'active')], Readiness.ABSENT),
     ([], [], Readiness.ABSENT),
 ])
@@ -44,12 +45,16 @@ def test_a_command_goes_out_at_once_when_the_controller_is_active_and_is_reached
     assert f.counts[Fate.SENT] == 1 and f.counts[Fate.REACHED] == 1 and f.counts[Fate.HELD] == 0
 
 
-@pytest.mark.parametrize('ready', [Readiness.INACTIVE, Readiness.ABSENT, Readiness.GONE])
+NOT_SENDABLE = [Readiness.INACTIVE, Readiness.HARDWARE_INACTIVE, Readiness.ABSENT, Readiness.GONE]
+
+
+@pytest.mark.parametrize('ready', NOT_SENDABLE)
 def test_a_command_waits_for_the_controller_and_then_is_due(ready: Readiness) -> None:
     f = fates(ready=ready)
     assert not f.receive(0.1, 0)
     assert f.current is not None and f.current.fate is Fate.HELD
-    assert f.current.reason == f'controller {ready.value}'
+    expected = 'a hardware component inactive' if ready is Readiness.HARDWARE_INACTIVE else f'controller {ready.value}'
+    assert f.current.reason == expected
     assert not f.due()
     f.controller(Readiness.ACTIVE, 1 * S)
     assert f.due()
@@ -88,7 +93,7 @@ def test_a_newer_command_supersedes_the_one_held_or_sent() -> None:
     assert second is not None and second.fate is Fate.SUPERSEDED
 
 
-@pytest.mark.parametrize('to', [Readiness.INACTIVE, Readiness.ABSENT, Readiness.GONE])
+@pytest.mark.parametrize('to', NOT_SENDABLE)
 def test_a_sent_command_interrupted_resumes_or_ends_as_the_parameter_says(to: Readiness) -> None:
     resumed = fates()
     resumed.receive(0.1, 0)
