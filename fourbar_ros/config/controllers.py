@@ -25,6 +25,9 @@ _JTC_COMBINATIONS = frozenset({('effort',), ('velocity',), ('position',), ('posi
 #: command when it is not NaN (``on_activate``: ``update_state_from_command_interfaces``) instead of the measured
 #: state: a plugin whose command starts at 0 would drive the rocker towards 0 rad. Refused unless false.
 LAST_COMMAND_ON_ACTIVATION = 'set_last_command_interface_value_as_state_on_activation'
+#: joint_trajectory_controller's option (since 4.39) to ramp down at the acceleration limits on a cancel or a
+#: tolerance violation instead of holding where the drive is: not modelled, refused when true.
+DECELERATE_ON_CANCEL = 'constraints.decelerate_on_cancel'
 
 
 @dataclass(frozen=True)
@@ -53,7 +56,8 @@ class TrajectoryControllerSettings:
     #: any of ``speed_scaling.state_interface`` / ``command_interface`` set, or an initial factor other than 1
     speed_scaling: bool = False
     cmd_timeout: float = 0.0  #: s after the last point at which the controller stops on its own (0: never)
-    #: ``constraints.stopped_velocity_tolerance`` (rad/s): checked at the goal with an effort command interface
+    #: ``constraints.stopped_velocity_tolerance`` (rad/s): checked at the goal with a velocity state interface and a
+    #: velocity or effort command interface
     stopped_velocity_tolerance: float = 0.01
     #: ``constraints.goal_time``: s allowed past the last point's time to get within the goal tolerance (0: forever)
     goal_time: float = 0.0
@@ -116,7 +120,9 @@ def trajectory_controller(path: str, controller: str, namespace: str = '/') -> T
 
     Raises ConfigError (one line) for an unreadable file, no section for ``controller``, a value of the wrong
     type, an interface combination the controller refuses at configuration, or ``LAST_COMMAND_ON_ACTIVATION`` not
-    set false (activation would hold the hardware's last command, not the measured position)."""
+    set false (activation would hold the hardware's last command, not the measured position); what the node does
+    not model: a velocity or effort command interface alone (the controller's PID adapter),
+    ``DECELERATE_ON_CANCEL`` true."""
     source, values = _section(path, controller, namespace)
     if _typed(source, controller, values, LAST_COMMAND_ON_ACTIVATION, bool, True):
         given = 'is true' if LAST_COMMAND_ON_ACTIVATION in values else 'is not set (the controller\'s default: true)'
@@ -134,6 +140,14 @@ def trajectory_controller(path: str, controller: str, namespace: str = '/') -> T
              for key in ('allow_partial_joints_goal', 'allow_nonzero_velocity_at_trajectory_end',
                          'allow_integration_in_goal_trajectories', 'interpolate_from_desired_state',
                          'open_loop_control')}
+    if commands == ('effort',) or (commands == ('velocity',) and not flags['open_loop_control']):
+        raise ConfigError(f'controllers_file: {source}: {controller}.command_interfaces {list(commands)} alone: the '
+                          'controller then closes a PID loop on the position error (its gains), which the node does '
+                          'not model; command position', ('controllers_file',))
+    if _typed(source, controller, values, DECELERATE_ON_CANCEL, bool, False):
+        raise ConfigError(f'controllers_file: {source}: {controller}.{DECELERATE_ON_CANCEL} is true: the controller '
+                          'then ramps down on a cancel or a tolerance violation instead of holding, which the node '
+                          'does not model; set it false', ('controllers_file',))
     scaling = (str(_typed(source, controller, values, 'speed_scaling.state_interface', str, '')),
                str(_typed(source, controller, values, 'speed_scaling.command_interface', str, '')),
                float(_typed(source, controller, values, 'speed_scaling.initial_scaling_factor',  # type: ignore[arg-type]

@@ -191,9 +191,14 @@ def motion_settings_problem(settings: TrajectoryControllerSettings) -> str | Non
     if settings.cmd_timeout > 0.0:
         return (f'{settings.name}.cmd_timeout is {settings.cmd_timeout!r} s: the controller then stops a '
                 'trajectory on its own; set it 0')
-    if settings.has_effort_command_interface and settings.stopped_velocity_tolerance != 0.01:
-        return (f'{settings.name}.constraints.stopped_velocity_tolerance with an effort command interface changes '
-                'when the controller holds; leave it at its default 0.01 rad/s')
+    # The controller checks the velocity at the goal only where it computes a velocity error (compute_error): with
+    # a velocity state interface and a velocity or effort command interface.
+    checks_velocity = 'velocity' in settings.state_interfaces and bool(
+        {'velocity', 'effort'} & set(settings.command_interfaces))
+    if checks_velocity and settings.stopped_velocity_tolerance != 0.01:
+        return (f'{settings.name}.constraints.stopped_velocity_tolerance with a velocity state interface and a '
+                'velocity or effort command interface changes when the controller holds; leave it at its default '
+                '0.01 rad/s')
     if not math.isfinite(settings.goal_time):
         return f'{settings.name}.constraints.goal_time must be finite'
     return None

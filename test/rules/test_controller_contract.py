@@ -176,6 +176,24 @@ def test_a_missing_section_or_a_wrong_type_is_one_line(tmp_path: Path) -> None:
         trajectory_controller(path, 'jtc')
 
 
+@pytest.mark.parametrize(('interfaces', 'more', 'match'), [
+    ('[velocity]', '', 'PID loop'), ('[effort]', '', 'PID loop'), ('[effort]', '    open_loop_control: true\n', 'PID'),
+    ('[position]', '    constraints:\n      decelerate_on_cancel: true\n', 'decelerate_on_cancel is true'),
+])
+def test_what_the_node_does_not_model_is_refused_in_one_line(tmp_path: Path, interfaces: str, more: str,
+                                                             match: str) -> None:
+    # The PID adapter (a velocity or effort command interface alone; velocity in open loop has none) and a ramp
+    # down on cancel change what the drive is commanded, which neither the model nor the simulated actuator has.
+    body = f'jtc:\n  ros__parameters:\n    joints: [{JOINT}]\n    command_interfaces: {interfaces}\n' \
+           '    state_interfaces: [position]\n' + HOLD_MEASURED
+    with pytest.raises(ConfigError, match=match) as bad:
+        trajectory_controller(controllers_yaml(tmp_path, body + more), 'jtc')
+    assert '\n' not in str(bad.value)
+    assert trajectory_controller(controllers_yaml(tmp_path, body.replace(interfaces, '[position]')), 'jtc')
+    velocity = body.replace(interfaces, '[velocity]') + '    open_loop_control: true\n'
+    assert trajectory_controller(controllers_yaml(tmp_path, velocity), 'jtc').open_loop_control
+
+
 @pytest.mark.parametrize('line', ['', '    set_last_command_interface_value_as_state_on_activation: true\n'])
 def test_activation_from_the_last_command_is_refused_in_one_line_naming_the_key(tmp_path: Path, line: str) -> None:
     # Set true, or not set (the controller's default since 4.16 is true): on activation the controller would hold

@@ -154,6 +154,21 @@ def test_settings_that_change_the_motion_are_refused_naming_the_key(key: str, va
     assert motion_settings_problem(JTC) is None
 
 
+@pytest.mark.parametrize(('commands', 'states', 'checked'), [
+    (('position',), ('position', 'velocity'), False), (('position', 'effort'), ('position',), False),
+    (('position', 'effort'), ('position', 'velocity'), True),
+    (('position', 'velocity'), ('position', 'velocity'), True),
+])
+def test_the_stopped_velocity_tolerance_is_refused_only_where_the_controller_checks_it(
+        commands: tuple[str, ...], states: tuple[str, ...], checked: bool) -> None:
+    # The controller computes a velocity error (and checks it at the goal) with a velocity state interface and a
+    # velocity or effort command interface; elsewhere another tolerance changes nothing.
+    settings = replace(JTC, command_interfaces=commands, state_interfaces=states, stopped_velocity_tolerance=0.05)
+    problem = motion_settings_problem(settings)
+    assert (problem is not None and 'stopped_velocity_tolerance' in problem) is checked, problem
+    assert motion_settings_problem(replace(settings, stopped_velocity_tolerance=0.01)) is None
+
+
 def test_a_controllers_file_with_interpolation_none_stops_the_node_at_startup(tmp_path: object) -> None:
     from pathlib import Path
 
