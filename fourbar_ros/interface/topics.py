@@ -167,7 +167,7 @@ _SENSOR_CONTENT = {
     'float64': 'the antenna angle from a sensor on the antenna (an inclinometer), rad in theta\'s sense, '
                'timed by its arrival; compared with the angle completed from the measured joint (`model_mismatch_*` '
                'in diagnostics)',
-    'imu': 'an IMU on the antenna, axes as the coupler frame; the tilt from gravity, atan2(-a_x, a_z) of '
+    'imu': 'an IMU on the antenna, axes as the coupler frame; the tilt from gravity, atan2(-a_x, hypot(a_y, a_z)) of '
            '`linear_acceleration` (as `fourbar calibrate`), timed by its header stamp; compared as the Float64 form',
 }
 
