@@ -26,7 +26,7 @@ setup(
         'plot': ['matplotlib', 'pillow'],
         'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
                  'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py', 'pytest-codeblocks',
-                 'pytest-xdist', 'lxml', 'mujoco'],  # mujoco: the torque witness (test/core/test_torque_witness.py)
+                 'pytest-xdist', 'lxml', 'mujoco', 'rosdep'],  # mujoco: the torque witness (test/core/test_torque_witness.py)
     },
     zip_safe=True,
     maintainer='fourbar_ros developers',

@@ -34,6 +34,7 @@ IMPORT_KEYS: dict[str, str | None] = {
     'catkin_pkg': 'python3-catkin-pkg',
     'psutil': 'python3-psutil',
     'lxml': 'python3-lxml',
+    'rosdep2': 'python3-rosdep',      # the rosdep file checked by rosdep's own code
     'mujoco': 'python3-mujoco-pip',   # rosdistro's pip key (the torque witness; skipped where missing)
     'mpmath': None,
     'pylinkage': None,                 # benchmark peers, imported only by benchmarks (skipped where missing)
@@ -160,19 +161,72 @@ def test_modules_without_a_key_are_not_declared(module: str) -> None:
     assert f'>python3-{module}<' not in text
 
 
-def test_the_own_source_file_defines_only_keys_rosdistro_lacks_each_a_pinned_pip_package() -> None:
+def test_the_own_source_file_defines_only_keys_rosdistro_lacks_each_a_bare_pinned_pip_package() -> None:
     keys = own_keys()
     assert keys, 'rosdep/fourbar_ros.yaml defines no key'
     assert not set(keys) & published_keys(), 'a key rosdistro defines must not be redefined'
-    constraints = (REPO / 'requirements' / 'constraints.txt').read_text(encoding='utf-8').splitlines()
+    pinned = {line.split('==')[0] for line in
+              (REPO / 'requirements' / 'constraints.txt').read_text(encoding='utf-8').splitlines() if '==' in line}
     for key, rule in keys.items():
         assert isinstance(rule, dict) and set(PLATFORMS) <= set(rule), f'{key}: needs {PLATFORMS}'
         for platform in PLATFORMS:
             packages = rule[platform]['pip']['packages']  # type: ignore[index]
-            assert packages and all(p in constraints for p in packages), \
-                f'{key} on {platform}: {packages} must be pinned as in requirements/constraints.txt'
-    # The registration line the file's header gives names the file itself.
-    assert 'yaml file://$PWD/rosdep/fourbar_ros.yaml' in OWN_SOURCE.read_text(encoding='utf-8')
+            # bare: rosdep detects an installed pip package by its bare name only
+            assert packages and all(p in pinned for p in packages), \
+                f'{key} on {platform}: {packages} must be bare names pinned in requirements/constraints.txt'
+
+
+#: The registration line as the how-to gives it (its first line runs below with ``sudo tee`` replaced).
+HOW_TO = REPO / 'docs' / 'how-to' / 'ros2-control.md'
+SOURCES_LIST = '/etc/ros/rosdep/sources.list.d/50-fourbar-ros.list'
+#: Jazzy's platforms (REP 2000) and the version names rosdep matches.
+JAZZY_PLATFORMS = (('ubuntu', 'noble'), ('debian', 'bookworm'))
+
+
+def _registration_line() -> str:
+    lines = [line for line in HOW_TO.read_text(encoding='utf-8').splitlines() if SOURCES_LIST in line]
+    header = OWN_SOURCE.read_text(encoding='utf-8')
+    assert len(lines) == 1 and f'#   {lines[0]}' in header, (
+        f'the how-to gives {len(lines)} registration lines; the source file\'s header must give the same one')
+    return lines[0]
+
+
+def test_the_registration_line_works_from_any_directory_and_rosdep_resolves_and_detects_ruckig(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The how-to's line, run from a directory that is not the clone (HOME holding ~/ws/src/fourbar_ros as the
+    quick start clones it), writes a sources line rosdep parses; rosdep loads the file it names and resolves
+    python3-ruckig-pip on Jazzy's platforms to a pip package, and its pip check finds the installed ruckig in
+    what `pip freeze` prints."""
+    import subprocess
+    from importlib.metadata import version
+
+    sources_list = pytest.importorskip('rosdep2.sources_list', reason='rosdep (python3-rosdep) is not installed')
+    from rosdep2.lookup import RosdepDefinition
+    from rosdep2.platforms.pip import PipInstaller, pip_detect
+
+    monkeypatch.setenv('ROS_PYTHON_VERSION', '3')  # as a sourced ROS 2 environment sets it (rosdep's pip lookup)
+    home = tmp_path / 'home'
+    (home / 'ws' / 'src').mkdir(parents=True)
+    (home / 'ws' / 'src' / 'fourbar_ros').symlink_to(REPO)
+    elsewhere = tmp_path / 'elsewhere'
+    elsewhere.mkdir()
+    line = _registration_line().replace(f'sudo tee {SOURCES_LIST}', 'cat')
+    done = subprocess.run(['bash', '-c', line], cwd=elsewhere, env={'HOME': str(home), 'PATH': '/usr/bin:/bin'},
+                          capture_output=True, text=True, timeout=30, check=False)
+    assert done.returncode == 0, f'{line!r} from {elsewhere}: {done.stderr}'
+    [source] = sources_list.parse_sources_data(done.stdout)
+    assert source.type == 'yaml' and Path(source.url.removeprefix('file://')).resolve() == OWN_SOURCE.resolve()
+    data = sources_list.download_rosdep_data(source.url)
+    installed = version('ruckig')
+    for os_name, os_version in JAZZY_PLATFORMS:
+        definition = RosdepDefinition('python3-ruckig-pip', data['python3-ruckig-pip'], source.url)
+        installer, rule = definition.get_rule_for_platform(os_name, os_version, ['apt', 'pip'], 'apt')
+        packages = PipInstaller().resolve(rule)
+        assert installer == 'pip' and packages == ['ruckig'], (os_name, installer, rule)
+        detected = pip_detect(packages, exec_fn=lambda _cmd: f'numpy==2.4.6\nruckig=={installed}\n')
+        assert detected == ['ruckig'], f'rosdep does not see ruckig=={installed} in pip freeze: {detected}'
+    # the pinned form would not be seen: rosdep would install it again on every run
+    assert pip_detect([f'ruckig=={installed}'], exec_fn=lambda _cmd: f'ruckig=={installed}\n') == []
 
 
 def test_ruckig_resolves_through_the_own_key() -> None:
