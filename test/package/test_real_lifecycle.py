@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import os
 import subprocess
 import sys
@@ -104,37 +105,46 @@ def test_a_command_while_the_controller_is_inactive_is_reached_once_it_is_active
 
 
 CFG = load_config(REPO / 'config' / 'antenna.yaml')
-#: The driven joint's acceleration limit (rad/s^2) and the most a jerk-limited plan changes its acceleration in one
-#: controller update (rad/s^2: motor_jerk_limit through reducer_ratio, times the 100 Hz update period).
+#: The driven joint's acceleration limit (rad/s^2) and the jerk of the node's plans there (rad/s^3: motor_jerk_limit
+#: through reducer_ratio); one 100 Hz controller update of that jerk is PLANNED_STEP (rad/s^2).
 ACCELERATION_LIMIT = CFG.motor_acceleration_limit / abs(CFG.reducer_ratio)
-PLANNED_STEP = CFG.motor_jerk_limit / abs(CFG.reducer_ratio) * 0.01
+PLANNED_JERK = CFG.motor_jerk_limit / abs(CFG.reducer_ratio)
+PLANNED_STEP = PLANNED_JERK * 0.01
+#: A takeover may step the reference acceleration by this fraction of the limit beyond the plan's jerk.
+TAKEOVER_ALLOWANCE = 0.05
 
 
 def _no_jump(result: dict[str, Any]) -> None:
-    """After every activation the controller's reference acceleration steps by no more than a jerk-limited plan's
-    step in one update plus 5% of the limit (the takeover's allowance), whoever's trajectory it follows."""
-    step, bound = _largest_step(result), PLANNED_STEP / ACCELERATION_LIMIT + 0.05
-    print(f'the largest step of the controller\'s reference acceleration in one update after an activation: '
-          f'{step:.1%} of the limit (bound {bound:.0%}: the plan\'s jerk and 5%)')
-    assert step <= bound, f'a step of {step:.1%} of the acceleration limit in one update after an activation'
+    """After every activation the controller's reference acceleration changes between two successive updates by no
+    more than the plan's jerk over the time between the two samples plus TAKEOVER_ALLOWANCE of the limit, whoever's
+    trajectory it follows. (The controller samples at its own accumulated time: a loaded manager that stalls an
+    update samples the next one that much later, and a jerk-limited plan moves on by as much in between.)"""
+    step, excess = _largest_step(result)
+    print(f'after the activations, the controller\'s reference acceleration: the largest step in one update '
+          f'{step:.1%} of the limit (the plan\'s jerk gives {PLANNED_STEP / ACCELERATION_LIMIT:.0%} per 10 ms), '
+          f'{excess:+.1%} beyond the plan\'s jerk over the sampled time (bound {TAKEOVER_ALLOWANCE:.0%})')
+    assert excess <= TAKEOVER_ALLOWANCE, (
+        f'a step of {excess:.1%} of the acceleration limit beyond the plan\'s jerk in one update after an activation')
 
 
-def _largest_step(result: dict[str, Any]) -> float:
+def _largest_step(result: dict[str, Any]) -> tuple[float, float]:
     """The largest change of joint_trajectory_controller's reference acceleration between two successive updates
-    after an activation (of the controller or its hardware) and before the next event, as a fraction of the driven
-    joint's acceleration limit. A deactivation stops the reference at once; that stop is not a takeover."""
+    after an activation (of the controller or its hardware) and before the next event, and the largest by which it
+    exceeds the plan's jerk times the time between the two samples, both as fractions of the driven joint's
+    acceleration limit. A deactivation stops the reference at once; that stop is not a takeover."""
     events = [e for e in result['log'] if not {'pause', 'mark', 'until', 'moving'} & set(e['step'])]
-    worst = 0.0
+    worst, excess = 0.0, -math.inf
     for event, after in zip(events, [*events[1:], None], strict=True):
         step = event['step']
         if not (step.get('switch', {}).get('activate') or step.get('hardware', [None, None])[1] == 'active'):
             continue
         end = after['at'] if after is not None else float('inf')
         window = [r for r in result['references'] if event['at'] <= r[0] < end]
-        for (_, a0, s0), (_, a1, s1) in itertools.pairwise(window):
+        for (_, a0, s0, t0), (_, a1, s1, t1) in itertools.pairwise(window):
             if s1 - s0 < 0.015:  # successive updates (100 Hz; the controller's publisher drops one now and then)
                 worst = max(worst, abs(a1 - a0))
-    return worst / ACCELERATION_LIMIT
+                excess = max(excess, abs(a1 - a0) - PLANNED_JERK * max(t1 - t0, 0.0))
+    return worst / ACCELERATION_LIMIT, excess / ACCELERATION_LIMIT
 
 
 def _motion_after(result: dict[str, Any], kind: str, which: int) -> float:

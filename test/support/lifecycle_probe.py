@@ -18,7 +18,8 @@ deadline (never on time alone):
 OUT.json: ``log`` (per step: the step, its time, what it returned and the node's status after it), ``statuses``
 (time, the node's controller state, command fate and its reason, every status change), ``measured`` (time,
 driven joint rad, at most every 10 ms), ``references`` (time, joint_trajectory_controller's reference
-acceleration rad/s^2 and the update's stamp s, every update), ``status`` (the last status: key -> value).
+acceleration rad/s^2, the update's stamp s and the time the reference was sampled at s, every update), ``status``
+(the last status: key -> value).
 Times in s on the steady clock from the start.
 """
 
@@ -82,7 +83,12 @@ def _probe(node: Node, steps_path: str, out_path: str) -> int:
     def on_reference(msg: JointTrajectoryControllerState) -> None:
         if msg.reference.accelerations:
             stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
-            references.append([time.monotonic() - t0, float(msg.reference.accelerations[0]), stamp])
+            # the time the reference was sampled at: the update's time minus the time since the trajectory's start,
+            # plus the sampled time since that start (the controller's own accumulated time)
+            since = msg.feedback.time_from_start.sec + 1e-9 * msg.feedback.time_from_start.nanosec
+            sampled = msg.reference.time_from_start.sec + 1e-9 * msg.reference.time_from_start.nanosec
+            references.append([time.monotonic() - t0, float(msg.reference.accelerations[0]), stamp,
+                               stamp - since + sampled])
 
     reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
     node.create_subscription(JointTrajectoryControllerState, 'joint_trajectory_controller/controller_state',
