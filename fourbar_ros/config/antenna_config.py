@@ -89,6 +89,8 @@ class AntennaConfig:
     resume_interrupted: bool
     reached_tolerance: float
     reach_timeout: float
+    follow_tolerance: float
+    follow_timeout: float
     effort_feedforward: bool
     replan_tolerance: float
     measured_range_tolerance: float

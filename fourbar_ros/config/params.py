@@ -213,6 +213,13 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('reach_timeout', float, 2.0, 's',
               'Actuator modes: a sent command not reached this long after its motion\'s planned end ends '
               'interrupted (the drive did not follow).', 0.001, 3600.0),
+    ParamSpec('follow_tolerance', float, 0.02, 'rad',
+              'Actuator modes, with the controller active: the measured driven joint farther than this from the '
+              'reference its controller follows, for follow_timeout, is a drive that does not follow (ERROR; the '
+              'command ends interrupted).', 1e-6, 1.0),
+    ParamSpec('follow_timeout', float, 1.0, 's',
+              'Actuator modes: how long the drive may stay off its reference by more than follow_tolerance '
+              '(0: not checked).', 0.0, 3600.0),
     ParamSpec('effort_feedforward', bool, False, '',
               'Trajectory mode: send the static input torque as each point\'s effort (a feed-forward). The '
               'controller must then have an effort command interface ([position, effort]); off: no effort field.',

@@ -35,6 +35,7 @@ from fourbar_ros.node.trajectory_goals import TrajectoryGoals
 from fourbar_ros.rules.command_fate import CommandFates, Fate, FateSettings, Readiness
 from fourbar_ros.rules.controller_contract import check_forward_command
 from fourbar_ros.rules.diagnostics import Level
+from fourbar_ros.rules.follow_check import LIKELY_CAUSES, FollowCheck
 from fourbar_ros.rules.goal_outcomes import GoalOutcome
 from fourbar_ros.rules.motion_plan import Motion
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
@@ -80,6 +81,8 @@ class Actuation:
         self.goals: TrajectoryGoals | None = None
         self.fates = CommandFates(FateSettings.of(cfg))
         self.theta: float | None = None  # the last measured antenna angle (rad), for the fates
+        self.follow = FollowCheck(cfg.follow_tolerance, cfg.follow_timeout)
+        self.not_following = ''  # why the drive did not follow the last sent command, until one is reached
         if self.mode == Mode.TRAJECTORY.value and cfg.trajectory_interface == 'action':
             self.goals = TrajectoryGoals(node, cfg.trajectory_controller, problems)
             self.goals.on_end = self._on_goal_end
@@ -125,9 +128,27 @@ class Actuation:
             self.measured = JointMotionState(position, v)
             self.measured_ns = stamp_ns if stamp_ns else self._now_ns()
             self._measured_at = time.monotonic()
+            self._check_follow(position)
             if not self.fates.measured:
                 self.fates.measured = True
                 self._resume()
+
+    def _check_follow(self, position: float) -> None:
+        """The measured driven joint against the reference of the sent motion, while the controller is active: a
+        drive that does not follow ends the command interrupted, not resumed (ERROR until a command is reached)."""
+        cmd, motion = self.fates.current, self.motion
+        if (cmd is None or cmd.fate is not Fate.SENT or motion is None
+                or self.fates.readiness is not Readiness.ACTIVE):
+            self.follow.reset()
+            return
+        cfg = self._config()
+        self.follow.tolerance, self.follow.timeout = cfg.follow_tolerance, cfg.follow_timeout
+        line = self.follow.update(motion.state_at(self.measured_ns).position, position, self.measured_ns)
+        if line:
+            self.not_following = line
+            self.fates.interrupt(line, self._now_ns(), resumable=False)
+            self._problems.warn('drive does not follow', f'command theta = {cmd.theta!r} rad interrupted: {line} '
+                                f'(likely: {LIKELY_CAUSES})')
 
     def note_theta(self, theta: float) -> None:
         """The measured antenna angle (rad), completed from the measured driven joint: a sent command is reached
@@ -136,6 +157,8 @@ class Actuation:
         cmd = self.fates.current
         if cmd is not None and cmd.fate is Fate.SENT:
             self.fates.reached(theta, self._now_ns())
+            if self.fates.current is cmd and cmd.fate.final:  # reached: the drive follows
+                self.not_following = ''
 
     # ------------------------------------------------------------------ served commands and antenna trajectories
 
@@ -176,6 +199,8 @@ class Actuation:
         old = self.fates.readiness
         self.fates.controller(new, self._now_ns())
         self._info(f'controller {self.watch.controller}: {old.value} -> {new.value}')
+        if new is Readiness.ACTIVE:
+            self.not_following = ''  # activated again: the drive is judged afresh
         if not new.sendable:  # the drive's state is measured again before anything is planned (a manager that
             self.fates.measured = False  # restarts starts its hardware afresh)
             # An active trajectory controller runs its trajectory on while its hardware is inactive; a controller
@@ -273,13 +298,16 @@ class Actuation:
 
     def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
         """(level, message, key/value pairs) for the node's status: the mode, the controller's readiness and the
-        current command's fate, the counters (and the goals', action interface). WARN while a command is held, or
-        when the latest one was dropped or interrupted."""
+        current command's fate, the counters (and the goals', action interface). ERROR while the drive does not
+        follow; WARN while a command is held, or when the latest one was dropped or interrupted."""
         values = [('mode', self.mode), ('controller', self.watch.controller),
                   ('controller_activity', self.watch.topic or f'not followed: {self.watch.why_not_followed}'),
                   *self.fates.values(), *((k, str(v)) for k, v in self.counters.as_dict().items())]
         if self.goals is not None:
             values += self.goals.diagnostic_values()
+        values.append(('drive_follows', 'no: ' + self.not_following if self.not_following else 'yes'))
+        if self.not_following:
+            return Level.ERROR, f'{self.not_following}; likely: {LIKELY_CAUSES}', values
         cmd = self.fates.current
         if cmd is not None and cmd.fate in (Fate.HELD, Fate.DROPPED, Fate.INTERRUPTED):
             return Level.WARN, f'command theta = {cmd.theta!r} rad {cmd.fate.value}: {cmd.reason}', values

@@ -196,6 +196,47 @@ def test_activation_holds_the_measured_position_not_the_last_command(bringup: Br
         f', measured {MEASURED!r}, last command {last!r}')
 
 
+def _not_following(text: str) -> list[dict[str, Any]]:
+    """The node's statuses saying the drive does not follow, in the last few kB of a /diagnostics echo (parsed
+    from a message boundary on: the echo's YAML folds long strings over lines)."""
+    tail = text[-30000:]
+    chunks = tail.split('\n---')[1:]  # the first may have been cut
+    # only the node's own messages: the controller manager's carry multi-line strings the echo parser skips
+    ours = '\n---'.join(c for c in chunks if 'drive_follows' in c)
+    return [s for m in echoed_messages(ours) for s in m.get('status', [])
+            if s.get('name', '').startswith('fourbar_node')
+            and any(kv['key'] == 'drive_follows' and kv['value'].startswith('no:') for kv in s.get('values', []))]
+
+
+def test_a_drive_that_does_not_follow_is_an_error_and_its_command_is_not_resumed(bringup: Bringup) -> None:
+    # The stand-in drive stays at MEASURED whatever the plugin sends it. With the forward controller active, a
+    # command's setpoints move away from there and the measured joint does not: after follow_timeout the node says
+    # ERROR naming the likely causes, and the command ends interrupted, not resumed.
+    env, cwd = bringup.cli.env, bringup.cli.cwd
+    _control(bringup, 'switch_controllers', '--deactivate', 'joint_trajectory_controller',
+             '--activate', 'forward_position_controller')
+    diagnostics = Background([ros2(), 'topic', 'echo', '/diagnostics', 'diagnostic_msgs/msg/DiagnosticArray'],
+                             env, cwd=cwd)
+    try:
+        diagnostics.wait_output(lambda t: 'controller_state' in t and 'value: active' in t,
+                                'the node following its active forward controller')
+        out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', f'/{NAMESPACE}/antenna_angle_cmd',
+                   'std_msgs/msg/Float64', '{data: 0.09}'], env, cwd=cwd)  # gamma 0.969 rad, 0.12 from MEASURED
+        assert out.returncode == 0, out.stdout + out.stderr
+        diagnostics.wait_output(lambda t: bool(_not_following(t)), 'the node saying the drive does not follow',
+                                timeout=60.0)
+        status = _not_following(diagnostics.output())[-1]
+    finally:
+        diagnostics.kill()
+    values = {kv['key']: kv['value'] for kv in status['values']}
+    assert values['drive_follows'].startswith('no: the drive does not follow: measured 0.85 rad'), values
+    assert values['command_fate'] == 'interrupted' and values['commands_interrupted'] == '1', values
+    assert status['message'].startswith('the drive does not follow') and 'likely: ' in status['message'], status
+    assert status['level'] == '\x02', f'level {status["level"]!r} (ERROR is 2): {status}'
+    _control(bringup, 'switch_controllers', '--deactivate', 'forward_position_controller',
+             '--activate', 'joint_trajectory_controller')
+
+
 def test_the_stop_commands_deactivate_the_controller_and_the_hardware(bringup: Bringup) -> None:
     # docs/how-to/ros2-control.md, "Stop": both at once, as typed there (with this namespace's manager).
     _control(bringup, 'switch_controllers', '--deactivate', 'joint_trajectory_controller')
