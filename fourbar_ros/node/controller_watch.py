@@ -22,9 +22,14 @@ from fourbar_ros.runtime.problem_log import ProblemLog
 #: Steady-clock period (s) of the check for a manager that has gone (its activity publisher unmatched).
 GONE_CHECK_S = 0.2
 _qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is unannotated
-#: The manager's activity QoS (controller_manager: depth 1, reliable, transient local).
+#: The manager's activity QoS (controller_manager: depth 1, reliable, transient local): a late joiner gets the
+#: latest state.
 ACTIVITY_QOS = _qos_profile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: This side keeps more: with depth 1 a controller switched off and on again between two callbacks reached the node
+#: as one "active" (the off dropped), and the node took the controller's hold for its running trajectory.
+WATCH_QOS = _qos_profile(depth=20, reliability=ReliabilityPolicy.RELIABLE,
+                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def activity_type() -> tuple[Any, str]:
@@ -59,7 +64,7 @@ class ControllerWatch:
         def subscribe() -> Any:
             return node.create_subscription(msg_type, f'{manager}/activity',
                                             problems.guard.wrap('sub_controller_activity', self._on_activity),
-                                            ACTIVITY_QOS)
+                                            WATCH_QOS)
         self._subscribe = subscribe
         self._sub = subscribe()
         self.topic = self._sub.topic_name
