@@ -218,19 +218,27 @@ def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, valu
 
 
 def start_daemon(env: dict[str, str], log: Path, timeout: float = TIMEOUT) -> str:
-    """``ros2 daemon start --debug`` for ``env``'s domain (a leased one: no daemon there, its port free), in this
-    process's group (not ``run``'s, which is killed when the command exits): the daemon lives until ``ros2 daemon
-    stop``. ``--debug`` is the one way to keep what the daemon prints (its output goes to /dev/null otherwise): the
-    command's and the daemon's output are appended to ``log``, unbuffered (``daemon_log`` reads it back).
-    AssertionError, with that output, if no daemon runs then: the command says "already running" and starts none
-    when it cannot bind the daemon's port.
+    """``ros2 daemon start --debug`` (its code, waiting up to ``timeout``) for ``env``'s domain (a leased one: no
+    daemon there, its port free), in this process's group (not ``run``'s, which is killed when the command exits):
+    the daemon lives until ``ros2 daemon stop``. Debug output is the one way to keep what the daemon prints (it goes
+    to /dev/null otherwise): the command's and the daemon's output are appended to ``log``, unbuffered
+    (``daemon_log`` reads it back). AssertionError, with that output, if no daemon runs then: the command says
+    "already running" and starts none when it cannot bind the daemon's port.
 
     Returns ``daemon_state`` right after the command, for failure reports."""
     from support.colcon_support import ros2
 
+    # What `ros2 daemon start --debug` runs, with this deadline instead of its fixed 10 s: the daemon must import
+    # rclpy and join the graph before it answers, which took longer than 10 s on a loaded 2-core machine, and the
+    # command then terminates it ("Timed out waiting for daemon to become ready").
+    with open(ros2(), encoding='utf-8') as script:
+        python = script.readline().removeprefix('#!').strip().split()
+    start = ('import argparse, sys; from ros2cli.node.daemon import spawn_daemon; '
+             f'print("The daemon has been started" if spawn_daemon(argparse.Namespace(), timeout={timeout!r}, '
+             'debug=True) else "The daemon is already running")')
     with log.open('ab') as out:
-        started = subprocess.run([ros2(), 'daemon', 'start', '--debug'], env={**env, 'PYTHONUNBUFFERED': '1'},
-                                 stdout=out, stderr=subprocess.STDOUT, timeout=timeout, check=False,
+        started = subprocess.run([*python, '-c', start], env={**env, 'PYTHONUNBUFFERED': '1'},
+                                 stdout=out, stderr=subprocess.STDOUT, timeout=timeout + 5.0, check=False,
                                  stdin=subprocess.DEVNULL)
     assert started.returncode == 0, f'ros2 daemon start failed:\n{daemon_log(log)}'
     assert _daemons(env), (f'ros2 daemon start started no daemon on domain {env.get("ROS_DOMAIN_ID")} '
