@@ -53,7 +53,7 @@ JOINT = 'rocker_ab_joint'
 STATE_IDS = {'active': State.PRIMARY_STATE_ACTIVE, 'inactive': State.PRIMARY_STATE_INACTIVE}
 
 
-def _probe(node: Node, steps_path: str, out_path: str) -> int:
+def _probe(node: Node, namespace: str, steps_path: str, out_path: str) -> int:
     steps = json.loads(Path(steps_path).read_text(encoding='utf-8'))
     t0 = time.monotonic()
     status: dict[str, str] = {}
@@ -62,10 +62,14 @@ def _probe(node: Node, steps_path: str, out_path: str) -> int:
     references: list[list[float]] = []
     lock = threading.Lock()
 
+    # /diagnostics is global and the status name carries no namespace: this namespace's node is the one following
+    # this namespace's controller manager (other launches may run beside it).
+    activity = f'/{namespace.strip("/")}/controller_manager/activity'
+
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for s in msg.status:
             values = {kv.key: kv.value for kv in s.values}
-            if s.name.startswith('fourbar_node') and 'controller_state' in values:
+            if s.name.startswith('fourbar_node') and values.get('controller_activity') == activity:
                 with lock:
                     status.clear()
                     status.update(values, message=s.message)
@@ -181,7 +185,7 @@ def _probe(node: Node, steps_path: str, out_path: str) -> int:
 
 def main(namespace: str, steps_path: str, out_path: str) -> int:
     with probe_node('lifecycle_probe', namespace) as node:
-        return _probe(node, steps_path, out_path)
+        return _probe(node, namespace, steps_path, out_path)
 
 
 if __name__ == '__main__':
