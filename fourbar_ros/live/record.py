@@ -9,7 +9,6 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from rclpy.clock import ROSClock
 from rclpy.executors import Executor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -19,7 +18,7 @@ from fourbar_ros.bags.storage import AtomicBagWriter, BagError, jazzy_typestore,
 from fourbar_ros.interface.topics import DEFAULT_STORAGE, STREAM_DEPTH, Storage
 from fourbar_ros.live.graph import ReplayError, make_qos, publisher_nodes, spin_until, wait_for_node_names
 from fourbar_ros.live.node_params import handshake
-from fourbar_ros.runtime.executor import MessageInfoCallback
+from fourbar_ros.runtime.executor import MessageInfoCallback, arrival_ns
 
 #: History depth of the recording subscriptions: how far the recorder may fall behind a burst (the node's own).
 RECORD_DEPTH = STREAM_DEPTH
@@ -155,12 +154,9 @@ class Recorder:
         (``received_timestamp``, system clock), so a callback run late by a busy executor or a loaded machine still
         records when the message arrived; under sim time, the node's clock when the callback runs."""
         clock: Any = self.node.get_clock()
-        sim_time = isinstance(clock, ROSClock) and clock.ros_time_is_active
 
         def write(data: bytes, info: dict[str, Any]) -> None:
-            received = info.get('received_timestamp')
-            log = clock.now().nanoseconds if sim_time or not received else int(received)
-            self.bag.write(conn, log, data)
+            self.bag.write(conn, arrival_ns(clock, info), data)
             self.counts[name] += 1
             self.last_source_ns[name] = max(self.last_source_ns[name], int(info.get('source_timestamp') or 0))
             if self.on_message is not None:

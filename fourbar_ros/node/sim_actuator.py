@@ -32,6 +32,7 @@ from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.rules.command_fate import ACTIVE_LABEL
 from fourbar_ros.rules.controller_contract import check_forward_command
 from fourbar_ros.rules.simulated_drive import DriveLimits, Encoder, LagActuator, TrajectoryFollower, effort_at
+from fourbar_ros.runtime.executor import MessageInfoCallback, arrival_ns
 from fourbar_ros.runtime.problem_log import ProblemLog
 
 WARN_THROTTLE_S = 1.0
@@ -98,7 +99,8 @@ class SimActuator(Node):
         self._pub = self.create_publisher(JointState, BROADCASTER_JOINT_STATES.name, qos(BROADCASTER_JOINT_STATES))
         jt, fw = trajectory_topic(cfg.trajectory_controller), forward_topic(cfg.forward_controller)
         guard = self._problems.guard  # the callback boundary: an exception is counted, logged and swallowed
-        self.create_subscription(JointTrajectory, jt.name, guard.wrap('sub_trajectory', self._on_trajectory), qos(jt))
+        on_trajectory = guard.wrap('sub_trajectory', MessageInfoCallback(self._on_trajectory))
+        self.create_subscription(JointTrajectory, jt.name, on_trajectory, qos(jt))
         self.create_subscription(Float64MultiArray, fw.name, guard.wrap('sub_forward', self._on_forward), qos(fw))
         self._tick_clock: Any = periodic_timer(self, 1.0 / s.publish_rate, guard.wrap('tick', self._on_tick)).clock
         self.add_post_set_parameters_callback(guard.wrap('after_set_parameters', self._after_set_parameters))
@@ -137,12 +139,12 @@ class SimActuator(Node):
     def _refuse(self, kind: str, why: str) -> None:
         self._problems.warn(f'{kind} refused', f'{kind} refused: {why}')
 
-    def _on_trajectory(self, msg: JointTrajectory) -> None:
+    def _on_trajectory(self, msg: JointTrajectory, info: dict[str, Any]) -> None:
         if not self.controller_active:  # an inactive controller drops what it is sent
             self.counters.dropped_inactive += 1
             return
         refusal = self.follower.receive(msg.joint_names, msg.points, to_ns(msg.header.stamp),
-                                        self._clock.now().nanoseconds)
+                                        arrival_ns(self._clock, info))
         if refusal is not None:
             self._refuse(f'trajectory ({refusal.rule.value})', refusal.reason)
 
@@ -180,11 +182,11 @@ class SimActuator(Node):
         last, self._last_tick_ns = self._last_tick_ns, tick_ns
         dt = 0.0 if last is None or tick_ns < last else ns_to_seconds(tick_ns - last)  # sim time jumping back restarts
         reason = self.follower.holding_reason
-        # A tick late by whole periods (a busy machine) first makes the running trajectory's updates it missed, as
-        # the controller manager's real-time loop would have: the drive keeps following, and a late timer is no
-        # tolerance violation. What only the tick does: publish the measured state, and take a new trajectory over
-        # (so the state it starts from was published, and it arrived before). The missed updates' times are spread
-        # over the node clock's interval since the last tick (counted back from now if that clock went back).
+        # A tick late by whole periods (a busy machine) first makes the updates it missed, as the controller
+        # manager's real-time loop would have: the drive keeps following, a trajectory that arrived meanwhile is
+        # taken over at the first of them after its arrival, and a late timer is no tolerance violation. Only the
+        # tick publishes the measured state. The missed updates' times are spread over the node clock's interval
+        # since the last tick (counted back from now if that clock went back).
         updates = min(max(round(dt / self.follower.period), 1), MAX_CATCH_UP)
         step_ns = seconds_to_ns(dt / updates)
         last_ns = self._last_update_ns if self._last_update_ns is not None else now.nanoseconds
@@ -193,8 +195,7 @@ class SimActuator(Node):
             at_ns = last_ns + span * j // updates if span >= updates else now.nanoseconds - (updates - j) * step_ns
             self.drive.advance(ns_to_seconds(step_ns), self._reference)
             missed = self.encoder.measure(self.drive.position, self.drive.velocity, 0.0)
-            self._reference = self.follower.reference(ns_to_seconds(at_ns), missed[0], missed[1],
-                                                      take_new=False).position
+            self._reference = self.follower.reference(ns_to_seconds(at_ns), missed[0], missed[1]).position
         self._update(ns_to_seconds(step_ns), now)
         self._last_update_ns = now.nanoseconds
         if self.follower.holding_reason is not None and self.follower.holding_reason != reason:

@@ -6,6 +6,7 @@ hardware reports; angles are the driven joint's (rad), times s. What it imitates
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import NamedTuple
@@ -15,6 +16,7 @@ import numpy as np
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.controllers import TrajectoryControllerSettings
 from fourbar_ros.core.loads import pose
+from fourbar_ros.interface.stamps import seconds_to_ns
 from fourbar_ros.rules.controller_contract import (
     ContractRule,
     PointLike,
@@ -26,6 +28,8 @@ from fourbar_ros.rules.controller_motion import ControllerPoint, Reference, cont
 
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
+#: Most accepted trajectories waiting for an update (older ones are dropped: an update takes only the latest).
+MAX_PENDING = 1000
 #: Integration step (s) of the drive: fixed, so a late timer tick changes nothing but when the state is read.
 STEP_S = 0.001
 
@@ -143,7 +147,8 @@ class TrajectoryFollower:
         self.counters = FollowerCounters()
         self._hold = Setpoint(position, 0.0, 0.0)
         self._trajectory: Trajectory | None = None
-        self._pending: tuple[int, tuple[Waypoint, ...]] | None = None  # (stamp ns, points) until an update takes it
+        #: (arrival ns, stamp ns, points) of each accepted trajectory, oldest first, until an update takes it
+        self._pending: deque[tuple[int, int, tuple[Waypoint, ...]]] = deque(maxlen=MAX_PENDING)
         tol = settings.tolerance(joint)
         self._path_tolerance, self._goal_tolerance = tol.trajectory, tol.goal
         self._velocity_state = 'velocity' in settings.state_interfaces
@@ -165,22 +170,31 @@ class TrajectoryFollower:
         except TrajectoryError as exc:
             self.counters.refused_not_finite += 1
             return Refusal(ContractRule.FIELD_SIZE, str(exc))
-        self._pending = (stamp_ns, tuple(taken))
+        self._pending.append((now_ns, stamp_ns, tuple(taken)))
         self.counters.accepted += 1
         return None
 
     def hold(self, position: float) -> None:
         """Stop following and hold ``position`` (rad): a forward command, or a hold of the controller's own."""
         self._hold = Setpoint(position, 0.0, 0.0)
-        self._trajectory = self._pending = None
+        self._trajectory = None
+        self._pending.clear()
 
-    def reference(self, now: float, position: float, velocity: float, take_new: bool = True) -> Setpoint:
+    @property
+    def waiting(self) -> int:
+        """How many accepted trajectories no update has taken over yet."""
+        return len(self._pending)
+
+    def reference(self, now: float, position: float, velocity: float) -> Setpoint:
         """The controller's update at ``now`` (s) with the measured position (rad) and velocity (rad/s): the
-        command it writes, the reference one update period ahead. A received trajectory is taken over here, from
-        the state measured here, unless ``take_new`` is false (an update made up for a late tick)."""
-        if self._pending is not None and take_new:
-            stamp_ns, points = self._pending
-            self._pending = None
+        command it writes, the reference one update period ahead. The latest trajectory that arrived by ``now`` is
+        taken over here, from the state measured here (the ones before it are never followed, as the controller's
+        realtime buffer keeps only the latest)."""
+        newest = None
+        while self._pending and self._pending[0][0] <= seconds_to_ns(now):
+            newest = self._pending.popleft()
+        if newest is not None:
+            _, stamp_ns, points = newest
             stamp = None if stamp_ns == 0 else stamp_ns * 1e-9 - now
             reference = controller_reference(
                 self._velocity_state, [ControllerPoint(*p) for p in points], stamp, 0.0, position, velocity,

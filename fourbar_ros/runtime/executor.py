@@ -13,6 +13,7 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
+from rclpy.clock import ROSClock
 from rclpy.clock_type import ClockType
 from rclpy.context import Context
 from rclpy.executors import Executor, SingleThreadedExecutor
@@ -190,3 +191,13 @@ class MessageInfoCallback:
             args = args[0]
         msg, info = args
         self.callback(msg, info)
+
+
+def arrival_ns(clock: Any, info: dict[str, Any]) -> int:
+    """When a message reached this process (ns, ``clock``'s time): the middleware's reception time
+    (``received_timestamp``, system clock), which a late callback of a busy executor does not move; ``clock``'s now
+    under simulated time or where the middleware gives none."""
+    received = int(info.get('received_timestamp') or 0)
+    if received > 0 and not (isinstance(clock, ROSClock) and clock.ros_time_is_active):
+        return received
+    return int(clock.now().nanoseconds)

@@ -117,9 +117,19 @@ class Pair:
     def settle_at(self, theta: float) -> JointState:
         """The first measured message since the last command or trajectory (``mark``) at theta's driven angle."""
         q = q_of(theta)
-        return self.measured.wait_match(lambda m: JOINT in m.name
-                                        and abs(m.position[list(m.name).index(JOINT)] - q) <= SETTLED,
-                                        start=self.mark)
+        try:
+            return self.measured.wait_match(lambda m: JOINT in m.name
+                                            and abs(m.position[list(m.name).index(JOINT)] - q) <= SETTLED,
+                                            start=self.mark)
+        except AssertionError as exc:
+            raise AssertionError(f'{exc}\n{self.sides()}') from None
+
+    def sides(self) -> str:
+        """What the node and the simulated drive each say they did (for a failure message)."""
+        follower = self.sim.follower
+        return (f'node: {self.actuation.counters.as_dict()}, diagnostics {self.actuation.diagnostics()}; '
+                f'sim: drive at {self.sim.drive.position!r} rad, {follower.counters.as_dict()}, '
+                f'{follower.waiting} waiting, holding: {follower.holding_reason}, {self.sim.counters}')
 
     def close(self) -> None:
         for c in (self.measured, self.complete, self.trajectories, self.setpoints):
@@ -254,8 +264,7 @@ def test_measurements_arriving_late_leave_the_motion_followed(late: Pair) -> Non
         f'the node took a late measurement for a drive off its motion: its latest {actuation.measured}, {age:.3f} s '
         f'old now; {counters.as_dict()}')
     late.settle_at(CFG.theta_min)
-    holds = late.sim.follower.counters
-    assert holds.tolerance_holds == 0, holds.as_dict()
+    assert late.sim.follower.counters.tolerance_holds == 0, late.sides()
 
 
 def antenna_msg(times: list[float], theta: list[float], theta_dot: list[float] | None = None,

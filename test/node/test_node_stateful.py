@@ -120,7 +120,7 @@ class Rig:
         self.ros.wait_for(lambda: follower.counters.accepted + sum(follower.counters.refused.values())
                           + follower.counters.refused_not_finite + self.sim.counters.dropped_inactive
                           >= node.trajectories_sent
-                          and follower._pending is None,
+                          and follower.waiting == 0,
                           what=f'the sim to take over the node\'s {node.trajectories_sent} trajectories '
                                f'(accepted {follower.counters.accepted}, refused {follower.counters.refused})')
 

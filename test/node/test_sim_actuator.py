@@ -310,7 +310,7 @@ def follow_with_ticks(ros: RosSession, ticks: Sequence[int]) -> SimActuator:
         node._on_tick()
         if k == 0:
             clock.ns += 5_000_000
-            node._on_trajectory(JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.12, 2.0)]))
+            node._on_trajectory(JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.12, 2.0)]), {})
     return node
 
 
@@ -341,8 +341,8 @@ def test_a_late_tick_makes_the_controller_updates_it_missed(ros: RosSession,
 def test_a_pause_between_the_two_clock_reads_takes_no_trajectory_over_before_it_arrived(ros: RosSession) -> None:
     """The tick reads the node clock, then the timer's clock; paused 50 ms between the two, its interval is 50 ms
     longer on one than on the other, and the tick makes 5 updates it missed. A trajectory stamped at its arrival,
-    starting at the measured state (as the node sends them), is taken over at the tick, after it: no lead-in for
-    the controller; the tick publishes once, the state that trajectory starts from."""
+    starting at the measured state (as the node sends them), is taken over at the first of them after it, not
+    before: no lead-in for the controller; the tick publishes once."""
     node = SimActuator(context=ros.context, namespace=f'/sim_test_{next(_ns)}',
                        cli_args=['--ros-args', '--params-file', str(YAML)])
     taken: list[Any] = []
@@ -354,14 +354,46 @@ def test_a_pause_between_the_two_clock_reads_takes_no_trajectory_over_before_it_
     try:
         node._on_tick()
         clock.ns += 5_000_000  # the trajectory arrives 5 ms later, stamped then
+        arrival = clock.ns
         stamp = Time(sec=clock.ns // 10**9, nanosec=clock.ns % 10**9)
         node._on_trajectory(JointTrajectory(header=Header(stamp=stamp), joint_names=[JOINT],
-                                            points=[point(Q0, 0.0), point(Q0 + 0.05, 2.0)]))
+                                            points=[point(Q0, 0.0), point(Q0 + 0.05, 2.0)]), {})
         clock.ns += 5_000_000
         tick_clock.ns += 60_000_000  # the next tick, read 50 ms late on the timer's clock
         node._on_tick()
         assert len(taken) == 1 and not taken[0].lead_in, [(r.takeover, r.lead_in) for r in taken]
+        trajectory = node.follower._trajectory
+        assert trajectory is not None and arrival * 1e-9 <= trajectory.start <= clock.ns * 1e-9, trajectory.start
         assert stamps == [10**12, clock.ns], stamps  # one measured state a tick, stamped at the tick
+    finally:
+        node.destroy_node()
+
+
+def test_a_trajectory_received_during_a_late_tick_is_taken_over_at_the_update_after_its_reception(
+        ros: RosSession) -> None:
+    """The executor stalls 300 ms: the middleware received a trajectory 5 ms after the last tick, but its callback
+    runs only just before the late tick. The controller manager's loop would have taken it over at its next update,
+    10 ms after the last: so does the tick's first missed update, not the tick itself (which would start it 300 ms
+    into its plan)."""
+    node = SimActuator(context=ros.context, namespace=f'/sim_test_{next(_ns)}',
+                       cli_args=['--ros-args', '--params-file', str(YAML)])
+    clock, tick_clock = ManualClock(10**12), ManualClock(10**12)
+    node._clock, node._tick_clock = clock, tick_clock
+    try:
+        node._on_tick()
+        received = clock.ns + 5_000_000
+        stamp = Time(sec=received // 10**9, nanosec=received % 10**9)
+        clock.ns += 300_000_000
+        node._on_trajectory(JointTrajectory(header=Header(stamp=stamp), joint_names=[JOINT],
+                                            points=[point(Q0, 0.0), point(Q0 + 0.05, 2.0)]),
+                            {'received_timestamp': received})
+        clock.ns += 10_000_000
+        tick_clock.ns += 310_000_000
+        node._on_tick()
+        trajectory = node.follower._trajectory
+        assert trajectory is not None and trajectory.start == pytest.approx((10**12 + 10_000_000) * 1e-9, abs=1e-6)
+        # the drive is on the plan 300 ms in (the lag behind a reference moving at 0.025 rad/s), not at rest
+        assert node.drive.position > Q0 + 0.005 and node.follower.counters.tolerance_holds == 0
     finally:
         node.destroy_node()
 

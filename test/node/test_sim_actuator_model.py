@@ -12,7 +12,7 @@ from support.trajectory_points import Duration, Point
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.controllers import trajectory_controller
 from fourbar_ros.rules.controller_contract import ContractRule
-from fourbar_ros.rules.controller_motion import ControllerPoint, controller_reference
+from fourbar_ros.rules.controller_motion import ControllerPoint, Reference, controller_reference
 from fourbar_ros.rules.simulated_drive import (
     STEP_S,
     DriveLimits,
@@ -155,13 +155,27 @@ def test_a_trajectory_starts_at_its_first_update_from_the_measured_state() -> No
     assert f.reference(6.2, 0.85, 0.0) == Setpoint(0.85, 0.0, 0.0)  # its start is that update (stamp 0)
 
 
-def test_an_update_made_up_for_a_late_tick_takes_no_new_trajectory_over() -> None:
-    # A late tick makes the running trajectory's updates it missed; a trajectory received meanwhile waits for the tick.
+def test_a_trajectory_is_taken_over_at_the_first_update_after_its_arrival() -> None:
+    # A late tick makes the updates it missed; a trajectory is taken over by the first of them at or after its arrival.
     f = follower(position=0.8)
-    assert f.receive([J], rest([1.0], [0.85]), 0, 5 * 10**9) is None
-    assert f.reference(5.0, 0.8, 0.0, take_new=False) == Setpoint(0.8, 0.0, 0.0)
-    assert f.reference(5.01, 0.8, 0.0) != Setpoint(0.8, 0.0, 0.0)  # taken over at the tick
-    assert f.reference(6.01, 0.85, 0.0) == Setpoint(0.85, 0.0, 0.0)  # its start was the tick (stamp 0)
+    assert f.receive([J], rest([1.0], [0.85]), 0, 5_005_000_000) is None
+    assert f.reference(5.0, 0.8, 0.0) == Setpoint(0.8, 0.0, 0.0) and f.waiting == 1  # arrived after this update
+    assert f.reference(5.01, 0.8, 0.0) != Setpoint(0.8, 0.0, 0.0) and f.waiting == 0  # taken over here
+    assert f.reference(6.01, 0.85, 0.0) == Setpoint(0.85, 0.0, 0.0)  # its start was that update (stamp 0)
+
+
+def test_an_update_takes_only_the_latest_trajectory_that_arrived_before_it() -> None:
+    f = follower(position=0.8)
+    for k, goal in enumerate((0.9, 0.85)):  # two within one update period: the first is never followed
+        assert f.receive([J], rest([1.0], [goal]), 0, 5 * 10**9 + k) is None
+    assert f.receive([J], rest([1.0], [0.95]), 0, 5_020_000_000) is None  # after the next update
+    taken: list[Reference] = []
+    f.on_takeover = taken.append
+    f.reference(5.01, 0.8, 0.0)
+    assert len(taken) == 1 and f.waiting == 1
+    assert taken[0].sample(1.0)[0] == 0.85  # the latest of the two: at 0.85 from 1 s after its takeover on
+    f.reference(5.02, 0.8, 0.0)
+    assert len(taken) == 2 and f.waiting == 0 and taken[1].sample(1.0)[0] == 0.95
 
 
 def test_the_follower_holds_on_a_trajectory_tolerance_violation() -> None:

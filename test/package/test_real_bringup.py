@@ -67,6 +67,9 @@ def test_the_bringup_moves_the_joint(install: CliEnv, namespace: str, mode: str)
                              'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
         try:
             follow.wait_output(at_target, f'the measured joint at the commanded angle {q} rad')
+        except AssertionError as exc:  # what the node and the controllers logged meanwhile
+            output = launch.stdout[-4000:] + launch.stderr[-4000:]
+            raise AssertionError(f'{exc}\nthe launch\'s output: {output}') from None
         finally:
             follow.kill()
         assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
