@@ -10,9 +10,9 @@
   ``convert`` of the same message alone; CPU-time medians of interleaved rounds. Target: the join adds at most 1x
   the conversion's own time (ratio <= 2).
 - replan continuity: mid-motion replans as the node sends them (the running trajectory's own points first), taken
-  over by the controller model 0.3 to 40 ms after the node's now; the new reference's offset from the one being
-  followed at the takeover, in position (as seconds of motion at the current speed), velocity and acceleration
-  (relative to their limits); median and worst.
+  over by the controller model 0.3 to 150 ms after the node's now (0 within ARRIVAL_MARGIN_S, the plan's departure;
+  a step beyond it); the new reference's offset from the one being followed at the takeover, in position (as
+  seconds of motion at the current speed), velocity and acceleration (relative to their limits); median and worst.
 - replanning: one ``plan_motion`` call (ruckig) from a mid-motion state, median microseconds, beside sampling that
   plan every 0.05 s; compare with the node's per-command callback (``benchmarks.node_bench``, ~150 us).
 """
@@ -40,7 +40,7 @@ from fourbar_ros.rules.antenna_trajectory import convert
 from fourbar_ros.rules.controller_motion import ControllerPoint, controller_reference
 from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points
 from fourbar_ros.rules.serve import antenna_motion
-from fourbar_ros.rules.takeover import Start, continued, motion_start, takeover_lead
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, Start, continued, motion_start
 
 POINTS = 10_000
 
@@ -100,12 +100,12 @@ def replan_continuity(replans: int) -> dict[str, Any]:
 
     followed = reference(first, 0.0)
     motion = Motion(0, trajectory=first)
-    out: dict[str, Any] = {'lead_s': takeover_lead(cfg)}
-    for delay in (0.0003, 0.003, 0.013, 0.025, 0.040):
+    out: dict[str, Any] = {'lead_s': ARRIVAL_MARGIN_S}
+    for delay in (0.0003, 0.003, 0.013, 0.040, 0.099, 0.150):  # the last beyond ARRIVAL_MARGIN_S
         pos, vel, acc = [], [], []
         for now_s in np.linspace(0.3, 0.9 * plan.duration, replans):
             now = seconds_to_ns(float(now_s))
-            start = motion_start(cfg, motion, motion.state_at(now), now, takeover_lead(cfg))
+            start = motion_start(cfg, motion, motion.state_at(now), now, ARRIVAL_MARGIN_S)
             assert start is not None
             second = continued(start, planned_points(cfg, plan_command(cfg, start.state, 0.0)))
             t = float(now_s) + delay

@@ -29,7 +29,6 @@ from fourbar_ros.rules.takeover import (
     ends_soon,
     motion_start,
     outgoing_stamp,
-    takeover_lead,
 )
 
 #: The settings of the controller the actuator mode sends to (``rules.outgoing.actuation_contract``).
@@ -165,9 +164,9 @@ def antenna_motion(cfg: AntennaConfig, allow_moving_end: bool, joint_names: Sequ
 
 def _start(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: int,
            counters: ActuationCounters) -> Start | None:
-    """``motion_start`` (in trajectory mode ``takeover_lead`` ahead of now when it continues the running motion),
+    """``motion_start`` (in trajectory mode ``ARRIVAL_MARGIN_S`` ahead of now when it continues the running motion),
     counting a motion left for the measured state and a measured start moved onto the range."""
-    lead = takeover_lead(cfg) if isinstance(contract, TrajectoryControllerSettings) else 0.0
+    lead = ARRIVAL_MARGIN_S if isinstance(contract, TrajectoryControllerSettings) else 0.0
     start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns)
     if start is not None:
         counters.commands_replanned_from_measured += start.from_measured

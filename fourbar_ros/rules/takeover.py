@@ -45,15 +45,10 @@ class Start:
         return Start(self.now_state, now_ns)
 
 
-#: Trajectory mode: a continuing motion starts at least this many point spacings (1/control_rate) after now.
-TAKEOVER_SPACINGS = 2
-#: The longest (s) a trajectory may take to reach the controller and be taken over.
+#: The longest (s) a trajectory may take from the node's now to its takeover by the controller (planning, delivery,
+#: the controller's next update): a start from the measured state lies this far ahead, and a continuing motion
+#: departs from the running one no sooner.
 ARRIVAL_MARGIN_S = 0.1
-
-
-def takeover_lead(cfg: AntennaConfig) -> float:
-    """How far ahead (s) of the node's now a continuing motion starts at least, in trajectory mode."""
-    return TAKEOVER_SPACINGS / cfg.control_rate
 
 
 #: The most (s) a measurement's stamp may lie before the node's now and still stand for when it was measured: an

@@ -35,7 +35,7 @@ from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
 from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem
-from fourbar_ros.rules.takeover import MEASURED_AGE_MAX_S, motion_start, takeover_lead
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, MEASURED_AGE_MAX_S, motion_start
 
 pytestmark = pytest.mark.ros
 
@@ -214,7 +214,7 @@ def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     a, b = as_driven(first), as_driven(second)
     assert traj.actuation.counters.commands_replanned_from_measured == 0
     # The second carries the first's stamp and repeats its points, bit for bit, from the one the node's now fell in
-    # up to the first at least takeover_lead ahead, where the new motion starts: wherever the controller takes it
+    # up to the first at least ARRIVAL_MARGIN_S ahead, where the new motion starts: wherever the controller takes it
     # over, it is on the segments it was following.
     assert to_ns(second.header.stamp) == to_ns(first.header.stamp) > 0
     k0 = int(np.flatnonzero(a.times == b.times[0])[0])
@@ -224,7 +224,7 @@ def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     differs = ((b.positions[:n] != a.positions[k0:k0 + n]) | (b.velocities[:n] != a.velocities[k0:k0 + n])
                | (b.accelerations[:n] != a.accelerations[k0:k0 + n]))
     k1 = int(np.flatnonzero(differs)[0])  # where they part: the new plan's second point
-    assert k1 >= 2 and b.times[k1 - 1] - b.times[0] >= takeover_lead(CFG)
+    assert k1 >= 2 and b.times[k1 - 1] - b.times[0] >= ARRIVAL_MARGIN_S
     for field in ('times', 'positions', 'velocities', 'accelerations'):
         assert np.array_equal(getattr(b, field)[:k1], getattr(a, field)[k0:k0 + k1]), field
     assert b.velocities[k1 - 1] > 0.0  # it was moving when replanned

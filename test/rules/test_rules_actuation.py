@@ -30,7 +30,7 @@ from fourbar_ros.rules.motion_plan import (
 )
 from fourbar_ros.rules.outgoing import actuation_contract
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
-from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, MEASURED_AGE_MAX_S, Start, carried, motion_start, takeover_lead
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, MEASURED_AGE_MAX_S, Start, carried, motion_start
 
 CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
@@ -130,7 +130,7 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
     assert motion_start(CFG, motion, near, now, 0.0) == Start(model, now)
     # Trajectory mode continues a running trajectory at its first point a lead or more ahead, and sends the points
     # before it (from the one at or before now) first: the controller stays on the very segments it follows.
-    lead = takeover_lead(CFG)
+    lead = ARRIVAL_MARGIN_S
     sent = Motion(start_ns, trajectory=planned_points(CFG, plan))
     start = motion_start(CFG, sent, near, now, lead)
     assert start is not None and start.before is not None and start.origin_ns == start_ns
