@@ -262,7 +262,7 @@ def test_measurements_arriving_late_leave_the_motion_followed(late: Pair) -> Non
     age = (late.node.get_clock().now().nanoseconds - actuation.measured_ns) * 1e-9
     assert counters.commands_replanned_from_measured == 0, (
         f'the node took a late measurement for a drive off its motion: its latest {actuation.measured}, {age:.3f} s '
-        f'old now; {counters.as_dict()}')
+        f'old now; {late.sides()}')
     late.settle_at(CFG.theta_min)
     assert late.sim.follower.counters.tolerance_holds == 0, late.sides()
 

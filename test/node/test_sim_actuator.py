@@ -403,13 +403,15 @@ def test_a_new_trajectory_starts_from_the_measured_state_not_the_last_reference(
     far = min(Q0 + 0.2, LIMIT.upper)
     r.forward([far])  # the reference jumps to far; the drive follows at its speed limit
     r.states.wait_match(lambda m: m.position[0] > Q0 + 0.02)
+    measured: list[float] = []  # the drive's position at the takeover (no encoder noise or rounding)
+    r.node.follower.on_takeover = lambda _ref: measured.append(r.node.drive.position)
     r.traj_pub.publish(JointTrajectory(joint_names=[JOINT], points=[point(Q0 + 0.05, 3.0)]))
     wait_for(lambda: r.node.follower._trajectory is not None, what='the trajectory started')
     taken = r.node.follower._trajectory
     initial = taken.sample(taken.start)
-    # It starts where the drive was measured at its first update (a position the sim published just before, which
-    # may still be on its way to the collector), moving; not at the forward command's reference.
-    r.states.wait_match(lambda m: m.position[0] == initial.position)
+    # It starts where the drive was measured at its first update after arrival, moving; not at the forward
+    # command's reference.
+    assert measured and initial.position == measured[0], (initial, measured)
     assert abs(far - initial.position) > 0.05 and initial.velocity > 0.0
 
 
