@@ -17,7 +17,8 @@ BINS = 40
 #: Image size (px), font size (px) and the colours (as matplotlib's tab:blue and tab:red).
 WIDTH, HEIGHT = 800, 600
 FONT_PX = 13
-BLUE, RED, GREY, BLACK, WHITE = (31, 119, 180), (214, 39, 40), (200, 200, 200), (0, 0, 0), (255, 255, 255)
+BLUE, RED, GREEN = (31, 119, 180), (214, 39, 40), (44, 160, 44)
+GREY, BLACK, WHITE = (200, 200, 200), (0, 0, 0), (255, 255, 255)
 #: Plot area of a panel: left and right margins, and per panel its top and bottom (px).
 LEFT, RIGHT = 80, WIDTH - 24
 PANELS = ((70, 290), (345, 545))
@@ -55,15 +56,18 @@ def _font(size: int) -> Any:
 
 
 def draw(theta_deg: npt.NDArray[np.float64], before: npt.NDArray[np.float64], after: npt.NDArray[np.float64],
-         title: str) -> bytes:
-    """PNG bytes: the residuals (rad, drawn in mrad) against the antenna angle (deg), before and after."""
+         title: str, rising: npt.NDArray[np.bool_] | None = None) -> bytes:
+    """PNG bytes: the residuals (rad, drawn in mrad) against the antenna angle (deg), before and after; with
+    ``rising`` (per reading: the joint's angle rising) the mean per bin of the two directions apart, where a latency
+    or a backlash shows as two lines either side of zero."""
     from PIL import Image, ImageDraw
 
     step = max(1, theta_deg.size // PLOT_POINTS)
     x_lo, x_hi = float(theta_deg.min()), float(theta_deg.max())
     edges = np.linspace(x_lo, x_hi, BINS + 1)
     which = np.clip(np.searchsorted(edges, theta_deg, side='right') - 1, 0, BINS - 1)
-    counts = np.bincount(which, minlength=BINS)
+    groups = ([(np.ones(theta_deg.size, dtype=bool), RED, 'mean per bin')] if rising is None else
+              [(rising, RED, 'mean per bin, rising'), (~rising, GREEN, 'mean per bin, falling')])
     centres = 0.5 * (edges[1:] + edges[:-1])
     if x_hi <= x_lo:
         x_lo, x_hi = x_lo - 0.5, x_hi + 0.5
@@ -80,9 +84,10 @@ def draw(theta_deg: npt.NDArray[np.float64], before: npt.NDArray[np.float64], af
                                             (PANELS[1], after, 'after: the calibrated lengths and offsets')):
         r = residuals * 1e3
         with np.errstate(invalid='ignore', divide='ignore'):
-            mean = np.bincount(which, weights=r, minlength=BINS) / counts
+            means = [np.bincount(which[g], weights=r[g], minlength=BINS) / np.bincount(which[g], minlength=BINS)
+                     for g, _, _ in groups]
         shown = r[::step]
-        finite = np.concatenate((shown, mean[np.isfinite(mean)], [0.0]))
+        finite = np.concatenate((shown, *(m[np.isfinite(m)] for m in means), [0.0]))
         y_lo, y_hi = float(finite.min()), float(finite.max())
         pad = 0.05 * (y_hi - y_lo) if y_hi > y_lo else 0.5
         y_lo, y_hi = y_lo - pad, y_hi + pad
@@ -102,10 +107,11 @@ def draw(theta_deg: npt.NDArray[np.float64], before: npt.NDArray[np.float64], af
         zero = float(py(0.0))
         pen.line([(LEFT, zero), (RIGHT, zero)], fill=BLACK)
         pen.point(list(zip(px(theta_deg[::step]).tolist(), py(shown).tolist(), strict=True)), fill=BLUE)
-        ok = np.isfinite(mean)
-        line = list(zip(px(centres[ok]).tolist(), py(mean[ok]).tolist(), strict=True))
-        if len(line) > 1:
-            pen.line(line, fill=RED, width=2)
+        for mean, (_, colour, _) in zip(means, groups, strict=True):
+            ok = np.isfinite(mean)
+            line = list(zip(px(centres[ok]).tolist(), py(mean[ok]).tolist(), strict=True))
+            if len(line) > 1:
+                pen.line(line, fill=colour, width=2)
         pen.rectangle([LEFT, top, RIGHT, bottom], outline=BLACK)
         rms = math.sqrt(float(np.mean(residuals * residuals))) * 1e3
         pen.text(((LEFT + RIGHT) / 2, top - 6), f'{label}: RMS {rms:.3g} mrad', fill=BLACK, font=font, anchor='md')
@@ -116,12 +122,13 @@ def draw(theta_deg: npt.NDArray[np.float64], before: npt.NDArray[np.float64], af
         strip = strip.rotate(90, expand=True)
         image.paste(strip, (8, int((top + bottom - strip.height) / 2)))
     # The legend, in the top panel's upper right corner.
-    lx, ly = RIGHT - 170, PANELS[0][0] + 8
-    pen.rectangle([lx - 6, ly - 4, RIGHT - 6, ly + 36], fill=WHITE, outline=GREY)
+    lx, ly = RIGHT - 190, PANELS[0][0] + 8
+    pen.rectangle([lx - 6, ly - 4, RIGHT - 6, ly + 18 + 18 * len(groups)], fill=WHITE, outline=GREY)
     pen.ellipse([lx + 8, ly + 4, lx + 12, ly + 8], fill=BLUE)
     pen.text((lx + 26, ly + 6), 'readings (a sample)', fill=BLACK, font=font, anchor='lm')
-    pen.line([(lx, ly + 24), (lx + 20, ly + 24)], fill=RED, width=2)
-    pen.text((lx + 26, ly + 24), 'mean per bin', fill=BLACK, font=font, anchor='lm')
+    for k, (_, colour, label) in enumerate(groups, start=1):
+        pen.line([(lx, ly + 6 + 18 * k), (lx + 20, ly + 6 + 18 * k)], fill=colour, width=2)
+        pen.text((lx + 26, ly + 6 + 18 * k), label, fill=BLACK, font=font, anchor='lm')
     pen.text(((LEFT + RIGHT) / 2, HEIGHT - 14), 'antenna angle theta (deg): the calibrated model at the measured '
              'joint', fill=BLACK, font=font, anchor='md')
     buf = io.BytesIO()

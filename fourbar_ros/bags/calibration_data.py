@@ -75,6 +75,24 @@ class CalibrationData:
         """Sensor readings left out: outside the encoder's span or in one of its gaps."""
         return self.sensor_times.size - self.times.size
 
+    @property
+    def velocity_measured(self) -> bool:
+        """Whether every joint state carries the joint's velocity."""
+        return bool(np.isfinite(self.joint_velocity).all())
+
+    def joint_rate(self) -> FloatArray:
+        """The driven joint's rate on the encoder's stream (rad/s): its measured velocity where every message
+        carries one, else the derivative of its positions."""
+        if self.velocity_measured:
+            return self.joint_velocity
+        rate: FloatArray = np.gradient(self.joint_q, self.joint_times)
+        return rate
+
+    def paired_rate(self) -> FloatArray:
+        """The driven joint's rate at the paired times (rad/s, ``joint_rate`` interpolated)."""
+        rate: FloatArray = np.interp(self.times, self.joint_times, self.joint_rate())
+        return rate
+
     def summary(self) -> str:
         return (f'{self.joint_times.size} joint states on {self.joint_topic}, {self.sensor_times.size} readings '
                 f'[{self.sensor_type}] on {self.sensor_topic}: {self.times.size} paired ({self.outside} outside the '

@@ -61,6 +61,9 @@ class Sweep:
     glitches: tuple[tuple[int, float], ...] = ()
     #: The sensor's noise from one reading to the next, AR(1) with this lag-1 correlation (its sd sensor_noise).
     noise_correlation: float = 0.0
+    #: Play between the encoder (on the motor) and the rocker (rad at the joint): the motor leads the rocker by half
+    #: of it in the direction of motion.
+    backlash: float = 0.0
 
     def linkage(self) -> AntennaLinkage:
         t = self.truth
@@ -103,7 +106,7 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     rng = np.random.default_rng(sweep.seed)
     tj = np.arange(0.0, sweep.duration, 1.0 / sweep.joint_rate)
     ts = np.arange(sweep.sensor_delay, sweep.duration, 1.0 / sweep.sensor_rate)
-    qm = sweep.measured_q(sweep.true_q(sweep.theta(tj)))
+    qm = sweep.measured_q(sweep.true_q(sweep.theta(tj)) + 0.5 * sweep.backlash * np.sign(_q_rate(sweep, tj)))
     velocity, effort, has_velocity = _load(sweep, tj, rng)
     noise = rng.normal(0.0, sweep.sensor_noise, ts.size)
     if sweep.noise_correlation:
@@ -147,16 +150,22 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     return Path(path)
 
 
+def _q_rate(sweep: Sweep, t: np.ndarray) -> np.ndarray:
+    """The true driven rocker's rate (rad/s) at ``t`` (s): the antenna's rate through the linkage's."""
+    link = sweep.linkage()
+    theta = sweep.theta(t)
+    rates = link.rates_at(theta, *link.rocker_angles(theta, sweep.branch))
+    return np.asarray(sweep.theta_rate(t) * np.asarray(rates.dgamma_dtheta if sweep.driven is Driven.GAMMA
+                                                        else rates.ddelta_dtheta))
+
+
 def _load(sweep: Sweep, tj: np.ndarray, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, bool]:
     """(joint velocity rad/s, effort N m, whether the joint states carry a velocity) of the sweep's load."""
     if sweep.load is None:
         return np.zeros(tj.size), np.zeros(tj.size), False
     link = sweep.linkage()
     theta = sweep.theta(tj)
-    g, d = link.rocker_angles(theta, sweep.branch)
-    rates = link.rates_at(theta, g, d)
-    q_rate = sweep.theta_rate(tj) * np.asarray(rates.dgamma_dtheta if sweep.driven is Driven.GAMMA
-                                               else rates.ddelta_dtheta)
+    q_rate = _q_rate(sweep, tj)
     q_true = sweep.true_q(theta)
     branch = inverse_branch(link, 0.5 * sum(sweep.theta_range), sweep.driven, sweep.branch)
     p = np.array([sweep.load[name] for name in LOAD_NAMES])

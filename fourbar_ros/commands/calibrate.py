@@ -19,7 +19,7 @@ from fourbar_ros.commands import CommandError
 if TYPE_CHECKING:
     from fourbar_ros.bags.calibration_data import CalibrationData
     from fourbar_ros.config.antenna_config import AntennaConfig
-    from fourbar_ros.core.calibration import Calibration, Reference
+    from fourbar_ros.core.calibration import Calibration, DirectionTerms, Reference
 
 HELP = ('fit the linkage as built (the four lengths, the driven joint\'s offset and the sensor\'s) to a recorded '
         'sweep of the measured driven joint and an antenna angle sensor; write the calibrated parameter file, a '
@@ -76,6 +76,7 @@ def run(args: argparse.Namespace) -> int:
         CalibrationError,
         calibrate,
         check_sensor_scale,
+        direction_terms,
         far_from_prior,
         sensor_scale,
     )
@@ -104,7 +105,9 @@ def run(args: argparse.Namespace) -> int:
         if far:
             raise CalibrationError(f'{"; ".join(far)}: the prior or the recording is wrong (check the parameter '
                                    'file, --length-tolerance, --sensor-offset and --sensor-offset-sd)')
-        warnings = _warnings(data, fit)
+        rate = data.paired_rate()
+        direction = direction_terms(fit, data.q, rate)
+        warnings = _warnings(data, fit, direction)
         load = _load(cfg, data, fit)
         values = {name: fit.parameter(name).value for name in LENGTH_NAMES}
         values.update(_offsets(cfg, fit))
@@ -114,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
         if args.output is not None:
             files[args.output] = _calibrated_yaml(args.params, args.bag, values).encode()
         report = _report(args, cfg, data, fit)
+        report['direction_dependent'] = _direction_report(direction)
         report['warnings'] = warnings
         report['load'] = load
         if args.report is not None:
@@ -125,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
             theta = np.degrees(data.theta - fit.residuals_after - fit.parameter('sensor_offset').value)[kept]
             title = (f'fourbar calibrate: {data.path.name}, {int(kept.sum())} readings '
                      f'({fit.set_aside} set aside), {cfg.driven_joint}')
-            files[plot] = draw(theta, fit.residuals_before[kept], fit.residuals_after[kept], title)
+            files[plot] = draw(theta, fit.residuals_before[kept], fit.residuals_after[kept], title,
+                               rising=(rate > 0.0)[kept])
             report['plot'] = str(plot)
             if args.report is not None:
                 files[args.report] = (json.dumps(report, indent=2) + '\n').encode()
@@ -150,16 +155,32 @@ def _reference(text: str) -> Reference:
     return Reference(*values)
 
 
-def _warnings(data: CalibrationData, fit: Calibration) -> list[str]:
-    """What the user should know but does not stop the calibration: a recording swept one way only."""
+def _warnings(data: CalibrationData, fit: Calibration, direction: DirectionTerms) -> list[str]:
+    """What the user should know but does not stop the calibration: a recording swept one way only; a latency or
+    a backlash beyond PRIOR_SDS_LIMIT of its sd."""
     from fourbar_ros.core.calibration import BOTH_WAYS_FRACTION, one_way
 
+    out = []
     both = one_way(data.q[fit.kept])
-    if both >= BOTH_WAYS_FRACTION:
-        return []
-    return [f'the recording sweeps the joint one way only (the way back covers {100.0 * both:.0f}% of the span, '
-            f'below {100.0 * BOTH_WAYS_FRACTION:.0f}%): a lag or backlash of the sensor or the drive cannot show and '
-            'shifts the offsets; sweep both ways']
+    if both < BOTH_WAYS_FRACTION:
+        out.append(f'the recording sweeps the joint one way only (the way back covers {100.0 * both:.0f}% of the '
+                   f'span, below {100.0 * BOTH_WAYS_FRACTION:.0f}%): a lag or backlash of the sensor or the drive '
+                   'cannot show and shifts the offsets; sweep both ways')
+    found = direction.significant()
+    if found:
+        out.append(f'{" and ".join(found)}: the sensor\'s reading moves {1e3 * direction.shift:.2g} mrad rms with '
+                   'the direction of motion, which the map leaves in its residuals (and the live check in its '
+                   'scatter); the absolute angle\'s sd takes it in')
+    return out
+
+
+def _direction_report(direction: DirectionTerms) -> dict[str, Any]:
+    """The report's ``direction_dependent``: the latency and backlash fitted to the residuals."""
+    return {'latency_s': direction.latency, 'latency_sd_s': direction.latency_sd,
+            'backlash_rad': direction.backlash, 'backlash_sd_rad': direction.backlash_sd,
+            'correlation': direction.correlation, 'shift_rms_rad': direction.shift,
+            'model': ('fitted to the residuals: the sensor sees the rocker at q(t - latency) - sign(dq/dt) backlash '
+                      '/ 2; not applied to the geometry, which sweeps both ways leave unbiased')}
 
 
 def _offsets(cfg: AntennaConfig, fit: Calibration) -> dict[str, float]:
@@ -189,9 +210,7 @@ def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[s
         return None
     if not cfg.gravity > 0.0:
         return {'skipped': 'gravity is 0 in the parameter file'}
-    velocity = data.joint_velocity
-    measured = bool(np.isfinite(velocity).all())
-    q_rate = velocity if measured else np.gradient(data.joint_q, data.joint_times)
+    q_rate = data.joint_rate()
     prior = LoadPrior(cfg.antenna_mass, cfg.com_offset_along, cfg.com_offset_normal, 0.0, cfg.reducer_efficiency)
     q_true = data.joint_q + fit.parameter('driven_joint_offset').value
     try:
@@ -211,7 +230,7 @@ def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[s
     return {
         'parameters': parameters,
         'readings': int(np.count_nonzero(used)),
-        'velocity': 'measured' if measured else 'differentiated from the positions',
+        'velocity': 'measured' if data.velocity_measured else 'differentiated from the positions',
         'residual_rms_N_m': float(np.sqrt(np.mean(r * r))),
         'largest_residual_N_m': float(np.max(np.abs(r))),
         'noise_sd_N_m': load.sigma,

@@ -19,7 +19,8 @@ from fourbar_ros.core.numeric import ArrayLike, FloatArray
 __all__ = [
     'BOTH_WAYS_FRACTION', 'DEFAULT_LOSS', 'DETERMINED_RATIO', 'GRAVITY', 'LENGTH_BOUND', 'LENGTH_NAMES', 'LOSSES',
     'OFFSET_SD', 'PARAMETER_NAMES', 'PRIOR_SDS_LIMIT', 'SCALE_LIMITS', 'SET_ASIDE_SDS', 'Calibration',
-    'CalibrationError', 'FittedParameter', 'MapFit', 'Reference', 'calibrate', 'check_sensor_scale', 'far_from_prior',
+    'CalibrationError', 'DirectionTerms', 'FittedParameter', 'MapFit', 'Reference', 'calibrate', 'check_sensor_scale',
+    'direction_terms', 'far_from_prior',
     'imu_roll', 'imu_tilt', 'imu_valid', 'map_fit', 'model_jacobian', 'model_mismatch', 'one_way', 'predict',
     'sensor_scale',
 ]
@@ -388,6 +389,52 @@ def one_way(q_measured: FloatArray) -> float:
     rise = float(np.max(q - np.minimum.accumulate(q)))
     fall = float(np.max(np.maximum.accumulate(q) - q))
     return min(rise, fall) / span
+
+
+@dataclass(frozen=True)
+class DirectionTerms:
+    """What of the residuals depends on the direction of motion, fitted to them after the calibration: the
+    sensor's ``latency`` behind the encoder (s) and the ``backlash`` between the encoder and the rocker (rad at
+    the joint), with their sds and correlation; ``shift`` the RMS over the recording of the change of the sensor
+    reading they make (rad). Both move a reading one way on the way up and the other way down, so sweeps both ways leave
+    the fitted geometry and offsets unbiased; the noise estimate and its correlation take them in (wider sds)."""
+
+    latency: float
+    latency_sd: float
+    backlash: float
+    backlash_sd: float
+    correlation: float
+    shift: float
+
+    def significant(self, sds: float = PRIOR_SDS_LIMIT) -> list[str]:
+        """The terms further than ``sds`` of their sd from 0, each as one phrase."""
+        out = []
+        if abs(self.latency) > sds * self.latency_sd:
+            out.append(f'the sensor lags the encoder by {1e3 * self.latency:.3g} ms (sd {1e3 * self.latency_sd:.2g})')
+        if abs(self.backlash) > sds * self.backlash_sd:
+            out.append(f'the drive has {1e3 * self.backlash:.3g} mrad of play at the joint between encoder and '
+                       f'antenna (sd {1e3 * self.backlash_sd:.2g})')
+        return out
+
+
+def direction_terms(fit: Calibration, q_measured: FloatArray, q_rate: FloatArray) -> DirectionTerms:
+    """The latency and backlash of the readings ``fit`` was made from (``q_measured`` rad, and the joint's rate
+    ``q_rate`` rad/s there), by least squares on its kept residuals: the sensor sees the rocker at
+    q(t - latency) - sign(q_rate) backlash / 2, so residual = -dtheta/dq (latency q_rate + sign(q_rate) backlash / 2).
+    Their sds from the fit's noise sd and its independent-readings weight. Raises CalibrationError when the joint
+    never moves."""
+    kept = fit.kept
+    slope = model_jacobian(fit.values, np.asarray(q_measured)[kept], fit.driven, fit.branch)[1][:, 4]  # dtheta/dq
+    rate = np.asarray(q_rate, dtype=np.float64)[kept]
+    x = np.column_stack((-slope * rate, -0.5 * slope * np.sign(rate)))
+    normal = _normal(x)
+    if not (np.all(np.isfinite(normal)) and np.linalg.matrix_rank(normal) == 2):
+        raise CalibrationError('the joint does not move both ways in the recording: no latency or backlash can show')
+    cov = np.linalg.inv(normal) * fit.sigma ** 2 / fit.independent
+    latency, backlash = np.linalg.solve(normal, np.einsum('ij,i->j', x, fit.residuals_after[kept]))
+    sd = np.sqrt(np.diag(cov))
+    return DirectionTerms(float(latency), float(sd[0]), float(backlash), float(sd[1]),
+                          float(cov[0, 1] / (sd[0] * sd[1])), math.sqrt(_square(x @ (latency, backlash)) / rate.size))
 
 
 @dataclass(frozen=True)

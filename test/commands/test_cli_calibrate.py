@@ -354,3 +354,37 @@ def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytes
     assert map_error_in_sd(report) <= 4.0
     assert absolute_error_in_sd(report)[0] <= 4.0
     assert 'counts them as' in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(('fault', 'latency', 'backlash', 'cause'), [
+    ({'sensor_clock_offset': 0.1}, 0.1, 0.0, 'the sensor lags the encoder by 10'),
+    ({'sensor_clock_offset': 0.3}, 0.3, 0.0, 'the sensor lags the encoder by 30'),
+    ({'backlash': 0.002}, 0.0, 0.002, 'the drive has 2.'),
+], ids=['latency-100ms', 'latency-300ms', 'backlash-2mrad'])
+def test_a_latency_or_a_backlash_is_found_and_warned_of(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                                        fault: dict[str, float], latency: float, backlash: float,
+                                                        cause: str) -> None:
+    """A sensor 100 or 300 ms late, or 2 mrad of play in the drive, on sweeps both ways: the geometry is unbiased
+    (the absolute angle within 4 sd), the latency and the backlash fitted to the residuals within 4 sd of the truth
+    (the one absent within 4 sd of 0), and a warning names the one found."""
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP, **fault))
+    assert calibrate(tmp_path, bag) == 0
+    report = json.loads((out / 'report.json').read_text())
+    found = report['direction_dependent']
+    assert abs(found['latency_s'] - latency) <= 4.0 * found['latency_sd_s'], found
+    assert abs(found['backlash_rad'] - backlash) <= 4.0 * found['backlash_sd_rad'], found
+    assert absolute_error_in_sd(report)[0] <= 4.0
+    assert map_error_in_sd(report) <= 4.0
+    err = capsys.readouterr().err
+    assert err.startswith(f'fourbar calibrate: warning: {cause}') and err.count('\n') == 1, err
+    assert 'with the direction of motion' in err
+
+
+def test_a_clean_sweep_shows_no_latency_nor_backlash(tmp_path: Path, out: Path,
+                                                     capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP))
+    assert calibrate(tmp_path, bag) == 0
+    found = json.loads((out / 'report.json').read_text())['direction_dependent']
+    assert abs(found['latency_s']) <= 4.0 * found['latency_sd_s'] and found['latency_sd_s'] < 0.01, found
+    assert abs(found['backlash_rad']) <= 4.0 * found['backlash_sd_rad'] and found['backlash_sd_rad'] < 2e-4, found
+    assert capsys.readouterr().err == ''
