@@ -28,8 +28,10 @@ from fourbar_ros.rules.controller_motion import ControllerPoint, Reference, cont
 
 #: Most points one trajectory may hold (more is refused, so memory stays bounded).
 MAX_TRAJECTORY_POINTS = 100_000
-#: Most accepted trajectories waiting for an update (older ones are dropped: an update takes only the latest).
-MAX_PENDING = 1000
+#: Most accepted trajectories waiting for an update, the oldest dropped beyond (memory stays bounded: each may hold
+#: MAX_TRAJECTORY_POINTS); an update takes only the latest that arrived before it, so a dropped one would rarely be
+#: followed.
+MAX_PENDING = 16
 #: Integration step (s) of the drive: fixed, so a late timer tick changes nothing but when the state is read.
 STEP_S = 0.001
 
