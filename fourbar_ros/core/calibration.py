@@ -17,11 +17,39 @@ from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.core.numeric import ArrayLike, FloatArray
 
 __all__ = [
-    'BOTH_WAYS_FRACTION', 'DEFAULT_LOSS', 'DETERMINED_RATIO', 'GRAVITY', 'LENGTH_BOUND', 'LENGTH_NAMES', 'LOSSES',
-    'OFFSET_SD', 'PARAMETER_NAMES', 'PRIOR_SDS_LIMIT', 'SCALE_LIMITS', 'SET_ASIDE_SDS', 'Calibration',
-    'CalibrationError', 'DirectionTerms', 'FittedParameter', 'MapFit', 'Reference', 'calibrate', 'check_sensor_scale',
-    'direction_terms', 'far_from_prior',
-    'imu_roll', 'imu_tilt', 'imu_valid', 'map_fit', 'model_jacobian', 'model_mismatch', 'one_way', 'predict',
+    'BOTH_WAYS_FRACTION',
+    'DEFAULT_LOSS',
+    'DETERMINED_RATIO',
+    'GRAVITY',
+    'LENGTH_BOUND',
+    'LENGTH_NAMES',
+    'LOSSES',
+    'OFFSET_SD',
+    'PARAMETER_NAMES',
+    'PRIOR_SDS_LIMIT',
+    'REST_SPAN',
+    'SCALE_LIMITS',
+    'SET_ASIDE_SDS',
+    'Calibration',
+    'CalibrationError',
+    'DirectionTerms',
+    'FittedParameter',
+    'MapFit',
+    'Reference',
+    'RestZero',
+    'calibrate',
+    'check_sensor_scale',
+    'direction_terms',
+    'far_from_prior',
+    'imu_roll',
+    'imu_tilt',
+    'imu_valid',
+    'map_fit',
+    'model_jacobian',
+    'model_mismatch',
+    'one_way',
+    'predict',
+    'rest_zero',
     'sensor_scale',
 ]
 
@@ -435,6 +463,54 @@ def direction_terms(fit: Calibration, q_measured: FloatArray, q_rate: FloatArray
     sd = np.sqrt(np.diag(cov))
     return DirectionTerms(float(latency), float(sd[0]), float(backlash), float(sd[1]),
                           float(cov[0, 1] / (sd[0] * sd[1])), math.sqrt(_square(x @ (latency, backlash)) / rate.size))
+
+
+#: A recording counts as at rest when its measured joint spans at most this (rad, 0.06 deg).
+REST_SPAN = 1e-3
+
+
+@dataclass(frozen=True)
+class RestZero:
+    """The driven joint's zero from the antenna sensor at rest (``rest_zero``): the ``correction`` (rad) to add to
+    the measured joint for the true rocker angle, its ``sd`` (rad) from the readings' noise, the antenna angle
+    ``theta`` (rad) the sensor gives, the readings used and set aside, and the joint's span over them (rad)."""
+
+    correction: float
+    sd: float
+    theta: float
+    readings: int
+    set_aside: int
+    joint_span: float
+
+
+def rest_zero(link: AntennaLinkage, driven: Driven, branch: Branch, q_measured: FloatArray,
+              sensor_theta: FloatArray, sensor_offset: float) -> RestZero:
+    """The driven joint's zero from readings at rest: the antenna angle is the readings' mean (those within
+    SET_ASIDE_SDS robust noise sds of their median) less ``sensor_offset`` (rad); the true rocker angle there (on
+    ``branch``, the assembly) less the measured joint's mean is the correction. Its sd is the mean's (the noise sd
+    over the root of the independent readings, CORRELATION_SDS) through drocker/dtheta; the calibration's own
+    absolute-angle sd is not in it. Raises CalibrationError (one line) when the joint moved more than REST_SPAN, or
+    the angle is out of the linkage's reach."""
+    q = np.asarray(q_measured, dtype=np.float64)
+    y = np.asarray(sensor_theta, dtype=np.float64)
+    span = float(np.ptp(q)) if q.size else 0.0
+    if q.size < 2 or span > REST_SPAN:
+        raise CalibrationError(f'the joint moved {span:.3g} rad over {q.size} readings (at most {REST_SPAN:g}): '
+                               'record the antenna at rest')
+    noise = _robust_sd(y)
+    kept = np.abs(y - np.median(y)) <= SET_ASIDE_SDS * noise if noise > 0.0 else np.ones(y.size, dtype=bool)
+    n = int(np.count_nonzero(kept))
+    rho = _lag1(y[kept])
+    independent = (1.0 - rho) / (1.0 + rho) if rho > CORRELATION_SDS / math.sqrt(n) else 1.0
+    theta = float(np.mean(y[kept])) - sensor_offset
+    sd_theta = float(np.std(y[kept], ddof=1)) / math.sqrt(n * independent) if n > 1 else 0.0
+    try:
+        gamma, delta = link.rocker_angles(theta, branch)
+        rates = link.rates_at(theta, gamma, delta)
+    except FourBarError as exc:
+        raise CalibrationError(f'the sensor reads theta = {theta:.6g} rad (its offset removed): {exc}') from None
+    rocker, slope = (gamma, rates.dgamma_dtheta) if driven is Driven.GAMMA else (delta, rates.ddelta_dtheta)
+    return RestZero(float(rocker) - float(np.mean(q)), abs(float(slope)) * sd_theta, theta, n, y.size - n, span)
 
 
 @dataclass(frozen=True)
