@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from fourbar_ros.commands import CommandError
-from fourbar_ros.commands._param_file import param_file_with, write_atomically
 
 if TYPE_CHECKING:
     from fourbar_ros.bags.calibration_data import CalibrationData
@@ -67,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
     from fourbar_ros.analysis.residual_plot import draw
     from fourbar_ros.bags.calibration_data import read_calibration_data
+    from fourbar_ros.commands._param_file import param_file_with, write_atomically
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.core.calibration import (
         LENGTH_NAMES,

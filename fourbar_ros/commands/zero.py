@@ -6,7 +6,6 @@ import argparse
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
-from fourbar_ros.commands._param_file import param_file_with, write_atomically
 
 HELP = ('the driven joint\'s zero (driven_joint_offset) from a few seconds of the antenna sensor and the joint at '
         'rest, with the calibrated parameter file: for a drive whose encoder loses its zero at power-up')
@@ -30,6 +29,7 @@ def run(args: argparse.Namespace) -> int:
     """Print the zero in one line (and write OUT.yaml); exit 1 with one line when the recording cannot give it, 2 on
     bad input."""
     from fourbar_ros.bags.calibration_data import read_calibration_data
+    from fourbar_ros.commands._param_file import param_file_with, write_atomically
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.core.calibration import CalibrationError, rest_zero
 
