@@ -388,3 +388,47 @@ def test_a_clean_sweep_shows_no_latency_nor_backlash(tmp_path: Path, out: Path,
     assert abs(found['latency_s']) <= 4.0 * found['latency_sd_s'] and found['latency_sd_s'] < 0.01, found
     assert abs(found['backlash_rad']) <= 4.0 * found['backlash_sd_rad'] and found['backlash_sd_rad'] < 2e-4, found
     assert capsys.readouterr().err == ''
+
+
+#: Seeds of the z-score check: the sample RMS of 20 standard normal values has an sd of about 1/sqrt(40) = 0.16.
+Z_SEEDS = 20
+
+
+@pytest.mark.stress
+def test_the_reported_sds_are_honest_over_seeds(tmp_path: Path) -> None:
+    """Simulation-based calibration: for each seed the true lengths are drawn from the prior the fit uses (the
+    parameter file's, sd 0.5 mm), the offsets from N(0, 0.01 rad) (their prior, sd 0.1 rad, barely counts against
+    the data), the noise fresh; then every reported quantity's z = (estimate - truth) / reported sd is a standard
+    normal if the sds are honest. Its RMS over the seeds (printed) must be near 1: between 0.5 and 1.6 (beyond 3.5
+    of the sample RMS's own sd either way for honest sds; sds off by a factor 2 fall outside)."""
+    cfg = load_config(CONFIG)
+    rng = np.random.default_rng(7)
+    zs: dict[str, list[float]] = {}
+    for seed in range(Z_SEEDS):
+        truth = {name: getattr(cfg, name) + rng.normal(0.0, 5e-4) for name in PARAMETER_NAMES[:4]}
+        truth.update(driven_joint_offset=rng.normal(0.0, 0.01), sensor_offset=rng.normal(0.0, 0.01))
+        out = tmp_path / f'out{seed}'
+        out.mkdir()
+        bag = write_calibration_bag(tmp_path / f'rec{seed}', Sweep(truth, **FAULT_SWEEP, seed=seed))
+        assert main(['calibrate', str(bag), '--params', str(CONFIG), '--angle-topic', '/antenna_inclinometer',
+                     '--report', str(out / 'report.json')]) == 0
+        report = json.loads((out / 'report.json').read_text())
+        for name, p in report['parameters'].items():
+            zs.setdefault(name, []).append((p['value'] - truth[name]) / p['sd'])
+        absolute = report['absolute_angle']
+        joint = np.array(absolute['joint_rad'])
+        values = np.array([*(truth[n] for n in PARAMETER_NAMES)])
+        antenna = predict(np.array([*values[:5], 0.0]), joint, cfg.driven, cfg.measured_branch)
+        reading = predict(values, joint, cfg.driven, cfg.measured_branch)
+        for k, where in ((0, 'first'), (len(joint) // 2, 'middle'), (len(joint) - 1, 'last')):
+            zs.setdefault(f'absolute angle, {where} grid point', []).append(
+                (absolute['theta_rad'][k] - antenna[k]) / absolute['sd_rad'][k])
+            zs.setdefault(f'sensor reading, {where} grid point', []).append(
+                (absolute['sensor_reading_rad'][k] - reading[k]) / absolute['sensor_reading_sd_rad'][k])
+        found = report['direction_dependent']
+        zs.setdefault('latency', []).append(found['latency_s'] / found['latency_sd_s'])
+        zs.setdefault('backlash', []).append(found['backlash_rad'] / found['backlash_sd_rad'])
+    rms = {name: float(np.sqrt(np.mean(np.square(z)))) for name, z in zs.items()}
+    print('z-score RMS over', Z_SEEDS, 'seeds:', {name: round(v, 2) for name, v in rms.items()})
+    off = {name: v for name, v in rms.items() if not 0.5 <= v <= 1.6}
+    assert not off, f'reported sds not honest (z RMS over {Z_SEEDS} seeds): {off}'
