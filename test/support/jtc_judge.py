@@ -4,7 +4,8 @@
 
 A process of its own, started with the real ros2_control stack on its paths (control_msgs' Python messages need the
 library path set before the process starts). CASES.json is a list of steps, each sent ``after`` s after the
-previous one (the first: once the controller's state arrives):
+previous one (the first: once the controller's state arrives), and not before a controller state from an update
+after the judge's last trajectory has arrived (a stalled manager delays the next step, within STATE_WAIT_S):
 - ``{"points": [[t, p, v, a(, effort)], ...], "stamp": s or null, "after": s(, "joints": [...])}``: a
   JointTrajectory to the controller (s, rad, rad/s, rad/s^2, N m; null leaves a field empty, a list fills it; stamp
   null: zero, else the send time plus that many seconds; joints: the driven joint unless given);
@@ -33,6 +34,8 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 NS = 1_000_000_000
 DISCOVERY_S = 60.0
+#: The longest (s) the judge waits for a controller state after each of its trajectories before it sends the next.
+STATE_WAIT_S = 10.0
 CONTROLLER = 'joint_trajectory_controller'
 JOINT = 'rocker_ab_joint'
 
@@ -104,8 +107,14 @@ def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> i
         return 1
     first = clock.now().nanoseconds
     t_prev = time.monotonic()
+    sent_ns = 0  # when the judge's own last trajectory went out
     for step in steps:
         while time.monotonic() < t_prev + float(step['after']):
+            time.sleep(0.001)
+        # A controller state from an update after the last trajectory, before the next one goes: a manager stalled
+        # by a busy machine would otherwise leave a trajectory without one (its fate unknown).
+        deadline = time.monotonic() + STATE_WAIT_S
+        while not (states and states[-1]['stamp'] > sent_ns) and time.monotonic() < deadline:
             time.sleep(0.001)
         t_prev = time.monotonic()
         if 'command' in step:
@@ -117,6 +126,7 @@ def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> i
             sent_points = [[round(float(p[0]) * NS) / NS, *p[1:]] for p in step['points']]  # as on the wire
             trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points,
                                  'joints': step.get('joints', [JOINT])})
+            sent_ns = now
     if steps and 'command' in steps[-1]:  # the node's answer to the last command: wait for it to arrive
         sent = clock.now().nanoseconds - round((time.monotonic() - t_prev) * NS)
         deadline = time.monotonic() + 10.0
