@@ -40,6 +40,7 @@ class DemoRun:
     domain_id: int
     cwd: Path
     stdout: str
+    stderr: str
 
     @property
     def out(self) -> Path:
@@ -60,8 +61,8 @@ def demo_run(tmp_path_factory: pytest.TempPathFactory) -> Iterator[DemoRun]:
         with Tool(['demo'], {**env, 'ROS_DOMAIN_ID': str(lease.domain_id)}, cwd=cwd) as demo:
             rc = demo.wait(300.0)  # a deadline against hangs; killed with its process group then
             assert rc == 0, demo.lines
-            stdout = demo.stdout
-        yield DemoRun(lease.domain_id, cwd, stdout)
+            stdout, stderr = demo.stdout, demo.stderr
+        yield DemoRun(lease.domain_id, cwd, stdout, stderr)
     finally:
         lease.release()
 
@@ -94,7 +95,7 @@ def test_demo_runs_to_the_end_on_the_exported_domain(demo_run: DemoRun) -> None:
     angles = [m.data for _, m in recorded['/antenna_angle']]
     final = commands[-1] - angles[-1]
     # The run ends once the measured antenna angle has settled within the trajectory tolerance of the last command.
-    assert abs(final) <= cfg.trajectory_tolerance
+    assert abs(final) <= cfg.trajectory_tolerance, f'{stdout}\n{demo_run.stderr[-3000:]}'
     printed = float(re.findall(r'tracking final (\S+) rad', lines['tracking'])[0])
     assert printed == pytest.approx(final, rel=5e-3, abs=1e-300)  # printed to 3 significant digits
     limit = cfg.motor_speed_limit / cfg.reducer_ratio

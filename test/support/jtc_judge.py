@@ -4,8 +4,8 @@
 
 A process of its own, started with the real ros2_control stack on its paths (control_msgs' Python messages need the
 library path set before the process starts). CASES.json is a list of steps, each sent ``after`` s after the
-previous one (the first: once the controller's state arrives), and not before a controller state from an update
-after the judge's last trajectory has arrived (a stalled manager delays the next step, within STATE_WAIT_S):
+previous one (the first: once the controller's state arrives), and not before the controller's states show what
+became of the judge's last trajectory (``_settled``; a stalled manager delays the next step, within STATE_WAIT_S):
 - ``{"points": [[t, p, v, a(, effort)], ...], "stamp": s or null, "after": s(, "joints": [...])}``: a
   JointTrajectory to the controller (s, rad, rad/s, rad/s^2, N m; null leaves a field empty, a list fills it; stamp
   null: zero, else the send time plus that many seconds; joints: the driven joint unless given);
@@ -29,13 +29,18 @@ from control_msgs.msg import JointTrajectoryControllerState
 from probe_node import probe_node
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from real_controller import SENT_EARLY_NS
 from std_msgs.msg import Float64
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 NS = 1_000_000_000
 DISCOVERY_S = 60.0
-#: The longest (s) the judge waits for a controller state after each of its trajectories before it sends the next.
+#: The longest (s) the judge waits for the controller's states to settle a trajectory's fate before it sends the next.
 STATE_WAIT_S = 10.0
+#: Updates this long (ns) after a trajectory was sent without following it settle it as refused: the controller takes
+#: a trajectory over at its first update after its subscriber has read it, which a busy machine has delayed by
+#: 0.15 s or more (a next trajectory sent before then would replace it unseen).
+REFUSED_AFTER_NS = 1_000_000_000
 CONTROLLER = 'joint_trajectory_controller'
 JOINT = 'rocker_ab_joint'
 
@@ -60,6 +65,25 @@ def _message(step: dict[str, Any], stamp_ns: int) -> JointTrajectory:
         pt.effort = _field(row[4] if len(row) > 4 else None)
         msg.points.append(pt)
     return msg
+
+
+def _settled(states: list[dict[str, Any]], sent: dict[str, Any], earlier_stamps: set[int]) -> bool:
+    """Whether the controller's states show the fate of the trajectory ``sent`` (the judge's last): an update that
+    follows it (one whose trajectory starts at its stamp, or for a zero stamp at an update after it was sent, and
+    not where an earlier stamped one starts), or an update REFUSED_AFTER_NS after it was sent."""
+    since = sent['received'] - SENT_EARLY_NS
+    for s in reversed(states):
+        if s['stamp'] <= since:
+            return False
+        if s['stamp'] > sent['received'] + REFUSED_AFTER_NS:
+            return True
+        start = s['stamp'] - s['fb_tfs']
+        if sent['stamp'] != 0:
+            if abs(start - sent['stamp']) < 1_000_000:
+                return True
+        elif start > since and not any(abs(start - x) < 1_000_000 for x in earlier_stamps):
+            return True
+    return False
 
 
 def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> int:
@@ -107,14 +131,15 @@ def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> i
         return 1
     first = clock.now().nanoseconds
     t_prev = time.monotonic()
-    sent_ns = 0  # when the judge's own last trajectory went out
+    own: list[dict[str, Any]] = []  # the judge's trajectories, as sent
     for step in steps:
         while time.monotonic() < t_prev + float(step['after']):
             time.sleep(0.001)
-        # A controller state from an update after the last trajectory, before the next one goes: a manager stalled
-        # by a busy machine would otherwise leave a trajectory without one (its fate unknown).
+        # The last trajectory's fate before the next one goes: sent sooner, it could replace the last one in the
+        # controller's buffer before an update took it (its fate unknown, or a takeover credited to the next).
         deadline = time.monotonic() + STATE_WAIT_S
-        while not (states and states[-1]['stamp'] > sent_ns) and time.monotonic() < deadline:
+        earlier = {t['stamp'] for t in own[:-1] if t['stamp'] != 0}
+        while own and not _settled(list(states), own[-1], earlier) and time.monotonic() < deadline:
             time.sleep(0.001)
         t_prev = time.monotonic()
         if 'command' in step:
@@ -126,7 +151,7 @@ def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> i
             sent_points = [[round(float(p[0]) * NS) / NS, *p[1:]] for p in step['points']]  # as on the wire
             trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points,
                                  'joints': step.get('joints', [JOINT])})
-            sent_ns = now
+            own.append(trajectories[-1])
     if steps and 'command' in steps[-1]:  # the node's answer to the last command: wait for it to arrive
         sent = clock.now().nanoseconds - round((time.monotonic() - t_prev) * NS)
         deadline = time.monotonic() + 10.0
