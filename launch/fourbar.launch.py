@@ -5,7 +5,7 @@ file), RViz, the simulated actuator (for users without the drive's hardware) or 
         [robot_state_publisher:=true|false] [rviz:=true|false] [mode:=open_loop|trajectory|forward]
         [sim_actuator:=true|false]
         [use_ros2_control:=true|false] [hardware_plugin:=PLUGIN] [controllers_file:=FILE] [effort_feedforward:=true]
-        [trajectory_interface:=topic|action]
+        [trajectory_interface:=topic|action] [enclaves:=true|false]
 
 mode (fourbar_node's parameter, default: the parameter file's, else open_loop): trajectory or forward send the
 motion to the drive's controllers. In an actuator mode the node reads the measured driven joint where
@@ -18,7 +18,8 @@ hardware_plugin in the URDF's <ros2_control> tag (default
 mock_components/GenericSystem, a mock that echoes commands: announced at startup). effort_feedforward:=true adds the
 effort command interface to the URDF and sets the node's parameter; the controllers file must then give
 joint_trajectory_controller command_interfaces [position, effort]. trajectory_interface (the node's parameter,
-default: the parameter file's): action sends trajectories as FollowJointTrajectory goals.
+default: the parameter file's): action sends trajectories as FollowJointTrajectory goals. enclaves:=true starts
+every node but RViz in its SROS2 enclave of the package's policy (fourbar_ros.config.security; the security how-to).
 
 robot_state_publisher, RViz and ros2_control start only where they are installed; otherwise one log line says so
 (ros2_control's bringup then does not start). Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
@@ -42,6 +43,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
+from fourbar_ros.config.security import BRINGUP_ENCLAVES, enclave
 from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
     MARKERS,
@@ -117,6 +119,7 @@ def _setup(context: LaunchContext) -> list[object]:
     effort = _true(arg('effort_feedforward'))
     plugin = arg('hardware_plugin')
     controllers = arg('controllers_file')
+    enclaves = _true(arg('enclaves'))
     ros_namespace = '' if namespace == '/' else namespace
     cfg, urdf = robot_description_for(params_file, NODE_NAME, namespace, hardware_plugin=plugin)
     mode = arg('mode') or cfg.mode
@@ -139,24 +142,27 @@ def _setup(context: LaunchContext) -> list[object]:
     actions: list[object] = [
         Node(package='fourbar_ros', executable=NODE_EXECUTABLE, name=NODE_NAME, namespace=ros_namespace,
              parameters=[params_file, node_overrides], output='screen', emulate_tty=False,
-             remappings=[(MEASURED_JOINT_STATES.name, BROADCASTER_JOINT_STATES.name)] if actuated else []),
+             remappings=[(MEASURED_JOINT_STATES.name, BROADCASTER_JOINT_STATES.name)] if actuated else [],
+             **_in_enclave(enclaves, enclave(Mode(mode)) if enclaves else '')),
     ]
     if want_sim:  # the linkage fourbar_node reads; its own parameters from a sim_actuator section of the file
         actions.append(Node(package='fourbar_ros', executable=SIM_EXECUTABLE, name=SIM_NODE_NAME,
                             namespace=ros_namespace, output='screen', emulate_tty=False,
                             parameters=[params_file,
                                         {**_launch_values(cfg.as_values()), 'controllers_file': controllers},
-                                        {'use_sim_time': use_sim_time}]))
+                                        {'use_sim_time': use_sim_time}],
+                            **_in_enclave(enclaves, enclave(None))))
     if want_rsp or want_control:
         if _installed_executable('robot_state_publisher', 'robot_state_publisher'):
             actions.append(Node(package='robot_state_publisher', executable='robot_state_publisher',
                                 namespace=ros_namespace, output='screen',
-                                parameters=[{'robot_description': urdf, 'use_sim_time': use_sim_time}]))
+                                parameters=[{'robot_description': urdf, 'use_sim_time': use_sim_time}],
+                                **_in_enclave(enclaves, BRINGUP_ENCLAVES['robot_state_publisher'])))
         else:
             actions.append(LogInfo(msg='fourbar.launch.py: robot_state_publisher is not installed; not starting it '
                                        '(no robot model in TF; install ros-jazzy-robot-state-publisher)'))
     if want_control:
-        actions += _ros2_control(cfg, mode, ros_namespace, controllers, plugin, use_sim_time)
+        actions += _ros2_control(cfg, mode, ros_namespace, controllers, plugin, use_sim_time, enclaves)
     if want_rviz:
         if _installed_executable('rviz2', 'rviz2'):
             config = _rviz_config(SHARE / 'rviz' / 'fourbar.rviz', cfg.frame_id, namespace)
@@ -172,8 +178,14 @@ def _setup(context: LaunchContext) -> list[object]:
 CONTROLLER_MANAGER_RESPAWN_S = 2.0
 
 
+def _in_enclave(enclaves: bool, name: str) -> dict[str, list[str]]:
+    """A Node's arguments that start it in SROS2 enclave ``name`` when ``enclaves`` (rcl ignores the enclave while
+    ROS_SECURITY_ENABLE is not true)."""
+    return {'ros_arguments': ['--enclave', name]} if enclaves else {}
+
+
 def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, plugin: str,
-                  use_sim_time: bool) -> list[object]:
+                  use_sim_time: bool, enclaves: bool) -> list[object]:
     """ros2_control_node with ``controllers`` (the description from robot_state_publisher's topic) and the
     spawners of joint_state_broadcaster and the mode's controller, as the ros2_control_demos jazzy bringups do."""
     from fourbar_ros.config.antenna_config import AntennaConfig
@@ -194,11 +206,13 @@ def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, 
     manager = Node(package='controller_manager', executable='ros2_control_node', namespace=ros_namespace,
                    output='screen', parameters=[controllers, {'use_sim_time': use_sim_time}],
                    remappings=[('~/robot_description', 'robot_description')],
-                   respawn=True, respawn_delay=CONTROLLER_MANAGER_RESPAWN_S)
+                   respawn=True, respawn_delay=CONTROLLER_MANAGER_RESPAWN_S,
+                   **_in_enclave(enclaves, BRINGUP_ENCLAVES['controller_manager']))
 
     def spawners(*_: object) -> list[Node]:
         return [Node(package='controller_manager', executable='spawner', namespace=ros_namespace, output='screen',
-                     arguments=[name, '--controller-manager', 'controller_manager'])
+                     arguments=[name, '--controller-manager', 'controller_manager'],
+                     **_in_enclave(enclaves, BRINGUP_ENCLAVES['spawner']))
                 for name in ('joint_state_broadcaster', controller)]
 
     # At every start of the manager, its respawns included, new spawners bring the controllers up again.
@@ -239,5 +253,8 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument('trajectory_interface', default_value='',
                               description='fourbar_node\'s trajectory_interface (topic, or action: '
                                           'FollowJointTrajectory goals); empty: the parameter file\'s'),
+        DeclareLaunchArgument('enclaves', default_value='false',
+                              description='start each node (not RViz) in its SROS2 enclave of the package\'s policy '
+                                          '(with ROS_SECURITY_ENABLE=true and a keystore that has them)'),
         OpaqueFunction(function=_setup),
     ])

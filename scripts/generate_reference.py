@@ -1,8 +1,9 @@
 #!/usr/bin/env python3
 """Write the tables that restate code: the node's topics per mode and its QoS override parameters
 (``interface/topics.py``) and its parameters (``config/params.py``) into docs/reference/, the fields `fourbar
-compare` compares (``interface/topics.py``) into docs/how-to/bags.md, and the package map (each package's and
-module's docstring summary, in layer order) into docs/reference/python.md, between the markers
+compare` compares (``interface/topics.py``) into docs/how-to/bags.md, the SROS2 enclaves (``config/security.py``)
+into docs/how-to/security.md, and the package map (each package's and module's docstring summary, in layer order)
+into docs/reference/python.md, between the markers
 
     <!-- generated: NAME -->
     ...
@@ -28,6 +29,8 @@ REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
 from fourbar_ros.config.params import PARAMETERS, ParamSpec  # noqa: E402
+from fourbar_ros.config.security import RCLPY_PUBLISH, RCLPY_SERVICES, RCLPY_SUBSCRIBE, bringup_profiles  # noqa: E402
+from fourbar_ros.config.security import profiles as security_profiles  # noqa: E402
 from fourbar_ros.interface.topics import (  # noqa: E402
     COMPARED,
     QOS_OVERRIDABLE,
@@ -43,7 +46,8 @@ MARKER = re.compile(r'(<!-- generated: (?P<name>[a-z_]+) -->\n)(?P<body>.*?)(<!-
 
 
 def _qos(topic: Topic) -> str:
-    return f'{topic.reliability.value.replace("_", " ")}, keep last {topic.depth}, volatile'
+    durability = 'transient local' if topic.transient_local else 'volatile'
+    return f'{topic.reliability.value.replace("_", " ")}, keep last {topic.depth}, {durability}'
 
 
 def topics_table() -> str:
@@ -163,11 +167,32 @@ def package_map() -> str:
     return '\n'.join(out) + '\n'
 
 
+def _names(names: tuple[str, ...], common: tuple[str, ...] = ()) -> str:
+    shown = [n for n in names if n not in common]
+    return ', '.join(f'`{n}`' for n in shown) if shown else '-'
+
+
+def enclaves_table() -> str:
+    """The shipped policy's profiles: enclave, node, what it may publish, subscribe to, call and serve (besides
+    every node's log, parameter events, /clock and parameter services)."""
+    out = ['| enclave | node | may publish | may subscribe to | may call | serves besides its parameters |',
+           '|---|---|---|---|---|---|']
+    read = (*RCLPY_SUBSCRIBE, '/parameter_events')
+    for p in (*security_profiles(), *bringup_profiles()):
+        calls = (*p.calls, *(f'{a} (action)' for a in p.action_calls))
+        serves = (*p.services, *(f'{a} (action)' for a in p.action_serves))
+        out.append(f'| `{p.enclave}` | `{p.node}` | {_names(p.publish, RCLPY_PUBLISH)} | '
+                   f'{_names(p.subscribe, read)} | {_names(calls)} | '
+                   f'{_names(serves, RCLPY_SERVICES)} |')
+    return '\n'.join(out) + '\n'
+
+
 GENERATORS: dict[str, Callable[[], str]] = {'topics': topics_table, 'qos_overrides': qos_overrides_table,
                                             'parameters': parameters_table, 'compared_fields': compared_fields_list,
-                                            'package_map': package_map}
+                                            'enclaves': enclaves_table, 'package_map': package_map}
 DOCS = (REPO / 'docs' / 'reference' / 'topics.md', REPO / 'docs' / 'reference' / 'parameters.md',
-        REPO / 'docs' / 'how-to' / 'bags.md', REPO / 'docs' / 'reference' / 'python.md')
+        REPO / 'docs' / 'how-to' / 'bags.md', REPO / 'docs' / 'how-to' / 'security.md',
+        REPO / 'docs' / 'reference' / 'python.md')
 
 
 def render(text: str) -> str:

@@ -36,12 +36,14 @@ class Reliability(enum.Enum):
 
 @dataclass(frozen=True)
 class Topic:
-    """One endpoint of the node: name, message type, keep-last depth, reliability."""
+    """One endpoint of the node: name, message type, keep-last depth, reliability, durability (transient local: a
+    late subscriber gets the latest; else volatile)."""
 
     name: str
     msgtype: str
     depth: int
     reliability: Reliability = Reliability.RELIABLE
+    transient_local: bool = False
 
 
 #: Antenna angle commands in (rad). Reliable: a sample a publisher sends before the node's subscription has matched
@@ -100,6 +102,21 @@ def trajectory_action(controller: str) -> str:
     """The FollowJointTrajectory action of joint_trajectory_controller: ``<controller>/follow_joint_trajectory``
     (trajectory mode, ``trajectory_interface: action``)."""
     return f'{controller}/follow_joint_trajectory'
+
+
+#: Where the default of the ``controller_manager`` parameter points (config.params).
+DEFAULT_CONTROLLER_MANAGER = 'controller_manager'
+ACTIVITY_TYPE = 'controller_manager_msgs/msg/ControllerManagerActivity'
+#: Keep-last depth of the node's subscription to the manager's activity (the manager publishes with depth 1): with
+#: depth 1 a controller switched off and on again between two callbacks reached the node as one "active" (the off
+#: dropped), and the node took the controller's hold for its running trajectory.
+ACTIVITY_DEPTH = 20
+
+
+def activity_topic(manager: str) -> Topic:
+    """The controller manager's lifecycle states of its controllers and hardware (``<manager>/activity``, reliable,
+    transient local), as the actuator modes read them."""
+    return Topic(f'{manager}/activity', ACTIVITY_TYPE, ACTIVITY_DEPTH, transient_local=True)
 
 
 def forward_topic(controller: str) -> Topic:
@@ -181,11 +198,19 @@ def sensor_endpoint(antenna_sensor_type: str) -> Endpoint | None:
                     optional=f'antenna_sensor_type: {antenna_sensor_type}')
 
 
+def activity_endpoint(manager: str) -> Endpoint:
+    """The actuator modes' watch of the controller they feed (``manager``: the ``controller_manager`` parameter)."""
+    return Endpoint(activity_topic(manager), Direction.IN, 'the controller manager\'s lifecycle states of its '
+                    'controllers and hardware components: whether the controller the node feeds is active',
+                    optional='controller_manager_msgs installed and `controller_manager` not empty')
+
+
 def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
               forward_controller: str = DEFAULT_FORWARD_CONTROLLER,
-              antenna_sensor_type: str = SENSOR_NONE) -> tuple[Endpoint, ...]:
-    """Every topic fourbar_node reads or writes in ``mode`` (the controller names and the antenna sensor's type as
-    its parameters give them; the sensor only in the actuator modes)."""
+              antenna_sensor_type: str = SENSOR_NONE, controller_manager: str = '') -> tuple[Endpoint, ...]:
+    """Every topic fourbar_node reads or writes in ``mode`` (the controller names, the antenna sensor's type and
+    the controller manager it watches as its parameters give them; the sensor and the manager only in the actuator
+    modes; an empty ``controller_manager``: no watch, as where controller_manager_msgs is missing)."""
     if mode is Mode.OPEN_LOOP:
         pose = Endpoint(JOINT_STATES, Direction.OUT, 'per served command, the commanded pose: joints [`gamma_joint`, '
                         '`delta_joint`, `coupler_joint`], positions [gamma, delta, gamma + theta] rad, velocities '
@@ -201,14 +226,17 @@ def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTRO
         out = Endpoint(forward_topic(forward_controller), Direction.OUT, 'driven-joint setpoints for '
                        'forward_command_controller: one position rad per message, at `control_rate` while moving')
     sensor = sensor_endpoint(antenna_sensor_type)
-    return (_COMMAND_IN, *_MEASURED, *((sensor,) if sensor is not None else ()), out, _TORQUE_OUT, *_STATUS_OUT)
+    watch = (activity_endpoint(controller_manager),) if controller_manager else ()
+    return (_COMMAND_IN, *_MEASURED, *((sensor,) if sensor is not None else ()), *watch, out, _TORQUE_OUT,
+            *_STATUS_OUT)
 
 
 def every_endpoint(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
                    forward_controller: str = DEFAULT_FORWARD_CONTROLLER) -> tuple[Endpoint, ...]:
-    """``endpoints`` with every optional one (each form of the antenna sensor): the reference tables and the
-    security policy, which must allow what a parameter may turn on."""
-    out = list(endpoints(mode, trajectory_controller, forward_controller))
+    """``endpoints`` with every optional one (each form of the antenna sensor, the default controller manager's
+    activity): the reference tables and the security policy, which must allow what a parameter may turn on."""
+    out = list(endpoints(mode, trajectory_controller, forward_controller,
+                         controller_manager=DEFAULT_CONTROLLER_MANAGER))
     if mode is not Mode.OPEN_LOOP:
         at = 1 + len(_MEASURED)  # where endpoints() puts the sensor: after the command and the measured ones
         out[at:at] = [e for e in map(sensor_endpoint, ANTENNA_SENSORS) if e is not None]

@@ -16,6 +16,8 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from fourbar_ros.core.errors import one_line
+from fourbar_ros.interface.topics import activity_topic
+from fourbar_ros.node.qos import qos
 from fourbar_ros.rules.command_fate import Readiness, readiness
 from fourbar_ros.runtime.problem_log import ProblemLog
 
@@ -26,10 +28,6 @@ _qos_profile: Callable[..., QoSProfile] = QoSProfile  # rclpy's constructor is u
 #: latest state.
 ACTIVITY_QOS = _qos_profile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
-#: This side keeps more: with depth 1 a controller switched off and on again between two callbacks reached the node
-#: as one "active" (the off dropped), and the node took the controller's hold for its running trajectory.
-WATCH_QOS = _qos_profile(depth=20, reliability=ReliabilityPolicy.RELIABLE,
-                         durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def activity_type() -> tuple[Any, str]:
@@ -62,9 +60,10 @@ class ControllerWatch:
         self._node, self._gids = node, frozenset[bytes]()
 
         def subscribe() -> Any:
-            return node.create_subscription(msg_type, f'{manager}/activity',
+            topic = activity_topic(manager)  # kept deeper than the manager's (ACTIVITY_DEPTH says why)
+            return node.create_subscription(msg_type, topic.name,
                                             problems.guard.wrap('sub_controller_activity', self._on_activity),
-                                            WATCH_QOS)
+                                            qos(topic))
         self._subscribe = subscribe
         self._sub = subscribe()
         self.topic = self._sub.topic_name

@@ -23,7 +23,13 @@ from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
-from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, forward_topic, trajectory_topic
+from fourbar_ros.interface.topics import (
+    BROADCASTER_JOINT_STATES,
+    DEFAULT_CONTROLLER_MANAGER,
+    activity_topic,
+    forward_topic,
+    trajectory_topic,
+)
 from fourbar_ros.node.controller_watch import ACTIVITY_QOS, activity_type
 from fourbar_ros.node.fourbar_node import destroy_node
 from fourbar_ros.node.param_descriptors import declarations
@@ -106,8 +112,9 @@ class SimActuator(Node):
         self.add_post_set_parameters_callback(guard.wrap('after_set_parameters', self._after_set_parameters))
         # Where controller_manager_msgs is installed, it says what a controller manager would of its controllers.
         self._activity_type, _ = activity_type()
+        activity = activity_topic(DEFAULT_CONTROLLER_MANAGER).name
         self._activity_pub = (None if self._activity_type is None else
-                              self.create_publisher(self._activity_type, 'controller_manager/activity', ACTIVITY_QOS))
+                              self.create_publisher(self._activity_type, activity, ACTIVITY_QOS))
         self._publish_activity()
 
     def _after_set_parameters(self, params: list[Any]) -> None:

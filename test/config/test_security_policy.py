@@ -1,7 +1,8 @@
 """The SROS2 policy (config/security/policy.xml): generated from the interface table, valid against sros2's schema
 (Jazzy), every endpoint of every mode allowed in its direction and nothing else besides what an rclpy node needs;
-the nodes as created use nothing the policy does not allow. Enforcement by the middleware is tested where sros2
-and the DDS security plugins are installed."""
+only fourbar_node's actuator enclaves may command the drive; the nodes as created use nothing the policy does not
+allow (the bringup's nodes as started: test/package/test_bringup_policy.py). Enforcement by the middleware is
+tested where sros2 and the DDS security plugins are installed."""
 
 from __future__ import annotations
 
@@ -14,8 +15,10 @@ from pathlib import Path
 import pytest
 from support.colcon_support import ros2, ros2_cli_missing
 from support.paths import REPO, TEST_DATA
+from support.policy_rules import as_graph, enclaves, rules
 
 from fourbar_ros.config.security import (
+    BRINGUP_ENCLAVES,
     POLICY_FILE,
     RCLPY_PUBLISH,
     RCLPY_SERVICES,
@@ -26,42 +29,23 @@ from fourbar_ros.config.security import (
 from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
 from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
+    DEFAULT_CONTROLLER_MANAGER,
     MEASURED_JOINT_STATES,
     NODE_NAME,
     Direction,
     Mode,
-    endpoints,
+    activity_topic,
     every_endpoint,
     forward_topic,
+    trajectory_action,
     trajectory_topic,
 )
+from fourbar_ros.node.controller_watch import activity_type
 
 POLICY = REPO / POLICY_FILE
 SCHEMA = TEST_DATA / 'sros2' / 'policy.xsd'
 #: policy.xsd imports the xml: namespace's schema by this URL; the tests read a local stand-in instead.
 XML_NAMESPACE_URL = 'http://www.w3.org/2001/03/xml.xsd'
-
-#: {enclave: {'publish'|'subscribe'|'reply'|..., names}}
-Rules = dict[str, dict[str, set[str]]]
-
-
-def rules(text: str, namespace: str = '/') -> Rules:
-    """The policy's allowed names per enclave and qualifier (and ``'node'``: the profile's node name), checking
-    every profile's namespace."""
-    import xml.etree.ElementTree as ET
-
-    root = ET.fromstring(text)
-    out: Rules = {}
-    for enc in root.iterfind('enclaves/enclave'):
-        (profile,) = enc.iterfind('profiles/profile')
-        assert profile.attrib['ns'] == namespace
-        allowed = out.setdefault(enc.attrib['path'], {'node': {profile.attrib['node']}})
-        for group in profile:
-            for qualifier, value in group.attrib.items():
-                assert value == 'ALLOW', (enc.attrib['path'], group.tag, qualifier)
-                allowed.setdefault(qualifier, set()).update(item.text or '' for item in group)
-    return out
-
 
 def test_the_shipped_policy_is_the_generated_one_and_is_installed() -> None:
     assert POLICY.read_text(encoding='utf-8') == policy_xml('/')
@@ -91,57 +75,61 @@ def test_the_policy_is_valid_against_sros2s_schema() -> None:
 
 @pytest.mark.parametrize('mode', list(Mode), ids=lambda m: m.value)
 def test_every_endpoint_of_the_mode_is_allowed_in_its_direction_and_nothing_else(mode: Mode) -> None:
-    allowed = rules(POLICY.read_text(encoding='utf-8'))[enclave(mode)]
-    assert allowed.pop('node') == {NODE_NAME}
+    policy = rules(POLICY.read_text(encoding='utf-8'))
+    assert [node for (path, node) in policy if path == enclave(mode)] == [NODE_NAME]
+    allowed = policy[enclave(mode), NODE_NAME]
     publish, subscribe = set(RCLPY_PUBLISH), set(RCLPY_SUBSCRIBE)
     for e in every_endpoint(mode):
         # The launch file remaps the measured joint to the broadcaster's topic: the name on the wire.
         name = BROADCASTER_JOINT_STATES.name if e.topic == MEASURED_JOINT_STATES else e.topic.name
         (publish if e.direction is Direction.OUT else subscribe).add(name)
-    assert allowed == {'publish': publish, 'subscribe': subscribe, 'reply': set(RCLPY_SERVICES)}
-    controllers = {trajectory_topic('joint_trajectory_controller').name,
-                   forward_topic('forward_position_controller').name}
-    # Who may move the antenna: only the actuator mode's own controller topic.
-    assert allowed['publish'] & controllers == {e.topic.name for e in endpoints(mode) if e.topic.name in controllers}
-    if mode is Mode.OPEN_LOOP:
-        assert not allowed['publish'] & controllers
+    want = {'publish': publish, 'subscribe': subscribe, 'reply': set(RCLPY_SERVICES)}
+    if mode is Mode.TRAJECTORY:  # trajectory_interface: action
+        want['call'] = {trajectory_action('joint_trajectory_controller')}
+    assert allowed == want
+    if mode is not Mode.OPEN_LOOP:
+        assert activity_topic(DEFAULT_CONTROLLER_MANAGER).name in allowed['subscribe']
+
+
+def test_only_fourbar_nodes_actuator_enclaves_may_command_the_drive() -> None:
+    """Who holds an enclave that may publish to a controller's command topic or call its action is who may move
+    the antenna: fourbar_node in an actuator mode, its own controller only; the controllers may only read them."""
+    commands = {trajectory_topic('joint_trajectory_controller').name: Mode.TRAJECTORY,
+                forward_topic('forward_position_controller').name: Mode.FORWARD,
+                trajectory_action('joint_trajectory_controller'): Mode.TRAJECTORY}
+    for (path, node), allowed in rules(POLICY.read_text(encoding='utf-8')).items():
+        sent = (allowed.get('publish', set()) | allowed.get('call', set())) & set(commands)
+        assert all(path == enclave(commands[c]) and node == NODE_NAME for c in sent), (path, node, sent)
+    assert rules(POLICY.read_text(encoding='utf-8'))[BRINGUP_ENCLAVES['controller_manager'],
+                                                     'joint_trajectory_controller']['execute'] == {
+        '~/follow_joint_trajectory'}
 
 
 def test_the_simulated_actuator_reads_the_controllers_and_writes_the_broadcasters_topic() -> None:
-    allowed = rules(POLICY.read_text(encoding='utf-8'))[enclave(None)]
-    assert allowed.pop('node') == {SIM_NODE_NAME}
-    assert allowed == {
-        'publish': {*RCLPY_PUBLISH, BROADCASTER_JOINT_STATES.name},
+    policy = rules(POLICY.read_text(encoding='utf-8'))
+    assert [node for (path, node) in policy if path == enclave(None)] == [SIM_NODE_NAME]
+    assert policy[enclave(None), SIM_NODE_NAME] == {
+        'publish': {*RCLPY_PUBLISH, BROADCASTER_JOINT_STATES.name, activity_topic(DEFAULT_CONTROLLER_MANAGER).name},
         'subscribe': {*RCLPY_SUBSCRIBE, trajectory_topic('joint_trajectory_controller').name,
                       forward_topic('forward_position_controller').name},
         'reply': set(RCLPY_SERVICES)}
-    assert set(rules(POLICY.read_text(encoding='utf-8'))) == {enclave(m) for m in (*Mode, None)}
+    assert enclaves(POLICY.read_text(encoding='utf-8')) == {
+        *(enclave(m) for m in (*Mode, None)), *BRINGUP_ENCLAVES.values()}
 
 
 def test_another_namespace_and_controller_names_from_the_command_line() -> None:
     out = subprocess.run([sys.executable, '-m', 'fourbar_ros.config.security', '--namespace', 'tilt',
-                          '--trajectory-controller', 'tilt_jtc'], capture_output=True, text=True, timeout=60,
-                         env={**os.environ, 'PYTHONPATH': str(REPO)}, check=False)
+                          '--trajectory-controller', 'tilt_jtc', '--hardware-id', 'tilt_drive'], capture_output=True,
+                         text=True, timeout=60, env={**os.environ, 'PYTHONPATH': str(REPO)}, check=False)
     assert out.returncode == 0, out.stderr
-    assert out.stdout == policy_xml('/tilt', 'tilt_jtc')
-    allowed = rules(out.stdout, '/tilt')[enclave(Mode.TRAJECTORY)]
-    assert 'tilt_jtc/joint_trajectory' in allowed['publish']
+    assert out.stdout == policy_xml('/tilt', 'tilt_jtc', hardware_id='tilt_drive')
+    policy = rules(out.stdout, '/tilt')
+    assert 'tilt_jtc/joint_trajectory' in policy[enclave(Mode.TRAJECTORY), NODE_NAME]['publish']
+    assert '~/joint_trajectory' in policy[BRINGUP_ENCLAVES['controller_manager'], 'tilt_jtc']['subscribe']
+    assert (BRINGUP_ENCLAVES['controller_manager'], 'tilt_drive') in policy
 
 
 # --------------------------------------------------------------------------- the nodes as created
-
-def _resolved(names: set[str], namespace: str, node: str) -> set[str]:
-    """Policy names as rcl resolves them for the node ``namespace``/``node``."""
-    out = set()
-    for name in names:
-        if name.startswith('~/'):
-            out.add(f'{namespace}/{node}/{name[2:]}')
-        elif name.startswith('/'):
-            out.add(name)
-        else:
-            out.add(f'{namespace}/{name}')
-    return out
-
 
 def _used(node: object) -> dict[str, set[str]]:
     """The node's topics and services, resolved; ``/rosout`` too (rcl's logging publisher is not an rclpy
@@ -185,9 +173,14 @@ def test_the_nodes_use_exactly_what_their_enclave_allows(created: tuple[Mode | N
     mode, node = created
     ns, name = node.get_namespace(), node.get_name()  # type: ignore[attr-defined]
     assert name == (SIM_NODE_NAME if mode is None else NODE_NAME)
-    allowed = rules(policy_xml(ns), ns)[enclave(mode)]
-    assert allowed.pop('node') == {name}
-    assert _used(node) == {k: _resolved(v, ns, name) for k, v in allowed.items()}
+    allowed = rules(policy_xml(ns), ns)[enclave(mode), name]
+    allowed.pop('call', None)  # the action: only with trajectory_interface: action (the bringup's test has it)
+    if activity_type()[0] is None:  # without controller_manager_msgs neither watches nor says a manager's activity
+        for k in ('publish', 'subscribe'):
+            allowed[k].discard(activity_topic(DEFAULT_CONTROLLER_MANAGER).name)
+    want = as_graph(allowed, ns, name)
+    del want['request']
+    assert _used(node) == want
 
 
 # --------------------------------------------------------------------------- enforcement

@@ -12,7 +12,7 @@ from collections.abc import Iterator
 
 import pytest
 from rclpy.parameter import Parameter
-from rclpy.qos import ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -21,6 +21,7 @@ from support.ros_support import RosSession
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.interface.topics import DIAGNOSTICS, SENSOR_NONE, Direction, Mode, endpoints
+from fourbar_ros.node.controller_watch import activity_type
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.rules.diagnostics import Counters, summarize
 from fourbar_ros.rules.goal_outcomes import GoalCounters
@@ -31,7 +32,7 @@ pytestmark = pytest.mark.ros
 RCLPY_OWN = {'/rosout', '/parameter_events'}
 
 #: (resolved name, message type, direction, depth, reliability)
-Row = tuple[str, str, Direction, int, str]
+Row = tuple[str, str, Direction, int, str, bool]
 
 
 def _type_name(msg_type: type) -> str:
@@ -60,9 +61,12 @@ def test_the_node_creates_exactly_the_documented_topics(node: FourBarNode) -> No
     mode = Mode(node.get_parameter('mode').value)
     ns = node.get_namespace()
     want: set[Row] = set()
-    for e in endpoints(mode, antenna_sensor_type=node.get_parameter('antenna_sensor_type').value):
+    watched = node.get_parameter('controller_manager').value if activity_type()[0] is not None else ''
+    for e in endpoints(mode, antenna_sensor_type=node.get_parameter('antenna_sensor_type').value,
+                       controller_manager=watched):
         name = e.topic.name if e.topic.name.startswith('/') else f'{ns}/{e.topic.name}'
-        want.add((name, e.topic.msgtype, e.direction, e.topic.depth, e.topic.reliability.value))
+        want.add((name, e.topic.msgtype, e.direction, e.topic.depth, e.topic.reliability.value,
+                  e.topic.transient_local))
     got: set[Row] = set()
     for direction, entities in ((Direction.OUT, node.publishers), (Direction.IN, node.subscriptions)):
         for entity in entities:
@@ -70,7 +74,8 @@ def test_the_node_creates_exactly_the_documented_topics(node: FourBarNode) -> No
                 continue
             qos = entity.qos_profile
             reliability = 'reliable' if qos.reliability == ReliabilityPolicy.RELIABLE else 'best_effort'
-            got.add((entity.topic_name, _type_name(entity.msg_type), direction, qos.depth, reliability))
+            got.add((entity.topic_name, _type_name(entity.msg_type), direction, qos.depth, reliability,
+                     qos.durability == DurabilityPolicy.TRANSIENT_LOCAL))
     assert got == want
     assert any(row[0] == DIAGNOSTICS.name for row in got)  # absolute: not moved by the namespace
 

@@ -17,6 +17,7 @@ import pytest
 import yaml
 from support.colcon_support import launch_missing
 from support.paths import REPO
+from support.policy_rules import enclaves
 
 if (_why := launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
@@ -26,7 +27,8 @@ from launch.utilities import perform_substitutions
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterFile
 
-from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME
+from fourbar_ros.config.security import BRINGUP_ENCLAVES, POLICY_FILE, enclave
+from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME, Mode
 from launch import LaunchContext
 
 LAUNCH_FILE = REPO / 'launch' / 'fourbar.launch.py'
@@ -186,6 +188,45 @@ def test_trajectory_interface_reaches_the_node_only_when_given() -> None:
     assert s.parameters(s.one('fourbar_ros', 'fourbar_node'))[1]['trajectory_interface'] == 'action'
     s = Started(everything, use_ros2_control='true')
     assert 'trajectory_interface' not in s.parameters(s.one('fourbar_ros', 'fourbar_node'))[1]  # the file's
+
+
+#: The enclave each node of the launch file starts in with ``enclaves:=true`` (fourbar_node's by its mode).
+EXPECTED_ENCLAVES = {('controller_manager', 'ros2_control_node'): BRINGUP_ENCLAVES['controller_manager'],
+                     ('controller_manager', 'spawner'): BRINGUP_ENCLAVES['spawner'],
+                     ('robot_state_publisher', 'robot_state_publisher'): BRINGUP_ENCLAVES['robot_state_publisher'],
+                     ('fourbar_ros', 'fourbar_sim_actuator'): enclave(None)}
+
+
+@pytest.mark.parametrize('arguments', [{'use_ros2_control': 'true', 'rviz': 'true', 'namespace': 'tilt'},
+                                       {'use_ros2_control': 'true', 'mode': 'forward'},
+                                       {'sim_actuator': 'true', 'mode': 'trajectory'}, {}],
+                         ids=['ros2_control', 'forward', 'sim', 'open_loop'])
+def test_enclaves_start_every_node_but_rviz_in_its_enclave_of_the_policy(arguments: dict[str, str]) -> None:
+    policy = enclaves((REPO / POLICY_FILE).read_text(encoding='utf-8'))
+    plain = Started(everything, **arguments)
+    assert all(n._Node__ros_arguments is None for n in plain.nodes)  # not unless asked
+    s = Started(everything, enclaves='true', **arguments)
+    mode = Mode(s.parameters(s.one('fourbar_ros', 'fourbar_node'))[1]['mode'])
+    checked = 0
+    for node in s.nodes:
+        key = (node.node_package, node.node_executable)
+        given = [s.text(a) for a in node._Node__ros_arguments or []]
+        if key == ('rviz2', 'rviz2'):  # its topics are whatever its displays show: no policy of the package's
+            assert given == []
+            continue
+        want = enclave(mode) if key == ('fourbar_ros', 'fourbar_node') else EXPECTED_ENCLAVES[key]
+        assert given == ['--enclave', want] and want in policy, (key, given)
+        checked += 1
+    assert checked == len(s.nodes) - len(s.node('rviz2', 'rviz2')) >= 2
+
+
+def test_every_launch_argument_is_in_the_cli_reference() -> None:
+    declared = [e.name for e in load_launch_file().generate_launch_description().entities
+                if isinstance(e, DeclareLaunchArgument)]
+    text = (REPO / 'docs' / 'reference' / 'cli.md').read_text(encoding='utf-8')
+    table = text[text.index('## `ros2 launch fourbar_ros fourbar.launch.py`'):text.index('## Installed files')]
+    rows = {line.split('|')[1].strip().strip('`') for line in table.splitlines() if line.startswith('| `')}
+    assert rows == set(declared)
 
 
 def test_without_ros2_control_installed_one_line_says_so() -> None:
