@@ -106,14 +106,16 @@ def run(args: argparse.Namespace) -> int:
         direction = direction_terms(fit, data.q, rate)
         warnings = _warnings(data, fit, direction)
         load = _load(cfg, data, fit)
+        report = _report(args, cfg, data, fit)
         values = {name: fit.parameter(name).value for name in LENGTH_NAMES}
         values.update(_offsets(cfg, fit))
+        report['live_check_in_parameter_file'] = _live_check(report, direction)
+        values.update(report['live_check_in_parameter_file'])
         if isinstance(load, dict):
             values.update(load['written_to_parameter_file'])
         files: dict[Path, bytes] = {}
         if args.output is not None:
             files[args.output] = param_file_with(args.params, args.bag, values, 'fourbar calibrate').encode()
-        report = _report(args, cfg, data, fit)
         report['direction_dependent'] = _direction_report(direction)
         report['warnings'] = warnings
         report['load'] = load
@@ -178,6 +180,15 @@ def _direction_report(direction: DirectionTerms) -> dict[str, Any]:
             'correlation': direction.correlation, 'shift_rms_rad': direction.shift,
             'model': ('fitted to the residuals: the sensor sees the rocker at q(t - latency) - sign(dq/dt) backlash '
                       '/ 2; not applied to the geometry, which sweeps both ways leave unbiased')}
+
+
+def _live_check(report: dict[str, Any], direction: DirectionTerms) -> dict[str, float]:
+    """The node's parameters for its live check in sds: the sensor's latency (s), its noise sd (rad) and lag-1
+    correlation, and the map's largest sd (rad), each within its parameter's range."""
+    return {'antenna_sensor_latency': min(max(direction.latency, -1.0), 1.0),
+            'antenna_sensor_noise': float(report['noise_sd_rad']),
+            'antenna_sensor_noise_correlation': min(max(float(report['noise_lag1_correlation']), 0.0), 0.999),
+            'antenna_sensor_map_sd': float(report['absolute_angle']['sensor_map_largest_sd_rad'])}
 
 
 def _offsets(cfg: AntennaConfig, fit: Calibration) -> dict[str, float]:

@@ -98,6 +98,12 @@ class AntennaConfig:
     tracking_window: float
     antenna_sensor_type: str
     antenna_sensor_offset: float
+    antenna_sensor_latency: float
+    antenna_sensor_noise: float
+    antenna_sensor_noise_correlation: float
+    antenna_sensor_map_sd: float
+    model_mismatch_warn_sds: float
+    model_mismatch_error_sds: float
     model_mismatch_warn: float
     model_mismatch_error: float
     gamma_joint: str
@@ -315,6 +321,10 @@ def config_from_values(values: Mapping[str, object], changed: Collection[str] | 
         mismatch = ('model_mismatch_warn', 'model_mismatch_error')
         raise _fault(f"model_mismatch_warn {v['model_mismatch_warn']!r} rad must be below model_mismatch_error "
                      f"{v['model_mismatch_error']!r} rad", mismatch, mismatch, changed)
+    if not v['model_mismatch_warn_sds'] < v['model_mismatch_error_sds']:
+        sds = ('model_mismatch_warn_sds', 'model_mismatch_error_sds')
+        raise _fault(f"model_mismatch_warn_sds {v['model_mismatch_warn_sds']!r} must be below "
+                     f"model_mismatch_error_sds {v['model_mismatch_error_sds']!r}", sds, sds, changed)
     joints = ('gamma_joint', 'delta_joint', 'coupler_joint')
     for i, first in enumerate(joints):
         for second in joints[i + 1:]:

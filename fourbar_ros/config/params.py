@@ -246,11 +246,34 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('antenna_sensor_offset', float, 0.0, 'rad',
               'The antenna sensor\'s reading when the antenna is level (its mounting error; `fourbar calibrate`\'s '
               'sensor_offset): subtracted from its readings.', -math.pi, math.pi),
+    ParamSpec('antenna_sensor_latency', float, 0.0, 's',
+              'How late the antenna sensor\'s readings are against the measured joint (`fourbar calibrate`\'s '
+              'latency_s): a reading timed t is compared with the joint at t minus this.', -1.0, 1.0),
+    ParamSpec('antenna_sensor_noise', float, 0.0, 'rad',
+              'The sensor\'s noise sd about the calibrated model (`fourbar calibrate`\'s noise_sd_rad). Above 0 the '
+              'live check tests the window\'s bias and scatter apart, in sds (model_mismatch_warn_sds, '
+              'model_mismatch_error_sds); 0: its RMS against model_mismatch_warn and model_mismatch_error.',
+              0.0, math.pi),
+    ParamSpec('antenna_sensor_noise_correlation', float, 0.0, '',
+              'The lag-1 correlation of that noise between successive readings (`fourbar calibrate`\'s '
+              'noise_lag1_correlation; a filtering sensor\'s is near 1): a window of n readings counts as '
+              'n (1 - c) / (1 + c) independent ones.', 0.0, 0.999),
+    ParamSpec('antenna_sensor_map_sd', float, 0.0, 'rad',
+              'The sd of the calibrated joint-to-sensor map (`fourbar calibrate`\'s largest sensor_reading_sd_rad): '
+              'with antenna_sensor_noise, the part of the bias\'s sd no window averages away.', 0.0, math.pi),
+    ParamSpec('model_mismatch_warn_sds', float, 4.0, '',
+              'With antenna_sensor_noise: diagnostics WARN when the window\'s bias is this many of its sds from 0, '
+              'or its scatter this many of its sds above the noise (must be below model_mismatch_error_sds).',
+              0.0, 1e6),
+    ParamSpec('model_mismatch_error_sds', float, 8.0, '',
+              'With antenna_sensor_noise: diagnostics ERROR beyond this many sds.', 0.0, 1e6),
     ParamSpec('model_mismatch_warn', float, 0.005, 'rad',
-              'Actuator modes, with an antenna sensor: diagnostics WARN when the RMS of sensor minus model over '
-              'tracking_window exceeds this (must be below model_mismatch_error).', 0.0, math.pi),
+              'Actuator modes, with an antenna sensor and no antenna_sensor_noise: diagnostics WARN when the RMS of '
+              'sensor minus model over tracking_window exceeds this (must be below model_mismatch_error).',
+              0.0, math.pi),
     ParamSpec('model_mismatch_error', float, 0.02, 'rad',
-              'Actuator modes, with an antenna sensor: diagnostics ERROR when that RMS exceeds this.', 0.0, math.pi),
+              'Actuator modes, with an antenna sensor and no antenna_sensor_noise: diagnostics ERROR when that RMS '
+              'exceeds this.', 0.0, math.pi),
     ParamSpec('gamma_joint', str, 'rocker_ab_joint', '',
               'JointState name of the rocker AB joint (gamma).'),
     ParamSpec('delta_joint', str, 'rocker_cd_joint', '',

@@ -1,7 +1,9 @@
 """The live check of the model: an antenna angle sensor's readings against the angle completed at their times. No ROS.
 
-The mismatch is ``core.calibration.model_mismatch``, the joint paired as ``fourbar calibrate`` pairs it;
-docs/how-to/calibrate.md and docs/reference/diagnostics.md."""
+The mismatch is ``core.calibration.model_mismatch``, the joint paired as ``fourbar calibrate`` pairs it (the
+sensor's latency applied). With the calibration's noise estimate, the window's bias and scatter are tested apart, in
+sds (``window_test``); without, its RMS against absolute limits. docs/how-to/calibrate.md and
+docs/reference/diagnostics.md."""
 
 from __future__ import annotations
 
@@ -14,9 +16,10 @@ from dataclasses import asdict, dataclass
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.calibration import imu_tilt, imu_valid, model_mismatch
 from fourbar_ros.core.errors import FourBarError
+from fourbar_ros.interface.stamps import seconds_to_ns
 
-__all__ = ['HISTORY', 'WINDOW_READINGS', 'ModelCheck', 'SensorCounters', 'SensorSkipped',
-           'imu_theta']
+__all__ = ['HISTORY', 'WINDOW_READINGS', 'ModelCheck', 'SensorCounters', 'SensorSkipped', 'WindowTest',
+           'imu_theta', 'window_test']
 
 #: Completed measurements held for pairing: 10 s of joint_state_broadcaster at 100 Hz.
 HISTORY = 1000
@@ -52,6 +55,30 @@ def imu_theta(ax: float, ay: float, az: float) -> float | SensorSkipped:
     if not imu_valid(ax, ay, az):  # not gravity-sized: an all-zero vector, not at rest
         return SensorSkipped.NO_GRAVITY
     return float(imu_tilt(ax, ay, az))
+
+
+@dataclass(frozen=True)
+class WindowTest:
+    """A window of n mismatches (rad) against the calibration: its ``bias`` (mean) and ``scatter`` (RMS about the
+    mean), each in sds: ``bias_sds`` = |bias| / sqrt(map_sd^2 + noise^2 / n_eff), ``scatter_sds`` = (scatter / noise -
+    1) sqrt(2 n_eff) (the sample sd of n_eff independent normal readings has a relative sd of 1 / sqrt(2 n_eff)),
+    with n_eff = n (1 - c) / (1 + c) for a lag-1 correlation c."""
+
+    bias: float
+    scatter: float
+    bias_sds: float
+    scatter_sds: float
+
+
+def window_test(mismatches: list[float], noise: float, correlation: float, map_sd: float) -> WindowTest:
+    """``WindowTest`` of one or more ``mismatches`` (rad) with the calibration's ``noise`` sd (rad, > 0), its lag-1
+    ``correlation`` (in [0, 1)) and the map's sd ``map_sd`` (rad)."""
+    n = len(mismatches)
+    bias = math.fsum(mismatches) / n
+    scatter = math.sqrt(math.fsum((r - bias) ** 2 for r in mismatches) / n)
+    n_eff = max(n * (1.0 - correlation) / (1.0 + correlation), 1.0)
+    bias_sds = abs(bias) / math.hypot(map_sd, noise / math.sqrt(n_eff))
+    return WindowTest(bias, scatter, bias_sds, (scatter / noise - 1.0) * math.sqrt(2.0 * n_eff))
 
 
 class ModelCheck:
@@ -113,7 +140,7 @@ class ModelCheck:
             return sensor_theta
         if not math.isfinite(sensor_theta):
             return SensorSkipped.NOT_FINITE
-        q = self.q_at(stamp_ns, round(cfg.measurement_timeout * 1e9))
+        q = self.q_at(stamp_ns - seconds_to_ns(cfg.antenna_sensor_latency), seconds_to_ns(cfg.measurement_timeout))
         if q is None:
             return SensorSkipped.NO_MEASUREMENT
         try:
@@ -122,23 +149,43 @@ class ModelCheck:
         except FourBarError:
             return SensorSkipped.OUT_OF_REACH
 
-    def window_rms(self, now_s: float, window_s: float) -> tuple[float | None, int]:
-        """(RMS rad of the mismatches received over the last ``window_s`` s, or None; how many)."""
+    def window(self, now_s: float, window_s: float) -> list[float]:
+        """The mismatches (rad) received over the last ``window_s`` s."""
         window = self._window
         while window and window[0][0] < now_s - window_s:
             window.popleft()
-        if not window:
-            return None, 0
-        return math.sqrt(math.fsum(r * r for _, r in window) / len(window)), len(window)
+        return [r for _, r in window]
 
     def diagnostics(self, cfg: AntennaConfig, now_s: float) -> tuple[int, str, list[tuple[str, str]]]:
-        """(level 0 OK / 1 WARN / 2 ERROR, message, key/value pairs): the level from the window's RMS."""
+        """(level 0 OK / 1 WARN / 2 ERROR, message, key/value pairs): the level from the window's bias and scatter
+        in sds with ``cfg.antenna_sensor_noise``, else from its RMS."""
         values = [(k, str(v)) for k, v in asdict(self.counters).items()]
-        rms, n = self.window_rms(now_s, cfg.tracking_window)
+        window = self.window(now_s, cfg.tracking_window)
+        n = len(window)
+        rms = math.sqrt(math.fsum(r * r for r in window) / n) if window else None
         values += [('model_mismatch_rad', repr(self.latest) if self.latest is not None else 'none'),
                    ('model_mismatch_rms_rad', repr(rms) if rms is not None else 'none'),
                    ('model_mismatch_window_readings', str(n))]
         if rms is None:
+            return 0, 'ok', values
+        about = f'antenna sensor minus model over {n} readings in {cfg.tracking_window:g} s'
+        if cfg.antenna_sensor_noise > 0.0:
+            test = window_test(window, cfg.antenna_sensor_noise, cfg.antenna_sensor_noise_correlation,
+                               cfg.antenna_sensor_map_sd)
+            values += [('model_mismatch_bias_rad', repr(test.bias)),
+                       ('model_mismatch_bias_sds', f'{test.bias_sds:.3g}'),
+                       ('model_mismatch_scatter_rad', repr(test.scatter)),
+                       ('model_mismatch_scatter_sds', f'{test.scatter_sds:.3g}')]
+            for level, limit, name in ((2, cfg.model_mismatch_error_sds, 'model_mismatch_error_sds'),
+                                       (1, cfg.model_mismatch_warn_sds, 'model_mismatch_warn_sds')):
+                if test.bias_sds > limit:
+                    return (level, f'{about}: bias {test.bias:.3g} rad, {test.bias_sds:.3g} sds from 0, above {name} '
+                            f'{limit:g} (the model or an offset moved: recalibrate, fourbar calibrate, or re-zero, '
+                            'fourbar zero)', values)
+                if test.scatter_sds > limit:
+                    return (level, f'{about}: scatter {test.scatter:.3g} rad against a noise of '
+                            f'{cfg.antenna_sensor_noise:.3g} rad, {test.scatter_sds:.3g} sds above it, above {name} '
+                            f'{limit:g} (a noisier or loose sensor, or backlash)', values)
             return 0, 'ok', values
         for level, limit, name in ((2, cfg.model_mismatch_error, 'model_mismatch_error'),
                                    (1, cfg.model_mismatch_warn, 'model_mismatch_warn')):

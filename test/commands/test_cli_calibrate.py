@@ -63,8 +63,17 @@ def test_calibrates_and_writes_what_the_node_loads(tmp_path: Path, out: Path,
     assert cfg.antenna_sensor_offset == params['sensor_offset']['value']
     assert report['offsets_in_parameter_file'] == {'driven_joint_offset': cfg.driven_joint_offset,
                                                    'antenna_sensor_offset': cfg.antenna_sensor_offset}
+    # And the live check's: the sensor's latency, its noise and that noise's correlation, the map's largest sd.
+    live = report['live_check_in_parameter_file']
+    assert live == {'antenna_sensor_latency': report['direction_dependent']['latency_s'],
+                    'antenna_sensor_noise': report['noise_sd_rad'],
+                    'antenna_sensor_noise_correlation': max(report['noise_lag1_correlation'], 0.0),
+                    'antenna_sensor_map_sd': report['absolute_angle']['sensor_map_largest_sd_rad']}
+    assert all(getattr(cfg, k) == v for k, v in live.items())
+    assert cfg.antenna_sensor_noise == pytest.approx(1e-3, rel=0.1)  # the recording's noise sd
     changed = {k for k, v in cfg.as_values().items() if before.as_values()[k] != v}
-    assert changed == {*calibration.LENGTH_NAMES, 'driven_joint_offset', 'antenna_sensor_offset'}
+    fitted = {*calibration.LENGTH_NAMES, 'driven_joint_offset', 'antenna_sensor_offset'}
+    assert fitted <= changed <= fitted | set(live), changed
     # The calibrated model predicts the noiseless reading within 1e-4 rad over the swept range.
     values = np.array([params[n]['value'] for n in PARAMETER_NAMES])
     truth = np.array([TRUTH[n] for n in PARAMETER_NAMES])

@@ -109,9 +109,12 @@ def test_the_status_keys_are_exactly_the_documented_ones(ros: RosSession) -> Non
     documented, prefixes = _documented_keys()
     given: set[str] = {k for k, _ in served.values}  # what only a served command adds (node-independent)
     for mode, sensor in CASES:
+        # with a sensor, a calibrated noise: the live check's bias and scatter keys
         node = FourBarNode(context=ros.context, namespace=f'/status_{mode.value}_{sensor}',
                            parameter_overrides=[Parameter('mode', value=mode.value),
-                                                Parameter('antenna_sensor_type', value=sensor)])
+                                                Parameter('antenna_sensor_type', value=sensor),
+                                                Parameter('antenna_sensor_noise',
+                                                          value=0.0 if sensor == SENSOR_NONE else 1e-3)])
         try:
             if node.completion is not None:
                 node.completion.on_measurement(measurement)

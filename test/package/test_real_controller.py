@@ -43,6 +43,8 @@ JUDGE = REPO / 'test' / 'support' / 'jtc_judge.py'
 #: rounding of a different operation order (about 1e-15 rad at these magnitudes). 1e-9 rad leaves room for that
 #: and catches any difference of the motion itself (a wrong lead-in, degree or time is 1e-4 rad or more here).
 BOUND_RAD = 1e-9
+#: Rounds of the node's commands at most, until as many plans as commands are judged at their takeover.
+MAX_ROUNDS = 3
 #: Random trajectories in `make test`; `make test-stress` sends FOURBAR_JUDGE_TRAJECTORIES (default 200).
 QUICK, STRESS = 12, int(os.environ.get('FOURBAR_JUDGE_TRAJECTORIES', '200'))
 
@@ -148,11 +150,19 @@ def test_the_model_follows_the_real_controller_on_random_trajectories(launched: 
 def test_the_model_follows_the_real_controller_on_the_nodes_plans(launched: Launched,
                                                                   tmp_path: Path) -> None:
     # Each from rest (a plan that continues a running one starts where that one does, and the judge, seeing it pass,
-    # cannot always tell at which update the controller took it over).
+    # cannot always tell at which update the controller took it over). A takeover whose state the controller's
+    # realtime publisher dropped cannot be judged: the commands go again, up to MAX_ROUNDS times, until
+    # len(commands) plans have been judged at their takeover.
     commands = [0.05, -0.02, 0.03]
     steps = [{'command': theta, 'after': 0.0 if i == 0 else 3.0} for i, theta in enumerate(commands)]
-    results = _check(launched, steps, tmp_path)
-    assert len(results) >= len(commands), f'{len(commands)} commands, {len(results)} trajectories taken over'
+    judged_plans: list[int] = []
+    for round_ in range(MAX_ROUNDS):
+        (where := tmp_path / f'round{round_}').mkdir()
+        judged_plans.append(len(_check(launched, steps, where)))
+        if sum(judged_plans) >= len(commands):
+            break
+    assert sum(judged_plans) >= len(commands), f'{len(commands)} commands a round, plans judged per round: ' \
+                                               f'{judged_plans}'
 
 
 @pytest.mark.stress
