@@ -95,7 +95,9 @@ def test_demo_runs_to_the_end_on_the_exported_domain(demo_run: DemoRun) -> None:
     angles = [m.data for _, m in recorded['/antenna_angle']]
     final = commands[-1] - angles[-1]
     # The run ends once the measured antenna angle has settled within the trajectory tolerance of the last command.
-    assert abs(final) <= cfg.trajectory_tolerance, f'{stdout}\n{demo_run.stderr[-3000:]}'
+    logs = '\n'.join(f'{name}: ...{(out / name).read_text(encoding="utf-8", errors="replace")[-2000:]}'
+                     for name in ('node.log', 'sim_actuator.log') if (out / name).exists())
+    assert abs(final) <= cfg.trajectory_tolerance, f'{stdout}\n{demo_run.stderr[-3000:]}\n{logs}'
     printed = float(re.findall(r'tracking final (\S+) rad', lines['tracking'])[0])
     assert printed == pytest.approx(final, rel=5e-3, abs=1e-300)  # printed to 3 significant digits
     limit = cfg.motor_speed_limit / cfg.reducer_ratio

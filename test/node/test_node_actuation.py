@@ -254,7 +254,10 @@ def test_measurements_arriving_late_leave_the_motion_followed(late: Pair) -> Non
     # ... at a speed where the drive moves on by more than the replan tolerance while a measurement is on its way
     fast = PLAN_SHRINK * LIMITS.at_rocker(1) * 0.9
     assert fast * LATE_S > CFG.replan_tolerance
-    late.measured.wait_match(lambda m: abs(m.velocity[0]) >= fast, start=late.mark)
+    try:
+        late.measured.wait_match(lambda m: abs(m.velocity[0]) >= fast, start=late.mark)
+    except AssertionError as exc:
+        raise AssertionError(f'{exc}\n{late.sides()}; takeovers {len(late.taken_over)}') from None
     late.command(CFG.theta_min)  # ... interrupted: the node's latest measurement is LATE_S old
     late.trajectories.wait_count(before + 2)
     actuation = late.actuation
