@@ -62,8 +62,8 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     """Where a new motion starts (``Start``): continuing a running quintic trajectory at its first point ``lead``
     s or more after ``now_ns`` (``lead`` > 0), else now; on the running motion while the measured driven position
     (at ``measured_ns``, node clock; None, or over ``MEASURED_AGE_MAX_S`` before now or after it: now) is within
-    ``replan_tolerance`` of it, else from the measured state (velocity within the planner's speed limit,
-    acceleration 0) carried on to now (``carried``), moved onto an end of the range within
+    ``replan_tolerance`` of it or predates its start, else from the measured state (velocity within the planner's
+    speed limit, acceleration 0) carried on to now (``carried``), moved onto an end of the range within
     ``measured_range_tolerance``. With no motion running: the measured state, else the end of the last motion; None
     before any of them exists."""
     if measured is not None:
@@ -81,7 +81,9 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     origin_ns = now_ns + seconds_to_ns(ahead)
     if motion is not None and not motion.done(now_ns):
         now_state = motion.state_at(now_ns)
-        if measured is None or abs(measured.position - motion.state_at(at_ns).position) <= cfg.replan_tolerance:
+        # A measurement from before the running motion's start shows the drive on the motion before it: no news.
+        if (measured is None or at_ns < motion.start_ns
+                or abs(measured.position - motion.state_at(at_ns).position) <= cfg.replan_tolerance):
             traj = motion.trajectory
             if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC:
                 return _continuing(motion, traj, now_ns, lead, now_state)

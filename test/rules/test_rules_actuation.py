@@ -178,6 +178,23 @@ def test_a_late_measurement_is_compared_with_the_motion_when_measured_and_carrie
     assert motion_start(CFG, motion, held, now, 0.0, now - late) == Start(held, now, from_measured=True)
 
 
+def test_a_measurement_from_before_the_running_motion_started_leaves_it_alone() -> None:
+    """A motion planned from the measured state starts ARRIVAL_MARGIN_S after its command. A measurement stamped
+    before that start shows the drive on the previous motion, e.g. still moving toward the far end. Taken on its
+    own, it would look far off the new motion's first state. It is no news: the running motion goes on. From the
+    start on, the same position is off the motion."""
+    q, _, _, _, _ = mid_motion()
+    planned_at = 1_800_000_000_000_000_000
+    motion = Motion(planned_at + seconds_to_ns(ARRIVAL_MARGIN_S), plan=plan_command(CFG, JointMotionState(q), 0.0))
+    now = planned_at + round(0.5e9)
+    before = JointMotionState(q + 3 * CFG.replan_tolerance, -0.05)  # on the previous motion, 1.4 s before now
+    assert motion_start(CFG, motion, before, now, 0.0, now - round(1.4e9)) == Start(motion.state_at(now), now)
+    after = motion.start_ns + 1
+    assert now - after <= seconds_to_ns(MEASURED_AGE_MAX_S)
+    start = motion_start(CFG, motion, before, now, 0.0, after)
+    assert start is not None and start.from_measured
+
+
 def test_a_measurement_is_carried_on_no_further_than_the_end_of_the_range() -> None:
     lower, upper = driven_range(CFG)
     speed = 0.05
