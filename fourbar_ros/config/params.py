@@ -9,7 +9,12 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 from fourbar_ros.core.antenna import Branch, Driven
-from fourbar_ros.interface.topics import DEFAULT_FORWARD_CONTROLLER, DEFAULT_TRAJECTORY_CONTROLLER, Mode
+from fourbar_ros.interface.topics import (
+    DEFAULT_CONTROLLER_MANAGER,
+    DEFAULT_FORWARD_CONTROLLER,
+    DEFAULT_TRAJECTORY_CONTROLLER,
+    Mode,
+)
 
 ParamValue = float | int | str | bool | list[str]
 
@@ -194,7 +199,7 @@ PARAMETERS: tuple[ParamSpec, ...] = (
               'Actuator modes: the ros2_control controllers YAML the drive runs (the controller\'s joints, command '
               'interfaces and options decide what it accepts); empty: the package\'s config/controllers.yaml.',
               read_only=True),
-    ParamSpec('controller_manager', str, 'controller_manager', '',
+    ParamSpec('controller_manager', str, DEFAULT_CONTROLLER_MANAGER, '',
               'Actuator modes: the controller manager whose ~/activity says whether the mode\'s controller (and '
               'its hardware) is active; relative names follow the node\'s namespace. A command waits while that '
               'controller is not active; empty: not followed (commands go out as they come, as they also do while '

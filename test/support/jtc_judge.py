@@ -139,7 +139,8 @@ def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> i
         # controller's buffer before an update took it (its fate unknown, or a takeover credited to the next).
         deadline = time.monotonic() + STATE_WAIT_S
         earlier = {t['stamp'] for t in own[:-1] if t['stamp'] != 0}
-        while own and not _settled(list(states), own[-1], earlier) and time.monotonic() < deadline:
+        # (no copy: _settled reads from the newest state back, and the callback thread only appends)
+        while own and not _settled(states, own[-1], earlier) and time.monotonic() < deadline:
             time.sleep(0.001)
         t_prev = time.monotonic()
         if 'command' in step:
