@@ -104,7 +104,8 @@ class SimActuator(Node):
         self._msg.name = [s.joint]
         self._pub = self.create_publisher(JointState, BROADCASTER_JOINT_STATES.name, qos(BROADCASTER_JOINT_STATES))
         jt, fw = trajectory_topic(cfg.trajectory_controller), forward_topic(cfg.forward_controller)
-        guard = self._problems.guard  # the callback boundary: an exception is counted, logged and swallowed
+        #: the callback boundary: an exception is counted, logged and swallowed
+        self.guard = guard = self._problems.guard
         on_trajectory = guard.wrap('sub_trajectory', MessageInfoCallback(self._on_trajectory))
         self.create_subscription(JointTrajectory, jt.name, on_trajectory, qos(jt))
         self.create_subscription(Float64MultiArray, fw.name, guard.wrap('sub_forward', self._on_forward), qos(fw))

@@ -26,7 +26,6 @@ from fourbar_ros.rules.takeover import (
     Start,
     connect,
     continued,
-    ends_soon,
     motion_start,
     outgoing_stamp,
 )
@@ -100,9 +99,6 @@ def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: f
                        f'{cfg.driven_joint} on {MEASURED_JOINT_STATES.name} yet')
     try:
         plan = plan_command(cfg, start.state, theta)
-        if start.before is not None and ends_soon(start, start.at + plan.duration, now_ns):
-            start = start.here(now_ns)  # too short to stamp (``outgoing_stamp``): from the motion's state now
-            plan = plan_command(cfg, start.state, theta)
         if isinstance(contract, ForwardControllerSettings):
             out: Outgoing | Refused = Outgoing(Motion(now_ns, plan=plan), setpoints=planned_setpoints(cfg, plan))
         else:

@@ -149,6 +149,8 @@ class TrajectoryFollower:
         self.counters = FollowerCounters()
         self._hold = Setpoint(position, 0.0, 0.0)
         self._trajectory: Trajectory | None = None
+        #: the trajectory followed up to the latest takeover (None: a hold, at rest)
+        self.previous: Trajectory | None = None
         #: (arrival ns, stamp ns, points) of each accepted trajectory, oldest first, until an update takes it
         self._pending: deque[tuple[int, int, tuple[Waypoint, ...]]] = deque(maxlen=MAX_PENDING)
         tol = settings.tolerance(joint)
@@ -183,6 +185,11 @@ class TrajectoryFollower:
         self._pending.clear()
 
     @property
+    def trajectory(self) -> Trajectory | None:
+        """The trajectory followed now (None: a hold)."""
+        return self._trajectory
+
+    @property
     def waiting(self) -> int:
         """How many accepted trajectories no update has taken over yet."""
         return len(self._pending)
@@ -201,7 +208,7 @@ class TrajectoryFollower:
             reference = controller_reference(
                 self._velocity_state, [ControllerPoint(*p) for p in points], stamp, 0.0, position, velocity,
                 self.period)
-            self._trajectory = Trajectory(now, reference)
+            self.previous, self._trajectory = self._trajectory, Trajectory(now, reference)
             if self.on_takeover is not None:
                 self.on_takeover(reference)
             self.holding_reason = None

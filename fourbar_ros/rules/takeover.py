@@ -26,9 +26,10 @@ from fourbar_ros.rules.motion_plan import QUANTITIES, Motion, driven_range
 class Start:
     """Where a new motion starts: the driven joint's ``state`` at ``at`` s after ``origin_ns`` (node clock), the
     time 0 of the trajectory sent. Continuing a running trajectory, ``before`` holds its points from the one at or
-    before now up to the one at ``at`` (excluded), times from ``origin_ns`` (its stamp), and ``now_state`` its state
-    now; else ``origin_ns`` is now and ``at`` 0. ``from_measured``: a running motion was left for the measured
-    state; ``clamped``: the measured state was moved onto an end of the range."""
+    before now up to the one at ``at`` (excluded; all of them where it ends before ``at``, the drive resting at its
+    end until then), times from ``origin_ns`` (its stamp), and ``now_state`` its state now; else ``origin_ns`` is
+    now and ``at`` 0. ``from_measured``: a running motion was left for the measured state; ``clamped``: the
+    measured state was moved onto an end of the range."""
 
     state: JointMotionState
     origin_ns: int
@@ -47,8 +48,9 @@ class Start:
 
 #: The longest (s) a trajectory may take from the node's now to its takeover by the controller (planning, delivery,
 #: the controller's next update): a start from the measured state lies this far ahead, and a continuing motion
-#: departs from the running one no sooner.
-ARRIVAL_MARGIN_S = 0.1
+#: departs from the running one no sooner. Planning takes 1-2 ms of CPU; delivery to a controller manager under
+#: load took up to 170 ms (a 2-core machine under twice its load), hence 0.25 s.
+ARRIVAL_MARGIN_S = 0.25
 
 
 #: The most (s) a measurement's stamp may lie before the node's now and still stand for when it was measured: an
@@ -59,13 +61,14 @@ MEASURED_AGE_MAX_S = 2.0
 
 def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotionState | None, now_ns: int,
                  lead: float, measured_ns: int | None = None) -> Start | None:
-    """Where a new motion starts (``Start``): continuing a running quintic trajectory at its first point ``lead``
-    s or more after ``now_ns`` (``lead`` > 0), else now; on the running motion while the measured driven position
-    (at ``measured_ns``, node clock; None, or over ``MEASURED_AGE_MAX_S`` before now or after it: now) is within
-    ``replan_tolerance`` of it or predates its start, else from the measured state (velocity within the planner's
-    speed limit, acceleration 0) carried on to now (``carried``), moved onto an end of the range within
-    ``measured_range_tolerance``. With no motion running: the measured state, else the end of the last motion; None
-    before any of them exists."""
+    """Where a new motion starts (``Start``), ``lead`` s after ``now_ns`` in trajectory mode (``lead`` > 0), at now
+    in forward mode (``lead`` 0). While the measured driven position (at ``measured_ns``, node clock; None, or over
+    ``MEASURED_AGE_MAX_S`` before now or after it: now) is within ``replan_tolerance`` of the running motion or
+    predates its start: on that motion, continuing a quintic trajectory at its first point ``lead`` s or more after
+    now (where it ends sooner, at its end held until then), else at its state then. Off it: from the measured state
+    (velocity within the planner's speed limit, acceleration 0) carried on to the start (``carried``), moved onto an
+    end of the range within ``measured_range_tolerance``. With no motion running: the measured state, else the end
+    of the last motion; None before any of them exists."""
     if measured is not None:
         speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reduction
         if abs(measured.velocity) > speed:
@@ -87,11 +90,14 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
             traj = motion.trajectory
             if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC:
                 return _continuing(motion, traj, now_ns, lead, now_state)
-            return Start(now_state, now_ns)
+            # Not continued point for point (setpoints, or a cubic or linear antenna trajectory): from its state
+            # where the new trajectory starts, ahead like a start from the measured state, so that it goes out
+            # stamped and the node's model of it is the controller's.
+            return Start(motion.state_at(origin_ns), origin_ns)
         return _from_measured(cfg, carried(cfg, measured, age + ahead), origin_ns, left=True)
     if measured is not None:
         return _from_measured(cfg, carried(cfg, measured, age + ahead), origin_ns, left=False)
-    return None if motion is None else Start(motion.state_at(now_ns), now_ns)
+    return None if motion is None else Start(motion.state_at(origin_ns), origin_ns)
 
 
 def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float,
@@ -99,8 +105,12 @@ def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float
     t = motion.elapsed(now_ns)
     times = traj.times
     k0 = max(int(np.searchsorted(times, t, side='right')) - 1, 0)
-    k1 = min(int(np.searchsorted(times, t + lead, side='left')), len(traj) - 1)
+    k1 = int(np.searchsorted(times, t + lead, side='left'))
     assert traj.velocities is not None and traj.accelerations is not None
+    depart = float(on_wire(np.array([t + lead]))[0])
+    if k1 == len(traj) and depart > times[-1]:  # it ends before then: held at its end, at rest, until the departure
+        return Start(JointMotionState(float(traj.positions[-1])), motion.start_ns, depart, _cut(traj, k0), now_state)
+    k1 = min(k1, len(traj) - 1)
     state = JointMotionState(float(traj.positions[k1]), float(traj.velocities[k1]), float(traj.accelerations[k1]))
     return Start(state, motion.start_ns, float(times[k1]), _cut(traj, k0, k1), now_state)
 
@@ -191,24 +201,18 @@ def connect(cfg: AntennaConfig, converted: Converted, start: Start, stamp_ns: in
                                        f'{float(tail.positions[0])!r} rad in {gap:.6g} s: {problem}')
             shift = _least_gap(head, tail, gap, limits, lower, upper) - gap
         joined = continued(start, _joined(head, tail, offset - at + shift))
-    if stamp_ns == 0 and start.before is not None and ends_soon(start, float(joined.times[-1]), now_ns):
-        return connect(cfg, converted, start.here(now_ns), stamp_ns, now_ns)
     return Converted(joined, converted.inserted, converted.bound, converted.retimed or shift > 0.0,
                      outgoing_stamp(cfg, start, joined, now_ns) if stamp_ns == 0 else start.origin_ns)
 
 
 def outgoing_stamp(cfg: AntennaConfig, start: Start, traj: DrivenTrajectory, now_ns: int) -> int:
     """The stamp (ns) of a trajectory ``traj`` starting at ``start`` (times from ``start.origin_ns``): that origin,
-    or 0 (start on arrival) for a new one that ends within ``ARRIVAL_MARGIN_S`` (``ends_soon``)."""
-    if start.before is None and ends_soon(start, float(traj.times[-1]), now_ns):
-        return 0
-    return start.origin_ns
-
-
-def ends_soon(start: Start, end: float, now_ns: int) -> bool:
-    """Whether a motion ending ``end`` s after ``start.origin_ns`` ends within ``ARRIVAL_MARGIN_S`` of ``now_ns``, or
-    of its start where that lies ahead (a short motion from the measured state)."""
-    return end - max(ns_to_seconds(now_ns - start.origin_ns), 0.0) <= ARRIVAL_MARGIN_S
+    or 0 (start on arrival) for a new one that ends within ``ARRIVAL_MARGIN_S`` of ``now_ns`` (stamped, the
+    controller could find it ended on arrival, and refuse it). A start ahead of now (from the measured state) or a
+    continuation departs the margin after now or later, so it is always stamped: the node's model of the motion
+    is the controller's."""
+    end = float(traj.times[-1]) - ns_to_seconds(now_ns - start.origin_ns)
+    return 0 if start.before is None and end <= ARRIVAL_MARGIN_S else start.origin_ns
 
 
 def _cut(traj: DrivenTrajectory, first: int, end: int | None = None) -> DrivenTrajectory:

@@ -7,7 +7,9 @@ and parameter changes. After every step, both sides having handled it:
 - every trajectory it sent passed the controller's contract (the node's own check and the strict simulated
   controller refused none);
 - the whole motion the controller makes of each (``rules.controller_motion``, from the state measured at its
-  takeover, lead-in included) is within the motor's speed, acceleration and jerk limits.
+  takeover, lead-in included) is within the motor's speed, acceleration and jerk limits;
+- at every takeover the node promises continuity for, the reference's acceleration steps by at most
+  ``TAKEOVER_STEP`` of the limit (``continuity``).
 
 ``make test`` runs a few short sequences (seconds); ``make test-stress`` many longer ones (minutes).
 """
@@ -15,6 +17,7 @@ and parameter changes. After every step, both sides having handled it:
 from __future__ import annotations
 
 import math
+from collections import deque
 from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
@@ -36,7 +39,9 @@ from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
+from fourbar_ros.rules.command_fate import Readiness
 from fourbar_ros.rules.controller_motion import Reference
+from fourbar_ros.rules.simulated_drive import Trajectory
 
 pytestmark = pytest.mark.ros
 
@@ -46,6 +51,46 @@ JOINT = CFG.driven_joint
 NS = '/stateful'
 #: The motion's limits hold to rounding: the closed-form extremes of the quintics through the planned points.
 ROUNDING = 1e-9
+#: The most the reference's acceleration may step at a takeover, as a fraction of the limit: the node's plans are
+#: jerk-limited, and a step is an unbounded jerk.
+TAKEOVER_STEP = 0.05
+#: A lead-in spanning at most this (rad) between states at rest is the controller holding the drive until the first
+#: point (a start from rest stamped ahead), not a motion of its own.
+HELD = 1e-9
+
+
+def _smooth_at(ref: Reference, t: float) -> bool:
+    """Whether the reference at ``t`` s from its origin is the node's jerk-limited motion: a quintic segment of its
+    points (or the hold after them: acceleration 0), or a lead-in holding the drive at rest until the first point.
+    Not: a cubic or linear segment, or a lead-in that moves the drive (the controller's own, from a measured state
+    off the motion)."""
+    knots = ref.knots
+    if knots.size < 2 or t >= knots[-1]:
+        return True
+    i = max(int(np.searchsorted(knots, t, side='right')) - 1, 0)
+    if ref.degrees[i] < 5:
+        return False
+    if i == 0 and ref.lead_in:
+        (p0, v0, _), (p1, v1, _) = ref.sample(float(knots[0])), ref.sample(float(knots[1]))
+        return v0 == 0.0 and v1 == 0.0 and abs(p1 - p0) <= HELD
+    return True
+
+
+def continuity(before: Trajectory | None, after: Trajectory) -> float | None:
+    """The step of the reference's acceleration (a fraction of the limit) where the controller took ``after`` over
+    from ``before`` (None: a hold at rest), or None where the node promises no continuity: either side not smooth
+    there (``_smooth_at``: a cubic's acceleration is free at its points, a linear one steps; a lead-in that moves
+    the drive follows a start from a measured state off the running motion, after a faulty measurement or with
+    ``replan_tolerance`` 0)."""
+    if not _smooth_at(after.reference, 0.0):
+        return None
+    a0 = 0.0
+    if before is not None:
+        t = after.start - before.start
+        if not _smooth_at(before.reference, t):
+            return None
+        a0 = before.reference.sample(t)[2]
+    return abs(after.reference.sample(0.0)[2] - a0) / LIMITS.at_rocker(2)
 
 
 def worst_ratio(ref: Reference) -> float:
@@ -72,6 +117,16 @@ class Rig:
         self.references: list[Reference] = []
         self.worst = 0.0
         self.worst_reference: Reference | None = None
+        #: the takeovers continuity was checked at, the largest acceleration step (fraction of the limit) and both
+        #: sides there; the next takeover after a faulty measurement is left out (it may start from that fault)
+        self.continuous_checked = 0
+        self.worst_step = 0.0
+        self.worst_step_sides: tuple[Trajectory | None, Trajectory] | None = None
+        self.after_fault = False
+        self.holds = 0
+        #: the latest steps taken (rule and arguments), to say what led to the worst step
+        self.recent: deque[str] = deque(maxlen=12)
+        self.worst_step_after: list[str] = []
         self.sim.follower.on_takeover = self._taken_over
         #: every measured driven position the node's completion passed on to the actuation
         self.seen: set[float] = set()
@@ -89,6 +144,9 @@ class Rig:
 
         def received(*args: Any) -> Any:
             refusal = receive(*args)
+            _names, points, stamp, now = args
+            self.recent.append(f'the sim received {len(points)} points, stamp {stamp}, at {now}, first at '
+                               f'{points[0].time_from_start if points else None}')
             if refusal is not None:
                 _names, points, stamp, now = args
                 last = points[-1].time_from_start if points else None
@@ -109,6 +167,19 @@ class Rig:
 
     def _taken_over(self, ref: Reference) -> None:
         self.references.append(ref)
+        follower = self.sim.follower
+        assert follower.trajectory is not None
+        holds = follower.counters.tolerance_holds + follower.counters.goal_time_holds
+        # A controller that held on a tolerance since the last takeover dropped the motion the node may go on
+        # from: the node notices only once the drive is replan_tolerance off it.
+        step = (None if self.after_fault or holds > self.holds
+                else continuity(follower.previous, follower.trajectory))
+        self.after_fault, self.holds = False, holds
+        if step is not None:
+            self.continuous_checked += 1
+            if step > self.worst_step:
+                self.worst_step, self.worst_step_sides = step, (follower.previous, follower.trajectory)
+                self.worst_step_after = list(self.recent)
         ratio = worst_ratio(ref)
         if ratio > self.worst:
             self.worst, self.worst_reference = ratio, ref
@@ -154,6 +225,7 @@ class Sequences(RuleBasedStateMachine):
 
     @rule(theta=angles)
     def command(self, theta: float) -> None:
+        self.rig.recent.append(f'command {theta!r}')
         counters = self.rig.node.counters
         before = counters.commands_received
         self.rig.cmd.publish(Float64(data=theta))
@@ -172,6 +244,8 @@ class Sequences(RuleBasedStateMachine):
                                     accelerations=[0.0] if fields == 2 else [], time_from_start=_duration(t))
                for i, t in enumerate(times)]
         msg = JointTrajectory(joint_names=[ANTENNA_JOINT], points=pts)
+        self.rig.recent.append(f'antenna trajectory stamp {stamp}, times {times}, theta {theta}, rates {rates}, '
+                               f'fields {fields}')
         now = self.rig.node.get_clock().now().nanoseconds
         at = {'zero': 0, 'past': now - 500_000_000, 'future': now + 300_000_000}[stamp]
         msg.header.stamp = Time(sec=at // 10**9, nanosec=at % 10**9)
@@ -188,6 +262,8 @@ class Sequences(RuleBasedStateMachine):
             return
         measured = self.rig.node.actuation.measured
         q = math.nan if kind == 'nan' else (measured.position if measured else 0.86) + jump
+        self.rig.after_fault |= kind == 'jump'
+        self.rig.recent.append(f'measurement {kind} {q!r}')
         completion = self.rig.node.completion
         assert completion is not None
         counters = completion.counters
@@ -203,6 +279,7 @@ class Sequences(RuleBasedStateMachine):
 
     @rule(policy=st.sampled_from(['reject', 'retime']), tolerance=st.sampled_from([0.0, 0.002, 0.02, 0.05]))
     def parameters(self, policy: str, tolerance: float) -> None:
+        self.rig.recent.append(f'parameters {policy} {tolerance}')
         results = self.rig.node.set_parameters([Parameter('limit_policy', value=policy),
                                                 Parameter('replan_tolerance', value=tolerance)])
         assert all(r.successful for r in results), [r.reason for r in results]
@@ -211,8 +288,18 @@ class Sequences(RuleBasedStateMachine):
     def controller(self, active: bool) -> None:
         """The simulated controllers deactivated or activated (as `switch_controllers` does): while inactive what the
         node sends is dropped and the drive holds."""
+        self.rig.recent.append(f'controller active {active}')
         results = self.rig.sim.set_parameters([Parameter('controller_active', value=active)])
         assert all(r.successful for r in results), [r.reason for r in results]
+        fates = self.rig.node.actuation.fates
+        if fates.readiness is Readiness.NOT_FOLLOWED:
+            # Without the controller manager's messages the node cannot hear it: the next takeover may continue a
+            # motion the controller dropped.
+            self.rig.after_fault = True
+            return
+        want = 'active' if active else 'inactive'
+        self.rig.ros.wait_for(lambda: (fates.readiness is Readiness.ACTIVE) == active,
+                              what=f'the node to see the controller {want} (it sees {fates.readiness.value})')
 
     @invariant()
     def nothing_broke(self) -> None:
@@ -220,10 +307,12 @@ class Sequences(RuleBasedStateMachine):
         rig.settled()
         node = rig.node
         assert node.guard.total == 0, node.guard.errors
+        assert rig.sim.guard.total == 0, rig.sim.guard.errors  # the rig's checks run in the sim's callbacks
         assert sum(node.actuation.counters.refused.values()) == 0, node.actuation.counters.refused
         follower = rig.sim.follower.counters
         assert sum(follower.refused.values()) + follower.refused_not_finite == 0, rig.refusals
         assert rig.worst <= 1.0 + ROUNDING, (rig.worst, rig.worst_reference)
+        assert rig.worst_step <= TAKEOVER_STEP, _step_report(rig)
         # every served command has one fate: final, but for the latest
         fates = node.actuation.fates
         served = node.counters.commands_accepted + node.counters.commands_clamped
@@ -232,13 +321,26 @@ class Sequences(RuleBasedStateMachine):
         assert finals + pending == served, (served, fates.counts, fates.current)
 
 
+def _step_report(rig: Rig) -> str:
+    """Both sides of the worst acceleration step at a takeover."""
+    assert rig.worst_step_sides is not None
+    before, after = rig.worst_step_sides
+    t = after.start - before.start if before is not None else 0.0
+    was = before.reference.sample(t) if before is not None else 'a hold at rest'
+    return (f'at a takeover the reference acceleration stepped by {rig.worst_step:.1%} of the limit (at most '
+            f'{TAKEOVER_STEP:.0%}): followed until then {was} (rad, rad/s, rad/s^2), taken over '
+            f'{after.reference.sample(0.0)}, after the steps {rig.worst_step_after}; the reference followed '
+            f'{before.reference if before is not None else None}; the new reference {after.reference}')
+
+
 def _run(rig: Rig, examples: int, steps: int) -> None:
     Sequences.rig = rig
     run_state_machine_as_test(Sequences, settings=settings(
         max_examples=examples, stateful_step_count=steps, deadline=None, derandomize=True,
         suppress_health_check=list(HealthCheck)))
     print(f'stateful: {len(rig.references)} trajectories taken over; the worst whole-motion limit ratio '
-          f'{rig.worst:.9f}; node counters {rig.node.actuation.counters.as_dict()}')
+          f'{rig.worst:.9f}; continuity checked at {rig.continuous_checked} takeovers, the largest acceleration '
+          f'step {rig.worst_step:.2%} of the limit; node counters {rig.node.actuation.counters.as_dict()}')
 
 
 def test_random_sequences_never_stop_the_node_nor_break_the_contract_or_the_limits(rig: Rig) -> None:

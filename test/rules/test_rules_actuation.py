@@ -249,8 +249,8 @@ def test_setpoint_streams_are_held_to_every_limit_by_their_divided_differences()
 
 def test_each_input_has_one_entry_returning_what_goes_out_or_a_refusal() -> None:
     """A served command and an antenna trajectory message, each through its entry: what goes out (a trajectory
-    stamped with its start, ARRIVAL_MARGIN_S ahead from the measured state; 0, start on arrival, for a short one;
-    setpoints in forward mode) or a refusal, counted."""
+    stamped with its start, ARRIVAL_MARGIN_S ahead from the measured state, a short one too: it cannot end before
+    it arrives; setpoints in forward mode) or a refusal, counted."""
     jtc, fwd = actuation_contract(CFG, 'trajectory'), actuation_contract(CFG, 'forward')
     now, counters = 10**12, ActuationCounters()
     rest = Drive(measured=JointMotionState(float(driven_angles(CFG, np.array([0.0]))[0])), measured_ns=now)
@@ -258,7 +258,7 @@ def test_each_input_has_one_entry_returning_what_goes_out_or_a_refusal() -> None
     far, near = (serve_command(CFG, jtc, rest, theta, now, counters) for theta in (0.03, 1e-5))
     ahead = now + seconds_to_ns(ARRIVAL_MARGIN_S)
     assert isinstance(far, Outgoing) and far.stamp_ns == far.motion.start_ns == ahead and far.setpoints is None
-    assert isinstance(near, Outgoing) and near.stamp_ns == 0 and near.motion.duration <= ARRIVAL_MARGIN_S
+    assert isinstance(near, Outgoing) and near.stamp_ns == ahead and near.motion.duration <= ARRIVAL_MARGIN_S
     stream = serve_command(CFG, fwd, rest, 0.03, now, counters)
     assert isinstance(stream, Outgoing) and stream.setpoints is not None and not stream.points
     msg = SimpleNamespace(header=SimpleNamespace(stamp=Duration()), joint_names=[ANTENNA_JOINT],
