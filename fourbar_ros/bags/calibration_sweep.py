@@ -49,8 +49,8 @@ class Sweep:
     driven: Driven = Driven.GAMMA
     branch: Branch = Branch.UPPER
     seed: int = 0
-    #: The antenna's load as built (``load_calibration.LOAD_NAMES``: kg, m, m, N m, efficiency): the joint states
-    #: then carry the joint's velocity (rad/s) and the effort it takes (N m, ``effort_model``) plus noise.
+    #: The antenna's load as built (``load_calibration.LOAD_NAMES``: kg, m, m, N m, N m s/rad, efficiency): the joint
+    #: states then carry the joint's velocity (rad/s) and the effort it takes (N m, ``effort_model``) plus noise.
     load: dict[str, float] | None = None
     effort_noise: float = 0.02
     #: A real sensor's faults: a Float64 sensor's readings multiplied by ``sensor_scale`` (-1: the sign flipped,

@@ -200,17 +200,13 @@ def _offsets(cfg: AntennaConfig, fit: Calibration) -> dict[str, float]:
             'antenna_sensor_offset': fit.parameter('sensor_offset').value}
 
 
-#: The load parameters that are node parameters (written to OUT.yaml when the data determined them).
-_NODE_LOAD_PARAMETERS = ('antenna_mass', 'com_offset_along', 'com_offset_normal', 'reducer_efficiency')
-
-
 def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[str, Any] | None:
     """The load model fitted to the measured effort (``core.load_calibration``), as the report's ``load``: None
     without an effort in the recording; ``{"skipped": why}`` when it cannot be fitted (the geometry still is)."""
     import numpy as np
 
     from fourbar_ros.core.calibration import CalibrationError
-    from fourbar_ros.core.load_calibration import LoadPrior, calibrate_load
+    from fourbar_ros.core.load_calibration import Geometry, LoadPrior, calibrate_load, target_sd, written
 
     effort = data.joint_effort
     finite = np.isfinite(effort)
@@ -219,21 +215,20 @@ def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[s
     if not cfg.gravity > 0.0:
         return {'skipped': 'gravity is 0 in the parameter file'}
     q_rate = data.joint_rate()
-    prior = LoadPrior(cfg.antenna_mass, cfg.com_offset_along, cfg.com_offset_normal, 0.0, cfg.reducer_efficiency)
-    q_true = data.joint_q + fit.parameter('driven_joint_offset').value
+    prior = LoadPrior(cfg.antenna_mass, cfg.com_offset_along, cfg.com_offset_normal,
+                      reducer_efficiency=cfg.reducer_efficiency)
     try:
-        load, used = calibrate_load(fit.linkage(), q_true, q_rate, effort, cfg.driven, cfg.measured_branch,
-                                    cfg.gravity, prior)
+        load, used = calibrate_load(Geometry(fit.values, fit.covariance), data.joint_q, q_rate, effort, cfg.driven,
+                                    cfg.measured_branch, cfg.gravity, prior)
     except CalibrationError as exc:
         return {'skipped': str(exc)}
-    units = {'antenna_mass': 'kg', 'coulomb_friction': 'N m', 'reducer_efficiency': ''}
-    fitted = {p.name: p for p in load.parameters}
-    parameters = {p.name: {'value': p.value, 'sd': p.sd, 'determined_by_data': p.determined_by_data,
-                           'prior': p.prior, 'prior_sd': p.prior_sd, 'unit': units.get(p.name, 'm')}
+    units = {'antenna_mass': 'kg', 'coulomb_friction': 'N m', 'viscous_friction': 'N m s/rad',
+             'reducer_efficiency': ''}
+
+    parameters = {p.name: {'value': p.value, 'sd': p.sd, 'target_sd': target_sd(p.name, p.value),
+                           'determined_by_data': p.determined_by_data, 'prior': p.prior, 'prior_sd': p.prior_sd,
+                           'unit': units.get(p.name, 'm')}
                   for p in load.parameters}
-    written = {name: fitted[name].value for name in _NODE_LOAD_PARAMETERS
-               if fitted[name].determined_by_data
-               and (name != 'reducer_efficiency' or 0.0 < fitted[name].value <= 1.0)}
     r = load.residuals
     return {
         'parameters': parameters,
@@ -244,10 +239,11 @@ def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[s
         'noise_sd_N_m': load.sigma,
         'singular_values': [float(x) for x in load.singular_values],
         'directions_determined_by_data': int(np.count_nonzero(load.singular_values > math.sqrt(3.0))),
-        'model': ('effort = tau_in / reducer_efficiency + coulomb_friction sign(q_dot) when the motor drives, '
-                  'tau_in reducer_efficiency + ... when back-driven; tau_in = antenna_mass g dy_com/dtheta '
-                  'dtheta/dq at the calibrated pose; readings at rest left out'),
-        'written_to_parameter_file': written,
+        'model': ('effort = tau_in / reducer_efficiency + coulomb_friction sign(q_dot) + viscous_friction q_dot '
+                  'when the motor drives, tau_in reducer_efficiency + ... when back-driven; tau_in = antenna_mass g '
+                  'dy_com/dtheta dtheta/dq at the calibrated pose; readings at rest left out; sds include the '
+                  'geometry\'s uncertainty'),
+        'written_to_parameter_file': written(load),
     }
 
 
@@ -386,10 +382,13 @@ def _summary(report: dict[str, Any], files: dict[Path, bytes]) -> str:
     if isinstance(load, dict) and 'parameters' in load:
         lines.append(f'  load from the measured effort ({load["readings"]} moving readings, residual RMS '
                      f'{load["residual_rms_N_m"]:.3g} N m):')
+        written = load['written_to_parameter_file']
         for name, p in load['parameters'].items():
             by = 'data' if p['determined_by_data'] else 'prior'
+            target = p['target_sd']
+            fate = '' if target is None else f'; {"" if name in written else "not "}written, target sd {target:.2g}'
             lines.append(f'  {name:<20} {p["value"]:.6g} {p["unit"]} (sd {p["sd"]:.2g}, prior {p["prior"]:.6g} '
-                         f'sd {p["prior_sd"]:.2g}; by the {by})'.replace('  (', ' ('))
+                         f'sd {p["prior_sd"]:.2g}; by the {by}{fate})'.replace('  (', ' ('))
     elif isinstance(load, dict):
         lines.append(f'  load model not fitted: {load["skipped"]}')
     offsets = report['offsets_in_parameter_file']
