@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from fourbar_ros.bags.storage import FLOAT64, JOINT_STATE, MEASURED, BagError, jazzy_typestore, open_bag
-from fourbar_ros.core.calibration import CalibrationError, imu_roll, imu_tilt, imu_valid
+from fourbar_ros.core.calibration import CalibrationError, imu_roll, imu_tilt, imu_valid, imu_yaw
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.interface.cdr import (
@@ -48,8 +48,9 @@ class CalibrationData:
     ``q``: the driven joint at the sensor's paired times (rad, interpolated); ``theta``: the sensor's readings there
     (rad); ``joint_times``/``joint_q``/``joint_velocity``/``joint_effort``: the encoder's own stream (rad, rad/s,
     N m; velocity and effort NaN where not measured). ``sensor_invalid`` / ``joint_invalid``: readings dropped
-    (non-finite; for an IMU also an acceleration not gravity-sized, ``imu_valid``); ``imu_roll``: the IMU's median
-    roll about its x axis (rad, ``imu_roll``; NaN for a Float64 sensor).
+    (non-finite; for an IMU also an acceleration not gravity-sized, ``imu_valid``); ``imu_yaw``: the IMU's yaw about
+    its z axis found from the sweep (rad, ``imu_yaw``; NaN for a Float64 sensor or without an arc: the tilt then
+    takes 0); ``imu_roll``: its median roll about its x axis (rad, ``imu_roll``; NaN for a Float64 sensor).
     """
 
     path: Path
@@ -69,6 +70,7 @@ class CalibrationData:
     sensor_invalid: int = 0
     joint_invalid: int = 0
     imu_roll: float = math.nan
+    imu_yaw: float = math.nan
 
     @property
     def outside(self) -> int:
@@ -159,14 +161,16 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
     s_log = np.array(logs[angle_topic], dtype=np.int64)
     s_ns: Any
     theta: FloatArray
-    roll = math.nan
+    roll = yaw = math.nan
     if sensor_type == IMU:
         s_ns, acc = _imus(p, angle_topic, raws[angle_topic], s_log)
         ax, ay, az = acc.T
         valid = imu_valid(ax, ay, az)
-        theta = np.where(valid, imu_tilt(ax, ay, az), np.nan)
+        yaw = imu_yaw(ax[valid], ay[valid], az[valid])
+        turn = yaw if math.isfinite(yaw) else 0.0
+        theta = np.where(valid, imu_tilt(ax, ay, az, turn), np.nan)
         if valid.any():
-            roll = float(np.median(imu_roll(ay[valid], az[valid])))
+            roll = float(np.median(imu_roll(ax[valid], ay[valid], az[valid], turn)))
     else:
         s_ns, theta = s_log, _float64s(p, angle_topic, raws[angle_topic])
     finite_j, finite_s = np.isfinite(q), np.isfinite(theta)
@@ -183,7 +187,7 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
     st = (s_ns - t0) * 1e-9
     times, qp, thp = pair(jt, q, st, theta)
     return CalibrationData(p, chosen, angle_topic, sensor_type, t0, jt, q, velocity, effort, st, theta, times, qp,
-                           thp, int(np.count_nonzero(~finite_s)), int(np.count_nonzero(~finite_j)), roll)
+                           thp, int(np.count_nonzero(~finite_s)), int(np.count_nonzero(~finite_j)), roll, yaw)
 
 
 def _topics(types: dict[str, str]) -> str:

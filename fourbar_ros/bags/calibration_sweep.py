@@ -54,10 +54,12 @@ class Sweep:
     load: dict[str, float] | None = None
     effort_noise: float = 0.02
     #: A real sensor's faults: a Float64 sensor's readings multiplied by ``sensor_scale`` (-1: the sign flipped,
-    #: 180/pi: degrees); an IMU rolled by ``imu_roll`` (rad) about its x axis; ``glitches``: (reading index, rad
-    #: added), NaN making the reading invalid (a Float64 NaN, an IMU's all-zero acceleration).
+    #: 180/pi: degrees); an IMU rolled by ``imu_roll`` (rad) about its x axis, then yawed by ``imu_yaw`` (rad)
+    #: about its z; ``glitches``: (reading index, rad added), NaN making the reading invalid (a Float64 NaN, an
+    #: IMU's all-zero acceleration).
     sensor_scale: float = 1.0
     imu_roll: float = 0.0
+    imu_yaw: float = 0.0
     glitches: tuple[tuple[int, float], ...] = ()
     #: The sensor's noise from one reading to the next, AR(1) with this lag-1 correlation (its sd sensor_noise).
     noise_correlation: float = 0.0
@@ -127,7 +129,7 @@ def write_calibration_bag(path: str | os.PathLike[str], sweep: Sweep, joint_topi
     joint_raws = encode_joint_states(j_ns, '', sweep.names, position, efforts, velocities,
                                      np.full(tj.size, has_velocity))
     if sweep.sensor == 'imu':
-        sensor_raws = _imus(s_ns, reading, sweep.imu_roll)
+        sensor_raws = _imus(s_ns, reading, sweep.imu_roll, sweep.imu_yaw)
         sensor_type = IMU
     elif sweep.sensor == 'float64':
         sensor_raws = encode_float64s(reading * sweep.sensor_scale)
@@ -174,9 +176,10 @@ def _load(sweep: Sweep, tj: np.ndarray, rng: np.random.Generator) -> tuple[np.nd
     return q_rate, effort, True
 
 
-def _imus(stamps_ns: np.ndarray, theta: np.ndarray, roll: float = 0.0) -> list[bytes]:
-    """CDR Imu messages at rest on the antenna at ``theta`` (rad), rolled by ``roll`` (rad) about x:
-    linear_acceleration = g (-sin theta, cos theta sin roll, cos theta cos roll); all zero where theta is NaN."""
+def _imus(stamps_ns: np.ndarray, theta: np.ndarray, roll: float = 0.0, yaw: float = 0.0) -> list[bytes]:
+    """CDR Imu messages at rest on the antenna at ``theta`` (rad), rolled by ``roll`` (rad) about x, then yawed by
+    ``yaw`` about its z: linear_acceleration = Rz(-yaw) g (-sin theta, cos theta sin roll, cos theta cos roll); all
+    zero where theta is NaN."""
     store = jazzy_typestore()
     t = store.types
     msg = t[IMU](header=t['std_msgs/msg/Header'](stamp=t['builtin_interfaces/msg/Time'](sec=0, nanosec=0),
@@ -192,13 +195,14 @@ def _imus(stamps_ns: np.ndarray, theta: np.ndarray, roll: float = 0.0) -> list[b
     at += -(at - 4) % 8
     accel_at = at + 8 * (4 + 9 + 3 + 9)
     sec, nanosec = split_ns(stamps_ns)
+    cy, sy = math.cos(yaw), math.sin(yaw)
     out = []
     for s, ns, th in zip(sec.tolist(), nanosec.tolist(), theta.tolist(), strict=True):
         raw = bytearray(template)
         struct.pack_into('<iI', raw, 4, s, ns)
-        accel = ((0.0, 0.0, 0.0) if math.isnan(th) else
-                 (-GRAVITY * math.sin(th), GRAVITY * math.cos(th) * math.sin(roll),
-                  GRAVITY * math.cos(th) * math.cos(roll)))
+        x, y, z = (-GRAVITY * math.sin(th), GRAVITY * math.cos(th) * math.sin(roll),
+                   GRAVITY * math.cos(th) * math.cos(roll))
+        accel = (0.0, 0.0, 0.0) if math.isnan(th) else (cy * x + sy * y, -sy * x + cy * y, z)
         struct.pack_into('<3d', raw, accel_at, *accel)
         out.append(bytes(raw))
     return out

@@ -183,9 +183,12 @@ def _direction_report(direction: DirectionTerms) -> dict[str, Any]:
 
 
 def _live_check(report: dict[str, Any], direction: DirectionTerms) -> dict[str, float]:
-    """The node's parameters for its live check in sds: the sensor's latency (s), its noise sd (rad) and lag-1
-    correlation, and the map's largest sd (rad), each within its parameter's range."""
-    return {'antenna_sensor_latency': min(max(direction.latency, -1.0), 1.0),
+    """The node's parameters for its live check in sds: an IMU's yaw (rad) where the sweep found it, the sensor's
+    latency (s), its noise sd (rad) and lag-1 correlation, and the map's largest sd (rad), each within its
+    parameter's range."""
+    yaw = report['imu_yaw_rad']
+    return {**({} if yaw is None else {'antenna_imu_yaw': yaw}),
+            'antenna_sensor_latency': min(max(direction.latency, -1.0), 1.0),
             'antenna_sensor_noise': float(report['noise_sd_rad']),
             'antenna_sensor_noise_correlation': min(max(float(report['noise_lag1_correlation']), 0.0), 0.999),
             'antenna_sensor_map_sd': float(report['absolute_angle']['sensor_map_largest_sd_rad'])}
@@ -284,6 +287,7 @@ def _report(args: argparse.Namespace, cfg: AntennaConfig, data: CalibrationData,
         'sensor_readings_invalid': data.sensor_invalid,
         'joint_readings_invalid': data.joint_invalid,
         'imu_roll_rad': data.imu_roll if math.isfinite(data.imu_roll) else None,
+        'imu_yaw_rad': data.imu_yaw if math.isfinite(data.imu_yaw) else None,
         'readings_set_aside': fit.set_aside,
         'set_aside_rule': (f'a robust fit ({DEFAULT_LOSS} loss) first; readings whose residual exceeds '
                            f'{SET_ASIDE_SDS:g} robust noise sds are set aside, the fit and its sds use the rest'),
@@ -371,8 +375,11 @@ def _summary(report: dict[str, Any], files: dict[Path, bytes]) -> str:
         dropped.append(f'the residuals\' lag-1 correlation {report["noise_lag1_correlation"]:.2f} counts them as '
                        f'{report["independent_readings"]:.0f} independent readings')
     if report['imu_roll_rad'] is not None:
+        yaw = report['imu_yaw_rad']
         dropped.append(f'the IMU rolled {math.degrees(report["imu_roll_rad"]):.2f} deg about its x axis (the tilt '
-                       'does not depend on it)')
+                       'does not depend on it) and ' + ('no sweep to find its yaw (taken as 0)' if yaw is None else
+                                                         f'yawed {math.degrees(yaw):.2f} deg about its z axis (the '
+                                                         'tilt is taken about the joint axis found)'))
     lines.append(f'  {", ".join(dropped)}')
     for name, p in report['parameters'].items():
         by = 'data' if p['determined_by_data'] else 'prior'

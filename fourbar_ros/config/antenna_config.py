@@ -98,6 +98,7 @@ class AntennaConfig:
     tracking_window: float
     antenna_sensor_type: str
     antenna_sensor_offset: float
+    antenna_imu_yaw: float
     antenna_sensor_latency: float
     antenna_sensor_noise: float
     antenna_sensor_noise_correlation: float

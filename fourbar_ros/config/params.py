@@ -251,6 +251,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('antenna_sensor_offset', float, 0.0, 'rad',
               'The antenna sensor\'s reading when the antenna is level (its mounting error; `fourbar calibrate`\'s '
               'sensor_offset): subtracted from its readings.', -math.pi, math.pi),
+    ParamSpec('antenna_imu_yaw', float, 0.0, 'rad',
+              'An imu antenna sensor\'s turn about its z axis from the coupler frame (`fourbar calibrate`\'s '
+              'imu_yaw_rad): its readings are turned back by it before the tilt is taken.', -math.pi / 2, math.pi / 2),
     ParamSpec('antenna_sensor_latency', float, 0.0, 's',
               'How late the antenna sensor\'s readings are against the measured joint (`fourbar calibrate`\'s '
               'latency_s): a reading timed t is compared with the joint at t minus this.', -1.0, 1.0),

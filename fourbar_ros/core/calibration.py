@@ -30,6 +30,7 @@ __all__ = [
     'REST_SPAN',
     'SCALE_LIMITS',
     'SET_ASIDE_SDS',
+    'YAW_ARC',
     'Calibration',
     'CalibrationError',
     'DirectionTerms',
@@ -44,6 +45,7 @@ __all__ = [
     'imu_roll',
     'imu_tilt',
     'imu_valid',
+    'imu_yaw',
     'map_fit',
     'model_jacobian',
     'model_mismatch',
@@ -162,26 +164,58 @@ def model_mismatch(link: AntennaLinkage, q_measured: ArrayLike, sensor_theta: Ar
     return out
 
 
-def imu_tilt(ax: ArrayLike, ay: ArrayLike, az: ArrayLike) -> FloatArray:
-    """The antenna angle theta (rad) from an accelerometer at rest on the antenna: ``atan2(-a_x, hypot(a_y, a_z))``.
+#: The arc gravity traces over a sweep must stand this many times above its scatter for ``imu_yaw`` (a 13 deg sweep
+#: read with 0.02 m/s^2 of noise: about 30).
+YAW_ARC = 5.0
+
+
+def imu_tilt(ax: ArrayLike, ay: ArrayLike, az: ArrayLike, yaw: float = 0.0) -> FloatArray:
+    """The antenna angle theta (rad) from an accelerometer at rest on the antenna, mounted turned by ``yaw`` (rad)
+    about its z axis: ``atan2(-a'_x, hypot(a'_y, a_z))`` of the reading turned back by the yaw (``a' = Rz(yaw) a``).
 
     The IMU's axes are the robot model's coupler frame (REP-103): x along the antenna (B -> C), y along the joint
     axes (the model's +y), z up when theta = 0. The coupler frame is the root turned by theta about +y, so at rest
     the measured specific force (gravity's reaction, +9.8 m/s^2 up) reads (-g sin theta, 0, g cos theta): positive
-    theta (the antenna tilted down, x toward -z) gives a negative a_x. An IMU rolled by phi about its x axis reads
-    (-g sin theta, g cos theta sin phi, g cos theta cos phi): the hypot makes theta independent of the roll
-    (``imu_roll``). A small mounting error about y is the calibration's sensor offset; a mount turned about z (x not
-    along the antenna) changes the axis and must be undone first.
+    theta (the antenna tilted down, x toward -z) gives a negative a_x. An IMU mounted rolled by phi about x, then
+    yawed by psi about its z (frame Rx(phi) Rz(psi) of the coupler's) reads Rz(-psi) of (-g sin theta,
+    g cos theta sin phi, g cos theta cos phi): undoing the yaw and taking the hypot makes theta independent of the
+    roll (``imu_roll``); the yaw comes from the sweep (``imu_yaw``). A small mounting error about y is the
+    calibration's sensor offset.
     """
-    tilt: FloatArray = np.arctan2(-np.asarray(ax, dtype=np.float64),
-                                  np.hypot(np.asarray(ay, dtype=np.float64), np.asarray(az, dtype=np.float64)))
+    x, y, z = (np.asarray(a, dtype=np.float64) for a in (ax, ay, az))
+    if yaw != 0.0:
+        c, s = math.cos(yaw), math.sin(yaw)
+        x, y = c * x - s * y, s * x + c * y
+    tilt: FloatArray = np.arctan2(-x, np.hypot(y, z))
     return tilt
 
 
-def imu_roll(ay: ArrayLike, az: ArrayLike) -> FloatArray:
-    """The IMU's roll phi about its x axis (rad): ``atan2(a_y, a_z)`` of the reading at rest (imu_tilt's), 0 when
-    mounted as the coupler frame."""
-    roll: FloatArray = np.arctan2(np.asarray(ay, dtype=np.float64), np.asarray(az, dtype=np.float64))
+def imu_yaw(ax: ArrayLike, ay: ArrayLike, az: ArrayLike) -> float:
+    """The IMU's yaw psi about its z axis (rad, ``imu_tilt``'s), from readings at rest over a sweep about the joint:
+    the unit gravity vectors lie on a great circle whose normal is the joint axis in the IMU's frame,
+    (cos phi sin psi, cos phi cos psi, -sin phi); the normal is the plane's least singular vector, turned to +y.
+    NaN when the readings do not trace an arc (fewer than 3, or the arc's singular value under YAW_ARC times the
+    scatter's about it or under 1e-3 of the mean direction's, about a 0.2 deg arc: one pose, or a sweep lost in
+    the noise)."""
+    u = np.column_stack([np.asarray(a, dtype=np.float64) for a in (ax, ay, az)])
+    u = u[np.isfinite(u).all(axis=1)]
+    if u.shape[0] < 3:
+        return math.nan
+    u = u / np.linalg.norm(u, axis=1)[:, None]
+    _, singular, rows = np.linalg.svd(u, full_matrices=False)
+    if not singular[1] >= max(YAW_ARC * singular[2], 1e-3 * singular[0]):
+        return math.nan
+    normal = rows[-1]
+    if normal[1] < 0.0:
+        normal = -normal
+    return math.atan2(float(normal[0]), float(normal[1]))
+
+
+def imu_roll(ax: ArrayLike, ay: ArrayLike, az: ArrayLike, yaw: float = 0.0) -> FloatArray:
+    """The IMU's roll phi about its x axis (rad): ``atan2(a'_y, a_z)`` of the reading at rest turned back by the
+    yaw (imu_tilt's), 0 when mounted as the coupler frame."""
+    x, y = np.asarray(ax, dtype=np.float64), np.asarray(ay, dtype=np.float64)
+    roll: FloatArray = np.arctan2(math.sin(yaw) * x + math.cos(yaw) * y, np.asarray(az, dtype=np.float64))
     return roll
 
 

@@ -55,7 +55,8 @@ class LiveModelCheck:
     def on_imu(self, msg: Imu) -> None:
         stamp = to_ns(msg.header.stamp)
         a = msg.linear_acceleration
-        self._compare(stamp if stamp else self._now_ns(), imu_theta(float(a.x), float(a.y), float(a.z)))
+        theta = imu_theta(float(a.x), float(a.y), float(a.z), self._config().antenna_imu_yaw)
+        self._compare(stamp if stamp else self._now_ns(), theta)
 
     def _compare(self, stamp_ns: int, theta: float | SensorSkipped) -> None:
         outcome = self.check.compare(self._config(), stamp_ns, theta, time.monotonic())

@@ -47,14 +47,15 @@ class SensorCounters:
     sensor_readings_skipped_out_of_reach: int = 0
 
 
-def imu_theta(ax: float, ay: float, az: float) -> float | SensorSkipped:
-    """The antenna angle (rad) from an Imu's linear acceleration at rest (m/s^2; ``core.calibration.imu_tilt``, the
-    same convention as ``fourbar calibrate``, independent of the IMU's roll), or why there is none."""
+def imu_theta(ax: float, ay: float, az: float, yaw: float = 0.0) -> float | SensorSkipped:
+    """The antenna angle (rad) from an Imu's linear acceleration at rest (m/s^2) mounted turned by ``yaw`` (rad)
+    about its z axis (``core.calibration.imu_tilt``, the same convention as ``fourbar calibrate``, independent of
+    the IMU's roll), or why there is none."""
     if not (math.isfinite(ax) and math.isfinite(ay) and math.isfinite(az)):
         return SensorSkipped.NOT_FINITE
     if not imu_valid(ax, ay, az):  # not gravity-sized: an all-zero vector, not at rest
         return SensorSkipped.NO_GRAVITY
-    return float(imu_tilt(ax, ay, az))
+    return float(imu_tilt(ax, ay, az, yaw))
 
 
 @dataclass(frozen=True)

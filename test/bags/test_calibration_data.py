@@ -12,7 +12,7 @@ import pytest
 from fourbar_ros.bags.calibration_data import imu_tilt, pair, read_calibration_data
 from fourbar_ros.bags.calibration_sweep import GRAVITY, Sweep, write_calibration_bag
 from fourbar_ros.bags.storage import JOINT_STATE
-from fourbar_ros.core.calibration import CalibrationError, imu_roll, imu_valid
+from fourbar_ros.core.calibration import CalibrationError, imu_roll, imu_valid, imu_yaw
 from fourbar_ros.interface.topics import Storage
 
 TRUTH = {'frame_length': 0.1803, 'rocker_ab_length': 0.0598, 'coupler_length': 0.1021, 'rocker_cd_length': 0.0602,
@@ -31,11 +31,33 @@ def test_imu_tilt_sign_follows_the_coupler_frame(roll_deg: float) -> None:
              GRAVITY * math.cos(theta) * math.cos(roll))
         # a few ulps of the components' rounding through hypot and atan2
         assert float(imu_tilt(*a)) == pytest.approx(theta, abs=1e-15)
-        assert float(imu_roll(a[1], a[2])) == pytest.approx(roll, abs=1e-15)
+        assert float(imu_roll(*a)) == pytest.approx(roll, abs=1e-15)
         assert bool(imu_valid(*a))
     assert not imu_valid(0.0, 0.0, 0.0)
     assert not imu_valid(math.nan, 0.0, GRAVITY)
     assert not imu_valid(0.0, 0.0, 1.0)  # in g, not m/s^2
+
+
+@pytest.mark.parametrize(('yaw_deg', 'roll_deg'), [(5.0, 0.0), (-5.0, 15.0), (30.0, -30.0), (0.0, 15.0)])
+def test_an_imu_yawed_about_its_z_axis(yaw_deg: float, roll_deg: float) -> None:
+    """An IMU rolled by phi about x, then yawed by psi about its z, reads Rz(-psi) of the rolled reading. Over a
+    sweep its readings trace a great circle about the joint axis: imu_yaw finds psi from them (the plane's normal,
+    exact to rounding for noiseless readings), and the tilt turned back by it is theta, the roll phi, for every
+    reading; untouched, the tilt would be off by up to theta (1 - cos psi) and more."""
+    yaw, roll = math.radians(yaw_deg), math.radians(roll_deg)
+    theta = np.linspace(-0.1, 0.12, 50)
+    x, y, z = (-GRAVITY * np.sin(theta), GRAVITY * np.cos(theta) * math.sin(roll),
+               GRAVITY * np.cos(theta) * math.cos(roll))
+    a = (math.cos(yaw) * x + math.sin(yaw) * y, -math.sin(yaw) * x + math.cos(yaw) * y, z)
+    found = imu_yaw(*a)
+    # the least singular vector of 50 unit vectors: rounding of order 1e-16 over the arc's singular value (~0.4)
+    assert found == pytest.approx(yaw, abs=1e-12)
+    # atan2 and hypot of components rounded to 1e-16 relative, turned by a yaw known to 1e-12 rad
+    assert np.allclose(imu_tilt(*a, found), theta, rtol=0.0, atol=1e-12)
+    assert np.allclose(imu_roll(*a, found), roll, rtol=0.0, atol=1e-12)
+    if yaw_deg:
+        assert np.abs(imu_tilt(*a) - theta).max() > 1e-4  # the yaw matters
+    assert math.isnan(imu_yaw(*(np.full(50, c[0]) for c in a)))  # one pose: no arc, no yaw
 
 
 @pytest.mark.parametrize('sensor', ['float64', 'imu'])

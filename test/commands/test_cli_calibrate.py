@@ -8,7 +8,9 @@ from __future__ import annotations
 import json
 import math
 import re
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -231,8 +233,30 @@ def map_error_in_sd(report: dict[str, object]) -> float:
     return float(np.max(error / np.array(absolute['sensor_reading_sd_rad'])))
 
 
+@pytest.fixture(scope='module')
+def faults() -> Iterator[list[tuple[str, str, str, str]]]:
+    """The fault recordings' table: (recording, absolute angle 1 sd, largest error (in sds), set by or refused),
+    printed when the module ends (``python -m pytest -s test/commands/test_cli_calibrate.py``)."""
+    rows: list[tuple[str, str, str, str]] = []
+    yield rows
+    print('\n| recording and options | absolute angle, 1 sd | error | set by, or the refusal |')
+    print('| --- | --- | --- | --- |')
+    for row in rows:
+        print('| ' + ' | '.join(row) + ' |')
+
+
+def tabled(faults: list[tuple[str, str, str, str]], name: str, report: dict[str, Any],
+           truth: dict[str, float] = TRUTH) -> None:
+    """Add a calibrated recording's row to the fault table."""
+    in_sd, error = absolute_error_in_sd(report, truth)
+    absolute = report['absolute_angle']
+    faults.append((name, f'{1e3 * absolute["largest_sd_rad"]:.3g} mrad', f'{1e3 * error:.2g} mrad ({in_sd:.2f} sd)',
+                   absolute['set_by']))
+
+
 def test_the_summary_gives_the_map_and_the_absolute_angle(tmp_path: Path, out: Path,
-                                                          capsys: pytest.CaptureFixture[str]) -> None:
+                                                          capsys: pytest.CaptureFixture[str],
+                                                          faults: list[tuple[str, str, str, str]]) -> None:
     bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP))
     assert calibrate(tmp_path, bag) == 0
     report = json.loads((out / 'report.json').read_text())
@@ -243,13 +267,15 @@ def test_the_summary_gives_the_map_and_the_absolute_angle(tmp_path: Path, out: P
     assert absolute['sensor_map_largest_sd_rad'] < 1e-4  # hundredths of a mrad
     assert absolute['largest_sd_rad'] > 1e-3  # mrad: the offsets trade against each other
     assert sum(absolute['variance_shares_at_largest_sd'].values()) == pytest.approx(1.0, rel=1e-9)
+    tabled(faults, 'a sweep, the default priors', report)
     printed = capsys.readouterr().out
     assert (f'the joint-to-sensor map is fixed to {1e3 * absolute["sensor_map_largest_sd_rad"]:.2g} mrad; the '
             f'antenna\'s absolute angle to {1e3 * absolute["largest_sd_rad"]:.2g} mrad, set by '
             f'{absolute["set_by"]}: ') in printed
 
 
-def test_a_reference_pins_the_absolute_angle(tmp_path: Path, out: Path) -> None:
+def test_a_reference_pins_the_absolute_angle(tmp_path: Path, out: Path,
+                                            faults: list[tuple[str, str, str, str]]) -> None:
     """A precision level on the antenna at one pose (0.05 mrad): the node's angle within 0.2 mrad of the truth over
     the whole range."""
     sweep = Sweep(TRUTH, **FAULT_SWEEP)
@@ -264,18 +290,21 @@ def test_a_reference_pins_the_absolute_angle(tmp_path: Path, out: Path) -> None:
     assert error < 2e-4 and in_sd <= 4.0
     assert report['absolute_angle']['set_by'] != 'the prior of sensor_offset (sd 0.1 rad)'
     assert report['references'][0]['joint_rad'] == joint
+    tabled(faults, f'a sweep, `--reference {joint:.5f}:{theta:.5f}:5e-5`', report)
 
 
-def test_a_datasheet_sensor_offset(tmp_path: Path, out: Path) -> None:
+def test_a_datasheet_sensor_offset(tmp_path: Path, out: Path, faults: list[tuple[str, str, str, str]]) -> None:
     bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP))
     assert calibrate(tmp_path, bag, '--sensor-offset', '0.0041', '--sensor-offset-sd', '2e-4') == 0
     report = json.loads((out / 'report.json').read_text())
     assert absolute_error_in_sd(report)[0] <= 4.0
     assert report['absolute_angle']['set_by'] == 'the prior of sensor_offset (sd 0.0002 rad)'
     assert report['parameters']['sensor_offset']['prior'] == 0.0041
+    tabled(faults, 'a sweep, `--sensor-offset 0.0041 --sensor-offset-sd 2e-4`', report)
 
 
-def test_spikes_and_invalid_readings(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_spikes_and_invalid_readings(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                     faults: list[tuple[str, str, str, str]]) -> None:
     """Three +0.4 rad spikes, one +0.2 rad glitch and three NaN readings among 6000: the NaN dropped, the spikes set
     aside, both counted; the noise is the sensor's and the absolute angle within 4 sd."""
     glitches = ((700, 0.4), (2500, 0.4), (4100, 0.4), (3333, 0.2), (10, math.nan), (11, math.nan), (5000, math.nan))
@@ -287,13 +316,15 @@ def test_spikes_and_invalid_readings(tmp_path: Path, out: Path, capsys: pytest.C
     assert report['largest_residual_rad'] < 6e-3
     assert absolute_error_in_sd(report)[0] <= 4.0
     assert '4 set aside as outliers, 3 invalid sensor readings dropped' in capsys.readouterr().out
+    tabled(faults, '3 spikes of +0.4 rad, a +0.2 rad glitch, 3 NaN (4 set aside, 3 dropped)', report)
 
 
 @pytest.mark.parametrize(('scale', 'cause'), [
     (-1.0, 'its sign is flipped (theta is positive tilting the antenna down)'),
     (math.degrees(1.0), 'it reports degrees, not rad')])
 def test_a_sensor_of_the_wrong_sign_or_unit_is_refused(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
-                                                       scale: float, cause: str) -> None:
+                                                       scale: float, cause: str,
+                                                       faults: list[tuple[str, str, str, str]]) -> None:
     bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, **FAULT_SWEEP, sensor_scale=scale))
     assert calibrate(tmp_path, bag) == 1
     err = capsys.readouterr().err
@@ -304,9 +335,11 @@ def test_a_sensor_of_the_wrong_sign_or_unit_is_refused(tmp_path: Path, out: Path
     assert float(found[1]) == pytest.approx(scale * 0.978, rel=0.01)
     assert found[2] == cause
     assert list(out.iterdir()) == []
+    faults.append((f'a sensor reading {scale:.4g} times theta', '-', '-', f'refused (exit 1): {found[2]}'))
 
 
-def test_an_imu_rolled_15_deg(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_an_imu_rolled_15_deg(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                              faults: list[tuple[str, str, str, str]]) -> None:
     """The IMU turned 15 deg about the antenna's axis, with two all-zero readings: the tilt does not depend on the
     roll, which is reported; the driven joint's offset and the absolute angle within 4 sd of the truth."""
     sweep = Sweep(TRUTH, **FAULT_SWEEP, sensor='imu', imu_roll=math.radians(15.0), glitches=((99, math.nan),
@@ -322,9 +355,34 @@ def test_an_imu_rolled_15_deg(tmp_path: Path, out: Path, capsys: pytest.CaptureF
     # atan2(-a_x, a_z) would read the tilt 1/cos(15 deg) = 3.5% too large: the map would miss by 100s of its sds
     assert map_error_in_sd(report) <= 4.0
     assert 'the IMU rolled 15.00 deg about its x axis' in capsys.readouterr().out
+    tabled(faults, 'an IMU rolled 15 deg about the antenna\'s axis, 2 all-zero readings (dropped)', report)
 
 
-def test_a_one_way_sweep_is_a_warning(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_an_imu_rolled_15_deg_and_yawed_5_deg(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                             faults: list[tuple[str, str, str, str]]) -> None:
+    """The IMU rolled 15 deg about the antenna's axis and turned 5 deg about its own z (x no longer along the
+    antenna): the yaw is found from the great circle gravity traces over the sweep and undone, and written for the
+    node's live check; the driven joint's offset, the map and the absolute angle within 4 sd of the truth."""
+    sweep = Sweep(TRUTH, **FAULT_SWEEP, sensor='imu', imu_roll=math.radians(15.0), imu_yaw=math.radians(5.0))
+    bag = write_calibration_bag(tmp_path / 'imu', sweep, angle_topic='/imu/data')
+    assert calibrate(tmp_path, bag, topic='/imu/data') == 0
+    report = json.loads((out / 'report.json').read_text())
+    # the plane of 6000 readings with 1 mrad of noise on the tilt only: the yaw to a fraction of a mrad
+    assert report['imu_yaw_rad'] == pytest.approx(math.radians(5.0), abs=1e-3)
+    assert report['imu_roll_rad'] == pytest.approx(math.radians(15.0), abs=1e-3)
+    offset = report['parameters']['driven_joint_offset']
+    assert abs(offset['value'] - TRUTH['driven_joint_offset']) <= 4.0 * offset['sd']
+    assert absolute_error_in_sd(report)[0] <= 4.0
+    # untouched, the tilt reads sin(theta) cos(5 deg): 0.4% short, hundreds of the map's sds over the sweep
+    assert map_error_in_sd(report) <= 4.0
+    assert load_config(out / 'calibrated.yaml').antenna_imu_yaw == report['imu_yaw_rad']
+    assert 'yawed 5.00 deg about its z axis' in capsys.readouterr().out
+    tabled(faults, f'an IMU rolled 15 deg and yawed 5 deg (found {math.degrees(report["imu_yaw_rad"]):.3f} deg)',
+           report)
+
+
+def test_a_one_way_sweep_is_a_warning(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                      faults: list[tuple[str, str, str, str]]) -> None:
     bag = write_calibration_bag(tmp_path / 'rec', Sweep(TRUTH, duration=120.0, cycles=0.5))
     assert calibrate(tmp_path, bag) == 0
     err = capsys.readouterr().err
@@ -333,10 +391,11 @@ def test_a_one_way_sweep_is_a_warning(tmp_path: Path, out: Path, capsys: pytest.
     report = json.loads((out / 'report.json').read_text())
     assert report['warnings'] == [err.removeprefix('fourbar calibrate: warning: ').rstrip('\n')]
     assert absolute_error_in_sd(report)[0] <= 4.0
+    tabled(faults, 'a sweep one way only (a warning)', report)
 
 
-def test_a_parameter_far_from_its_prior_is_refused(tmp_path: Path, out: Path,
-                                                   capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_parameter_far_from_its_prior_is_refused(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                                   faults: list[tuple[str, str, str, str]]) -> None:
     """The sensor mounted 0.5 rad off, the prior 0 sd 0.1 rad: refused in one line naming it."""
     truth = {**TRUTH, 'sensor_offset': 0.5}
     bag = write_calibration_bag(tmp_path / 'rec', Sweep(truth, **FAULT_SWEEP))
@@ -345,6 +404,8 @@ def test_a_parameter_far_from_its_prior_is_refused(tmp_path: Path, out: Path,
     assert err.startswith('fourbar calibrate: error: sensor_offset 0.49') and err.count('\n') == 1
     assert 'prior sds from its prior 0 (sd 0.1): the prior or the recording is wrong' in err
     assert list(out.iterdir()) == []
+    faults.append(('a sensor mounted 0.5 rad off, the default prior', '-', '-',
+                   f'refused (exit 1): {err.removeprefix("fourbar calibrate: error: ").strip()}'))
     # given as the mounting's prior, it calibrates
     assert calibrate(tmp_path, bag, '--sensor-offset', '0.5') == 0
     assert absolute_error_in_sd(json.loads((out / 'report.json').read_text()), truth)[0] <= 4.0
@@ -358,7 +419,8 @@ def test_a_malformed_reference_is_status_2(tmp_path: Path, out: Path, capsys: py
                                        'rad, finite, SD positive\n')
 
 
-def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                        faults: list[tuple[str, str, str, str]]) -> None:
     """The sensor's noise filtered, AR(1) with a lag-1 correlation of 0.9: the 6000 readings count as about
     6000 (1 - 0.9) / (1 + 0.9) = 316 independent ones, and the map and the absolute angle stay within 4 of their
     widened sds (counted as 6000, the map's sds would be 4.4 times narrower: on this recording its error would be
@@ -372,6 +434,8 @@ def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytes
     assert map_error_in_sd(report) <= 4.0
     assert absolute_error_in_sd(report)[0] <= 4.0
     assert 'counts them as' in capsys.readouterr().out
+    tabled(faults, f'noise with a lag-1 correlation of 0.9 ({report["independent_readings"]:.0f} independent '
+           'readings)', report)
 
 
 @pytest.mark.parametrize(('fault', 'latency', 'backlash', 'cause'), [
@@ -381,7 +445,7 @@ def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytes
 ], ids=['latency-100ms', 'latency-300ms', 'backlash-2mrad'])
 def test_a_latency_or_a_backlash_is_found_and_warned_of(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
                                                         fault: dict[str, float], latency: float, backlash: float,
-                                                        cause: str) -> None:
+                                                        cause: str, faults: list[tuple[str, str, str, str]]) -> None:
     """A sensor 100 or 300 ms late, or 2 mrad of play in the drive, on sweeps both ways: the geometry is unbiased
     (the absolute angle within 4 sd), the latency and the backlash fitted to the residuals within 4 sd of the truth
     (the one absent within 4 sd of 0), and a warning names the one found."""
@@ -396,6 +460,10 @@ def test_a_latency_or_a_backlash_is_found_and_warned_of(tmp_path: Path, out: Pat
     err = capsys.readouterr().err
     assert err.startswith(f'fourbar calibrate: warning: {cause}') and err.count('\n') == 1, err
     assert 'with the direction of motion' in err
+    what = f'a sensor {1e3 * latency:.0f} ms late' if latency else f'{1e3 * backlash:.0f} mrad of play in the drive'
+    tabled(faults, f'{what} (a warning: latency {1e3 * found["latency_s"]:.1f} ms sd '
+           f'{1e3 * found["latency_sd_s"]:.2g}, backlash {1e3 * found["backlash_rad"]:.2f} mrad sd '
+           f'{1e3 * found["backlash_sd_rad"]:.2g})', report)
 
 
 def test_a_clean_sweep_shows_no_latency_nor_backlash(tmp_path: Path, out: Path,

@@ -153,10 +153,12 @@ def test_a_float64_sensor_off_by_0_01_rad_is_warn_and_past_the_error_threshold_e
     assert float(values['model_mismatch_rad']) == pytest.approx(0.03, abs=1e-12)
 
 
-def _imu(theta: float, sec: int, nanosec: int, g: float = G, roll: float = 0.0) -> Imu:
-    """An Imu at rest on the antenna tilted by theta (rad), rolled by ``roll`` (rad) about its x axis: gravity's
-    reaction in the coupler frame turned by the roll."""
-    msg = Imu(linear_acceleration=Vector3(x=-g * math.sin(theta), y=g * math.cos(theta) * math.sin(roll),
+def _imu(theta: float, sec: int, nanosec: int, g: float = G, roll: float = 0.0, yaw: float = 0.0) -> Imu:
+    """An Imu at rest on the antenna tilted by theta (rad), rolled by ``roll`` (rad) about its x axis, then yawed by
+    ``yaw`` about its z: gravity's reaction in the coupler frame turned by the roll, then by the yaw."""
+    x, y = -g * math.sin(theta), g * math.cos(theta) * math.sin(roll)
+    msg = Imu(linear_acceleration=Vector3(x=math.cos(yaw) * x + math.sin(yaw) * y,
+                                          y=-math.sin(yaw) * x + math.cos(yaw) * y,
                                           z=g * math.cos(theta) * math.cos(roll)))
     msg.header.stamp.sec, msg.header.stamp.nanosec = sec, nanosec
     return msg
@@ -198,3 +200,19 @@ def test_an_imu_rolled_about_the_antenna_reads_the_same_angle(rig: Any) -> None:
     level, message, values = r.status()
     assert level is Level.OK, message
     assert float(values['model_mismatch_rad']) == pytest.approx(0.0, abs=1e-12)
+
+
+def test_an_imu_yawed_reads_the_same_angle_with_its_yaw_given(rig: Any) -> None:
+    """Turned 5 deg about its own z (and rolled 15 deg) the IMU reads the same tilt once antenna_imu_yaw (what
+    fourbar calibrate finds) turns its readings back; without it, the yaw turns part of the roll into the tilt:
+    about sin(5 deg) sin(15 deg) = 0.023 rad."""
+    yaw = math.radians(5.0)
+    theta = core_theta(Q1)
+    mismatch = {}
+    for given in (yaw, 0.0):
+        r = rig('imu', antenna_imu_yaw=given)
+        r.measure(Q1, 100, 0)
+        r.read(_imu(theta, 100, 0, roll=math.radians(15.0), yaw=yaw))
+        mismatch[given] = float(r.status()[2]['model_mismatch_rad'])
+    assert mismatch[yaw] == pytest.approx(0.0, abs=1e-12), mismatch  # a few ulps of the turned components
+    assert abs(mismatch[0.0]) > 0.02, mismatch
