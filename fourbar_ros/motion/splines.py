@@ -16,15 +16,24 @@ def hermite_coefficients(times: FloatArray, p: FloatArray, v: FloatArray | None 
                          a: FloatArray | None = None) -> FloatArray:
     """Power-basis coefficients in s, shape (segments, degree + 1): linear from p, cubic from p and v (per time),
     quintic from p, v and a. Units: those of p."""
-    h = np.diff(times)
-    p0, p1 = p[:-1], p[1:]
+    def ends(x: FloatArray | None) -> tuple[FloatArray | None, FloatArray | None]:
+        return (None, None) if x is None else (x[:-1], x[1:])
+
+    return hermite_segments(np.diff(times), p[:-1], p[1:], *ends(v), *ends(a))
+
+
+def hermite_segments(h: FloatArray, p0: FloatArray, p1: FloatArray, v0: FloatArray | None = None,
+                     v1: FloatArray | None = None, a0: FloatArray | None = None,
+                     a1: FloatArray | None = None) -> FloatArray:
+    """Power-basis coefficients in s of segments lasting ``h`` (s) from (p0, v0, a0) to (p1, v1, a1), one entry per
+    segment, shape (segments, degree + 1): linear, cubic with the velocities, quintic with the accelerations too."""
     dp = p1 - p0
-    if v is None:
+    if v0 is None or v1 is None:
         return np.stack([p0, dp], axis=1)
-    v0, v1 = v[:-1] * h, v[1:] * h
-    if a is None:
+    v0, v1 = v0 * h, v1 * h
+    if a0 is None or a1 is None:
         return np.stack([p0, v0, 3.0 * dp - 2.0 * v0 - v1, -2.0 * dp + v0 + v1], axis=1)
-    a0, a1 = a[:-1] * h * h, a[1:] * h * h
+    a0, a1 = a0 * h * h, a1 * h * h
     return np.stack([p0, v0, 0.5 * a0,
                      10.0 * dp - 6.0 * v0 - 4.0 * v1 - 0.5 * (3.0 * a0 - a1),
                      -15.0 * dp + 8.0 * v0 + 7.0 * v1 + 0.5 * (3.0 * a0 - 2.0 * a1),

@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from fourbar_ros.config.controllers import TrajectoryControllerSettings
 from fourbar_ros.core.numeric import FloatArray
-from fourbar_ros.motion.splines import evaluate, hermite_coefficients, segment_extremes
+from fourbar_ros.motion.splines import evaluate, hermite_segments, segment_extremes
 
 __all__ = ['ControllerPoint', 'Reference', 'controller_reference', 'lead_in_segment', 'motion_settings_problem',
            'segment_coefficients']
@@ -35,15 +35,9 @@ class ControllerPoint:
 def segment_coefficients(h: float, a: ControllerPoint, b: ControllerPoint) -> FloatArray:
     """Power-basis coefficients in s = (t - t_a) / h of the controller's polynomial from ``a`` to ``b`` (positions
     given), padded to six: linear, cubic when both give velocities, quintic when both give accelerations too
-    (``motion.splines.hermite_coefficients``)."""
-    times, p = np.array([0.0, h]), np.array([a.position, b.position], dtype=np.float64)
-    v = None if a.velocity is None or b.velocity is None else np.array([a.velocity, b.velocity])
-    acc = (None if v is None or a.acceleration is None or b.acceleration is None
-           else np.array([a.acceleration, b.acceleration]))
-    out = np.zeros(_DEGREE_COLUMNS)
-    c = hermite_coefficients(times, p, v, acc)[0]
-    out[:c.size] = c
-    return out
+    (``motion.splines.hermite_segments``)."""
+    row: FloatArray = _coefficients([(replace(a, time=0.0), replace(b, time=h))])[0][0]
+    return row
 
 
 def _deduce(a: ControllerPoint, b: ControllerPoint, dt: float) -> tuple[ControllerPoint, ControllerPoint]:
@@ -134,35 +128,47 @@ def controller_reference(velocity_state: bool, points: Sequence[ControllerPoint]
     origin = takeover if stamp is None else stamp
     pts = [ControllerPoint(origin + p.time, p.position, p.velocity, p.acceleration) for p in points]
     first = pts[0]
-    knots: list[float] = []
-    rows: list[FloatArray] = []
-    degrees: list[int] = []
+    pairs: list[tuple[ControllerPoint, ControllerPoint]] = []
     lead_in = takeover < first.time
     if lead_in:
         before = lead_in_segment(velocity_state, measured_position, measured_velocity, first)
         before = ControllerPoint(takeover, before.position, before.velocity, before.acceleration)
-        h = first.time - takeover
-        before, first = _deduce(before, first, h)
+        before, first = _deduce(before, first, first.time - takeover)
         pts[0] = first
-        rows.append(segment_coefficients(h, before, first))
-        degrees.append(_degree(before, first))
-        knots.append(takeover)
+        pairs.append((before, first))
     for i in range(len(pts) - 1):
         a, b = pts[i], pts[i + 1]
-        h = b.time - a.time
         if a.position is None:  # only the first point can lack one here, without a lead-in: no state to deduce from
             a = ControllerPoint(a.time, measured_position, a.velocity, a.acceleration)
-        a, b = _deduce(a, b, h)
+        a, b = _deduce(a, b, b.time - a.time)
         pts[i], pts[i + 1] = a, b
-        rows.append(segment_coefficients(h, a, b))
-        degrees.append(_degree(a, b))
-        knots.append(a.time)
+        pairs.append((a, b))
     last = pts[-1]
-    knots.append(last.time)
-    hold_position = last.position if last.position is not None else measured_position
-    coefficients = np.array(rows) if rows else np.zeros((0, _DEGREE_COLUMNS))
-    return Reference(takeover, np.array(knots) if rows else np.array([last.time]), coefficients, tuple(degrees),
-                     (float(hold_position), float(last.velocity or 0.0)), lead_in, period)
+    hold = (float(last.position if last.position is not None else measured_position), float(last.velocity or 0.0))
+    if not pairs:
+        return Reference(takeover, np.array([last.time]), np.zeros((0, _DEGREE_COLUMNS)), (), hold, lead_in, period)
+    knots = np.array([a.time for a, _ in pairs] + [last.time])
+    coefficients, degrees = _coefficients(pairs)
+    return Reference(takeover, knots, coefficients, degrees, hold, lead_in, period)
+
+
+def _coefficients(pairs: Sequence[tuple[ControllerPoint, ControllerPoint]]) -> tuple[FloatArray, tuple[int, ...]]:
+    """The power-basis coefficients (padded to six) and the degree of the controller's polynomial from a to b over
+    b.time - a.time, for every (a, b) pair (positions given; ``segment_coefficients``), a degree at a time."""
+    fields = np.array([[0.0 if x is None else x for x in (a.time, a.position, a.velocity, a.acceleration, b.time,
+                                                          b.position, b.velocity, b.acceleration)]
+                       for a, b in pairs], dtype=np.float64)
+    ta, pa, va, aa, tb, pb, vb, ab = fields.T
+    h = tb - ta
+    out = np.zeros((len(pairs), _DEGREE_COLUMNS))
+    degrees = np.array([_degree(a, b) for a, b in pairs])
+    cubic, quintic = degrees >= 3, degrees == 5
+    for rows, fields_given in ((~cubic, 1), (cubic & ~quintic, 2), (quintic, 3)):
+        if rows.any():
+            given = [(va, vb), (aa, ab)][:fields_given - 1]
+            c = hermite_segments(h[rows], pa[rows], pb[rows], *(x[rows] for pair in given for x in pair))
+            out[rows, :c.shape[1]] = c
+    return out, tuple(int(d) for d in degrees)
 
 
 def _degree(a: ControllerPoint, b: ControllerPoint) -> int:
