@@ -46,6 +46,7 @@ __all__ = [
     'imu_tilt',
     'imu_valid',
     'imu_yaw',
+    'linkage_of',
     'map_fit',
     'model_jacobian',
     'model_mismatch',
@@ -106,7 +107,8 @@ class CalibrationError(FourBarError):
     """Data that cannot calibrate the linkage, or a fit that does not converge (one line)."""
 
 
-def _linkage(p: FloatArray) -> AntennaLinkage:
+def linkage_of(p: FloatArray) -> AntennaLinkage:
+    """The linkage of parameters ``p`` (PARAMETER_NAMES order: its first four, the lengths in m)."""
     return AntennaLinkage(frame=float(p[0]), rocker_ab=float(p[1]), coupler=float(p[2]), rocker_cd=float(p[3]))
 
 
@@ -114,7 +116,7 @@ def predict(p: FloatArray, q_measured: FloatArray, driven: Driven, branch: Branc
     """The sensor reading (rad) the parameters ``p`` (PARAMETER_NAMES order: m, m, m, m, rad, rad) predict for the
     measured driven joint ``q_measured`` (rad); NaN where the rocker cannot take q_measured + driven_joint_offset.
     ``branch`` is ``from_rocker``'s (``AntennaConfig.measured_branch``)."""
-    link = _linkage(p)
+    link = linkage_of(p)
     theta = link.from_rocker(np.asarray(q_measured, dtype=np.float64) + p[4], driven, branch, on_invalid='nan').theta
     out: FloatArray = np.asarray(theta, dtype=np.float64) + p[5]
     return out
@@ -126,7 +128,7 @@ def model_jacobian(p: FloatArray, q_measured: FloatArray, driven: Driven,
     implicit differentiation of the loop closure (module docstring)."""
     ab, h, cd = float(p[1]), float(p[2]), float(p[3])
     q = np.asarray(q_measured, dtype=np.float64) + p[4]
-    link = _linkage(p)
+    link = linkage_of(p)
     theta, other = (np.asarray(a) for a in link.from_rocker(q, driven, branch, on_invalid='nan'))
     rows = np.empty((6, q.size))  # one row per parameter (contiguous), returned transposed
     gamma_driven = driven is Driven.GAMMA
@@ -304,7 +306,7 @@ class Calibration:
         return self.parameters[PARAMETER_NAMES.index(name)]
 
     def linkage(self) -> AntennaLinkage:
-        return _linkage(self.values)
+        return linkage_of(self.values)
 
     def _gradients(self, joint: ArrayLike, with_sensor: bool) -> tuple[FloatArray, FloatArray]:
         q = np.atleast_1d(np.asarray(joint, dtype=np.float64))

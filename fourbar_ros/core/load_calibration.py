@@ -12,7 +12,7 @@ import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
-from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, MapFit, map_fit
+from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, MapFit, linkage_of, map_fit
 from fourbar_ros.core.numeric import FloatArray
 
 __all__ = ['LOAD_NAMES', 'LOAD_TARGETS', 'MOVING', 'Geometry', 'LoadPose', 'LoadPrior', 'calibrate_load',
@@ -68,10 +68,6 @@ class Geometry:
     values: FloatArray
     covariance: FloatArray
 
-    def linkage(self, values: FloatArray | None = None) -> AntennaLinkage:
-        """The linkage of ``values`` (default: the calibrated ones)."""
-        p = self.values if values is None else values
-        return AntennaLinkage(frame=float(p[0]), rocker_ab=float(p[1]), coupler=float(p[2]), rocker_cd=float(p[3]))
 
 
 @dataclass(frozen=True)
@@ -158,7 +154,7 @@ def calibrate_load(geometry: Geometry, q_measured: FloatArray, q_rate: FloatArra
     q, rate = q_measured[used], q_rate[used]
 
     def pose_of(values: FloatArray) -> LoadPose:
-        return load_pose(geometry.linkage(values), q + values[4], rate, driven, branch)
+        return load_pose(linkage_of(values), q + values[4], rate, driven, branch)
 
     pose = pose_of(geometry.values)
     keep = np.isfinite(pose.lever) & np.isfinite(pose.base)

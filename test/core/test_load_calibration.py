@@ -11,7 +11,7 @@ import pytest
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.core.antenna import Driven
-from fourbar_ros.core.calibration import CalibrationError
+from fourbar_ros.core.calibration import CalibrationError, linkage_of
 from fourbar_ros.core.completion import inverse_branch
 from fourbar_ros.core.load_calibration import (
     LOAD_NAMES,
@@ -100,7 +100,7 @@ def test_the_geometrys_uncertainty_is_carried_into_the_loads_sds_and_nothing_con
     z_exact, z_carried, n_written = [], [], 0
     for _ in range(GEOMETRY_SEEDS):
         truth = EXACT.values + rng.normal(0.0, 1.0, 6) * sds
-        pose = load_pose(given.linkage(truth), q + truth[4], q_rate, driven, branch)
+        pose = load_pose(linkage_of(truth), q + truth[4], q_rate, driven, branch)
         effort = effort_model(TRUTH, pose, G)[0] + rng.normal(0.0, 0.02, q.size)
         for geometry, zs in ((EXACT, z_exact), (given, z_carried)):
             fit, _ = calibrate_load(geometry, q, q_rate, effort, driven, branch, G)
