@@ -25,7 +25,14 @@ from support.ros2_control_support import ros2_control_missing
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
-from support.ros_cli_support import Background, echo_once, echoed_messages, run, wait_node  # psutil: with ros2cli
+from support.ros_cli_support import (  # psutil: with ros2cli
+    PUB_ONCE,
+    Background,
+    echo_once,
+    echoed_messages,
+    run,
+    wait_node,
+)
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.robot_model import joint_limits
@@ -157,7 +164,7 @@ def test_a_command_outside_the_limits_is_clamped_by_the_controller_manager(bring
     cfg = load_config(REPO / 'config' / 'antenna.yaml')
     limit = joint_limits(cfg)[cfg.driven_joint]
     step = limit.velocity / UPDATE_RATE
-    out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', f'/{NAMESPACE}/forward_position_controller/commands',
+    out = run([ros2(), *PUB_ONCE, f'/{NAMESPACE}/forward_position_controller/commands',
                'std_msgs/msg/Float64MultiArray', '{data: [0.0]}'], bringup.cli.env)
     assert out.returncode == 0, out.stdout + out.stderr
     bringup.commands.wait_output(lambda t: any(abs(q - limit.lower) <= EXACT for q in _recent(t)),
@@ -220,7 +227,7 @@ def test_a_drive_that_does_not_follow_is_an_error_and_its_command_is_not_resumed
     try:
         diagnostics.wait_output(lambda t: 'controller_state' in t and 'value: active' in t,
                                 'the node following its active forward controller')
-        out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', f'/{NAMESPACE}/antenna_angle_cmd',
+        out = run([ros2(), *PUB_ONCE, f'/{NAMESPACE}/antenna_angle_cmd',
                    'std_msgs/msg/Float64', '{data: 0.09}'], env, cwd=cwd)  # gamma 0.969 rad, 0.12 from MEASURED
         assert out.returncode == 0, out.stdout + out.stderr
         diagnostics.wait_output(lambda t: bool(_not_following(t)), 'the node saying the drive does not follow',

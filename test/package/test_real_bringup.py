@@ -16,6 +16,7 @@ if (_why := ros2_cli_missing() or launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
 from support.ros_cli_support import (  # psutil: with ros2cli
+    PUB_ONCE,
     Background,
     echo_once,
     echoed_messages,
@@ -98,7 +99,7 @@ def test_a_trajectory_past_the_limit_is_clamped_by_the_controller_manager(instal
     try:
         launch.wait_output(lambda t: 'Configured and activated joint_trajectory_controller' in t,
                            'joint_trajectory_controller active')
-        out = run([ros2(), 'topic', 'pub', '--once', '-w', '1', '/joint_trajectory_controller/joint_trajectory',
+        out = run([ros2(), *PUB_ONCE, '/joint_trajectory_controller/joint_trajectory',
                    'trajectory_msgs/msg/JointTrajectory',
                    f'{{joint_names: [{cfg.driven_joint}], points: [{{positions: [{target!r}], '
                    f'time_from_start: {{sec: {int(duration)}}}}}]}}'], install.env)

@@ -195,6 +195,13 @@ def echoed_messages(stdout: str) -> list[dict[str, Any]]:
     return messages
 
 
+#: ``ros2 topic pub`` of one message that must arrive: ``-w 1`` waits until the publisher matches a subscription,
+#: not until the subscription matches the publisher. Under load the subscriber's side lagged, and the one message was
+#: lost when the publisher exited 0.1 s after it (its default keep-alive); alive 5 s, the reliable writer resends it
+#: once both sides have matched.
+PUB_ONCE = ('topic', 'pub', '--once', '-w', '1', '--keep-alive', '5')
+
+
 def publish_until_echoed(env: dict[str, str], echo: Background, topic: str, value: float,
                          timeout: float = TIMEOUT) -> dict[str, Any]:
     """``ros2 topic pub --once`` (which waits for a matching subscription) until the echo has a message.
