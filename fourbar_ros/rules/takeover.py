@@ -107,10 +107,12 @@ def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float
     k0 = max(int(np.searchsorted(times, t, side='right')) - 1, 0)
     k1 = int(np.searchsorted(times, t + lead, side='left'))
     assert traj.velocities is not None and traj.accelerations is not None
-    depart = float(on_wire(np.array([t + lead]))[0])
-    if k1 == len(traj) and depart > times[-1]:  # it ends before then: held at its end, at rest, until the departure
-        return Start(JointMotionState(float(traj.positions[-1])), motion.start_ns, depart, _cut(traj, k0), now_state)
-    k1 = min(k1, len(traj) - 1)
+    if k1 == len(traj):
+        depart = float(on_wire(np.array([t + lead]))[0])
+        if depart > times[-1]:  # it ends before then: held at its end, at rest, until the departure
+            return Start(JointMotionState(float(traj.positions[-1])), motion.start_ns, depart, _cut(traj, k0),
+                         now_state)
+        k1 -= 1
     state = JointMotionState(float(traj.positions[k1]), float(traj.velocities[k1]), float(traj.accelerations[k1]))
     return Start(state, motion.start_ns, float(times[k1]), _cut(traj, k0, k1), now_state)
 
