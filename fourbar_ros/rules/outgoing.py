@@ -1,6 +1,6 @@
 """What leaves for the controller: a trajectory's points as sent, checked against the controller's contract.
 
-``point_fields``, ``outgoing_refusal`` and ``actuation_contract`` (the controller each actuator mode sends to). See
+``point_fields``, ``held_to_arrival``, ``outgoing_refusal`` and ``actuation_contract`` (the controller each actuator mode sends to). See
 docs/how-to/ros2-control.md."""
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from fourbar_ros.config.controllers import (
     trajectory_controller,
 )
 from fourbar_ros.interface.joint_trajectory import DurationFields, PointFields
-from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns, to_ns
 from fourbar_ros.motion.trajectory import DrivenTrajectory
 from fourbar_ros.rules.controller_contract import Refusal, check_trajectory
 from fourbar_ros.rules.controller_motion import motion_settings_problem
@@ -29,6 +29,26 @@ def point_fields(traj: DrivenTrajectory, effort: bool) -> list[PointFields]:
     return [PointFields([p], [] if vel is None else [float(vel[i])], [] if acc is None else [float(acc[i])],
                         [efforts[i]] if effort else [], DurationFields(*from_ns(seconds_to_ns(t))))
             for i, (t, p) in enumerate(zip(traj.times.tolist(), traj.positions.tolist(), strict=True))]
+
+
+#: The least time (s) from the node's now to a stamped trajectory's last point. The controller refuses a stamped
+#: trajectory that arrives after its last point (it ends in the past) and goes on with the one before, which the node's
+#: next plan no longer continues; delivery under load was seen to take 0.6 s. A motion that ends sooner at rest goes
+#: out with one more point holding its end until then. The cost: the controller checks the goal tolerance up to this
+#: long after the motion's end (its path tolerance holds meanwhile).
+END_AHEAD_S = 1.0
+
+
+def held_to_arrival(points: list[PointFields], stamp_ns: int, now_ns: int) -> list[PointFields]:
+    """``points`` (stamped ``stamp_ns``, sent at ``now_ns``) with one more point holding the last one, at rest,
+    ``END_AHEAD_S`` after now, where they end at rest before then; else as they are (a zero stamp starts on
+    arrival, so it never ends before it)."""
+    last = points[-1] if points else None
+    if (last is None or stamp_ns == 0 or any(x != 0.0 for x in (*last.velocities, *last.accelerations))
+            or stamp_ns + to_ns(last.time_from_start) >= now_ns + seconds_to_ns(END_AHEAD_S)):
+        return points
+    hold = DurationFields(*from_ns(now_ns + seconds_to_ns(END_AHEAD_S) - stamp_ns))
+    return [*points, last._replace(time_from_start=hold)]
 
 
 def outgoing_refusal(contract: TrajectoryControllerSettings, joint: str, points: Sequence[PointFields], stamp_ns: int,

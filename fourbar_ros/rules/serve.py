@@ -20,7 +20,7 @@ from fourbar_ros.motion.planner import JointMotionState, Setpoints
 from fourbar_ros.rules.antenna_trajectory import Converted, EndsInPastError, TrajectoryProblem, convert, problem_of
 from fourbar_ros.rules.controller_contract import ContractRule, PointLike
 from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points, planned_setpoints, trajectory_setpoints
-from fourbar_ros.rules.outgoing import outgoing_refusal, point_fields
+from fourbar_ros.rules.outgoing import held_to_arrival, outgoing_refusal, point_fields
 from fourbar_ros.rules.takeover import (
     ARRIVAL_MARGIN_S,
     Start,
@@ -176,12 +176,12 @@ def _sent(cfg: AntennaConfig, contract: TrajectoryControllerSettings, motion: Mo
     refusal naming ``what``, counted."""
     traj = motion.trajectory
     assert traj is not None
-    points = point_fields(traj, cfg.effort_feedforward)
+    points = held_to_arrival(point_fields(traj, cfg.effort_feedforward), stamp_ns, now_ns)
     refusal = outgoing_refusal(contract, cfg.driven_joint, points, stamp_ns, now_ns)
     if refusal is not None:
         counters.refused[refusal.rule] += 1
         return Refused(f'{what} refused {refusal.rule.value}', f'{what} not sent: the controller would refuse it '
                        f'({refusal.rule.value}): {refusal.reason}')
     counters.trajectories_sent += 1
-    counters.trajectory_points_sent += len(traj)
+    counters.trajectory_points_sent += len(points)
     return Outgoing(motion, points, stamp_ns)

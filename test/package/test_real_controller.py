@@ -130,7 +130,9 @@ def _check(launched: Launched, steps: list[dict[str, object]], tmp_path: Path) -
     print(f'{len(recording["trajectories"])} trajectories, {len(found.taken)} taken over; refused by the contract:',
           refused)
     disagree = [(i, v) for i, v in enumerate(verdicts) if (v is None) != (i in found.taken) and i not in found.unknown]
-    assert not disagree, f'the contract and the real controller disagree on {len(disagree)}: {disagree[:5]}'
+    said = [line for line in launch.output().splitlines() if 'joint_trajectory_controller' in line][-8:]
+    assert not disagree, (f'the contract and the real controller disagree on {len(disagree)}: {disagree[:5]}; the '
+                          'controller logged (last 8 lines):\n' + '\n'.join(said))
     off = [r for r in results if (r.model > BOUND_RAD or r.follower > BOUND_RAD) and not r.held]
     assert not off, f'{len(off)} trajectories off the real controller by more than {BOUND_RAD} rad:\n{report}\n{off}'
     held = [r for r in results if r.held and r.model > BOUND_RAD]
@@ -194,7 +196,7 @@ def test_the_real_controller_refuses_what_the_contract_refuses(launched: Launche
     steps: list[dict[str, object]] = []
     for i, broken in enumerate(BROKEN.values()):
         steps.append({'points': [[0.2, 0.8 + 0.01 * i, None, None]], 'stamp': None, 'after': 0.3})
-        steps.append({'stamp': None, 'after': 0.3, **broken})
+        steps.append({'stamp': None, 'after': 0.3, 'refused': True, **broken})
     # Stricter than the controller (ContractRule.ACCELERATIONS_WITHOUT_VELOCITIES): positions and accelerations
     # without velocities. The contract refuses it; the real controller still takes it over, and its reference is
     # 0 rad. With the shipped path tolerance it holds where it is and logs an error (without one it would command

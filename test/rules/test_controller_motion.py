@@ -15,7 +15,7 @@ from support.trajectory_points import antenna_points
 
 from fourbar_ros.config.antenna_config import ConfigError, config_from_values, default_config
 from fourbar_ros.config.controllers import trajectory_controller
-from fourbar_ros.interface.stamps import seconds_to_ns
+from fourbar_ros.interface.stamps import seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.motion.planner import JointMotionState, driven_angles
@@ -30,7 +30,13 @@ from fourbar_ros.rules.controller_motion import (
     segment_coefficients,
 )
 from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points
-from fourbar_ros.rules.outgoing import actuation_contract, point_fields
+from fourbar_ros.rules.outgoing import (
+    END_AHEAD_S,
+    actuation_contract,
+    held_to_arrival,
+    outgoing_refusal,
+    point_fields,
+)
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, antenna_motion, serve_command
 from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, Start, continued, motion_start, outgoing_stamp
 
@@ -338,6 +344,46 @@ def test_a_command_in_the_last_margin_of_a_motion_continues_it_held_until_it_arr
             assert abs(new_v - old_v) <= 1e-9 * LIMITS.at_rocker(1), (before_end, delay)
             assert abs(new_a - old_a) <= 1e-6 * LIMITS.at_rocker(2), (before_end, delay, old_a, new_a)
     assert held == 9, held  # every one departs from the end, held
+
+
+def test_a_motion_ending_soon_goes_out_held_to_a_late_arrival() -> None:
+    """A command that does not move the drive on, in the last margin of the running motion: the motion ends
+    ARRIVAL_MARGIN_S after now, so a delivery later than that (seen under load) would find it ended and the controller
+    would refuse it. It goes out with one more point holding the end at rest END_AHEAD_S after now: the contract
+    takes it at every delivery delay up to then, and the reference is the motion's, then its end."""
+    origin = 10**12
+    q0 = q_of(CFG.theta_min)
+    first = planned_points(CFG, plan_command(CFG, JointMotionState(q0), CFG.theta_max))
+    now = origin + seconds_to_ns(float(first.times[-1]) - 0.1)
+    contract = actuation_contract(CFG, 'trajectory')
+    out = serve_command(CFG, contract, Drive(Motion(origin, trajectory=first)), CFG.theta_max, now, ActuationCounters())
+    assert isinstance(out, Outgoing) and out.stamp_ns == origin, out
+    model = out.motion.trajectory
+    assert model is not None
+    sent = out.points
+    assert len(sent) == len(model) + 1 and sent[-1].positions == sent[-2].positions, sent[-2:]
+    assert to_ns(sent[-1].time_from_start) == now + seconds_to_ns(END_AHEAD_S) - origin
+    bare = sent[:-1]
+    elapsed = (now - origin) * 1e-9
+    wire = [ControllerPoint(to_ns(p.time_from_start) * 1e-9, p.positions[0], p.velocities[0], p.accelerations[0])
+            for p in sent]
+    for delay in (0.0, 0.1, ARRIVAL_MARGIN_S + 0.05, 0.6, END_AHEAD_S - 0.01):
+        arrival = now + seconds_to_ns(delay)
+        assert outgoing_refusal(contract, CFG.driven_joint, sent, origin, arrival) is None, delay
+        # Without the held point a delivery later than the motion's end is refused.
+        late = outgoing_refusal(contract, CFG.driven_joint, bare, origin, arrival)
+        assert (late is None) == (delay <= ARRIVAL_MARGIN_S), (delay, late)
+        # The same quintics through the same points, then one between two equal points at rest: the reference
+        # from the held points is the motion's and then its end, to the rounding of a quintic's evaluation.
+        takeover = elapsed + delay
+        held = controller_reference(True, wire, 0.0, takeover, 0.0, 0.0, PERIOD)
+        planned = controller_reference(True, wire[:-1], 0.0, takeover, 0.0, 0.0, PERIOD)
+        for t in np.linspace(takeover, elapsed + END_AHEAD_S + 0.5, 200):
+            assert held.sample(float(t))[0] == pytest.approx(planned.sample(float(t))[0], abs=1e-12), (delay, t)
+    # A zero stamp starts on arrival, and an end still moving is not held: both go out as planned.
+    assert held_to_arrival(bare, 0, now) == bare
+    moving = [*bare[:-1], bare[-1]._replace(velocities=[0.01])]
+    assert held_to_arrival(moving, origin, now) == moving
 
 
 def test_a_stamped_trajectory_ending_before_the_takeover_is_refused() -> None:
