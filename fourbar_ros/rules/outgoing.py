@@ -1,7 +1,7 @@
 """What leaves for the controller: a trajectory's points as sent, checked against the controller's contract.
 
-``point_fields``, ``held_to_arrival``, ``outgoing_refusal`` and ``actuation_contract`` (the controller each actuator mode sends to). See
-docs/how-to/ros2-control.md."""
+``point_fields``, ``held_to_arrival``, ``outgoing_refusal`` and ``actuation_contract`` (the controller each
+actuator mode sends to). See docs/how-to/ros2-control.md."""
 
 from __future__ import annotations
 
