@@ -244,8 +244,8 @@ def _load(cfg: AntennaConfig, data: CalibrationData, fit: Calibration) -> dict[s
         'directions_determined_by_data': int(np.count_nonzero(load.singular_values > math.sqrt(3.0))),
         'model': ('effort = tau_in / reducer_efficiency + coulomb_friction sign(q_dot) + viscous_friction q_dot '
                   'when the motor drives, tau_in reducer_efficiency + ... when back-driven; tau_in = antenna_mass g '
-                  'dy_com/dtheta dtheta/dq at the calibrated pose; readings at rest left out; sds include the '
-                  'geometry\'s uncertainty'),
+                  'dy_com/dtheta dtheta/dq; readings at rest left out; fitted with the geometry under its '
+                  'calibrated covariance, the offsets as moments (mass times offset)'),
         'written_to_parameter_file': written(load),
     }
 

@@ -1,10 +1,11 @@
 """The load model fitted to the driven joint's measured effort: mass, centre of mass, friction, reducer efficiency.
 
-Fitted after the geometry (core/calibration.py), whose covariance it carries into its own; the model and the report:
-docs/how-to/calibrate.md."""
+Fitted after the geometry (core/calibration.py), jointly with it under the geometry's calibrated values and covariance;
+the model and the report: docs/how-to/calibrate.md."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 
@@ -12,15 +13,27 @@ import numpy as np
 import numpy.typing as npt
 
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
-from fourbar_ros.core.calibration import LENGTH_NAMES, CalibrationError, MapFit, linkage_of, map_fit
+from fourbar_ros.core.calibration import (
+    LENGTH_NAMES,
+    CalibrationError,
+    FittedParameter,
+    MapFit,
+    linkage_of,
+    map_fit,
+)
 from fourbar_ros.core.numeric import FloatArray
 
-__all__ = ['LOAD_NAMES', 'LOAD_TARGETS', 'MOVING', 'Geometry', 'LoadPose', 'LoadPrior', 'calibrate_load',
-           'effort_model', 'load_pose', 'target_sd', 'written']
+__all__ = ['LOAD_NAMES', 'LOAD_TARGETS', 'MOMENT_NAMES', 'MOVING', 'Geometry', 'LoadPose', 'LoadPrior',
+           'calibrate_load', 'effort_model', 'load_pose', 'target_sd', 'written']
 
 #: The fitted load parameters, in order: kg, m, m, N m, N m s/rad, dimensionless.
 LOAD_NAMES = ('antenna_mass', 'com_offset_along', 'com_offset_normal', 'coulomb_friction', 'viscous_friction',
               'reducer_efficiency')
+#: The coordinates the load is fitted in: LOAD_NAMES with the centre of mass's offsets as moments (mass times
+#: offset, kg m), in which the effort is linear in the mass and the moments: a tilt sweep fixes the moments and the
+#: mass only through the sweep's curvature, a straight valley here and a curved one in the offsets.
+MOMENT_NAMES = ('antenna_mass', 'moment_along', 'moment_normal', 'coulomb_friction', 'viscous_friction',
+                'reducer_efficiency')
 #: Readings slower than this fraction of the top |q_dot| count as at rest and are left out.
 MOVING = 0.05
 #: The load parameters that are node parameters, and the sd each must reach to be written to the parameter file:
@@ -28,9 +41,6 @@ MOVING = 0.05
 #: to 0.05.
 LOAD_TARGETS = {'antenna_mass': (0.0, 0.05), 'com_offset_along': (0.005, 0.0), 'com_offset_normal': (0.005, 0.0),
                 'reducer_efficiency': (0.05, 0.0)}
-#: Levenberg-Marquardt iterations per pass of the load fit: over a tilt sweep the mass and the centre of mass are
-#: nearly collinear, and on a geometry a fraction of a mm off the fit walks a long valley (up to 320 iterations seen).
-LOAD_ITERATIONS = 2000
 #: Central-difference step (m for the lengths, rad for the driven joint's offset) of the effort's derivative by the
 #: geometry: far above the effort's rounding (1e-16 relative), far below the geometry's sds (1e-4 m, 1e-3 rad).
 GEOMETRY_STEP = 1e-7
@@ -94,6 +104,15 @@ class LoadPrior:
         return np.array([self.mass_sd, self.offset_sd, self.offset_sd, self.friction_sd, self.viscous_sd,
                          self.efficiency_sd])
 
+    def moments(self) -> tuple[FloatArray, FloatArray]:
+        """(means, sds) in the fit's coordinates (``MOMENT_NAMES``): the centre of mass's offsets as moments, kg m,
+        of mean the mass's times the offset's and sd the offset's times the larger of the mass's mean and sd."""
+        means, sds = self.means(), self.sds()
+        scale = max(abs(self.antenna_mass), self.mass_sd)
+        means[1:3] *= self.antenna_mass
+        sds[1:3] *= scale
+        return means, sds
+
 
 @dataclass(frozen=True)
 class LoadPose:
@@ -141,10 +160,10 @@ def calibrate_load(geometry: Geometry, q_measured: FloatArray, q_rate: FloatArra
                    driven: Driven, branch: Branch, gravity: float, prior: LoadPrior = LoadPrior()
                    ) -> tuple[MapFit, npt.NDArray[np.bool_]]:
     """Fit the load parameters to the measured effort (N m) at the measured driven joint ``q_measured`` (rad, the
-    geometry's driven joint offset added here) moving at ``q_rate`` (rad/s), arrays in time order, on the calibrated
-    ``geometry``. (fit, mask of the readings used: moving, all finite); the fit's covariance and sds include the
-    geometry's uncertainty carried through (``_geometry_covariance``). Raises CalibrationError when too few readings
-    move or the fit does not converge."""
+    geometry's driven joint offset added here) moving at ``q_rate`` (rad/s), arrays in time order, jointly with the
+    geometry under its calibrated values and covariance (``_geometry_basis``). (the load's marginal fit, mask of the
+    readings used: moving, all finite). Raises CalibrationError when too few readings move or the fit does not
+    converge."""
     q_measured, q_rate, effort = (np.asarray(a, dtype=np.float64) for a in (q_measured, q_rate, effort))
     top = float(np.max(np.abs(q_rate[np.isfinite(q_rate)]), initial=0.0))
     used = np.isfinite(q_measured) & np.isfinite(q_rate) & np.isfinite(effort) & (np.abs(q_rate) > MOVING * top)
@@ -160,35 +179,102 @@ def calibrate_load(geometry: Geometry, q_measured: FloatArray, q_rate: FloatArra
     keep = np.isfinite(pose.lever) & np.isfinite(pose.base)
     if not keep.all():
         raise CalibrationError(f'{int(np.count_nonzero(~keep))} readings at a dead point or out of reach')
+    basis = _geometry_basis(geometry)
+    slopes = _pose_slopes(geometry.values, basis, pose_of, q.size)
+    n_geometry = basis.shape[1]
 
     def model(p: FloatArray) -> tuple[FloatArray, FloatArray]:
-        return effort_model(p, pose, gravity)
+        at = pose_of(geometry.values + np.pad(basis @ p[:n_geometry], (0, geometry.values.size - basis.shape[0])))
+        return _moment_model(p[n_geometry:], at, slopes, gravity)
 
-    fit = map_fit(model, effort[used], prior.means(), prior.sds(), LOAD_NAMES, LOAD_ITERATIONS, unit='N m')
-    return _with_geometry(fit, geometry, pose_of, gravity), used
+    means, sds = prior.moments()
+    names = (*(f'geometry_{i}' for i in range(n_geometry)), *MOMENT_NAMES)
+    fit = map_fit(model, effort[used], np.concatenate((np.zeros(n_geometry), means)),
+                  np.concatenate((np.ones(n_geometry), sds)), names, unit='N m')
+    return _marginal(fit, n_geometry, sds, prior), used
 
 
-def _with_geometry(fit: MapFit, geometry: Geometry, pose_of: Callable[[FloatArray], LoadPose],
-                   gravity: float) -> MapFit:
-    """``fit`` with the geometry's covariance carried into its covariance and sds: to first order the fitted load
-    moves by S dg when the geometry moves by dg, S = -C J^T W G (C the fit's covariance, J its Jacobian, W the
-    kept readings' weights, G the effort's derivative by the geometry), so the covariance gains S Cov(g) S^T."""
-    p = np.array([x.value for x in fit.parameters])
-    values = geometry.values
-    jac = effort_model(p, pose_of(values), gravity)[1][fit.kept]
-    by_geometry = np.zeros((jac.shape[0], values.size))
-    for i in range(len(LENGTH_NAMES) + 1):  # the lengths and the driven joint's offset; the sensor's plays no part
+def _moment_model(p: FloatArray, pose: LoadPose, slopes: FloatArray, gravity: float) -> tuple[FloatArray, FloatArray]:
+    """(tau_m (N m), its Jacobian by (u, ``p``)) for ``p`` in MOMENT_NAMES at ``pose``, the geometry's part from
+    ``slopes`` (``_pose_slopes``): ``effort_model`` with m along and m normal as the moments."""
+    m, along, normal, c, b, eta = (float(x) for x in p)
+    lever, base, cos_t, sin_t = _terms(pose)
+    arm = m * base - along * cos_t - normal * sin_t  # kg m/rad: tau_in = g arm lever
+    tau_in = gravity * arm * lever
+    driving = tau_in * pose.direction > 0.0
+    k = np.where(driving, 1.0 / eta, eta)
+    n_geometry = slopes.shape[2]
+    jac = np.empty((lever.size, n_geometry + 6))
+    kg = k * gravity
+    jac[:, :n_geometry] = kg[:, None] * (arm[:, None] * slopes[0] + lever[:, None] * (
+        m * slopes[1] - along * slopes[2] - normal * slopes[3]))
+    jac[:, n_geometry] = kg * lever * base
+    jac[:, n_geometry + 1] = -kg * lever * cos_t
+    jac[:, n_geometry + 2] = -kg * lever * sin_t
+    jac[:, n_geometry + 3] = pose.direction
+    jac[:, n_geometry + 4] = pose.rate
+    jac[:, n_geometry + 5] = np.where(driving, -tau_in / (eta * eta), tau_in)
+    return k * tau_in + c * pose.direction + b * pose.rate, jac
+
+
+def _geometry_basis(geometry: Geometry) -> FloatArray:
+    """B (5 x r) with the geometry's lengths and driven joint offset = values + B u, u ~ N(0, I): the square root of
+    their covariance over the directions it leaves free (the sensor's offset plays no part in the effort)."""
+    k = len(LENGTH_NAMES) + 1
+    variances, vectors = np.linalg.eigh(geometry.covariance[:k, :k])
+    free = variances > 0.0
+    basis: FloatArray = vectors[:, free] * np.sqrt(variances[free])
+    return basis
+
+
+def _terms(pose: LoadPose) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray]:
+    """The pose terms the geometry moves: lever, base, cos(theta), sin(theta)."""
+    return pose.lever, pose.base, pose.cos_t, pose.sin_t
+
+
+def _pose_slopes(values: FloatArray, basis: FloatArray, pose_of: Callable[[FloatArray], LoadPose],
+                 n: int) -> FloatArray:
+    """d(pose term)/du (4 x ``n`` readings x r; ``_terms`` order) at the calibrated geometry, by central differences
+    of GEOMETRY_STEP in each geometry coordinate. The fit evaluates the pose where it is and takes these slopes for
+    its Jacobian: over the few sds the fit moves the geometry they change by a few tenths of a percent, which moves
+    the optimum the fit finds by as little (its residuals are noise) and saves ten pose evaluations a step."""
+    k = basis.shape[0]
+    by_coordinate = np.empty((4, n, k))
+    for i in range(k):
         up, down = values.copy(), values.copy()
         up[i] += GEOMETRY_STEP
         down[i] -= GEOMETRY_STEP
-        by_geometry[:, i] = ((effort_model(p, pose_of(up), gravity)[0] - effort_model(p, pose_of(down), gravity)[0])
-                             [fit.kept] / (2.0 * GEOMETRY_STEP))
-    if not np.isfinite(by_geometry).all():
+        for j, (a, b) in enumerate(zip(_terms(pose_of(up)), _terms(pose_of(down)), strict=True)):
+            by_coordinate[j, :, i] = (a - b) / (2.0 * GEOMETRY_STEP)
+    if not np.isfinite(by_coordinate).all():
         raise CalibrationError('the load model is not differentiable in the geometry at every reading: a reading '
                                'lies at a dead point')
-    weight = fit.independent / fit.sigma ** 2
-    sensitivity = fit.covariance @ (jac.T @ by_geometry) * weight
-    covariance = fit.covariance + sensitivity @ geometry.covariance @ sensitivity.T
-    sds = np.sqrt(np.diag(covariance))
-    return replace(fit, covariance=covariance,
-                   parameters=tuple(replace(x, sd=float(sd)) for x, sd in zip(fit.parameters, sds, strict=True)))
+    slopes: FloatArray = by_coordinate @ basis
+    return slopes
+
+
+def _marginal(fit: MapFit, n_geometry: int, sds: FloatArray, prior: LoadPrior) -> MapFit:
+    """The load's part of a joint fit in MOMENT_NAMES (the geometry's ``n_geometry`` first), in LOAD_NAMES: the
+    offsets the moments over the mass, the covariance carried through that map (first order: exact where the mass's
+    sd is a small part of it, as ``written`` asks); singular values and directions of the data's information on
+    the load alone, in the moments' coordinates scaled by their prior ``sds`` (as ``map_fit`` gives them)."""
+    load = slice(n_geometry, None)
+    values = np.array([x.value for x in fit.parameters[load]])
+    m, along, normal = values[:3]
+    if m == 0.0:
+        raise CalibrationError('the fitted antenna mass is 0 kg: the centre of mass is not defined')
+    to_offsets = np.eye(len(LOAD_NAMES))
+    to_offsets[1, :3] = (-along / m ** 2, 1.0 / m, 0.0)
+    to_offsets[2, :3] = (-normal / m ** 2, 0.0, 1.0 / m)
+    covariance = to_offsets @ fit.covariance[load, load] @ to_offsets.T
+    values[1:3] /= m
+    parameters = tuple(FittedParameter(name, float(v), float(math.sqrt(covariance[i, i])), float(mean), float(sd))
+                       for i, (name, v, mean, sd) in enumerate(zip(LOAD_NAMES, values, prior.means(), prior.sds(),
+                                                                   strict=True)))
+    information = fit.data_information[load, load]
+    eigenvalues, vectors = np.linalg.eigh(information * np.outer(sds, sds))
+    order = np.argsort(eigenvalues)[::-1]
+    inverse = np.linalg.inv(to_offsets)
+    return replace(fit, parameters=parameters, covariance=covariance,
+                   data_information=inverse.T @ information @ inverse, known_rows=fit.known_rows[:, load] @ inverse,
+                   singular_values=np.sqrt(np.clip(eigenvalues[order], 0.0, None)), directions=vectors[:, order].T)

@@ -1,5 +1,5 @@
 """The load model fitted to the measured effort (fourbar_ros.core.load_calibration): the exact Jacobian against
-central differences, the truth recovered within 4 sd over seeds, the geometry's covariance carried into the sds,
+central differences, the truth recovered within 4 sd over seeds, the load fitted with the uncertain geometry,
 readings at rest left out, too few refused."""
 
 from __future__ import annotations
@@ -82,16 +82,17 @@ def test_a_joint_at_rest_cannot_fit_the_load() -> None:
 GEOMETRY_SEEDS = 24
 
 
-def test_the_geometrys_uncertainty_is_carried_into_the_loads_sds_and_nothing_confidently_wrong_is_written() -> None:
+def test_the_load_fitted_with_the_geometry_has_honest_sds_and_nothing_confidently_wrong_is_written() -> None:
     """The geometry the load stands on is known to 0.5 mm per length and 2 mrad in the driven joint's offset: for
     each seed the true geometry is drawn from that covariance and the fit is given the nominal one. Over a tilt sweep
     of 13 deg the mass and the centre of mass are nearly collinear (the data fix the moments m * offset, the mass
     only through the sweep's curvature), so a geometry off by its sd moves the fitted mass by kilograms.
 
     Taken as exact, the geometry leaves the mass's and the centre of mass's sds 10 to 100 times too small (z RMS over
-    the seeds). Carried in (first order), it shrinks their z RMS by a factor 5 or more, not to 1: the posterior is
-    a curved valley a first-order covariance cannot follow (printed). What the calibration writes (``written``: sd
-    within its target, the centre of mass only with the mass) is within 4 sd of the truth, in every seed."""
+    the seeds). Fitted jointly with the load under its covariance, every load parameter's z RMS is near 1: within
+    [0.6, 1.5], for 24 seeds where the RMS of standard normal z has an sd of 1/sqrt(48) = 0.14 (printed). What the
+    calibration writes (``written``: sd within its target, the centre of mass only with the mass) is within 4 sd of
+    the truth, in every seed."""
     driven, branch = Driven.GAMMA, CFG.measured_branch
     q, q_rate = sweep(driven, 120.0)
     rng = np.random.default_rng(3)
@@ -112,7 +113,7 @@ def test_the_geometrys_uncertainty_is_carried_into_the_loads_sds_and_nothing_con
     rms_exact, rms_carried = (np.sqrt(np.mean(np.square(z), axis=0)) for z in (z_exact, z_carried))
     exact, carried = ({n: round(float(z), 2) for n, z in zip(LOAD_NAMES, rms, strict=True)}
                       for rms in (rms_exact, rms_carried))
-    print('load z RMS over', GEOMETRY_SEEDS, 'seeds, the geometry taken as exact:', exact, '; its covariance carried '
-          f'in: {carried}; parameters written: {n_written}')
+    print('load z RMS over', GEOMETRY_SEEDS, 'seeds, the geometry taken as exact:', exact, '; fitted with it under '
+          f'its covariance: {carried}; parameters written: {n_written}')
     assert (rms_exact[:3] > 10.0).all(), exact  # the mass and the centre of mass: overconfident without it
-    assert (rms_carried[:3] <= rms_exact[:3] / 5.0).all(), (exact, carried)
+    assert ((rms_carried >= 0.6) & (rms_carried <= 1.5)).all(), (exact, carried)
