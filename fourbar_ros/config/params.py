@@ -232,8 +232,9 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('replan_tolerance', float, 0.01, 'rad',
               'Actuator modes: a command during a motion plans on from the motion being followed while the '
               'measured driven joint is within this of it at the measurement\'s stamp; otherwise from the measured '
-              'state. Keep it below the controller\'s path tolerance, so a drive the controller holds is planned '
-              'from where it is.', 0.0, 3.2),
+              'state. Below the trajectory controller\'s path tolerance at the driven joint where it checks one '
+              '(refused otherwise, at startup and at run time), so a drive the controller holds is planned from where '
+              'it is.', 0.0, 3.2),
     ParamSpec('measured_range_tolerance', float, 1e-5, 'rad',
               'Actuator modes: a measured driven joint outside its range for [theta_min, theta_max] by at most this '
               '(an encoder count through the reducer rounds outward) starts a motion from the nearest end of the '

@@ -55,7 +55,7 @@ from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.node.trajectory_goals import follow_joint_trajectory
 from fourbar_ros.rules.diagnostics import DIAGNOSTIC_TASK, Counters, Level, SequenceGaps, command_rate, summarize
 from fourbar_ros.rules.marker_geometry import linkage_points
-from fourbar_ros.rules.outgoing import actuation_contract
+from fourbar_ros.rules.outgoing import actuation_contract, check_replan_tolerance
 from fourbar_ros.rules.outputs import JointStateRule
 from fourbar_ros.rules.policy import Decision, Outcome, Policy, decide
 from fourbar_ros.rules.state_cache import StateCache
@@ -102,6 +102,7 @@ class FourBarNode(Node):
             raise
         self._report_unknown_overrides(explicit)
         self.declare_parameters('', list(declarations(self._config.as_values())))
+        self.actuation: Actuation | None = None  # set below in the actuator modes; parameter changes check it
         self.add_on_set_parameters_callback(guard.wrap('set_parameters', self._on_set_parameters, refused))
         self.add_post_set_parameters_callback(guard.wrap('after_set_parameters', self._after_set_parameters))
         self._pending: AntennaConfig | None = None
@@ -145,7 +146,6 @@ class FourBarNode(Node):
         # state, completed here (node/completion.py), never the commanded pose. One subscription to the measured
         # joint: the completion passes each good measurement on to the motion's start state.
         self._publishes_pose = self._config.mode == Mode.OPEN_LOOP.value
-        self.actuation: Actuation | None = None
         self.completion: MeasuredCompletion | None = None
         self.model_check: LiveModelCheck | None = None  # an antenna sensor against the completed angle
         if not self._publishes_pose:
@@ -233,9 +233,12 @@ class FourBarNode(Node):
             if not is_foreign(p.name):
                 proposed[p.name] = p.value
         try:
-            self._pending = config_from_values(proposed, changed)
+            pending = config_from_values(proposed, changed)
+            if self.actuation is not None:
+                check_replan_tolerance(pending, self.actuation.contract)
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
+        self._pending = pending
         return SetParametersResult(successful=True)
 
     def _count_result(self, result: SetParametersResult) -> SetParametersResult:

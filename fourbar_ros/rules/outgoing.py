@@ -1,7 +1,7 @@
 """What leaves for the controller: a trajectory's points as sent, checked against the controller's contract.
 
-``point_fields``, ``held_to_arrival``, ``outgoing_refusal`` and ``actuation_contract`` (the controller each
-actuator mode sends to). See docs/how-to/ros2-control.md."""
+``point_fields``, ``held_to_arrival``, ``outgoing_refusal``, ``actuation_contract`` (the controller each actuator
+mode sends to) and ``check_replan_tolerance``. See docs/how-to/ros2-control.md."""
 
 from __future__ import annotations
 
@@ -63,8 +63,8 @@ def actuation_contract(cfg: AntennaConfig, mode: str | None = None, namespace: s
     """The settings of the controller that ``mode`` (default: the configured one; trajectory or forward) sends to,
     from ``controllers_file`` as the controller manager in ``namespace`` reads it. Raises ConfigError (one line)
     when they cannot take what the node sends: the controller's joints not the one driven joint,
-    ``effort_feedforward`` without an effort command interface, or a setting that changes the motion in a way the
-    node does not model (``rules.controller_motion.motion_settings_problem``)."""
+    ``effort_feedforward`` without an effort command interface, a setting that changes the motion in a way the
+    node does not model (``rules.controller_motion.motion_settings_problem``), or ``check_replan_tolerance``."""
     if (mode or cfg.mode) == 'trajectory':
         contract: TrajectoryControllerSettings | ForwardControllerSettings = trajectory_controller(
             cfg.controllers_file, cfg.trajectory_controller, namespace)
@@ -77,6 +77,7 @@ def actuation_contract(cfg: AntennaConfig, mode: str | None = None, namespace: s
     if list(contract.joints) != [cfg.driven_joint]:
         raise ConfigError(f'controllers_file: the controller {contract.name} has joints {list(contract.joints)}; the '
                           f'node drives the one joint {cfg.driven_joint!r}', ('controllers_file',))
+    check_replan_tolerance(cfg, contract)
     if (cfg.effort_feedforward and isinstance(contract, TrajectoryControllerSettings)
             and not contract.has_effort_command_interface):
         raise ConfigError(f'effort_feedforward: the controller {contract.name} has command_interfaces '
@@ -84,3 +85,16 @@ def actuation_contract(cfg: AntennaConfig, mode: str | None = None, namespace: s
                           'effort: give it [position, effort]', ('effort_feedforward',))
     return contract
 
+
+def check_replan_tolerance(cfg: AntennaConfig,
+                           contract: TrajectoryControllerSettings | ForwardControllerSettings) -> None:
+    """Raise ConfigError (one line) when ``replan_tolerance`` is not below the trajectory controller's path
+    tolerance at the driven joint (where it checks one): a drive the controller holds on that tolerance would stay
+    within the node's of the motion the controller dropped, and the node would go on planning from that motion."""
+    if not isinstance(contract, TrajectoryControllerSettings):
+        return
+    path = contract.tolerance(cfg.driven_joint).trajectory
+    if path > 0.0 and not cfg.replan_tolerance < path:
+        raise ConfigError(f'replan_tolerance: {cfg.replan_tolerance!r} rad must be below the path tolerance '
+                          f'{path!r} rad of {contract.name} at {cfg.driven_joint} (a drive it holds off the motion '
+                          'would still count as on it)', ('replan_tolerance',))

@@ -203,6 +203,23 @@ def test_a_command_in_trajectory_mode_moves_the_actuator_to_its_driven_angle(tra
     assert traj.actuation.counters.commands_planned >= 1
 
 
+def test_a_replan_tolerance_not_below_the_path_tolerance_is_refused_at_run_time(traj: Pair) -> None:
+    """The check the node makes at startup holds for a change at run time: refused in one line, counted, nothing
+    changed; a value below the controller's path tolerance (1 deg) applies."""
+    node = traj.node
+    rejected = node.counters.parameter_changes_rejected
+    result = node.set_parameters([Parameter('replan_tolerance', value=0.05)])[0]
+    assert not result.successful and result.reason.startswith('replan_tolerance: 0.05 rad must be below the path '
+                                                              'tolerance') and '\n' not in result.reason, result
+    assert node.config.replan_tolerance == CFG.replan_tolerance
+    assert node.counters.parameter_changes_rejected == rejected + 1
+    try:
+        assert node.set_parameters([Parameter('replan_tolerance', value=0.015)])[0].successful
+        assert node.config.replan_tolerance == 0.015
+    finally:
+        assert node.set_parameters([Parameter('replan_tolerance', value=CFG.replan_tolerance)])[0].successful
+
+
 def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     before = len(traj.trajectories)
     traj.command(CFG.theta_max)  # a motion of seconds ...

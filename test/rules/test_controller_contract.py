@@ -220,6 +220,23 @@ def test_the_node_refuses_to_start_with_a_contract_it_cannot_meet(tmp_path: Path
         actuation_contract(config_from_values({'mode': 'trajectory', 'controllers_file': other}))
 
 
+def test_a_replan_tolerance_at_or_above_the_path_tolerance_is_refused_in_one_line(tmp_path: Path) -> None:
+    # The shipped file's path tolerance at the driven joint is 1 deg: a drive held off the motion by more than that
+    # must count as off it for the node, so replan_tolerance must stay below. No path tolerance: anything goes.
+    path = trajectory_controller('', 'joint_trajectory_controller').tolerance('rocker_ab_joint').trajectory
+    assert path == pytest.approx(math.radians(1.0))
+    actuation_contract(config_from_values({'mode': 'trajectory', 'replan_tolerance': 0.999 * path}))
+    for tolerance in (path, 0.05):
+        with pytest.raises(ConfigError, match=r'^replan_tolerance: .* must be below the path tolerance') as bad:
+            actuation_contract(config_from_values({'mode': 'trajectory', 'replan_tolerance': tolerance}))
+        assert '\n' not in str(bad.value) and repr(path) in str(bad.value)
+    loose = controllers_yaml(tmp_path, f'joint_trajectory_controller:\n  ros__parameters:\n    joints: [{JOINT}]\n'
+                                       '    command_interfaces: [position]\n    state_interfaces: [position]\n'
+                                       + HOLD_MEASURED)
+    actuation_contract(config_from_values({'mode': 'trajectory', 'replan_tolerance': 0.05, 'controllers_file': loose}))
+    actuation_contract(config_from_values({'mode': 'forward', 'replan_tolerance': 0.05}))
+
+
 # --------------------------------------------------------------------------- what the node makes passes
 
 
