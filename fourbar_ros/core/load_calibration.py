@@ -196,10 +196,10 @@ def calibrate_load(geometry: Geometry, q_measured: FloatArray, q_rate: FloatArra
 
 def _moment_model(p: FloatArray, pose: LoadPose, slopes: FloatArray, gravity: float) -> tuple[FloatArray, FloatArray]:
     """(tau_m (N m), its Jacobian by (u, ``p``)) for ``p`` in MOMENT_NAMES at ``pose``, the geometry's part from
-    ``slopes`` (``_pose_slopes``): ``effort_model`` with m along and m normal as the moments."""
-    m, along, normal, c, b, eta = (float(x) for x in p)
+    ``slopes`` (``_pose_slopes``): ``effort_model`` with the moments m along and m normal (kg m)."""
+    m, m_along, m_normal, c, b, eta = (float(x) for x in p)
     lever, base, cos_t, sin_t = _terms(pose)
-    arm = m * base - along * cos_t - normal * sin_t  # kg m/rad: tau_in = g arm lever
+    arm = m * base - m_along * cos_t - m_normal * sin_t  # kg m/rad: tau_in = g arm lever
     tau_in = gravity * arm * lever
     driving = tau_in * pose.direction > 0.0
     k = np.where(driving, 1.0 / eta, eta)
@@ -207,7 +207,7 @@ def _moment_model(p: FloatArray, pose: LoadPose, slopes: FloatArray, gravity: fl
     jac = np.empty((lever.size, n_geometry + 6))
     kg = k * gravity
     jac[:, :n_geometry] = kg[:, None] * (arm[:, None] * slopes[0] + lever[:, None] * (
-        m * slopes[1] - along * slopes[2] - normal * slopes[3]))
+        m * slopes[1] - m_along * slopes[2] - m_normal * slopes[3]))
     jac[:, n_geometry] = kg * lever * base
     jac[:, n_geometry + 1] = -kg * lever * cos_t
     jac[:, n_geometry + 2] = -kg * lever * sin_t
@@ -260,12 +260,12 @@ def _marginal(fit: MapFit, n_geometry: int, sds: FloatArray, prior: LoadPrior) -
     the load alone, in the moments' coordinates scaled by their prior ``sds`` (as ``map_fit`` gives them)."""
     load = slice(n_geometry, None)
     values = np.array([x.value for x in fit.parameters[load]])
-    m, along, normal = values[:3]
+    m, m_along, m_normal = values[:3]
     if m == 0.0:
         raise CalibrationError('the fitted antenna mass is 0 kg: the centre of mass is not defined')
     to_offsets = np.eye(len(LOAD_NAMES))
-    to_offsets[1, :3] = (-along / m ** 2, 1.0 / m, 0.0)
-    to_offsets[2, :3] = (-normal / m ** 2, 0.0, 1.0 / m)
+    to_offsets[1, :3] = (-m_along / m ** 2, 1.0 / m, 0.0)
+    to_offsets[2, :3] = (-m_normal / m ** 2, 0.0, 1.0 / m)
     covariance = to_offsets @ fit.covariance[load, load] @ to_offsets.T
     values[1:3] /= m
     parameters = tuple(FittedParameter(name, float(v), float(math.sqrt(covariance[i, i])), float(mean), float(sd))
