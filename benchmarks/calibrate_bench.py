@@ -3,7 +3,8 @@
     .venv/bin/python -m benchmarks.calibrate_bench [--quick] [--rounds 3] [--duration 600]
 
 - the recording: a synthetic sweep (``fourbar_ros.bags.calibration_sweep``) of 600 s, joint states at 100 Hz
-  (60,000) and a Float64 inclinometer at 50 Hz (30,000), mcap, written to a temporary directory;
+  (60,000, with the velocity and the effort of a 2 kg antenna, so the load is fitted too) and a Float64
+  inclinometer at 50 Hz (30,000), mcap, written to a temporary directory;
 - read: a fresh Python process that imports rosbags and reads every raw message of the bag (nothing decoded): the
   least any tool reading the recording spends, start-up included;
 - calibrate: a fresh process running the whole command, ``python -m fourbar_ros.commands calibrate BAG --params
@@ -39,11 +40,13 @@ READ = ('import sys\nfrom rosbags.rosbag2 import Reader\nwith Reader(sys.argv[1]
         '    count = sum(1 for _ in reader.messages())\nprint(count)\n')
 TRUTH = {'frame_length': 0.1803, 'rocker_ab_length': 0.0598, 'coupler_length': 0.1021, 'rocker_cd_length': 0.0602,
          'driven_joint_offset': -math.radians(0.7), 'sensor_offset': 0.004}
+LOAD = {'antenna_mass': 2.0, 'com_offset_along': 0.03, 'com_offset_normal': 0.02, 'coulomb_friction': 0.05,
+        'viscous_friction': 3.0, 'reducer_efficiency': 0.7}
 
 
 def make_bag(path: Path, duration: float) -> Path:
     from fourbar_ros.bags.calibration_sweep import Sweep, write_calibration_bag
-    return write_calibration_bag(path, Sweep(TRUTH, duration=duration, cycles=duration / 60.0))
+    return write_calibration_bag(path, Sweep(TRUTH, duration=duration, cycles=duration / 60.0, load=LOAD))
 
 
 def _wall(cmd: list[str]) -> tuple[float, float]:
