@@ -115,14 +115,19 @@ class Pair:
         self.cmd.publish(Float64(data=theta))
 
     def settle_at(self, theta: float) -> JointState:
-        """The first measured message since the last command or trajectory (``mark``) at theta's driven angle."""
+        """The first measured message since the last command or trajectory (``mark``) at theta's driven angle, once
+        the node has taken in a measurement there too (both sides: under load the node's measurements can lag the
+        test's, and a plan from the drive's measured state would start where the drive was)."""
         q = q_of(theta)
         try:
-            return self.measured.wait_match(lambda m: JOINT in m.name
-                                            and abs(m.position[list(m.name).index(JOINT)] - q) <= SETTLED,
-                                            start=self.mark)
+            settled = self.measured.wait_match(lambda m: JOINT in m.name
+                                               and abs(m.position[list(m.name).index(JOINT)] - q) <= SETTLED,
+                                               start=self.mark)
+            self.ros.wait_for(lambda: (m := self.actuation.measured) is not None and abs(m.position - q) <= SETTLED,
+                              what=f'the node\'s measured driven joint within {SETTLED} rad of {q!r} rad')
         except AssertionError as exc:
             raise AssertionError(f'{exc}\n{self.sides()}') from None
+        return settled
 
     def sides(self) -> str:
         """What the node and the simulated drive each say they did (for a failure message)."""
