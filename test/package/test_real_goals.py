@@ -55,7 +55,7 @@ def _bringup(env: CliEnv, namespace: str, *extra: str) -> Iterator[Bringup]:
 def _held_back(tmp_path: Path) -> list[str]:
     """Launch arguments for a drive that does not move: the package's parameters with the mock hardware's
     ``disable_commands`` (its state stays where it started) and its controllers file with joint_trajectory_controller's
-    path tolerance TIGHT_PATH_TOLERANCE."""
+    path tolerance TIGHT_PATH_TOLERANCE (the node's replan_tolerance below it, as the node requires)."""
     settings = yaml.safe_load(CONTROLLERS.read_text(encoding='utf-8'))
     settings['/**/joint_trajectory_controller']['ros__parameters']['constraints']['rocker_ab_joint'][
         'trajectory'] = TIGHT_PATH_TOLERANCE
@@ -63,6 +63,7 @@ def _held_back(tmp_path: Path) -> list[str]:
     controllers.write_text(yaml.safe_dump(settings), encoding='utf-8')
     params = yaml.safe_load(ANTENNA.read_text(encoding='utf-8'))
     params['/**']['ros__parameters']['hardware_parameters'] = ['disable_commands=true']
+    params['/**']['ros__parameters']['replan_tolerance'] = TIGHT_PATH_TOLERANCE / 2.0
     antenna = tmp_path / 'held_antenna.yaml'
     antenna.write_text(yaml.safe_dump(params), encoding='utf-8')
     return [f'controllers_file:={controllers}', f'params_file:={antenna}']
@@ -127,9 +128,8 @@ def test_a_goal_the_next_command_supersedes_is_counted_preempted(bringup: Bringu
 @pytest.mark.parametrize('bringup', ['held'], indirect=True)
 def test_a_goal_the_controller_aborts_is_counted_with_its_reason(bringup: Bringup, tmp_path: Path) -> None:
     # Why it aborts: the held-back joint stays where it was, so the controller's reference leaves it as soon as the
-    # motion starts; a path tolerance of 1e-6 rad is exceeded within a few updates, long before the node's own
-    # replan_tolerance (0.01 rad) would send a new goal: the controller aborts with PATH_TOLERANCE_VIOLATED (-4) and
-    # holds. (A mock that follows its commands is no test of this: the controller compares the measured position,
+    # motion starts; a path tolerance of 1e-6 rad is exceeded within a few updates: the controller aborts with
+    # PATH_TOLERANCE_VIOLATED (-4) and holds. (A mock that follows its commands is no test of this: the controller compares the measured position,
     # its previous command, with the reference at its own clock, which a regular 100 Hz loop keeps within
     # speed * period jitter, often below 1e-6 rad: such a goal succeeded on a busy machine.)
     result = _probe(bringup.cli, NAMESPACE, [(0.05, 0.0)], {'goals_aborted': 1}, tmp_path, settle=1.5)

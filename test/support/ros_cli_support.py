@@ -335,7 +335,10 @@ def fourbar_launch(env: Any, namespace: str, arguments: Sequence[str],
     launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', f'namespace:={namespace}',
                          *arguments, 'rviz:=false'], env.env, cwd=env.cwd)
     try:
-        wait_node(env.env, f'/{namespace}/fourbar_node')
+        try:
+            wait_node(env.env, f'/{namespace}/fourbar_node')
+        except AssertionError as exc:  # what the launch said (a node that refused to start says why)
+            raise AssertionError(f'{exc}\nthe launch printed:\n{launch.output()[-3000:]}') from None
         if ready is not None:
             launch.wait_output(lambda t: ready in t, repr(ready))
         yield launch
