@@ -129,9 +129,9 @@ def test_a_goal_the_next_command_supersedes_is_counted_preempted(bringup: Bringu
 def test_a_goal_the_controller_aborts_is_counted_with_its_reason(bringup: Bringup, tmp_path: Path) -> None:
     # Why it aborts: the held-back joint stays where it was, so the controller's reference leaves it as soon as the
     # motion starts; a path tolerance of 1e-6 rad is exceeded within a few updates: the controller aborts with
-    # PATH_TOLERANCE_VIOLATED (-4) and holds. (A mock that follows its commands is no test of this: the controller compares the measured position,
-    # its previous command, with the reference at its own clock, which a regular 100 Hz loop keeps within
-    # speed * period jitter, often below 1e-6 rad: such a goal succeeded on a busy machine.)
+    # PATH_TOLERANCE_VIOLATED (-4) and holds. (A mock that follows its commands is no test of this: the controller
+    # compares the measured position, its previous command, with the reference at its own clock, which a regular
+    # 100 Hz loop keeps within speed * period jitter, often below 1e-6 rad: such a goal succeeded on a busy machine.)
     result = _probe(bringup.cli, NAMESPACE, [(0.05, 0.0)], {'goals_aborted': 1}, tmp_path, settle=1.5)
     assert _grown(result, *KEYS) == {**dict.fromkeys(KEYS, 0), 'goals_sent': 1, 'goals_accepted': 1,
                                      'goals_aborted': 1}, f'{result}\nlaunch log:\n{bringup.launch.output()[-4000:]}'
