@@ -2,9 +2,10 @@
 
     .venv/bin/python -m benchmarks.calibrate_bench [--quick] [--rounds 3] [--duration 600]
 
-- the recording: a synthetic sweep (``fourbar_ros.bags.calibration_sweep``) of 600 s, joint states at 100 Hz
-  (60,000, with the velocity and the effort of a 2 kg antenna, so the load is fitted too) and a Float64
-  inclinometer at 50 Hz (30,000), mcap, written to a temporary directory;
+- the recordings: a synthetic sweep (``fourbar_ros.bags.calibration_sweep``) of 600 s, joint states at 100 Hz
+  (60,000) and a Float64 inclinometer at 50 Hz (30,000), mcap, written to a temporary directory: ``geometry``
+  without an effort (the geometry, sensor latency and backlash are fitted), ``with_load`` with the velocity and the
+  effort of a 2 kg antenna (the load is fitted too);
 - read: a fresh Python process that imports rosbags and reads every raw message of the bag (nothing decoded): the
   least any tool reading the recording spends, start-up included;
 - calibrate: a fresh process running the whole command, ``python -m fourbar_ros.commands calibrate BAG --params
@@ -44,9 +45,9 @@ LOAD = {'antenna_mass': 2.0, 'com_offset_along': 0.03, 'com_offset_normal': 0.02
         'viscous_friction': 3.0, 'reducer_efficiency': 0.7}
 
 
-def make_bag(path: Path, duration: float) -> Path:
+def make_bag(path: Path, duration: float, load: dict[str, float] | None) -> Path:
     from fourbar_ros.bags.calibration_sweep import Sweep, write_calibration_bag
-    return write_calibration_bag(path, Sweep(TRUTH, duration=duration, cycles=duration / 60.0, load=LOAD))
+    return write_calibration_bag(path, Sweep(TRUTH, duration=duration, cycles=duration / 60.0, load=load))
 
 
 def _wall(cmd: list[str]) -> tuple[float, float]:
@@ -60,8 +61,14 @@ def _wall(cmd: list[str]) -> tuple[float, float]:
 
 
 def run(duration: float, rounds: int) -> dict[str, Any]:
+    return {'recording': {'seconds': duration, 'joint_states_hz': 100, 'sensor_hz': 50},
+            'geometry': _one(duration, rounds, None), 'with_load': _one(duration, rounds, LOAD),
+            'load_average': os.getloadavg(), 'target_ratio': 3.0}
+
+
+def _one(duration: float, rounds: int, load: dict[str, float] | None) -> dict[str, Any]:
     with tempfile.TemporaryDirectory() as tmp:
-        bag = make_bag(Path(tmp) / 'sweep', duration)
+        bag = make_bag(Path(tmp) / 'sweep', duration, load)
         out = Path(tmp) / 'out'
         command = [sys.executable, '-m', 'fourbar_ros.commands', 'calibrate', str(bag), '--params', str(CONFIG),
                    '--angle-topic', '/antenna_inclinometer', '-o', str(out / 'calibrated.yaml'), '--report',
@@ -91,15 +98,13 @@ def run(duration: float, rounds: int) -> dict[str, Any]:
         calibrate_in = time.perf_counter() - start
     read, calibrate = statistics.median(reads), statistics.median(calibrations)
     return {
-        'recording': {'seconds': duration, 'messages': messages, 'joint_states_hz': 100, 'sensor_hz': 50},
-        'load_average': os.getloadavg(),
+        'messages': messages,
         'processes': {'read_s': read, 'calibrate_s': calibrate, 'ratio': calibrate / read,
                       'cpu_ratio': statistics.median(calibrate_cpu) / statistics.median(read_cpu),
                       'rounds': {'read_s': reads, 'calibrate_s': calibrations, 'read_cpu_s': read_cpu,
                                  'calibrate_cpu_s': calibrate_cpu}},
         'in_process': {'read_s': read_in, 'calibrate_s': calibrate_in, 'ratio': calibrate_in / read_in,
                        'status': status},
-        'target_ratio': 3.0,
     }
 
 
