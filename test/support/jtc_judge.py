@@ -10,8 +10,9 @@ became of the judge's last trajectory (``_settled``; a stalled manager delays th
   JointTrajectory to the controller (s, rad, rad/s, rad/s^2, N m; null leaves a field empty, a list fills it; stamp
   null: zero, else the send time plus that many seconds; joints: the driven joint unless given);
 - ``{"command": theta, "after": s}``: an antenna angle (rad) to fourbar_node's ``antenna_angle_cmd``.
-OUT.json: every trajectory the controller's topic carried, the judge's with the time it sent them, the node's with
-the time the judge received them (``echoed``), and every ``~/controller_state`` message, from the first step to
+OUT.json: every trajectory the controller's topic carried, the judge's with the time it sent them and the stamp of
+the newest controller state it had received by then (``seen``), the node's with the time the judge received them
+(``echoed``), and every ``~/controller_state`` message, from the first step to
 ``tail`` s after the last trajectory's end (ns on the node clock).
 """
 
@@ -29,7 +30,7 @@ from control_msgs.msg import JointTrajectoryControllerState
 from probe_node import probe_node
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from real_controller import SENT_EARLY_NS
+from real_controller import earliest_takeover
 from std_msgs.msg import Float64
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -74,7 +75,7 @@ def _settled(states: list[dict[str, Any]], sent: dict[str, Any], earlier_stamps:
     """Whether the controller's states show the fate of the trajectory ``sent`` (the judge's last): an update that
     follows it (one whose trajectory starts at its stamp, or for a zero stamp at an update after it was sent, and
     not where an earlier stamped one starts), or an update REFUSED_AFTER_NS (EXPECTED_AFTER_NS) after it was sent."""
-    since = sent['received'] - SENT_EARLY_NS
+    since = earliest_takeover(sent)
     after = REFUSED_AFTER_NS if sent['refused'] else EXPECTED_AFTER_NS
     for s in reversed(states):
         if s['stamp'] <= since:
@@ -155,7 +156,8 @@ def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> i
             to_controller.publish(_message(step, stamp))
             sent_points = [[round(float(p[0]) * NS) / NS, *p[1:]] for p in step['points']]  # as on the wire
             trajectories.append({'received': now, 'echoed': False, 'stamp': stamp, 'points': sent_points,
-                                 'joints': step.get('joints', [JOINT]), 'refused': bool(step.get('refused'))})
+                                 'joints': step.get('joints', [JOINT]), 'refused': bool(step.get('refused')),
+                                 'seen': states[-1]['stamp'] if states else 0})
             own.append(trajectories[-1])
     if steps and 'command' in steps[-1]:  # the node's answer to the last command: wait for it to arrive
         sent = clock.now().nanoseconds - round((time.monotonic() - t_prev) * NS)

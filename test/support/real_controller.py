@@ -112,6 +112,15 @@ ECHO_EARLY_NS, ECHO_LATE_NS = 500_000_000, 30_000_000
 SENT_EARLY_NS = 10_000_000
 
 
+def earliest_takeover(traj: dict[str, Any]) -> int:
+    """The earliest stamp (ns) of an update that may have taken the recorded trajectory ``traj`` over. The judge's
+    own: ``SENT_EARLY_NS`` before it was sent, but after the newest update whose state the judge had received by then
+    (``seen``: that update was over before the trajectory went out)."""
+    if traj['echoed']:
+        return int(traj['received']) - ECHO_EARLY_NS
+    return max(int(traj['received']) - SENT_EARLY_NS, int(traj.get('seen', 0)))
+
+
 def _candidates(states: list[dict[str, Any]], traj: dict[str, Any], since: int, until: int) -> list[int]:
     """Indices of the updates stamped in (since, until) (ns) that could have taken ``traj`` over: the reference and
     feedback ``time_from_start`` equal, and the trajectory's own time there 0 for a zero stamp (its origin is that
@@ -174,7 +183,7 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     the model follows best up to the window's end is taken (a model wrong at every candidate still fails)."""
     states = recording['states']
     trajectories = recording['trajectories']
-    arrivals = [t['received'] - (ECHO_EARLY_NS if t['echoed'] else SENT_EARLY_NS) for t in trajectories] + [2**63]
+    arrivals = [earliest_takeover(t) for t in trajectories] + [2**63]
     taken: dict[int, tuple[int, bool]] = {}
     unknown: set[int] = set()
     # The judge's own: each update follows the stamped trajectory that starts where it does and had arrived, else the
@@ -236,8 +245,7 @@ def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, jo
     velocity_state = 'velocity' in settings.state_interfaces
     found = takeovers(recording, velocity_state, period)
     # A segment ends at the next takeover, or where a trajectory the recording cannot place may have taken over.
-    lost = [next((k for k, s in enumerate(states) if s['stamp'] > trajectories[i]['received']
-                  - (ECHO_EARLY_NS if trajectories[i]['echoed'] else SENT_EARLY_NS)), len(states))
+    lost = [next((k for k, s in enumerate(states) if s['stamp'] > earliest_takeover(trajectories[i])), len(states))
             for i in found.unknown]
     firsts = sorted([k for k, _ in found.taken.values()] + lost)
     out: list[Judged] = []
