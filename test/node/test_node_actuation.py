@@ -42,8 +42,10 @@ pytestmark = pytest.mark.ros
 CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
 JOINT = CFG.driven_joint
-#: The sim's lag converges exponentially to a reference at rest: after many time constants its remaining error is
-#: far below this (no noise, no quantization by default).
+#: Settled: measured within this of the target (rad) and at rest (rad/s). The sim's drive lands on a reference at
+#: rest (its last braking step) or converges to it exponentially, and is then still (no noise, no quantization by
+#: default); the measurement taken as it lands is on the target but still shows that last step's mean speed (up to
+#: 2e-4 rad/s), which the node carries on to where a new motion starts.
 SETTLED = 1e-9
 
 
@@ -115,16 +117,22 @@ class Pair:
         self.cmd.publish(Float64(data=theta))
 
     def settle_at(self, theta: float) -> JointState:
-        """The first measured message since the last command or trajectory (``mark``) at theta's driven angle, once
-        the node has taken in a measurement there too (both sides: under load the node's measurements can lag the
-        test's, and a plan from the drive's measured state would start where the drive was)."""
+        """The first measured message since the last command or trajectory (``mark``) at rest at theta's driven
+        angle, once the node has taken in such a measurement too (both sides: under load the node's measurements can
+        lag the test's, and a plan from the drive's measured state would start where the drive was, moving on at
+        its measured speed)."""
         q = q_of(theta)
+
+        def still(position: float, velocity: float) -> bool:
+            return abs(position - q) <= SETTLED and abs(velocity) <= SETTLED
+
         try:
             settled = self.measured.wait_match(lambda m: JOINT in m.name
-                                               and abs(m.position[list(m.name).index(JOINT)] - q) <= SETTLED,
+                                               and still(*(f[list(m.name).index(JOINT)] for f in (m.position,
+                                                                                                  m.velocity))),
                                                start=self.mark)
-            self.ros.wait_for(lambda: (m := self.actuation.measured) is not None and abs(m.position - q) <= SETTLED,
-                              what=f'the node\'s measured driven joint within {SETTLED} rad of {q!r} rad')
+            self.ros.wait_for(lambda: (m := self.actuation.measured) is not None and still(m.position, m.velocity),
+                              what=f'the node\'s measured driven joint within {SETTLED} rad of {q!r} rad, at rest')
         except AssertionError as exc:
             raise AssertionError(f'{exc}\n{self.sides()}') from None
         return settled
