@@ -2,24 +2,24 @@
 
 A 100 Hz constant-rate ramp (generated here) is replayed with /clock at 40 Hz of bag time, the default of
 `ros2 bag play --clock` and of `fourbar replay --clock`, so two or three commands share one clock value.
-`fourbar record` records joint_states; every JointState must be stamped on the bag's timeline, and the mean
-published joint velocity over the ramp must be within a few percent of the true rate (the core's derivative
-along the ramp).
+`fourbar record` records joint_states; every JointState must be stamped on the bag's timeline, and every published
+joint velocity must be the velocity rule's secant over the node's own published stamps and positions (the first
+sample of each stamp against the first of the stamp before), to the bit.
 
-The replay runs at a quarter of real time (`--rate 0.25 --clock 10`: still 100 Hz commands and a 40 Hz clock
-in bag time). The node stamps a command with the clock it has when it takes it, so scheduling delays (wall
-time) shift stamps against positions; a velocity Delta q / Delta t averaged over samples is biased by about
-(delay / clock period)^2 (Jensen). On this shared 2-core machine, at real time (25 ms clock period) that was 5%
-under load; slowing both streams 4x divides the bias by 16 while the rule under test sees the same sequence of
-shared stamps.
+The replay runs at a quarter of real time (`--rate 0.25 --clock 10`: still 100 Hz commands and a 40 Hz clock in
+bag time). The node stamps a command with the clock it has when it takes it, so scheduling delays (wall time)
+shift stamps against positions, and the mean velocity over the ramp is biased against the true rate by about
+(delay / clock period)^2 (Jensen): about 1% alone on a 2-core machine, 17% under two busy loops and a parallel
+test run. That mean depends on the machine's load, so it is printed, not asserted; what is asserted holds
+whatever the delays.
 """
 
 from __future__ import annotations
 
 import itertools
-import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from support.bag_support import CONFIG, Tool, run_tool, what_the_node_took
@@ -27,6 +27,7 @@ from support.ros_support import ONE_JOINT_STATE_PER_COMMAND, NodeProcess, RosSes
 
 from fourbar_ros.bags.storage import read_messages, write_command_bag
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
+from fourbar_ros.rules.velocity import VelocityState, velocities
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -95,19 +96,18 @@ def test_velocity_under_sim_time_from_a_replayed_clock(rate: float, clock_hz: fl
     # JointState i answers command i (every command is inside the limits).
     answered = [i for i, m in enumerate(joints) if len(m.velocity) == 3]  # rockers AB, CD, coupler joint
     assert len(answered) >= N // 4, f'only {len(answered)} of {N} JointStates carry a velocity'
-    assert all(math.isfinite(v) for i in answered for v in joints[i].velocity)
-    measured_gamma = sum(joints[i].velocity[0] for i in answered) / len(answered)
-    measured_delta = sum(joints[i].velocity[1] for i in answered) / len(answered)
-    # The true rates at the same commands. Each published velocity is a secant over a few clock periods of a
-    # smooth, nearly linear curve: its mean differs from the mean derivative by far less than 1%.
+    # The rule on the node's own stamps (fourbar process's block form of it): the same rows carry a velocity, and
+    # each is the same float operations on the same floats, so equal to the bit.
+    positions = np.array([list(m.position) for m in joints])
+    want, have = velocities(np.array(sim, dtype=np.int64), positions, cfg.velocity_timeout, VelocityState())
+    assert [i for i in range(N) if have[i]] == answered
+    wrong = [(i, list(joints[i].velocity), want[i].tolist()) for i in answered
+             if list(joints[i].velocity) != want[i].tolist()]
+    assert not wrong, f'velocities not the rule\'s on the published stamps (index, node, rule): {wrong[:3]}'
+    # The figure: the mean velocity against the true rates at the same commands (see the module docstring).
     true = [_rocker_rates(cfg, values[i], speed) for i in answered]
-    true_gamma = sum(g for g, _ in true) / len(true)
-    true_delta = sum(d for _, d in true) / len(true)
-    ratio_gamma, ratio_delta = measured_gamma / true_gamma, measured_delta / true_delta
+    ratio_gamma = sum(joints[i].velocity[0] for i in answered) / sum(g for g, _ in true)
+    ratio_delta = sum(joints[i].velocity[1] for i in answered) / sum(d for _, d in true)
     print(f'sim time, replay rate {rate:g}, /clock {clock_hz / rate:g} Hz and commands {HZ} Hz of bag time: '
-          f'{len(answered)} of {N} JointStates with a '
-          f'velocity; mean velocity / true rate: gamma {ratio_gamma:.4f}, delta {ratio_delta:.4f}')
-    # "Within a few percent": 3% leaves room for the residual jitter bias (see the module docstring); the
-    # bias this catches was 0.40x.
-    assert abs(ratio_gamma - 1.0) <= 0.03, (ratio_gamma, ratio_delta)
-    assert abs(ratio_delta - 1.0) <= 0.03, (ratio_gamma, ratio_delta)
+          f'{len(answered)} of {N} JointStates with a velocity, each the rule\'s on the published stamps; '
+          f'mean velocity / true rate: gamma {ratio_gamma:.4f}, delta {ratio_delta:.4f}')
