@@ -9,9 +9,9 @@ sample of each stamp against the first of the stamp before), to the bit.
 The replay runs at a quarter of real time (`--rate 0.25 --clock 10`: still 100 Hz commands and a 40 Hz clock in
 bag time). The node stamps a command with the clock it has when it takes it, so scheduling delays (wall time)
 shift stamps against positions, and the mean velocity over the ramp is biased against the true rate by about
-(delay / clock period)^2 (Jensen): about 1% alone on a 2-core machine, 17% under two busy loops and a parallel
-test run. That mean depends on the machine's load, so it is printed, not asserted; what is asserted holds
-whatever the delays.
+(delay / clock period)^2 (Jensen): on a 2-core machine under two busy loops it was 0.5% in one run and 17% in
+another, beside a parallel test run. That mean depends on the machine's load, so it is printed, not asserted;
+what is asserted holds whatever the delays.
 """
 
 from __future__ import annotations
