@@ -126,11 +126,12 @@ class Pair:
         def still(position: float, velocity: float) -> bool:
             return abs(position - q) <= SETTLED and abs(velocity) <= SETTLED
 
+        def still_in(m: JointState) -> bool:
+            i = list(m.name).index(JOINT) if JOINT in m.name else -1
+            return i >= 0 and still(m.position[i], m.velocity[i])
+
         try:
-            settled = self.measured.wait_match(lambda m: JOINT in m.name
-                                               and still(*(f[list(m.name).index(JOINT)] for f in (m.position,
-                                                                                                  m.velocity))),
-                                               start=self.mark)
+            settled = self.measured.wait_match(still_in, start=self.mark)
             self.ros.wait_for(lambda: (m := self.actuation.measured) is not None and still(m.position, m.velocity),
                               what=f'the node\'s measured driven joint within {SETTLED} rad of {q!r} rad, at rest')
         except AssertionError as exc:
