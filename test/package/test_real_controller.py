@@ -223,6 +223,8 @@ def test_the_real_controller_refuses_what_the_contract_refuses(launched: Launche
     k, _ = taken[len(trajectories) - 2]
     held = [s['ref'][0][0] for s in states[k + 1:] if s['stamp'] < trajectories[-1]['received']]
     assert states[k]['ref'][0][0] == 0.0 or states[k]['fb_tfs'] != 0, f'at the takeover: {states[k]}'
-    assert held and max(abs(p - held[0]) for p in held) == 0.0, f'the reference moved: {held[:5]} ...'
+    assert held, (f'no controller state recorded between the takeover (stamp {states[k]["stamp"]} ns) and the next '
+                  f'trajectory\'s send ({trajectories[-1]["received"]} ns)')
+    assert max(abs(p - held[0]) for p in held) == 0.0, f'the reference moved: {held[:5]} ...'
     launch.wait_output(lambda t: 'Holding position due to state tolerance violation' in t,
                        'the controller holding on a trajectory without velocities')

@@ -4,8 +4,8 @@
 
 A process of its own, started with the real ros2_control stack on its paths (control_msgs' Python messages need the
 library path set before the process starts). CASES.json is a list of steps, each sent ``after`` s after the
-previous one (the first: once the controller's state arrives), and not before the controller's states show what
-became of the judge's last trajectory (``_settled``; a stalled manager delays the next step, within STATE_WAIT_S):
+controller's states show what became of the judge's last trajectory (``_settled``; a stalled manager delays the
+next step, within STATE_WAIT_S), and after the previous step (the first: once the controller's state arrives):
 - ``{"points": [[t, p, v, a(, effort)], ...], "stamp": s or null, "after": s(, "joints": [...])}``: a
   JointTrajectory to the controller (s, rad, rad/s, rad/s^2, N m; null leaves a field empty, a list fills it; stamp
   null: zero, else the send time plus that many seconds; joints: the driven joint unless given);
@@ -135,18 +135,17 @@ def _probe(node: Node, cases_path: str, out_path: str, tail_s: float = 0.3) -> i
               file=sys.stderr)
         return 1
     first = clock.now().nanoseconds
-    t_prev = time.monotonic()
     own: list[dict[str, Any]] = []  # the judge's trajectories, as sent
     for step in steps:
-        while time.monotonic() < t_prev + float(step['after']):
-            time.sleep(0.001)
         # The last trajectory's fate before the next one goes: sent sooner, it could replace the last one in the
-        # controller's buffer before an update took it (its fate unknown, or a takeover credited to the next).
+        # controller's buffer before an update took it (its fate unknown, or a takeover credited to the next). The
+        # pause counts from there, so a late delivery does not shorten what the states show of the last trajectory.
         deadline = time.monotonic() + STATE_WAIT_S
         earlier = {t['stamp'] for t in own[:-1] if t['stamp'] != 0}
         # (no copy: _settled reads from the newest state back, and the callback thread only appends)
         while own and not _settled(states, own[-1], earlier) and time.monotonic() < deadline:
             time.sleep(0.001)
+        time.sleep(float(step['after']))
         t_prev = time.monotonic()
         if 'command' in step:
             to_node.publish(Float64(data=float(step['command'])))
