@@ -3,9 +3,9 @@
     python jtc_judge.py NAMESPACE CASES.json OUT.json
 
 A process of its own, started with the real ros2_control stack on its paths (control_msgs' Python messages need the
-library path set before the process starts). CASES.json is a list of steps, each sent ``after`` s after the
-controller's states show what became of the judge's last trajectory (``_settled``; a stalled manager delays the
-next step, within STATE_WAIT_S), and after the previous step (the first: once the controller's state arrives):
+library path set before the process starts). CASES.json is a list of steps, each sent ``after`` s after the previous
+one went out and the controller's states showed what became of the judge's last trajectory (``_settled``, within
+STATE_WAIT_S; the first step: once the controller's state arrives):
 - ``{"points": [[t, p, v, a(, effort)], ...], "stamp": s or null, "after": s(, "joints": [...])}``: a
   JointTrajectory to the controller (s, rad, rad/s, rad/s^2, N m; null leaves a field empty, a list fills it; stamp
   null: zero, else the send time plus that many seconds; joints: the driven joint unless given);
