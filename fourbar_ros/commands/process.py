@@ -14,24 +14,36 @@ if TYPE_CHECKING:
     from fourbar_ros.bags.storage import Kind
 
 HELP = ('write the joint_states and input_torque fourbar_node would publish for a command bag, or the completed '
-        'joint_states, antenna_angle, antenna_rate and load_torque for a bag of measured joint_states, or the '
+        'joint_states, antenna_angle, antenna_rate and load_torque for a bag of measured joint states, or the '
         'actuator trajectories for a bag of antenna_trajectory, computed without the middleware')
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of `fourbar process`."""
     parser.add_argument('bag', type=Path, metavar='IN',
-                        help='command bag, measured joint_states bag or antenna_trajectory bag (directory, .mcap or '
+                        help='command bag, measured joint states bag or antenna_trajectory bag (directory, .mcap or '
                         '.db3)')
     parser.add_argument('out', type=Path, metavar='OUT', help='bag directory to create (must not exist)')
     parser.add_argument('--params', type=Path, metavar='YAML',
                         help='the node\'s parameter file (default: the node\'s default parameters)')
-    parser.add_argument('--topic', metavar='NAME',
-                        help='command topic (std_msgs/Float64) in IN (default: /antenna_angle_cmd, else the one '
-                        '*/antenna_angle_cmd), or measured JointState topic (default /joint_states, else the one '
-                        '*/joint_states), or antenna trajectory topic (default /antenna_trajectory, else the one '
-                        '*/antenna_trajectory); the outputs go next to it')
+    parser.add_argument('--topic', metavar='NAME', help=topic_help())
     add_storage_argument(parser, 'storage plugin of OUT (default: that of IN)', default=None)
+
+
+def topic_help() -> str:
+    """``--topic``'s help, from the kinds and their topics the processing looks for (``bags.storage.find_topic``)
+    and the outputs a measured topic must not be one of (``bags.process_measured``)."""
+    from fourbar_ros.bags.storage import COMMANDS, MEASURED, TRAJECTORIES
+    from fourbar_ros.interface.topics import PER_MEASUREMENT_OUTPUTS
+
+    def kind(k: Kind) -> str:
+        return (f'{k.role} topic ({k.topics[0].msgtype}; default: {", else ".join(k.ends)}, else the one '
+                f'{" or ".join("*" + end for end in k.ends)}')
+
+    outputs = [t.name for t in PER_MEASUREMENT_OUTPUTS]
+    return (f'{kind(COMMANDS)}), or {kind(MEASURED)}; any other name ending in /{", /".join(outputs[:-1])} or '
+            f'/{outputs[-1]} is refused: the outputs go there), or {kind(TRAJECTORIES)}) in IN; the outputs go next '
+            'to it')
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,17 +1,19 @@
 """`fourbar process` on a bag of measured joint states: the complete joint_states and the other outputs written in
 the measured topic's namespace at the measurements' log times and stamps, through the completion rule's block path
-(exactly its floats); bad measurements skipped and counted; `fourbar compare` covering the new outputs (and
-ignoring them when told). No ROS middleware (bags written with rosbags' serializer)."""
+(exactly its floats); bad measurements skipped and counted; the measured topics `--help` names taken, and one of
+another type refused in one line naming its type; `fourbar compare` covering the new outputs (and ignoring them
+when told). No ROS middleware (bags written with rosbags' serializer)."""
 
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from fourbar_ros.bags.storage import AtomicBagWriter, jazzy_typestore, open_bag, read_messages
+from fourbar_ros.bags.storage import AtomicBagWriter, float64_cdr, jazzy_typestore, open_bag, read_messages
 from fourbar_ros.commands import main
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.rules.completion import CompletionRule, complete_block
@@ -142,6 +144,58 @@ def test_a_measured_topic_where_the_completed_states_go_is_refused(tmp_path: Pat
         bag.write(bag.add_topic('/joint_states', JS), 1, joint_state([DRIVEN], [0.3], [], [], 1))
     assert main(['process', str(tmp_path / 'measured'), str(tmp_path / 'out'), '--topic', '/joint_states']) == 2
     assert 'measured_joint_states' in capsys.readouterr().err and not (tmp_path / 'out').exists()
+
+
+def _help_defaults(capsys: pytest.CaptureFixture[str]) -> list[str]:
+    """The JointState topics `fourbar process --help` names as --topic's defaults ('/name', and '*/name' as
+    '/robot/name')."""
+    with pytest.raises(SystemExit) as info:
+        main(['process', '--help'])
+    assert info.value.code == 0
+    text = ' '.join(capsys.readouterr().out.split())
+    defaults = re.finditer(r'default:? (/[\w/]+(?:, else /[\w/]+)*)(?:, else the one (\*/[\w/]+(?: or \*/[\w/]+)*))?',
+                           text)
+    named = [t for m in defaults for t in re.findall(r'\*?/[\w/]+', f'{m[1]} {m[2] or ""}')]
+    return [t.replace('*', '/robot') for t in named if 'joint_states' in t]
+
+
+def test_the_measured_topics_the_help_names_are_taken(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # The help and the choice of the measured topic come from the same constants: each name the help gives as a
+    # default is processed.
+    topics = _help_defaults(capsys)
+    assert topics
+    for i, topic in enumerate(topics):
+        with AtomicBagWriter(tmp_path / f'in{i}') as bag:
+            bag.write(bag.add_topic(topic, JS), 1, joint_state([DRIVEN], [0.3], [], [], 1))
+        assert main(['process', str(tmp_path / f'in{i}'), str(tmp_path / f'out{i}')]) == 0, (
+            topic, capsys.readouterr().err)
+        ns = '/robot' if topic.startswith('/robot/') else ''
+        assert f'{ns}/joint_states' in read_messages(tmp_path / f'out{i}')
+
+
+@pytest.mark.parametrize(('topic', 'msgtype', 'given', 'message'), [
+    ('/measured_joint_states', 'std_msgs/msg/Float64', False,
+     f'the measured topic /measured_joint_states has type std_msgs/msg/Float64, expected {JS}'),
+    ('/measured_joint_states', 'std_msgs/msg/Float64', True,
+     f'the measured topic /measured_joint_states has type std_msgs/msg/Float64, expected {JS}'),
+    ('/robot/joint_state_broadcaster/joint_states', 'std_msgs/msg/Float64', False,
+     f'the measured topic /robot/joint_state_broadcaster/joint_states has type std_msgs/msg/Float64, expected {JS}'),
+    ('/tilt', 'std_msgs/msg/Bool', True,
+     f'topic /tilt has type std_msgs/msg/Bool, expected std_msgs/msg/Float64 or {JS} or '
+     'trajectory_msgs/msg/JointTrajectory'),
+])
+def test_a_measured_topic_of_another_type_is_named_with_its_type(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                                  topic: str, msgtype: str, given: bool,
+                                                                  message: str) -> None:
+    store = jazzy_typestore()
+    data = float64_cdr(0.3) if msgtype.endswith('Float64') else bytes(
+        store.serialize_cdr(store.types[msgtype](data=True), msgtype))
+    with AtomicBagWriter(tmp_path / 'measured') as bag:
+        bag.write(bag.add_topic(topic, msgtype), 1, data)
+    argv = ['process', str(tmp_path / 'measured'), str(tmp_path / 'out'), *(['--topic', topic] if given else [])]
+    assert main(argv) == 2
+    assert capsys.readouterr().err == f'fourbar process: error: {tmp_path / "measured"}: {message}\n'
+    assert not (tmp_path / 'out').exists()
 
 
 def test_malformed_payloads_are_counted_as_the_node_counts_them(tmp_path: Path,

@@ -46,9 +46,9 @@ def test_the_topic_of_each_kind(kind: read_module.Kind, types: dict[str, str], t
     (COMMANDS, {'/a/antenna_angle_cmd': FLOAT64, '/b/antenna_angle_cmd': FLOAT64}, None,
      'bag: no command topic /antenna_angle_cmd (topics: /a/antenna_angle_cmd [std_msgs/msg/Float64], '),
     (COMMANDS, {'/antenna_angle_cmd': JOINT_STATE}, None,
-     f'bag: topic /antenna_angle_cmd has type {JOINT_STATE}, expected {FLOAT64}'),
+     f'bag: the command topic /antenna_angle_cmd has type {JOINT_STATE}, expected {FLOAT64}'),
     (MEASURED, {'/x': JOINT_STATE}, '/nothing', 'bag: no topic /nothing (topics: /x ['),
-    (MEASURED, {'/x': FLOAT64}, '/x', f'bag: topic /x has type {FLOAT64}, expected {JOINT_STATE}'),
+    (MEASURED, {'/x': FLOAT64}, '/x', f'bag: the measured topic /x has type {FLOAT64}, expected {JOINT_STATE}'),
     (TRAJECTORIES, {'/x': FLOAT64}, None, f'bag: no {JOINT_TRAJECTORY} topic /antenna_trajectory (topics: /x ['),
 ])
 def test_one_line_when_no_topic_fits(kind: read_module.Kind, types: dict[str, str], topic: str | None,

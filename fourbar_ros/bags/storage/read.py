@@ -36,15 +36,30 @@ from fourbar_ros.interface.topics import (
 
 @dataclass(frozen=True)
 class Kind:
-    """A kind of input topic: what errors call it and its topics (name, type), by preference."""
+    """A kind of input topic: what errors call it (``label`` when none is found, ``role`` when one has another
+    type) and its topics (name, type), by preference."""
 
     label: str
     topics: tuple[Topic, ...]
+    role: str
+
+    @property
+    def ends(self) -> tuple[str, ...]:
+        """The endings of its topics' names ('/name'), by preference: the root's topics, and any namespace's."""
+        return tuple(f'/{t.name}' for t in self.topics)
+
+    def named(self, topic: str) -> bool:
+        """Whether ``topic`` goes by one of the kind's names (at the root or in a namespace)."""
+        return topic.endswith(self.ends)
 
 
-COMMANDS = Kind('command', (COMMAND,))
-MEASURED = Kind(f'measured {JOINT_STATE}', (MEASURED_JOINT_STATES, BROADCASTER_JOINT_STATES))
-TRAJECTORIES = Kind(JOINT_TRAJECTORY, (ANTENNA_TRAJECTORY,))
+COMMANDS = Kind('command', (COMMAND,), 'command')
+MEASURED = Kind(f'measured {JOINT_STATE}', (MEASURED_JOINT_STATES, BROADCASTER_JOINT_STATES), 'measured')
+TRAJECTORIES = Kind(JOINT_TRAJECTORY, (ANTENNA_TRAJECTORY,), 'antenna trajectory')
+
+
+class TopicTypeError(BagError):
+    """The topic of a kind is in the bag with another message type."""
 
 
 def find_topic(path: Path, types: dict[str, str], kind: Kind, topic: str | None = None) -> str:
@@ -52,7 +67,7 @@ def find_topic(path: Path, types: dict[str, str], kind: Kind, topic: str | None 
     root, else the one topic (of the kind's type, else of any) ending in one. BagError (one line) if none fits."""
     msgtype = kind.topics[0].msgtype
     if topic is None:
-        ends = tuple(f'/{t.name}' for t in kind.topics)
+        ends = kind.ends
         candidates = [t for t in types if t.endswith(ends)]
         typed = [t for t in candidates if types[t] == msgtype]
         topic = next((n for n in ends if n in types), None) or next(
@@ -62,7 +77,7 @@ def find_topic(path: Path, types: dict[str, str], kind: Kind, topic: str | None 
     elif topic not in types:
         raise BagError(f'{path}: no topic {topic} ({_describe_topics(types)})')
     if types[topic] != msgtype:
-        raise BagError(f'{path}: topic {topic} has type {types[topic]}, expected {msgtype}')
+        raise TopicTypeError(f'{path}: the {kind.role} topic {topic} has type {types[topic]}, expected {msgtype}')
     return topic
 
 
@@ -86,14 +101,21 @@ class BagReader:
         return find_topic(self.path, self.types, kind, topic)
 
     def first(self, kinds: Sequence[Kind], topic: str | None = None) -> tuple[Kind, str]:
-        """The first of ``kinds`` the bag has and its topic; else the first kind's BagError."""
+        """The first of ``kinds`` the bag has and its topic; a given ``topic`` named as some of the kinds is of
+        those alone (``/ns/measured_joint_states`` is measured joint states, whatever its type). Else a BagError
+        (one line): the first found of a kind with another type (the topic, its type and the one expected), else
+        the first kind's."""
+        named = [k for k in kinds if topic is not None and k.named(topic)]
         errors: list[BagError] = []
-        for kind in kinds:
+        for kind in named or kinds:
             try:
                 return kind, self.find(kind, topic)
             except BagError as exc:
                 errors.append(exc)
-        raise errors[0]
+        if topic is not None and not named and topic in self.types:
+            expected = ' or '.join(dict.fromkeys(k.topics[0].msgtype for k in kinds))
+            raise TopicTypeError(f'{self.path}: topic {topic} has type {self.types[topic]}, expected {expected}')
+        raise next((exc for exc in errors if isinstance(exc, TopicTypeError)), errors[0])
 
     @contextmanager
     def guard(self) -> Iterator[None]:
