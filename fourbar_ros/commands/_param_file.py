@@ -6,7 +6,7 @@ import contextlib
 import os
 import re
 import tempfile
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 from fourbar_ros.commands import CommandError
@@ -61,26 +61,49 @@ def _replacer(value: float) -> Callable[[re.Match[str]], str]:
         return f'{m["head"]}{value!r}{m["tail"]}'
     return replace
 
+def check_outputs(outputs: Sequence[tuple[str, Path | None]], inputs: Sequence[Path] = ()) -> None:
+    """Refuse, before any work, outputs (what names each, e.g. ``-o``, and its path; None: not asked for) that
+    cannot be written as given: in a directory that does not exist, an existing directory or other file that is not
+    a regular one, one file for two outputs, or one of ``inputs``. CommandError (status 2, one line)."""
+    seen: dict[Path, str] = {path.resolve(): f'the input {path}' for path in inputs}
+    for what, path in outputs:
+        if path is None:
+            continue
+        if path.is_dir():
+            raise CommandError(f'{what} {path}: is a directory')
+        if path.exists() and not path.is_file():
+            raise CommandError(f'{what} {path}: not a regular file')
+        if not path.parent.is_dir():
+            raise CommandError(f'{path}: directory {path.parent} does not exist')
+        key = path.resolve()
+        if key in seen:
+            raise CommandError(f'{what} {path}: the same file as {seen[key]}; give each output a path of its own')
+        seen[key] = f'{what} {path}'
 
 
 def write_atomically(files: dict[Path, bytes]) -> None:
     """Write every file or none: each to a hidden temporary file beside it (fsynced), then all renamed into place;
     on any failure the temporaries are removed and no target is touched (a rename failing midway removes the ones
-    already made)."""
+    already made). An error names the target, not its temporary; a target that is a directory is refused before
+    anything is written."""
+    for path in files:
+        if path.is_dir():
+            raise CommandError(f'cannot write {path}: it is a directory')
     temps: list[tuple[Path, Path]] = []
     done: list[Path] = []
+    at: Path | None = None  # the target being written or renamed into place
     try:
-        for path, content in files.items():
-            fd, name = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.partial', dir=path.parent)
-            temps.append((Path(name), path))
+        for at, content in files.items():
+            fd, name = tempfile.mkstemp(prefix=f'.{at.name}.', suffix='.partial', dir=at.parent)
+            temps.append((Path(name), at))
             os.fchmod(fd, 0o666 & ~_umask())  # as open() would make it, not mkstemp's 0600
             with os.fdopen(fd, 'wb') as f:
                 f.write(content)
                 f.flush()
                 os.fsync(f.fileno())
-        for tmp, path in temps:
-            os.replace(tmp, path)
-            done.append(path)
+        for tmp, at in temps:
+            os.replace(tmp, at)
+            done.append(at)
     except BaseException as exc:
         for tmp, _ in temps:
             with contextlib.suppress(OSError):
@@ -89,7 +112,7 @@ def write_atomically(files: dict[Path, bytes]) -> None:
             with contextlib.suppress(OSError):
                 path.unlink()
         if isinstance(exc, OSError):
-            raise CommandError(f'cannot write {exc.filename or "the outputs"}: {exc.strerror}') from None
+            raise CommandError(f'cannot write {at or "the outputs"}: {exc.strerror}') from None
         raise
 
 

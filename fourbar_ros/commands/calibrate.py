@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
 
     from fourbar_ros.analysis.residual_plot import draw
     from fourbar_ros.bags.calibration_data import read_calibration_data
-    from fourbar_ros.commands._param_file import param_file_with, write_atomically
+    from fourbar_ros.commands._param_file import check_outputs, param_file_with, write_atomically
     from fourbar_ros.config.antenna_config import load_config
     from fourbar_ros.core.calibration import (
         LENGTH_NAMES,
@@ -85,11 +85,9 @@ def run(args: argparse.Namespace) -> int:
     if not math.isfinite(args.sensor_offset):
         raise CommandError(f'--sensor-offset {args.sensor_offset!r} rad must be finite')
     references = [_reference(text) for text in args.reference]
-    for out in (args.output, args.report):
-        if out is not None and not out.parent.is_dir():
-            raise CommandError(f'{out}: directory {out.parent} does not exist')
-    cfg = load_config(args.params)  # ConfigError: exit 2
     plot = _plot_path(args.output, args.report)
+    check_outputs((('-o', args.output), ('--report', args.report), ('the residual plot', plot)), inputs=(args.bag,))
+    cfg = load_config(args.params)  # ConfigError: exit 2
     try:
         data = read_calibration_data(args.bag, cfg.driven_joint, args.angle_topic, args.measured_topic)
         _check_span(cfg, data)

@@ -419,6 +419,46 @@ def test_a_malformed_reference_is_status_2(tmp_path: Path, out: Path, capsys: py
                                        'rad, finite, SD positive\n')
 
 
+@pytest.fixture(scope='module')
+def sweep_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short sweep that calibrates (the outputs then are what stops a run)."""
+    return write_calibration_bag(tmp_path_factory.mktemp('sweep') / 'rec', Sweep(TRUTH, duration=30.0, cycles=2.0))
+
+
+@pytest.mark.parametrize(('given', 'what'), [
+    (('-o', 'x.yaml', '--report', 'x.yaml'), '--report {out}/x.yaml: the same file as -o {out}/x.yaml'),
+    (('-o', 'x.yaml', '--report', 'sub/../x.yaml'), '--report {out}/sub/../x.yaml: the same file as -o {out}/x.yaml'),
+    (('-o', 'x.yaml', '--report', 'x.png'), 'the residual plot {out}/x.png: the same file as --report {out}/x.png'),
+    (('--report', 'x.png'), 'the residual plot {out}/x.png: the same file as --report {out}/x.png'),
+])
+def test_one_path_for_two_outputs_is_refused(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
+                                             sweep_bag: Path, given: tuple[str, ...], what: str) -> None:
+    (out / 'sub').mkdir()
+    argv = [str(out / a) if a.endswith(('.yaml', '.png')) else a for a in given]
+    for bag in (sweep_bag, tmp_path / 'missing'):  # refused before the recording is read
+        assert main(['calibrate', str(bag), '--params', str(CONFIG), '--angle-topic', '/antenna_inclinometer',
+                     *argv]) == 2
+        assert capsys.readouterr().err == (f'fourbar calibrate: error: {what.format(out=out)}; give each output a '
+                                           'path of its own\n')
+        assert [p.name for p in out.iterdir()] == ['sub'] and list((out / 'sub').iterdir()) == []
+
+
+@pytest.mark.parametrize(('given', 'what'), [
+    (('-o', 'calibrated.yaml', '--report', 'report.json'), '--report'),
+    (('-o', 'calibrated.yaml', '--report', 'report.json'), '-o'),
+    (('-o', 'calibrated.yaml'), 'the residual plot'),
+])
+def test_an_output_that_is_a_directory_is_refused(out: Path, capsys: pytest.CaptureFixture[str], sweep_bag: Path,
+                                                  given: tuple[str, ...], what: str) -> None:
+    argv = [str(out / a) if '.' in a else a for a in given]
+    folder = out / 'calibrated.png' if what == 'the residual plot' else Path(argv[argv.index(what) + 1])
+    folder.mkdir()
+    assert main(['calibrate', str(sweep_bag), '--params', str(CONFIG), '--angle-topic', '/antenna_inclinometer',
+                 *argv]) == 2
+    assert capsys.readouterr().err == f'fourbar calibrate: error: {what} {folder}: is a directory\n'
+    assert list(out.iterdir()) == [folder] and list(folder.iterdir()) == []
+
+
 def test_a_sensor_with_correlated_noise(tmp_path: Path, out: Path, capsys: pytest.CaptureFixture[str],
                                         faults: list[tuple[str, str, str, str]]) -> None:
     """The sensor's noise filtered, AR(1) with a lag-1 correlation of 0.9: the 6000 readings count as about
