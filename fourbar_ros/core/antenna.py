@@ -1,7 +1,8 @@
 """The antenna's tilt linkage (Turnantenna, Annex A): antenna angle theta to rocker angles, rates and torque.
 
-Every method takes a float (a math-module fast path) or a numpy array (vectorized, same shape). The geometry, sign
-conventions and units: docs/reference/python.md."""
+Every method takes a real scalar (a Python int or float, a numpy integer or floating scalar of any width, a 0-d
+array: computed as the Python float of its value, on the math-module fast path, and answered with floats) or a numpy
+array (vectorized, same shape). The geometry, sign conventions and units: docs/reference/python.md."""
 
 from __future__ import annotations
 
@@ -26,7 +27,16 @@ from fourbar_ros.core.dyad import (
     reach_half_angles,
 )
 from fourbar_ros.core.errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
-from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid, check_length
+from fourbar_ros.core.numeric import (
+    DEAD_TOL,
+    ArrayLike,
+    FloatArray,
+    OnInvalid,
+    RealLike,
+    RealScalar,
+    check_length,
+    real,
+)
 
 __all__ = [
     'AntennaLinkage', 'Branch', 'Driven', 'InverseSolution', 'LinkageState', 'Reach', 'RockerAngles', 'RockerRates',
@@ -167,12 +177,28 @@ class AntennaLinkage:
         """The reachable antenna angles of this geometry, in closed form."""
         return self._reach
 
-    def reachable(self, theta: FloatArray) -> npt.NDArray[np.bool_]:
-        """Element-wise: does rocker_angles solve theta (radians)? False for NaN, inf and out-of-reach values.
+    @overload
+    def reachable(self, theta: RealScalar) -> bool: ...
+    @overload
+    def reachable(self, theta: FloatArray) -> npt.NDArray[np.bool_]: ...
 
-        The very test the solver applies (so it agrees with on_invalid='nan' to the last float at the limits).
+    def reachable(self, theta: RealLike) -> bool | npt.NDArray[np.bool_]:
+        """Does rocker_angles solve theta (radians)? False for NaN, inf and out-of-reach values; a bool for a
+        scalar, element-wise for an array. Change points count as reachable.
+
+        The very test the solver applies, scalar or vectorized (so it agrees with rocker_angles, and with
+        on_invalid='nan', to the last float at the limits).
         """
-        return closes(self._k, theta)
+        t = real(theta)
+        if type(t) is float:
+            try:
+                self._closure(t, Branch.UPPER)
+            except DyadOpenError:
+                return False
+            except DyadChangePointError:
+                pass
+            return True
+        return closes(self._k, np.asarray(t, dtype=np.float64))
 
     def _unreachable(self, theta: float) -> UnreachableError:
         if math.isnan(theta):
@@ -190,7 +216,7 @@ class AntennaLinkage:
 
     def _invalid_array(self, theta: FloatArray) -> UnreachableError:
         """The one-line error for an array with unsolvable angles (the error path: recomputes the whole mask)."""
-        bad = ~self.reachable(theta)
+        bad = ~closes(self._k, theta)
         return UnreachableError(
             f'{int(bad.sum())} of {theta.size} angles cannot be solved, the first theta={float(theta[bad][0])!r}; '
             f'reachable: {self._reach.describe()}')
@@ -198,11 +224,11 @@ class AntennaLinkage:
     # ---------------------------------------------------------------- positions
 
     @overload
-    def rocker_angles(self, theta: float, branch: Branch = ..., on_invalid: OnInvalid = ...) -> RockerAngles: ...
+    def rocker_angles(self, theta: RealScalar, branch: Branch = ..., on_invalid: OnInvalid = ...) -> RockerAngles: ...
     @overload
     def rocker_angles(self, theta: FloatArray, branch: Branch = ..., on_invalid: OnInvalid = ...) -> RockerAngles: ...
 
-    def rocker_angles(self, theta: ArrayLike, branch: Branch = Branch.UPPER,
+    def rocker_angles(self, theta: RealLike, branch: Branch = Branch.UPPER,
                       on_invalid: OnInvalid = 'raise') -> RockerAngles:
         """Rocker angles (gamma, delta) in radians for antenna angle theta (radians) on the given branch.
 
@@ -213,16 +239,16 @@ class AntennaLinkage:
         elements when on_invalid='nan' (reachable(theta) is the validity mask, change points aside). The exact
         reach limit is solved (the rockers are then in line).
         """
-        tp = type(theta)
-        if tp is float or tp is int or isinstance(theta, float):
+        if type(theta) is not float:
+            theta = real(theta)
+        if type(theta) is float:
             # The scalar hot path: the dyad's math-module closure, no numpy (theta is the dyad's angle x).
             try:
-                # (mypy cannot narrow theta from type(theta) checks; isinstance would cost the hot path)
-                return _new_tuple(RockerAngles, self._closure(theta, branch))  # type: ignore[arg-type]
+                return _new_tuple(RockerAngles, self._closure(theta, branch))
             except DyadOpenError:
-                raise self._unreachable(float(theta)) from None
+                raise self._unreachable(theta) from None
             except DyadChangePointError:
-                raise self._change_point(float(theta)) from None
+                raise self._change_point(theta) from None
         t = np.asarray(theta, dtype=np.float64)
         try:
             return RockerAngles(*closure_array(self._k, t, branch, on_invalid))
@@ -233,7 +259,7 @@ class AntennaLinkage:
 
     # ---------------------------------------------------------------- rates
 
-    def rocker_rates(self, theta: ArrayLike, branch: Branch = Branch.UPPER,
+    def rocker_rates(self, theta: RealLike, branch: Branch = Branch.UPPER,
                      on_invalid: OnInvalid = 'raise') -> RockerRates:
         """d gamma/d theta and d delta/d theta at theta (radians) on the given branch.
 
@@ -241,13 +267,16 @@ class AntennaLinkage:
         d delta/d theta = -h sin(gamma + theta) / (CD sin(gamma + delta)). Both are unbounded at the reach limit,
         where gamma + delta is 0 or pi: scalars raise SingularPositionError there; arrays give inf.
         """
+        theta = real(theta)
         g, d = self.rocker_angles(theta, branch, on_invalid)
         return self.rates_at(theta, g, d)
 
-    def rates_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike) -> RockerRates:
+    def rates_at(self, theta: RealLike, gamma: RealLike, delta: RealLike) -> RockerRates:
         """Rocker rates from an already solved pose (theta, gamma, delta in radians)."""
         h = self.coupler
-        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+        if not (type(theta) is float and type(gamma) is float and type(delta) is float):
+            theta, gamma, delta = real(theta), real(gamma), real(delta)
+        if isinstance(theta, float) and isinstance(gamma, float) and isinstance(delta, float):
             den = math.sin(gamma + delta)
             if den == 0.0:
                 raise SingularPositionError(
@@ -259,7 +288,7 @@ class AntennaLinkage:
             return RockerRates(h * np.sin(np.subtract(delta, theta)) / (self.rocker_ab * den_a),
                                -h * np.sin(np.add(gamma, theta)) / (self._cd * den_a))
 
-    def rocker_second_derivatives(self, theta: ArrayLike, branch: Branch = Branch.UPPER,
+    def rocker_second_derivatives(self, theta: RealLike, branch: Branch = Branch.UPPER,
                                   on_invalid: OnInvalid = 'raise') -> RockerSecondDerivatives:
         """d2 gamma/d theta2 and d2 delta/d theta2 (rad/rad^2) at theta (radians) on the given branch.
 
@@ -267,23 +296,24 @@ class AntennaLinkage:
         SingularPositionError there; arrays give NaN where sin(gamma + delta) is exactly 0 (the sign of the
         unbounded value is that of the side the limit is approached from, which the pose alone does not tell).
         """
+        theta = real(theta)
         g, d = self.rocker_angles(theta, branch, on_invalid)
         return self.second_derivatives_at(theta, g, d)
 
-    def second_derivatives_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
+    def second_derivatives_at(self, theta: RealLike, gamma: RealLike, delta: RealLike,
                               rates: RockerRates | None = None) -> RockerSecondDerivatives:
         """Both second derivatives (rad/rad^2) from an already solved pose (rad) and, if given, its rates_at."""
         g2, d2 = self._second(theta, gamma, delta, rates, True, True)
         return RockerSecondDerivatives(g2, d2)  # type: ignore[arg-type]
 
-    def second_derivative_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike, rates: RockerRates | None,
+    def second_derivative_at(self, theta: RealLike, gamma: RealLike, delta: RealLike, rates: RockerRates | None,
                              rocker: Driven) -> ArrayLike:
         """d2 q/d theta2 (rad/rad^2) of one rocker q (gamma or delta) only; see second_derivatives_at."""
         want_g = rocker is Driven.GAMMA
         g2, d2 = self._second(theta, gamma, delta, rates, want_g, not want_g)
         return g2 if want_g else d2  # type: ignore[return-value]
 
-    def _second(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike, rates: RockerRates | None,
+    def _second(self, theta: RealLike, gamma: RealLike, delta: RealLike, rates: RockerRates | None,
                 want_g: bool, want_d: bool) -> tuple[ArrayLike | None, ArrayLike | None]:
         r"""The loop differentiated twice. With X = gamma + delta and the rates g', d':
 
@@ -296,10 +326,11 @@ class AntennaLinkage:
         that condition against the 60-digit reference, at either limit and near it.
         """
         a, b, h = self.rocker_ab, self._cd, self.coupler
+        theta, gamma, delta = real(theta), real(gamma), real(delta)
         if rates is None:
             rates = self.rates_at(theta, gamma, delta)
-        g1, d1 = rates
-        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+        g1, d1 = (real(r) for r in rates)
+        if isinstance(theta, float) and isinstance(gamma, float) and isinstance(delta, float):
             x = gamma + delta
             sx = math.sin(x)
             if sx == 0.0:
@@ -323,15 +354,16 @@ class AntennaLinkage:
                 d2 = np.where(limit, np.nan, -(h * np.cos(np.add(gamma, theta)) + (b_d * c_x + a_g)) / (b * s_x))
         return g2, d2
 
-    def rocker_velocities(self, theta: ArrayLike, theta_rate: ArrayLike,
+    def rocker_velocities(self, theta: RealLike, theta_rate: RealLike,
                           branch: Branch = Branch.UPPER) -> RockerRates:
         """Rocker angular velocities (rad/s) for an antenna angular velocity theta_rate (rad/s) at theta (rad)."""
+        theta_rate = real(theta_rate)
         r = self.rocker_rates(theta, branch)
         return RockerRates(r.dgamma_dtheta * theta_rate, r.ddelta_dtheta * theta_rate)
 
     # ---------------------------------------------------------------- statics
 
-    def mechanical_advantage(self, theta: ArrayLike, driven: Driven = Driven.GAMMA,
+    def mechanical_advantage(self, theta: RealLike, driven: Driven = Driven.GAMMA,
                              branch: Branch = Branch.UPPER) -> ArrayLike:
         """d q/d theta of the driven rocker q: the antenna torque held per unit torque at the rocker (signed).
 
@@ -341,7 +373,7 @@ class AntennaLinkage:
         rates = self.rocker_rates(theta, branch)
         return rates.dgamma_dtheta if driven is Driven.GAMMA else rates.ddelta_dtheta
 
-    def input_torque(self, theta: ArrayLike, load_torque: ArrayLike, driven: Driven = Driven.GAMMA,
+    def input_torque(self, theta: RealLike, load_torque: RealLike, driven: Driven = Driven.GAMMA,
                      branch: Branch = Branch.UPPER) -> ArrayLike:
         """Torque in N m the driven rocker needs (in the sense of increasing q) to hold load_torque.
 
@@ -350,10 +382,11 @@ class AntennaLinkage:
         line with the coupler) no torque can hold the antenna: scalars raise DeadPointError; arrays give NaN
         exactly there (np.isfinite is the validity mask).
         """
+        theta = real(theta)
         g, d = self.rocker_angles(theta, branch)
         return self.torque_at(theta, g, d, load_torque, driven)
 
-    def torque_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike, load_torque: ArrayLike,
+    def torque_at(self, theta: RealLike, gamma: RealLike, delta: RealLike, load_torque: RealLike,
                   driven: Driven = Driven.GAMMA) -> ArrayLike:
         """Input torque (N m) from an already solved pose; see input_torque.
 
@@ -363,43 +396,49 @@ class AntennaLinkage:
         """
         gamma_driven = driven is Driven.GAMMA
         lever = (self.rocker_ab if gamma_driven else -self._cd) / self.coupler
-        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+        if not (type(theta) is float and type(gamma) is float and type(delta) is float):
+            theta, gamma, delta = real(theta), real(gamma), real(delta)
+        if isinstance(theta, float) and isinstance(gamma, float) and isinstance(delta, float):
             q = delta if gamma_driven else gamma
             q_rate = math.sin(q - theta if gamma_driven else q + theta)
             if abs(q_rate) <= DEAD_TOL * (1.0 + abs(q) + abs(theta)):
                 raise DeadPointError(
                     f'theta={theta!r} rad is a dead point for the {driven.value} rocker: the {_other(driven)} '
                     f'rocker is in line with the coupler, so no finite torque holds the antenna')
-            return float(load_torque) * lever * math.sin(gamma + delta) / q_rate
+            return float(real(load_torque)) * lever * math.sin(gamma + delta) / q_rate
         q_a = np.asarray(delta if gamma_driven else gamma)
         with np.errstate(divide='ignore', invalid='ignore'):
             q_rate_a = np.sin(np.subtract(q_a, theta) if gamma_driven else np.add(q_a, theta))
             q_rate_a[np.abs(q_rate_a) <= DEAD_TOL * (1.0 + np.abs(q_a) + np.abs(theta))] = np.nan
-            tau: FloatArray = np.multiply(load_torque, lever * np.sin(np.add(gamma, delta))) / q_rate_a
+            tau: FloatArray = np.multiply(real(load_torque), lever * np.sin(np.add(gamma, delta))) / q_rate_a
         return tau
 
-    def transmission_angle(self, theta: ArrayLike, driven: Driven = Driven.GAMMA,
+    def transmission_angle(self, theta: RealLike, driven: Driven = Driven.GAMMA,
                            branch: Branch = Branch.UPPER) -> ArrayLike:
         """Angle in [0, pi] (rad) at the joint between the coupler and the non-driven rocker.
 
         Driving gamma, this is the angle at C between CB and CD; driving delta, the angle at B between BA and BC.
         pi/2 transmits best; 0 or pi is a dead point.
         """
+        theta = real(theta)
         g, d = self.rocker_angles(theta, branch)
         return self.transmission_angle_at(theta, g, d, driven)
 
-    def transmission_angle_at(self, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
+    def transmission_angle_at(self, theta: RealLike, gamma: RealLike, delta: RealLike,
                               driven: Driven = Driven.GAMMA) -> ArrayLike:
         """Transmission angle (rad) from an already solved pose; see transmission_angle."""
-        if isinstance(theta, (float, int)) and isinstance(gamma, float) and isinstance(delta, float):
+        if not (type(theta) is float and type(gamma) is float and type(delta) is float):
+            theta, gamma, delta = real(theta), real(gamma), real(delta)
+        if isinstance(theta, float) and isinstance(gamma, float) and isinstance(delta, float):
             x = delta - theta if driven is Driven.GAMMA else gamma + theta
             return math.atan2(abs(math.sin(x)), -math.cos(x))
         xa = np.subtract(delta, theta) if driven is Driven.GAMMA else np.add(gamma, theta)
         return np.arctan2(np.abs(np.sin(xa)), -np.cos(xa))
 
-    def state(self, theta: ArrayLike, load_torque: ArrayLike = 0.0, driven: Driven = Driven.GAMMA,
+    def state(self, theta: RealLike, load_torque: RealLike = 0.0, driven: Driven = Driven.GAMMA,
               branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> LinkageState:
         """Pose, rates, mechanical advantage, input torque (N m) and transmission angle, solving the pose once."""
+        theta = real(theta)
         g, d = self.rocker_angles(theta, branch, on_invalid)
         rates = self.rates_at(theta, g, d)
         ma = rates.dgamma_dtheta if driven is Driven.GAMMA else rates.ddelta_dtheta
@@ -410,19 +449,24 @@ class AntennaLinkage:
     # ---------------------------------------------------------------- inverse
 
     def rocker_reach(self, driven: Driven = Driven.GAMMA) -> Reach:
-        """The angles (rad, modulo 2 pi) the given rocker can take: its gap and maximum, named after the rocker."""
-        gap, top = self._rocker_dyad(driven)[2]
-        return Reach(theta_gap=gap, theta_max=top, name=driven.value)
+        """The angles (rad, modulo 2 pi) the given rocker can take: its gap and maximum, named after the rocker.
 
-    def from_rocker(self, q: ArrayLike, driven: Driven = Driven.GAMMA,
+        Exactly what from_rocker takes: it solves every q this reach contains and refuses every other q (one ulp
+        beyond either end included) with UnreachableError. The ends are the closed form of the exact geometry,
+        rounded once (within an ulp or two of the true limit).
+        """
+        return self._rocker_dyad(driven)[2]
+
+    def from_rocker(self, q: RealLike, driven: Driven = Driven.GAMMA,
                     branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> InverseSolution:
         """Antenna angle and the other rocker's angle (radians) from a measured rocker angle q (radians).
 
         The motor side knows its rocker; this is the four-bar with that rocker as the crank. Branch.UPPER puts C
         to the left of the line from B to D when gamma is measured (B to the left of C to A when delta is), which
         is the annex's working pose; Branch.LOWER is the crossed pose. Raises UnreachableError if the rocker cannot
-        take q (NaN, inf or outside rocker_reach(driven); for arrays: if any element cannot, unless on_invalid='nan',
-        which gives NaN there).
+        take q: NaN, inf, or any q that ``rocker_reach(driven).contains`` refuses, to the last float (for arrays:
+        if any element cannot, unless on_invalid='nan', which gives NaN there). At the reach's ends the pose is
+        the dead point to within rounding.
         """
         # The four-bar with the measured rocker as crank: its diagonal (rocker end -> other pivot) is the dyad's
         # P -> Q with x = -q; the dyad's angle at P is the coupler's direction from +x (-theta with AB as the crank,
@@ -430,37 +474,54 @@ class AntennaLinkage:
         k, closure, reach = self._rocker_dyad(driven)
         which = branch if type(branch) is Branch else Branch(branch)  # also takes a plain +1 / -1
         sign = -1.0 if driven is Driven.GAMMA else 1.0
-        if isinstance(q, (float, int)):
+        if type(q) is not float:
+            q = real(q)
+        if isinstance(q, float):
+            top = reach.theta_max
+            # The reach decides (the closure's rounding allowance would take a few ulps beyond it); the full test
+            # (modulo 2 pi, the gap) only off the common case.
+            if not (-top <= q <= top and reach.theta_gap == 0.0) and not reach.contains(q):
+                raise self._rocker_unreachable(driven, q)
             try:
                 coupler_dir, other = closure(-q, which)
             except DyadOpenError:
-                raise UnreachableError(f'q={float(q)!r} rad: the {driven.value} rocker cannot take this angle; it '
-                                       f'takes {_describe_rocker(reach)}') from None
+                raise self._rocker_unreachable(driven, q) from None
             except DyadChangePointError:
-                raise self._rocker_change_point(driven, float(q)) from None
+                raise self._rocker_change_point(driven, q) from None
             return InverseSolution(_wrap(sign * coupler_dir), _wrap(other))
         qa = np.asarray(q, dtype=np.float64)
+        outside = _outside(reach, qa)
         try:
+            if on_invalid == 'raise' and outside.any():
+                raise DyadOpenError
             coupler_a, other_a = closure_array(k, np.negative(qa), which, on_invalid)
         except DyadOpenError:
-            bad = ~closes(k, np.negative(qa))
+            bad = outside | ~closes(k, np.negative(qa))
             raise UnreachableError(
                 f'{int(bad.sum())} of {qa.size} {driven.value} angles cannot be taken, the first '
                 f'q={float(qa[bad].flat[0])!r}; the {driven.value} rocker takes {_describe_rocker(reach)}') from None
         except DyadChangePointError as exc:
             raise self._rocker_change_point(driven, -exc.x) from None
+        if outside.any():
+            coupler_a[outside] = np.nan
+            other_a[outside] = np.nan
         return InverseSolution(_wrap(sign * coupler_a), _wrap(other_a))
 
-    def _rocker_dyad(self, driven: Driven) -> tuple[DyadConstants, ScalarClosure, tuple[float, float]]:
-        """The dyad of the four-bar with the measured rocker as its crank, its scalar closure and its reach (built
-        once per rocker)."""
-        built: dict[Driven, tuple[DyadConstants, ScalarClosure, tuple[float, float]]] = self.__dict__.setdefault(
+    def _rocker_dyad(self, driven: Driven) -> tuple[DyadConstants, ScalarClosure, Reach]:
+        """The dyad of the four-bar with the measured rocker as its crank, its scalar closure and the rocker's reach
+        (built once per rocker)."""
+        built: dict[Driven, tuple[DyadConstants, ScalarClosure, Reach]] = self.__dict__.setdefault(
             '_rocker_dyads', {})
         if driven not in built:  # per instance, not global; the exact constants cost ~20 us
             crank, rocker = (self.rocker_ab, self._cd) if driven is Driven.GAMMA else (self._cd, self.rocker_ab)
             k = dyad_constants(self.frame, crank, self.coupler, rocker, unit=self.frame)
-            built[driven] = (k, closure_for(k), reach_half_angles(k))
+            gap, top = reach_half_angles(k)
+            built[driven] = (k, closure_for(k), Reach(theta_gap=gap, theta_max=top, name=driven.value))
         return built[driven]
+
+    def _rocker_unreachable(self, driven: Driven, q: float) -> UnreachableError:
+        return UnreachableError(f'q={q!r} rad: the {driven.value} rocker cannot take this angle; it takes '
+                                f'{_describe_rocker(self._rocker_dyad(driven)[2])}')
 
     def _rocker_change_point(self, driven: Driven, q: float) -> SingularPositionError:
         return SingularPositionError(
@@ -468,11 +529,19 @@ class AntennaLinkage:
             f'the other pivot): the antenna angle is undetermined')
 
 
-def _describe_rocker(reach: tuple[float, float]) -> str:
-    gap, top = reach
+def _describe_rocker(reach: Reach) -> str:
+    gap, top = reach.theta_gap, reach.theta_max
     if gap == 0.0:
         return f'|q| <= {top:.12g} rad'
     return f'{gap:.12g} <= |q| <= {top:.12g} rad'
+
+
+def _outside(reach: Reach, x: FloatArray) -> npt.NDArray[np.bool_]:
+    """Element-wise: not reach.contains(x) (x in rad; NaN and inf are outside), to the last float as it."""
+    with np.errstate(invalid='ignore'):
+        t = np.fmod(np.abs(x), _TWO_PI)  # exact, as is 2 pi - t for t > pi (Sterbenz): |remainder(x, 2 pi)|
+        t = np.minimum(t, _TWO_PI - t)
+        return ~((t >= reach.theta_gap) & (t <= reach.theta_max))
 
 
 def _wrap(x: ArrayLike) -> ArrayLike:

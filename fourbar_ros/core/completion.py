@@ -12,23 +12,25 @@ import numpy as np
 
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven
 from fourbar_ros.core.errors import DeadPointError
-from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid
+from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, FloatArray, OnInvalid, RealLike, RealScalar, real
 
 __all__ = ['Completion', 'complete', 'coupler_joint_position', 'inverse_branch']
 
 
 @overload
-def coupler_joint_position(gamma: float, theta: float) -> float: ...
+def coupler_joint_position(gamma: RealScalar, theta: RealScalar) -> float: ...
 @overload
 def coupler_joint_position(gamma: FloatArray, theta: FloatArray) -> FloatArray: ...
 @overload
-def coupler_joint_position(gamma: ArrayLike, theta: ArrayLike) -> ArrayLike: ...
+def coupler_joint_position(gamma: RealLike, theta: RealLike) -> ArrayLike: ...
 
 
-def coupler_joint_position(gamma: ArrayLike, theta: ArrayLike) -> ArrayLike:
+def coupler_joint_position(gamma: RealLike, theta: RealLike) -> ArrayLike:
     """Position (rad) of the robot model's ``coupler_joint``: the coupler's angle from rocker AB, gamma + theta.
-    One command (floats, the node) or a block (arrays, fourbar process)."""
-    return gamma + theta
+    One command (real scalars, the node: a float) or a block (arrays, fourbar process)."""
+    if type(gamma) is float and type(theta) is float:
+        return gamma + theta
+    return real(gamma) + real(theta)
 
 
 class Completion(NamedTuple):
@@ -46,14 +48,22 @@ class Completion(NamedTuple):
     load_torque: ArrayLike | None  #: on the antenna, in the sense of increasing theta
 
 
-def complete(link: AntennaLinkage, q: ArrayLike, driven: Driven, branch: Branch, q_rate: ArrayLike | None = None,
-             effort: ArrayLike | None = None, on_invalid: OnInvalid = 'raise') -> Completion:
+def complete(link: AntennaLinkage, q: RealLike, driven: Driven, branch: Branch, q_rate: RealLike | None = None,
+             effort: RealLike | None = None, on_invalid: OnInvalid = 'raise') -> Completion:
     """Complete the linkage from the measured rocker angle q (rad) of the ``driven`` rocker on from_rocker's
-    ``branch``; q_rate (rad/s) and effort (N m) optional. Computes only what is asked.
+    ``branch``; q_rate (rad/s) and effort (N m) optional. Computes only what is asked, in float64 whatever the
+    inputs' types (real scalars of any type as the Python float of their value; arrays as float64).
 
     Raises UnreachableError for a q the rocker cannot take (NaN, inf, outside link.rocker_reach(driven)); arrays
     with on_invalid='nan' give NaN there instead. See the module docstring for the singular poses.
     """
+    q = real(q)
+    if not isinstance(q, float):
+        q = np.asarray(q, dtype=np.float64)
+    if q_rate is not None:
+        q_rate = real(q_rate)
+    if effort is not None:
+        effort = real(effort)
     theta, other = link.from_rocker(q, driven, branch, on_invalid)
     gamma_driven = driven is Driven.GAMMA
     gamma, delta = (q, other) if gamma_driven else (other, q)
@@ -80,7 +90,7 @@ def complete(link: AntennaLinkage, q: ArrayLike, driven: Driven, branch: Branch,
     return Completion(theta, other, coupler, theta_rate, other_rate, coupler_rate, load)
 
 
-def inverse_branch(link: AntennaLinkage, theta: float, driven: Driven, branch: Branch) -> Branch:
+def inverse_branch(link: AntennaLinkage, theta: RealScalar, driven: Driven, branch: Branch) -> Branch:
     """The branch of ``from_rocker`` (measured ``driven`` rocker) that gives back the pose ``rocker_angles`` gives
     on ``branch`` at the antenna angle ``theta`` (rad, reachable and not a dead point of the driven rocker).
 
@@ -88,6 +98,7 @@ def inverse_branch(link: AntennaLinkage, theta: float, driven: Driven, branch: B
     geometry; it holds over any interval of theta free of the driven rocker's dead points (where the measured
     rocker's branch changes) and of the antenna's reach limit (where the forward one does).
     """
+    theta = float(real(theta))
     gamma, delta = link.rocker_angles(theta, branch)
     q = float(gamma if driven is Driven.GAMMA else delta)
     return min(Branch, key=lambda b: abs(math.remainder(float(link.from_rocker(q, driven, b).theta) - theta,

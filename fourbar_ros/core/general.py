@@ -1,6 +1,8 @@
 """The general four-bar of the lecture notes: crank angle to coupler and rocker angles, velocity ratio, statics.
 
-Conventions: docs/reference/python.md; the notes' errata: docs/explanation/errata.md."""
+Every method takes a real scalar (Python int or float, numpy integer or floating scalar, 0-d array: computed as the
+Python float of its value) or an array. Conventions: docs/reference/python.md; the notes' errata:
+docs/explanation/errata.md."""
 
 from __future__ import annotations
 
@@ -23,7 +25,7 @@ from fourbar_ros.core.dyad import (
     reach_half_angles,
 )
 from fourbar_ros.core.errors import DeadPointError, InvalidGeometryError, SingularPositionError, UnreachableError
-from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, OnInvalid, check_length
+from fourbar_ros.core.numeric import DEAD_TOL, ArrayLike, OnInvalid, RealLike, check_length, real
 
 
 class FourBarAngles(NamedTuple):
@@ -77,8 +79,9 @@ class FourBar:
         l1, l2, l3, l4 = self.ground, self.crank, self.coupler, self.rocker
         return l1 / l2, l1 / l4, (l1 * l1 + l2 * l2 - l3 * l3 + l4 * l4) / (2.0 * l2 * l4)
 
-    def freudenstein_residual(self, t2: ArrayLike, t4: ArrayLike) -> ArrayLike:
+    def freudenstein_residual(self, t2: RealLike, t4: RealLike) -> ArrayLike:
         """K1 cos t4 - K2 cos t2 + K3 - cos(t2 - t4): zero on any closed pose (an independent check)."""
+        t2, t4 = real(t2), real(t4)
         k1, k2, k3 = self.freudenstein_constants()
         return k1 * np.cos(t4) - k2 * np.cos(t2) + k3 - np.cos(np.subtract(t2, t4))
 
@@ -87,14 +90,15 @@ class FourBar:
         links = sorted((self.ground, self.crank, self.coupler, self.rocker))
         return links[0] + links[3] <= links[1] + links[2]
 
-    def angles(self, t2: ArrayLike, branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> FourBarAngles:
+    def angles(self, t2: RealLike, branch: Branch = Branch.UPPER, on_invalid: OnInvalid = 'raise') -> FourBarAngles:
         """Coupler and rocker angles (t3, t4) in radians for crank angle t2 (radians) on the given branch.
 
         Raises UnreachableError where the loop cannot close (for arrays, or NaN there with on_invalid='nan').
         """
         # The diagonal B -> O4 is the dyad's P -> Q with x = -t2; t3 is the dyad's angle at P, t4 = pi - its angle at Q.
         which = branch if type(branch) is Branch else Branch(branch)  # also takes a plain +1 / -1
-        if isinstance(t2, (float, int)):
+        t2 = real(t2)
+        if isinstance(t2, float):
             try:
                 t3, q = self._closure(-t2, which)
             except DyadOpenError:
@@ -117,22 +121,24 @@ class FourBar:
                                         'the rocker angle is undetermined') from None
         return FourBarAngles(t3_a, np.subtract(np.pi, q_a, out=q_a))
 
-    def velocity_ratio(self, t2: ArrayLike, branch: Branch = Branch.UPPER) -> ArrayLike:
+    def velocity_ratio(self, t2: RealLike, branch: Branch = Branch.UPPER) -> ArrayLike:
         """dt4/dt2 = l2 sin(t2 - t3) / (l4 sin(t4 - t3)) (dimensionless, signed).
 
         Unbounded where the rocker is in line with the coupler (the sine is zero to within its rounding):
         scalars raise DeadPointError there, arrays give NaN.
         """
+        t2 = real(t2)
         t3, t4 = self.angles(t2, branch)
         return self._ratio(t2, t3, t4, self.crank, self.rocker, 'the rocker is in line with the coupler; '
                            'dt4/dt2 is unbounded', invert=False)
 
-    def mechanical_advantage(self, t2: ArrayLike, branch: Branch = Branch.UPPER) -> ArrayLike:
+    def mechanical_advantage(self, t2: RealLike, branch: Branch = Branch.UPPER) -> ArrayLike:
         """tau4/tau2 = dt2/dt4 = l4 sin(t4 - t3) / (l2 sin(t2 - t3)) by power balance (signed).
 
         Unbounded at the toggle where the crank is in line with the coupler: scalars raise DeadPointError there,
         arrays give NaN.
         """
+        t2 = real(t2)
         t3, t4 = self.angles(t2, branch)
         return self._ratio(t2, t3, t4, self.rocker, self.crank, 'the crank is in line with the coupler; '
                            'the mechanical advantage is unbounded', invert=True)
@@ -141,7 +147,7 @@ class FourBar:
                invert: bool) -> ArrayLike:
         """num_len sin(a - t3) / (den_len sin(b - t3)) with (a, b) = (t2, t4), or (t4, t2) when invert."""
         a, b = (t4, t2) if invert else (t2, t4)
-        if isinstance(a, (float, int)) and isinstance(b, (float, int)) and isinstance(t3, float):
+        if isinstance(a, float) and isinstance(b, float) and isinstance(t3, float):
             den = math.sin(b - t3)
             if abs(den) <= DEAD_TOL * (1.0 + abs(b) + abs(t3)):
                 raise DeadPointError(f't2={t2!r} rad: {why}')

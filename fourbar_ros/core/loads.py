@@ -11,7 +11,7 @@ from typing import NamedTuple, Protocol, overload
 import numpy as np
 
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, Driven, LinkageState
-from fourbar_ros.core.numeric import ArrayLike, FloatArray
+from fourbar_ros.core.numeric import ArrayLike, FloatArray, RealLike, RealScalar, real
 
 
 class LoadSpec(Protocol):
@@ -60,16 +60,18 @@ def com_height_rate(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: fl
 @overload
 def com_height_rate(cfg: LoadSpec, theta: FloatArray, gamma: FloatArray, dgamma_dtheta: FloatArray) -> FloatArray: ...
 @overload
-def com_height_rate(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike: ...
+def com_height_rate(cfg: LoadSpec, theta: RealLike, gamma: RealLike, dgamma_dtheta: RealLike) -> ArrayLike: ...
 
 
-def com_height_rate(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike:
-    """d y_com / d theta (m/rad): how fast the antenna's centre of mass rises as theta grows. Floats take the
-    math module's functions, arrays numpy's (element-wise the same operations)."""
+def com_height_rate(cfg: LoadSpec, theta: RealLike, gamma: RealLike, dgamma_dtheta: RealLike) -> ArrayLike:
+    """d y_com / d theta (m/rad): how fast the antenna's centre of mass rises as theta grows. Real scalars (as
+    the float of their value) take the math module's functions, arrays numpy's (element-wise the same operations)."""
     cos_gamma: ArrayLike
     cos_theta: ArrayLike
     sin_theta: ArrayLike
-    if isinstance(theta, np.ndarray):
+    if not (type(theta) is float and type(gamma) is float and type(dgamma_dtheta) is float):
+        theta, gamma, dgamma_dtheta = real(theta), real(gamma), real(dgamma_dtheta)
+    if not (isinstance(theta, float) and isinstance(gamma, float)):
         cos_gamma, cos_theta, sin_theta = np.cos(gamma), np.cos(theta), np.sin(theta)
     else:
         cos_gamma, cos_theta, sin_theta = math.cos(gamma), math.cos(theta), math.sin(theta)
@@ -84,10 +86,10 @@ def gravity_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: flo
 @overload
 def gravity_torque(cfg: LoadSpec, theta: FloatArray, gamma: FloatArray, dgamma_dtheta: FloatArray) -> ArrayLike: ...
 @overload
-def gravity_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike: ...
+def gravity_torque(cfg: LoadSpec, theta: RealLike, gamma: RealLike, dgamma_dtheta: RealLike) -> ArrayLike: ...
 
 
-def gravity_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike:
+def gravity_torque(cfg: LoadSpec, theta: RealLike, gamma: RealLike, dgamma_dtheta: RealLike) -> ArrayLike:
     """Torque (N m, about theta, +theta sense) that holds the antenna's weight at this pose (0.0 without one)."""
     if not has_gravity_load(cfg):
         return 0.0
@@ -99,17 +101,17 @@ def load_torque(cfg: LoadSpec, theta: float, gamma: float, dgamma_dtheta: float)
 @overload
 def load_torque(cfg: LoadSpec, theta: FloatArray, gamma: FloatArray, dgamma_dtheta: FloatArray) -> ArrayLike: ...
 @overload
-def load_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike: ...
+def load_torque(cfg: LoadSpec, theta: RealLike, gamma: RealLike, dgamma_dtheta: RealLike) -> ArrayLike: ...
 
 
-def load_torque(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, dgamma_dtheta: ArrayLike) -> ArrayLike:
+def load_torque(cfg: LoadSpec, theta: RealLike, gamma: RealLike, dgamma_dtheta: RealLike) -> ArrayLike:
     """Total load torque about theta (N m): the constant ``load_torque`` plus the gravity term; floats or
     arrays (element-wise)."""
     return cfg.load_torque + gravity_torque(cfg, theta, gamma, dgamma_dtheta)
 
 
-def load_at_pose(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, delta: ArrayLike,
-                 dgamma_dtheta: ArrayLike | None = None) -> ArrayLike:
+def load_at_pose(cfg: LoadSpec, theta: RealLike, gamma: RealLike, delta: RealLike,
+                 dgamma_dtheta: RealLike | None = None) -> ArrayLike:
     """The load torque about theta (N m) at a solved pose (theta, gamma, delta in rad); floats or arrays. The
     antenna's weight needs dgamma/dtheta: pass it if known, else it is computed (only then)."""
     if not has_gravity_load(cfg):
@@ -119,11 +121,12 @@ def load_at_pose(cfg: LoadSpec, theta: ArrayLike, gamma: ArrayLike, delta: Array
     return load_torque(cfg, theta, gamma, dgamma_dtheta)
 
 
-def solve(cfg: LoadSpec, theta: float) -> LinkageState:
+def solve(cfg: LoadSpec, theta: RealScalar) -> LinkageState:
     """The whole linkage state at antenna angle theta (rad) under the configured load (the pose below plus the
     rates and the transmission angle). Raises the core's ``UnreachableError``/``DeadPointError`` for an angle the
     linkage cannot serve."""
     link = cfg.linkage
+    theta = float(real(theta))
     gamma, delta = link.rocker_angles(theta, cfg.branch)
     rates = link.rates_at(theta, gamma, delta)
     load = load_at_pose(cfg, theta, gamma, delta, rates.dgamma_dtheta)
@@ -144,14 +147,16 @@ class Pose(NamedTuple):
 # The pose, one angle and many: the same core calls in the same order, on Python floats (math module) and on
 # numpy arrays. They agree within the core's few-ulp bound (numpy's SIMD transcendentals against libm).
 
-def pose_solver(cfg: LoadSpec) -> Callable[[float], Pose]:
+def pose_solver(cfg: LoadSpec) -> Callable[[RealScalar], Pose]:
     """``theta (rad) -> Pose`` with the configuration's lookups bound once (the node's per-command call). Raises
     the core's ``UnreachableError``/``DeadPointError`` for an angle the linkage cannot serve."""
     angles, torque_at = cfg.linkage.rocker_angles, cfg.linkage.torque_at
     branch, driven, constant = cfg.branch, cfg.driven, cfg.load_torque
     gravity = has_gravity_load(cfg)
 
-    def solved_pose(theta: float) -> Pose:
+    def solved_pose(theta: RealScalar) -> Pose:
+        if type(theta) is not float:
+            theta = float(real(theta))
         gamma, delta = angles(theta, branch)
         load = load_at_pose(cfg, theta, gamma, delta) if gravity else constant
         return Pose(float(gamma), float(delta), float(torque_at(theta, gamma, delta, load, driven)))
@@ -159,7 +164,7 @@ def pose_solver(cfg: LoadSpec) -> Callable[[float], Pose]:
     return solved_pose
 
 
-def pose(cfg: LoadSpec, theta: float) -> Pose:
+def pose(cfg: LoadSpec, theta: RealScalar) -> Pose:
     """The pose at one antenna angle theta (rad): ``pose_solver(cfg)(theta)``."""
     return pose_solver(cfg)(theta)
 
@@ -168,6 +173,7 @@ def poses(cfg: LoadSpec, theta: FloatArray) -> tuple[FloatArray, FloatArray, Flo
     """gamma, delta (rad) and the driven rocker's torque (N m) at each angle theta (rad): the pose on arrays, NaN
     where the core cannot solve (out of reach, a dead point)."""
     link = cfg.linkage
+    theta = np.asarray(theta, dtype=np.float64)
     gamma, delta = link.rocker_angles(theta, cfg.branch, on_invalid='nan')
     with np.errstate(invalid='ignore'):  # an infinite theta gives NaN, as documented, not a RuntimeWarning
         load = load_at_pose(cfg, theta, gamma, delta)
@@ -176,13 +182,13 @@ def poses(cfg: LoadSpec, theta: FloatArray) -> tuple[FloatArray, FloatArray, Flo
 
 
 @overload
-def motor_torque(cfg: LoadSpec, input_torque: float) -> float: ...
+def motor_torque(cfg: LoadSpec, input_torque: RealScalar) -> float: ...
 @overload
 def motor_torque(cfg: LoadSpec, input_torque: FloatArray) -> FloatArray: ...
 
 
-def motor_torque(cfg: LoadSpec, input_torque: ArrayLike) -> ArrayLike:
+def motor_torque(cfg: LoadSpec, input_torque: RealLike) -> ArrayLike:
     """Motor-side torque (N m) for a driven-rocker torque, driving through the reducer:
     input_torque / (reducer_ratio * reducer_efficiency), in the motor's own sense (a negative ratio, a reversed
-    motor, flips the sign); floats or arrays. (Back-driven, the motor would need less.)"""
-    return input_torque / (cfg.reducer_ratio * cfg.reducer_efficiency)
+    motor, flips the sign); real scalars or arrays. (Back-driven, the motor would need less.)"""
+    return real(input_torque) / (cfg.reducer_ratio * cfg.reducer_efficiency)

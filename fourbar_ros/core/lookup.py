@@ -14,7 +14,7 @@ import numpy.typing as npt
 
 from fourbar_ros.core.antenna import AntennaLinkage, Branch, RockerAngles
 from fourbar_ros.core.errors import UnreachableError
-from fourbar_ros.core.numeric import ArrayLike, FloatArray, OnInvalid
+from fourbar_ros.core.numeric import FloatArray, OnInvalid, RealLike, RealScalar, real
 
 _SAMPLES_PER_INTERVAL = 16
 _F = TypeVar('_F', bound=np.floating)
@@ -95,19 +95,19 @@ class RockerTable:
         return self._gamma.copy(), self._delta.copy()
 
     @overload
-    def rocker_angles(self, theta: float, on_invalid: OnInvalid = ...) -> RockerAngles: ...
+    def rocker_angles(self, theta: RealScalar, on_invalid: OnInvalid = ...) -> RockerAngles: ...
     @overload
     def rocker_angles(self, theta: FloatArray, on_invalid: OnInvalid = ...) -> RockerAngles: ...
 
-    def rocker_angles(self, theta: ArrayLike, on_invalid: OnInvalid = 'raise') -> RockerAngles:
+    def rocker_angles(self, theta: RealLike, on_invalid: OnInvalid = 'raise') -> RockerAngles:
         """Interpolated (gamma, delta) in radians; within max_error of the exact solve.
 
         A theta outside [theta_min, theta_max] (or NaN) raises UnreachableError; for arrays with
         on_invalid='nan' those elements are NaN instead. No wrapping: the table covers its interval only.
         """
         lo, hi = self.theta_min, self.theta_max
-        if type(theta) is float or isinstance(theta, (float, int)):
-            t = theta if type(theta) is float else float(theta)
+        t = theta if type(theta) is float else real(theta)
+        if isinstance(t, float):
             if not lo <= t <= hi:
                 raise self._outside(t)
             u = (t - lo) * self._inv_step
@@ -118,7 +118,7 @@ class RockerTable:
             (g0, g1, g2, g3), (d0, d1, d2, d3) = self._rows[i]
             # tuple.__new__ skips NamedTuple's Python-level __new__ (about half the cost of this call).
             return _new(RockerAngles, (g0 + f * (g1 + f * (g2 + f * g3)), d0 + f * (d1 + f * (d2 + f * d3))))
-        th = np.asarray(theta, dtype=np.float64)
+        th = np.asarray(t, dtype=np.float64)
         with np.errstate(invalid='ignore'):
             bad = ~((th >= lo) & (th <= hi))
         if bad.any():
