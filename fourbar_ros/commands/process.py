@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING, Any
 from fourbar_ros.commands import add_storage_argument
 
 if TYPE_CHECKING:
-    from fourbar_ros.bags.storage import Kind
+    from fourbar_ros.interface.topics import Kind
 
 HELP = ('write the joint_states and input_torque fourbar_node would publish for a command bag, or the completed '
         'joint_states, antenna_angle, antenna_rate and load_torque for a bag of measured joint states, or the '
@@ -31,10 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def topic_help() -> str:
-    """``--topic``'s help, from the kinds and their topics the processing looks for (``bags.storage.find_topic``)
+    """``--topic``'s help, from the kinds and their topics the processing looks for (``interface.topics``)
     and the outputs a measured topic must not be one of (``bags.process_measured``)."""
-    from fourbar_ros.bags.storage import COMMANDS, MEASURED, TRAJECTORIES
-    from fourbar_ros.interface.topics import PER_MEASUREMENT_OUTPUTS
+    from fourbar_ros.interface.topics import COMMANDS, MEASURED, PER_MEASUREMENT_OUTPUTS, TRAJECTORIES
 
     def kind(k: Kind) -> str:
         return (f'{k.role} topic ({k.topics[0].msgtype}; default: {", else ".join(k.ends)}, else the one '

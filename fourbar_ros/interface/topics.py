@@ -86,6 +86,32 @@ DIAGNOSTICS = Topic('/diagnostics', DIAGNOSTIC_ARRAY, STATUS_DEPTH)
 #: Antenna trajectories in (actuator modes): a JointTrajectory of the one joint ANTENNA_JOINT, positions theta rad,
 #: optional velocities rad/s and accelerations rad/s^2. Reliable: a trajectory is one message, not a stream.
 ANTENNA_TRAJECTORY = Topic('antenna_trajectory', JOINT_TRAJECTORY, STATUS_DEPTH)
+
+
+@dataclass(frozen=True)
+class Kind:
+    """A kind of input topic: what errors call it (``label`` when none is found, ``role`` when one has another
+    type) and its topics (name, type), by preference."""
+
+    label: str
+    topics: tuple[Topic, ...]
+    role: str
+
+    @property
+    def ends(self) -> tuple[str, ...]:
+        """The endings of its topics' names ('/name'), by preference: the root's topics, and any namespace's."""
+        return tuple(f'/{t.name}' for t in self.topics)
+
+    def named(self, topic: str) -> bool:
+        """Whether ``topic`` goes by one of the kind's names (at the root or in a namespace)."""
+        return topic.endswith(self.ends)
+
+
+#: The kinds of input a bag's offline processing looks for, by preference.
+COMMANDS = Kind('command', (COMMAND,), 'command')
+MEASURED = Kind(f'measured {JOINT_STATE}', (MEASURED_JOINT_STATES, BROADCASTER_JOINT_STATES), 'measured')
+TRAJECTORIES = Kind(JOINT_TRAJECTORY, (ANTENNA_TRAJECTORY,), 'antenna trajectory')
+
 #: The joint name an antenna trajectory carries: the antenna angle theta.
 ANTENNA_JOINT = 'antenna_joint'
 #: Keep-last depth of the controllers' command topics (as the sim actuator subscribes).

@@ -9,12 +9,8 @@ from fourbar_ros.bags.storage.common import (
     time_from_ns,
 )
 from fourbar_ros.bags.storage.read import (
-    COMMANDS,
-    MEASURED,
-    TRAJECTORIES,
     BagReader,
     CommandStream,
-    Kind,
     find_topic,
     fingerprint,
     open_bag,
@@ -24,10 +20,14 @@ from fourbar_ros.bags.storage.read import (
 from fourbar_ros.bags.storage.reindex import ReindexResult, partial_dirs, reindex
 from fourbar_ros.bags.storage.write import AtomicBagWriter, float64_cdr, write_command_bag
 from fourbar_ros.interface.topics import (  # re-exported
+    COMMANDS,
     DEFAULT_STORAGE,
     DIAGNOSTIC_ARRAY,
     FLOAT64,
     JOINT_STATE,
+    MEASURED,
+    TRAJECTORIES,
+    Kind,
     Storage,
     sibling_topic,
 )

@@ -22,40 +22,11 @@ from fourbar_ros.bags.storage.adapters import adapter_of_file
 from fourbar_ros.bags.storage.common import BagError, jazzy_typestore
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.interface.topics import (
-    ANTENNA_TRAJECTORY,
-    BROADCASTER_JOINT_STATES,
-    COMMAND,
+    COMMANDS,
     FLOAT64,
-    JOINT_STATE,
-    JOINT_TRAJECTORY,
-    MEASURED_JOINT_STATES,
+    Kind,
     Storage,
-    Topic,
 )
-
-
-@dataclass(frozen=True)
-class Kind:
-    """A kind of input topic: what errors call it (``label`` when none is found, ``role`` when one has another
-    type) and its topics (name, type), by preference."""
-
-    label: str
-    topics: tuple[Topic, ...]
-    role: str
-
-    @property
-    def ends(self) -> tuple[str, ...]:
-        """The endings of its topics' names ('/name'), by preference: the root's topics, and any namespace's."""
-        return tuple(f'/{t.name}' for t in self.topics)
-
-    def named(self, topic: str) -> bool:
-        """Whether ``topic`` goes by one of the kind's names (at the root or in a namespace)."""
-        return topic.endswith(self.ends)
-
-
-COMMANDS = Kind('command', (COMMAND,), 'command')
-MEASURED = Kind(f'measured {JOINT_STATE}', (MEASURED_JOINT_STATES, BROADCASTER_JOINT_STATES), 'measured')
-TRAJECTORIES = Kind(JOINT_TRAJECTORY, (ANTENNA_TRAJECTORY,), 'antenna trajectory')
 
 
 class TopicTypeError(BagError):
