@@ -18,12 +18,23 @@ from fourbar_ros.motion.errors import LimitError
 from fourbar_ros.motion.splines import derivatives_at, hermite_coefficients, segment_extremes
 from fourbar_ros.motion.trajectory import DrivenTrajectory, SplineKind
 
-__all__ = ['JointLimits', 'LimitPolicy', 'Violation', 'enforce_limits', 'segment_magnitudes', 'worst_violation']
+__all__ = ['RANGE_ULPS', 'JointLimits', 'LimitPolicy', 'Violation', 'enforce_limits', 'range_slack',
+           'segment_magnitudes', 'worst_violation']
 
 LimitPolicy = Literal['reject', 'retime']
 
 #: Relative step added to the retiming factor when rounding leaves a point a few ulps over a limit.
 _RETIME_NUDGE = 8.0 * math.ulp(1.0)
+
+#: How far (in ulps of the range's larger end) a position may pass an end of the driven joint's range and still be
+#: at that end: a motion that ends exactly there passes it by its own rounding (ruckig's extrema, a spline's
+#: evaluation at its end point, a conversion of the end's angle), a few ulps.
+RANGE_ULPS = 16
+
+
+def range_slack(lower: float, upper: float) -> float:
+    """The slack (rad) of "at an end" of the range [lower, upper] rad: ``RANGE_ULPS`` ulps of its larger end."""
+    return RANGE_ULPS * math.ulp(max(abs(lower), abs(upper)))
 
 
 @dataclass(frozen=True)

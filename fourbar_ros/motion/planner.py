@@ -16,12 +16,8 @@ from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import LimitError, TrajectoryError
-from fourbar_ros.motion.limits import JointLimits, segment_magnitudes, worst_violation
+from fourbar_ros.motion.limits import JointLimits, range_slack, segment_magnitudes, worst_violation
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire, static_efforts
-
-#: How far (in ulps of the range's larger end) ruckig's position extrema may pass an end of the driven joint's range
-#: that the motion only reaches: its rounding of a profile that ends exactly there.
-RANGE_ULPS = 16
 
 #: The shortest piece (s) a segment is split into at a phase boundary when its interpolation passes a limit: the
 #: controller's quintic takes its jerk from positions over h^3, so a shorter one would turn the positions' rounding
@@ -140,8 +136,7 @@ def plan_to_angle(cfg: AntennaConfig, limits: JointLimits, start: JointMotionSta
     plan = plan_motion(start, q_target, limits)
     lo, hi = plan.position_range()
     q_lo, q_hi = sorted((float(ends[0]), float(ends[1])))
-    # ruckig's extrema of a motion that ends at an end of the range are that end to its own rounding: a few ulps.
-    slack = RANGE_ULPS * math.ulp(max(abs(q_lo), abs(q_hi)))
+    slack = range_slack(q_lo, q_hi)
     if lo < q_lo - slack or hi > q_hi + slack:
         raise UnreachableError(
             f'the motion to theta = {theta!r} rad passes the driven joint through [{lo!r}, {hi!r}] rad, beyond '
