@@ -73,6 +73,9 @@ class Actuation:
         self.motion: Motion | None = None
         self.measured: JointMotionState | None = None
         self.measured_ns = 0  # when self.measured was measured, node clock
+        #: measurements stamped before this (ns, node clock: the controller's latest readiness change, or the
+        #: measurements' latest stop) show the drive before it and are not planned from
+        self.fresh_ns = 0
         self._measured_at = 0.0  # when it arrived, steady clock (s)
         self._setpoints: Setpoints | None = None
         #: (time on the node clock the setpoint stands for, ns; position rad) of the setpoints published
@@ -124,13 +127,17 @@ class Actuation:
         """The measured driven joint: position rad, velocity rad/s (None or NaN: not measured), measured at
         ``stamp_ns`` (node clock; 0: on arrival); a non-finite position is ignored."""
         if position - position == 0.0:  # finite
+            stamp_ns = stamp_ns or self._now_ns()
+            if stamp_ns < self.fresh_ns:
+                self.counters.measurements_outdated += 1
+                return
             v = velocity if velocity is not None and velocity - velocity == 0.0 else 0.0
             self.measured = JointMotionState(position, v)
-            self.measured_ns = stamp_ns if stamp_ns else self._now_ns()
+            self.measured_ns = stamp_ns
             self._measured_at = time.monotonic()
             self._check_follow(position)
-            if not self.fates.measured:
-                self.fates.measured = True
+            if not self.fates.measured or self.fates.unsettled:  # a command may wait for this measurement
+                self.fates.measured, self.fates.unsettled = True, ''
                 self._resume()
 
     def _check_follow(self, position: float) -> None:
@@ -164,15 +171,18 @@ class Actuation:
 
     def command(self, theta: float) -> None:
         """Plan and send the motion to a served antenna angle theta (rad), or hold it until it can go."""
-        fates = self.fates
+        fates, now_ns = self.fates, self._now_ns()
         fates.settings = FateSettings.of(self._config())
-        if fates.receive(theta, self._now_ns()):
+        if fates.repeat(theta, now_ns, self.theta):
+            return
+        if fates.receive(theta, now_ns):
             self._send(theta)
         else:
             self._said(Fate.SENT)
 
     def _send(self, theta: float) -> None:
-        """Plan the current command and send it (its fate: sent, or dropped with the refusal)."""
+        """Plan the pending or resumed command and send it (its fate: sent, dropped with the refusal, or held
+        while the drive is measured moving off the motion sent)."""
         cfg, now_ns = self._config(), self._now_ns()
         if self.fates.readiness is Readiness.NOT_FOLLOWED and not self._told_not_followed:
             self._told_not_followed = True
@@ -180,11 +190,16 @@ class Actuation:
                        f'{self.watch.why_not_followed or "no controller manager seen on " + self.watch.topic}): '
                        'commands go out as they come')
         out = serve_command(cfg, self.contract, self._drive(), theta, now_ns, self.counters)
-        if self._emit(cfg, out):
+        if isinstance(out, Refused) and out.wait:
+            pending = self.fates.pending is not None
+            self.fates.wait(out.wait)
+            if pending:  # said once per command, not at every measurement while it waits
+                self._said(None)
+        elif self._emit(cfg, out):
             assert not isinstance(out, Refused)
             self.fates.sent(out.motion.start_ns + seconds_to_ns(out.motion.duration))
         else:
-            self.fates.drop(out.line if isinstance(out, Refused) else 'no action server')
+            self.fates.refused(out.line if isinstance(out, Refused) else 'no action server')
 
     def _resume(self) -> None:
         """Send a held command that can now go, from the motion the controller still runs where the measured state
@@ -196,17 +211,18 @@ class Actuation:
     def _on_readiness(self, new: Readiness) -> None:
         """The controller's readiness changed: a motion it no longer runs is forgotten, a held command resumed."""
         before = self.fates.current.fate if self.fates.current is not None else None
-        old = self.fates.readiness
-        self.fates.controller(new, self._now_ns())
+        old, now_ns = self.fates.readiness, self._now_ns()
+        if old is not new:  # the drive's state is measured again before anything is planned (a manager that
+            self.fresh_ns, self.fates.measured = now_ns, False  # restarts starts its hardware afresh)
+        self.fates.controller(new, now_ns)
         self._info(f'controller {self.watch.controller}: {old.value} -> {new.value}')
         if new is Readiness.ACTIVE:
             self.not_following = ''  # activated again: the drive is judged afresh
-        if not new.sendable:  # the drive's state is measured again before anything is planned (a manager that
-            self.fates.measured = False  # restarts starts its hardware afresh)
-            # An active trajectory controller runs its trajectory on while its hardware is inactive; a controller
-            # that leaves active holds the drive where it is, and a stream of setpoints stops here.
-            if new is not Readiness.HARDWARE_INACTIVE or isinstance(self.contract, ForwardControllerSettings):
-                self.motion, self._setpoints = None, None
+        # An active trajectory controller runs its trajectory on while its hardware is inactive; a controller that
+        # leaves active holds the drive where it is, and a stream of setpoints stops here.
+        if not new.sendable and (new is not Readiness.HARDWARE_INACTIVE
+                                 or isinstance(self.contract, ForwardControllerSettings)):
+            self.motion, self._setpoints = None, None
         self._said(before)
         self._resume()
 
@@ -227,6 +243,7 @@ class Actuation:
         age = time.monotonic() - self._measured_at
         if fates.readiness is Readiness.ACTIVE and fates.measured and age > cfg.measurement_timeout:
             fates.unmeasured(f'no measured driven joint for {age:.3g} s', now_ns)
+            self.fresh_ns = now_ns
         fates.tick(now_ns, self.theta)
         self._said(before)
 
@@ -243,12 +260,12 @@ class Actuation:
         self.counters.trajectories_received += 1
         cfg, now_ns = self._config(), self._now_ns()
         out = serve_antenna_trajectory(cfg, self.contract, self._drive(), msg, now_ns, self.counters)
-        if not isinstance(out, Refused):
+        if self._emit(cfg, out):
             self.fates.supersede('by an antenna trajectory')
-        self._emit(cfg, out)
 
     def _drive(self) -> Drive:
-        return Drive(self.motion, self.measured, self.measured_ns)
+        fresh = self.measured_ns >= self.fresh_ns
+        return Drive(self.motion, self.measured if fresh else None, self.measured_ns)
 
     def _emit(self, cfg: AntennaConfig, out: Outgoing | Refused) -> bool:
         """Publish what goes out and follow its motion, or log the refusal (one line); False if nothing went out

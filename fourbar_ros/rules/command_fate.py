@@ -90,28 +90,39 @@ class Command:
     received_ns: int
     fate: Fate = Fate.HELD
     reason: str = ''
-    held_ns: int = 0  # since when it waits (arrival, or interruption)
+    held_ns: int = 0  # since when it waits (its latest arrival, or interruption)
     end_ns: int = 0  # the planned end of its motion, once sent
     interruptions: int = 0
+    repeats: int = 0  # the same command received again while it was in force (``CommandFates.repeated``)
 
 
 @dataclass
 class CommandFates:
-    """The current command and the count of every fate reached (``counts``; a resumed command passes HELD and SENT
-    again). ``readiness`` is the controller's; ``measured`` whether the drive's state is known (nothing is planned
-    before)."""
+    """The current command (the one in force) and the count of every fate reached (``counts``; a resumed command
+    passes HELD and SENT again), of the commands that repeated the one in force (``repeats``). ``readiness`` is the
+    controller's; ``measured`` whether the drive's state is known (nothing is planned before); ``unsettled`` why the
+    drive's state cannot be planned from yet ('' when it can). A new command that can go is ``pending`` until it
+    goes out (it becomes current, superseding the one before) or is refused (dropped; the current one stays)."""
 
     settings: FateSettings
     readiness: Readiness = Readiness.NOT_FOLLOWED
     measured: bool = False
+    unsettled: str = ''
     current: Command | None = None
+    pending: Command | None = None
+    repeats: int = 0
     counts: dict[Fate, int] = field(default_factory=lambda: dict.fromkeys(Fate, 0))
 
-    def _set(self, fate: Fate, reason: str = '') -> None:
-        cmd = self.current
+    def _set(self, fate: Fate, reason: str = '', cmd: Command | None = None) -> None:
+        cmd = cmd or self.current
         assert cmd is not None
         cmd.fate, cmd.reason = fate, reason
         self.counts[fate] += 1
+
+    def _replace(self, cmd: Command, by: str) -> None:
+        """``cmd`` becomes the current command; the one before, if not final, is superseded (``by`` what)."""
+        self.supersede(by)
+        self.current = cmd
 
     def why_not(self) -> str:
         """Why a command cannot go out now ('' when it can)."""
@@ -119,16 +130,35 @@ class CommandFates:
             return 'a hardware component inactive'
         if not self.readiness.sendable:
             return f'controller {self.readiness.value}'
-        return '' if self.measured else 'no measured driven joint yet'
+        return self.unsettled if self.measured else 'no measured driven joint yet'
+
+    def repeat(self, theta: float, now_ns: int, measured_theta: float | None) -> bool:
+        """Whether a command to ``theta`` (rad) at ``now_ns`` repeats the one in force (within ``reached_tolerance``
+        of its target) and joins it, starting nothing new: one held (it waits from this arrival), one sent, or one
+        reached where the drive is still measured there (``measured_theta``, rad)."""
+        cmd, tol = self.current, self.settings.reached_tolerance
+        if cmd is None or not abs(theta - cmd.theta) <= tol:
+            return False
+        if cmd.fate is Fate.HELD:
+            cmd.held_ns = now_ns
+        elif not (cmd.fate is Fate.SENT or (cmd.fate is Fate.REACHED and measured_theta is not None
+                                            and abs(measured_theta - cmd.theta) <= tol)):
+            return False
+        cmd.repeats += 1
+        self.repeats += 1
+        return True
 
     def receive(self, theta: float, now_ns: int) -> bool:
-        """A new command (antenna angle rad) at ``now_ns``; the one before it, if not final, is superseded. True:
-        send it now; else it is held (``current.reason`` says why)."""
-        self.supersede('by a newer command')
-        self.current = Command(theta, now_ns, held_ns=now_ns)
+        """A new command (antenna angle rad) at ``now_ns``. True: plan and send it now (``pending`` until ``sent``
+        or ``refused``); else it is held as the current command, superseding one held before (``current.reason``
+        says why)."""
+        cmd = Command(theta, now_ns, held_ns=now_ns)
         why = self.why_not()
         if why:
+            self._replace(cmd, 'by a newer command')
             self._set(Fate.HELD, why)
+        else:
+            self.pending = cmd
         return not why
 
     def supersede(self, by: str) -> None:
@@ -137,10 +167,39 @@ class CommandFates:
             self._set(Fate.SUPERSEDED, by)
 
     def sent(self, end_ns: int) -> None:
-        """The current command went out; its motion ends at ``end_ns``."""
+        """The pending command (else the current one, resumed) went out; its motion ends at ``end_ns``. A pending
+        one supersedes the one before."""
+        if self.pending is not None:
+            self._replace(self.pending, 'by a newer command')
+            self.pending = None
         assert self.current is not None
         self.current.end_ns = end_ns
         self._set(Fate.SENT)
+
+    def refused(self, reason: str) -> None:
+        """The pending command (else the current one, resumed) cannot be carried out (``reason``: one line): it is
+        dropped; the current one, if it was not the refused one, stays in force."""
+        if self.pending is not None:
+            self._set(Fate.DROPPED, reason, self.pending)
+            self.pending = None
+        else:
+            self.drop(reason)
+
+    def wait(self, reason: str) -> None:
+        """The drive's state cannot be planned from yet (``reason``): the pending command is held as the current
+        one (superseding one held before; one sent stays in force and the pending one is dropped: the node does not
+        plan past a motion the drive is measured off), or the current one stays held, until the next measurement."""
+        self.unsettled = reason
+        cmd = self.current
+        if self.pending is not None and cmd is not None and cmd.fate is Fate.SENT:
+            self.refused(reason)
+            return
+        if self.pending is not None:
+            self._replace(self.pending, 'by a newer command')
+            self.pending = None
+            self._set(Fate.HELD, reason)
+        elif cmd is not None and cmd.fate is Fate.HELD:
+            cmd.reason = reason
 
     def drop(self, reason: str) -> None:
         """The current command cannot be carried out (``reason``: one line)."""
@@ -175,7 +234,7 @@ class CommandFates:
     def unmeasured(self, reason: str, now_ns: int) -> None:
         """The drive's measurements stopped (``reason``): nothing is planned until the next one, and a sent command
         is interrupted (a manager killed, or its broadcaster, stops them before the node hears of it)."""
-        self.measured = False
+        self.measured, self.unsettled = False, ''
         self.interrupt(reason, now_ns)
 
     def due(self) -> bool:
@@ -211,4 +270,5 @@ class CommandFates:
         if cmd is not None:
             out += [('command_theta_rad', repr(cmd.theta)), ('command_fate', cmd.fate.value),
                     ('command_fate_reason', cmd.reason)]
-        return out + [(f'commands_{f.value}', str(n)) for f, n in self.counts.items()]
+        return out + [(f'commands_{f.value}', str(n)) for f, n in self.counts.items()] + [
+            ('commands_repeated', str(self.repeats))]

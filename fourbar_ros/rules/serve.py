@@ -17,13 +17,21 @@ from fourbar_ros.interface.joint_trajectory import PointFields
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import MEASURED_JOINT_STATES
 from fourbar_ros.motion.planner import JointMotionState, Setpoints
-from fourbar_ros.rules.antenna_trajectory import Converted, EndsInPastError, TrajectoryProblem, convert, problem_of
+from fourbar_ros.rules.antenna_trajectory import (
+    CannotReachError,
+    Converted,
+    EndsInPastError,
+    TrajectoryProblem,
+    convert,
+    problem_of,
+)
 from fourbar_ros.rules.controller_contract import ContractRule, PointLike
 from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points, planned_setpoints, trajectory_setpoints
 from fourbar_ros.rules.outgoing import held_to_arrival, outgoing_refusal, point_fields
 from fourbar_ros.rules.takeover import (
     ARRIVAL_MARGIN_S,
     Start,
+    Unsettled,
     connect,
     continued,
     motion_start,
@@ -49,6 +57,8 @@ class ActuationCounters:
     measured_start_clamped: int = 0  # a start measured outside the range by at most measured_range_tolerance
     trajectories_connected: int = 0  # antenna trajectories given a connecting segment from the drive's state
     setpoints_published: int = 0
+    #: measurements stamped before the controller's latest readiness change or the measurements' latest stop
+    measurements_outdated: int = 0
     rejected: dict[TrajectoryProblem, int] = field(default_factory=lambda: dict.fromkeys(TrajectoryProblem, 0))
     #: messages of this package's own making the controller's contract refused (never sent)
     refused: dict[ContractRule, int] = field(default_factory=lambda: dict.fromkeys(ContractRule, 0))
@@ -82,10 +92,12 @@ class Outgoing(NamedTuple):
 
 
 class Refused(NamedTuple):
-    """Nothing goes out: the refusal's kind (one per problem or contract rule) and one line saying why."""
+    """Nothing goes out: the refusal's kind (one per problem or contract rule) and one line saying why; ``wait``
+    (a served command only) says why it can go later, once the drive is measured at rest (``takeover.Unsettled``)."""
 
     key: str
     line: str
+    wait: str = ''
 
 
 def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: float, now_ns: int,
@@ -93,10 +105,13 @@ def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: f
     """A served command to theta (rad, after the node's policy) at ``now_ns``: the plan from the drive's start
     (``motion_start``), as trajectory points or setpoints for ``contract``'s controller."""
     start = _start(cfg, contract, drive, now_ns, counters)
-    if start is None:
+    if not isinstance(start, Start):
         counters.commands_not_planned += 1
-        return Refused('command no start', f'command theta = {theta!r} rad not planned: no measured '
-                       f'{cfg.driven_joint} on {MEASURED_JOINT_STATES.name} yet')
+        if start is None:
+            return Refused('command no start', f'command theta = {theta!r} rad not planned: no measured '
+                           f'{cfg.driven_joint} on {MEASURED_JOINT_STATES.name} yet')
+        return Refused('command unsettled', f'command theta = {theta!r} rad not planned: {start.reason}',
+                       start.reason)
     try:
         plan = plan_command(cfg, start.state, theta)
         if isinstance(contract, ForwardControllerSettings):
@@ -122,6 +137,8 @@ def serve_antenna_trajectory(cfg: AntennaConfig, contract: Contract, drive: Driv
                         and contract.allow_nonzero_velocity_at_trajectory_end)
     try:
         start = _start(cfg, contract, drive, now_ns, counters) if drive.measured is not None else None
+        if isinstance(start, Unsettled):
+            raise CannotReachError(start.reason)
         converted = antenna_motion(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns, start)
         motion = Motion(converted.stamp_ns or now_ns, trajectory=converted.trajectory)
         if isinstance(contract, ForwardControllerSettings):
@@ -159,12 +176,12 @@ def antenna_motion(cfg: AntennaConfig, allow_moving_end: bool, joint_names: Sequ
 
 
 def _start(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: int,
-           counters: ActuationCounters) -> Start | None:
+           counters: ActuationCounters) -> Start | Unsettled | None:
     """``motion_start`` (in trajectory mode ``ARRIVAL_MARGIN_S`` ahead of now when it continues the running motion),
     counting a motion left for the measured state and a measured start moved onto the range."""
     lead = ARRIVAL_MARGIN_S if isinstance(contract, TrajectoryControllerSettings) else 0.0
     start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns)
-    if start is not None:
+    if isinstance(start, Start):
         counters.commands_replanned_from_measured += start.from_measured
         counters.measured_start_clamped += start.clamped
     return start

@@ -5,8 +5,8 @@ docs/explanation/motion.md#what-the-controller-does-with-a-trajectory-and-how-th
 
 from __future__ import annotations
 
-import math
 from dataclasses import astuple, dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -14,7 +14,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns
 from fourbar_ros.motion.limits import JointLimits
-from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, rocker_states
+from fourbar_ros.motion.planner import JointMotionState, rocker_states
 from fourbar_ros.motion.splines import evaluate, segment_extremes
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire
 from fourbar_ros.rules.antenna_trajectory import CannotReachError, Converted
@@ -53,51 +53,51 @@ class Start:
 ARRIVAL_MARGIN_S = 0.25
 
 
-#: The most (s) a measurement's stamp may lie before the node's now and still stand for when it was measured: an
-#: older stamp (a stream that stopped, or a drive stamping from another clock) is taken as measured now. Three times
-#: the latest arrival seen on a 2-core machine under twice its load (0.6 s).
-MEASURED_AGE_MAX_S = 2.0
+def rest_speed(cfg: AntennaConfig) -> float:
+    """The fastest measured driven speed (rad/s) taken as at rest when a motion starts from the measured state: the
+    controller's lead-in starts at the drive's own velocity, and a quintic from speed v to rest in time d peaks at
+    a jerk of 36 v / d^2; taken over half ``ARRIVAL_MARGIN_S`` before the first point, a drive this slow keeps it
+    within the jerk limit (8.7e-4 rad/s at the default limits, above the simulated drive's last braking step of
+    2e-4 rad/s as it lands)."""
+    return JointLimits.from_config(cfg).at_rocker(3) * (0.5 * ARRIVAL_MARGIN_S) ** 2 / 36.0
+
+
+class Unsettled(NamedTuple):
+    """No start can be vouched for: the drive is measured moving (``reason``) off every motion the node knows."""
+
+    reason: str
 
 
 def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotionState | None, now_ns: int,
-                 lead: float, measured_ns: int | None = None) -> Start | None:
+                 lead: float, measured_ns: int | None = None) -> Start | Unsettled | None:
     """Where a new motion starts (``Start``), ``lead`` s after ``now_ns`` in trajectory mode (``lead`` > 0), at now
-    in forward mode (``lead`` 0). While the measured driven position (at ``measured_ns``, node clock; None, or over
-    ``MEASURED_AGE_MAX_S`` before now or after it: now) is within ``replan_tolerance`` of the running motion or
-    predates its start: on that motion, continuing a quintic trajectory at its first point ``lead`` s or more after
-    now (where it ends sooner, at its end held until then), else at its state then. Off it: from the measured state
-    (velocity within the planner's speed limit, acceleration 0) carried on to the start (``carried``), moved onto an
-    end of the range within ``measured_range_tolerance``. With no motion running: the measured state, else the end
-    of the last motion; None before any of them exists."""
-    if measured is not None:
-        speed = PLAN_SHRINK * cfg.motor_speed_limit / cfg.reduction
-        if abs(measured.velocity) > speed:
-            measured = JointMotionState(measured.position, math.copysign(speed, measured.velocity))
-    at_ns = now_ns
-    if measured_ns is not None and 0 <= now_ns - measured_ns <= seconds_to_ns(MEASURED_AGE_MAX_S):
-        at_ns = measured_ns
-    age = ns_to_seconds(now_ns - at_ns)
+    in forward mode (``lead`` 0), from what is known of the drive: the last ``motion`` sent (after its end, at its
+    end at rest) and the ``measured`` driven joint at ``measured_ns`` (node clock; None or after now: now).
+
+    - On the motion, where the measurement is within ``replan_tolerance`` of it at its stamp, predates its start,
+      or there is none: continuing a running quintic trajectory at its first point ``lead`` s or more after now
+      (where it ends sooner, at its end held until then), else at its state then.
+    - Off it, or with no motion: from the measured position at rest, if the drive is measured at rest (within
+      ``rest_speed``) or within ``measured_range_tolerance`` past an end of the range (then at that end);
+      ``Unsettled`` if it is moving (no velocity is planned from that the node cannot vouch for).
+    - None with neither a motion nor a measurement."""
+    at_ns = now_ns if measured_ns is None else min(measured_ns, now_ns)
     # In trajectory mode a start from the measured state lies ARRIVAL_MARGIN_S ahead: the controller holds the drive
     # until then (its lead-in to a first point where the drive is), so the motion starts at its beginning, not
     # part-way in, whenever the trajectory arrives within the margin.
-    ahead = ARRIVAL_MARGIN_S if lead > 0.0 else 0.0
-    origin_ns = now_ns + seconds_to_ns(ahead)
-    if motion is not None and not motion.done(now_ns):
-        now_state = motion.state_at(now_ns)
-        # A measurement from before the running motion's start shows the drive on the motion before it: no news.
-        if (measured is None or at_ns < motion.start_ns
-                or abs(measured.position - motion.state_at(at_ns).position) <= cfg.replan_tolerance):
-            traj = motion.trajectory
-            if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC:
-                return _continuing(motion, traj, now_ns, lead, now_state)
-            # Not continued point for point (setpoints, or a cubic or linear antenna trajectory): from its state
-            # where the new trajectory starts, ahead like a start from the measured state, so that it goes out
-            # stamped and the node's model of it is the controller's.
-            return Start(motion.state_at(origin_ns), origin_ns)
-        return _from_measured(cfg, carried(cfg, measured, age + ahead), origin_ns, left=True)
-    if measured is not None:
-        return _from_measured(cfg, carried(cfg, measured, age + ahead), origin_ns, left=False)
-    return None if motion is None else Start(motion.state_at(origin_ns), origin_ns)
+    origin_ns = now_ns + seconds_to_ns(ARRIVAL_MARGIN_S if lead > 0.0 else 0.0)
+    if motion is not None and (measured is None or at_ns < motion.start_ns
+                               or abs(measured.position - motion.state_at(at_ns).position) <= cfg.replan_tolerance):
+        traj = motion.trajectory
+        if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC and not motion.done(now_ns):
+            return _continuing(motion, traj, now_ns, lead, motion.state_at(now_ns))
+        # Not continued point for point (setpoints, a cubic or linear antenna trajectory, or a motion that has
+        # ended): from its state where the new one starts, ahead like a start from the measured state, so that it
+        # goes out stamped and the node's model of it is the controller's.
+        return Start(motion.state_at(origin_ns), origin_ns)
+    if measured is None:
+        return None
+    return _from_measured(cfg, measured, origin_ns, left=motion is not None)
 
 
 def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float,
@@ -117,28 +117,16 @@ def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float
     return Start(state, motion.start_ns, float(times[k1]), _cut(traj, k0, k1), now_state)
 
 
-def carried(cfg: AntennaConfig, measured: JointMotionState, age: float) -> JointMotionState:
-    """The measured driven state ``age`` s after it was measured: its position moved on at its velocity, not past
-    an end of the range it was within (the drive stops there); velocity as measured, acceleration 0."""
-    if age == 0.0 or measured.velocity == 0.0:
-        return measured
-    q = measured.position + measured.velocity * age
-    lower, upper = driven_range(cfg)
-    if lower <= measured.position <= upper:
-        q = min(max(q, lower), upper)
-    return JointMotionState(q, measured.velocity)
-
-
-def _from_measured(cfg: AntennaConfig, measured: JointMotionState, now_ns: int, left: bool) -> Start:
+def _from_measured(cfg: AntennaConfig, measured: JointMotionState, origin_ns: int, left: bool) -> Start | Unsettled:
     lower, upper = driven_range(cfg)
     q, v, tol = measured.position, measured.velocity, cfg.measured_range_tolerance
-    # Within the tolerance of an end (inside or out), a speed outward is the drive pressing on the end or settling
-    # there, not a motion that could go on: it starts at the end, at rest.
-    at_lower, at_upper = lower - tol <= q < lower + tol and v <= 0.0, upper - tol < q <= upper + tol and v >= 0.0
-    if (at_lower or at_upper) and (not lower <= q <= upper or v != 0.0):
-        clamped = JointMotionState(min(max(q, lower), upper), 0.0)
-        return Start(clamped, now_ns, from_measured=left, clamped=True)
-    return Start(measured, now_ns, from_measured=left)
+    if lower - tol <= q < lower or upper < q <= upper + tol:
+        # Just past an end, whatever its speed, the drive presses on the end or settles there: at the end, at rest.
+        return Start(JointMotionState(min(max(q, lower), upper)), origin_ns, from_measured=left, clamped=True)
+    if abs(v) > rest_speed(cfg):
+        return Unsettled(f'the drive is measured moving ({v:.3g} rad/s at {q!r} rad) off the motion sent: a motion '
+                         'starts once it is measured at rest')
+    return Start(JointMotionState(q), origin_ns, from_measured=left)
 
 
 def continued(start: Start, traj: DrivenTrajectory) -> DrivenTrajectory:

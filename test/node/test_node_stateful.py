@@ -313,12 +313,13 @@ class Sequences(RuleBasedStateMachine):
         assert sum(follower.refused.values()) + follower.refused_not_finite == 0, rig.refusals
         assert rig.worst <= 1.0 + ROUNDING, (rig.worst, rig.worst_reference)
         assert rig.worst_step <= TAKEOVER_STEP, _step_report(rig)
-        # every served command has one fate: final, but for the latest
+        # every served command has one fate: final, but for the latest; or it repeated the one in force and joined it
         fates = node.actuation.fates
         served = node.counters.commands_accepted + node.counters.commands_clamped
         finals = sum(n for f, n in fates.counts.items() if f.final)
         pending = fates.current is not None and not fates.current.fate.final
-        assert finals + pending == served, (served, fates.counts, fates.current)
+        assert fates.pending is None, fates.pending
+        assert finals + pending + fates.repeats == served, (served, fates.counts, fates.repeats, fates.current)
 
 
 def _step_report(rig: Rig) -> str:

@@ -3,6 +3,7 @@ problem per case), the plans and setpoints of plain commands, and the running mo
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import replace
 from types import SimpleNamespace
@@ -18,8 +19,10 @@ from fourbar_ros.interface.stamps import seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, worst_violation
 from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, Plan, driven_angles
+from fourbar_ros.motion.splines import segment_extremes
 from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem, convert, problem_of
 from fourbar_ros.rules.controller_contract import ContractRule
+from fourbar_ros.rules.controller_motion import ControllerPoint, segment_coefficients
 from fourbar_ros.rules.motion_plan import (
     Motion,
     driven_range,
@@ -30,7 +33,7 @@ from fourbar_ros.rules.motion_plan import (
 )
 from fourbar_ros.rules.outgoing import actuation_contract
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
-from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, MEASURED_AGE_MAX_S, Start, carried, motion_start
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, Start, Unsettled, motion_start, rest_speed
 
 CFG = default_config()
 LIMITS = JointLimits.from_config(CFG)
@@ -148,15 +151,17 @@ def test_a_replan_leaves_the_running_motion_for_the_measured_state_beyond_the_to
     assert motion_start(CFG, motion, held, now, lead) == Start(held, ahead, from_measured=True)
     assert motion_start(CFG, motion, held, now, 0.0) == Start(held, now, from_measured=True)
     assert motion_start(CFG, motion, None, now, 0.0) == Start(model, now)  # nothing measured: the motion
+    # After the motion's end: a drive measured where it started is off it (the measured position, at rest).
     done = start_ns + round(plan.duration * 1e9) + 1
-    assert motion_start(CFG, motion, held, done, lead) == Start(held, done + seconds_to_ns(ARRIVAL_MARGIN_S))
-    assert motion_start(CFG, motion, held, done, 0.0) == Start(held, done)  # no motion running: the measurement
+    assert motion_start(CFG, motion, held, done, lead) == Start(held, done + seconds_to_ns(ARRIVAL_MARGIN_S),
+                                                                 from_measured=True)
+    assert motion_start(CFG, motion, held, done, 0.0) == Start(held, done, from_measured=True)
     assert motion_start(CFG, None, None, now, lead) is None
     # The plan from the held state starts there: the drive is sent no step.
     assert plan_command(CFG, held, 0.0).state_at(0.0) == held
 
 
-def test_a_late_measurement_is_compared_with_the_motion_when_measured_and_carried_on_to_now() -> None:
+def test_a_late_measurement_is_compared_with_the_motion_when_measured() -> None:
     q, _, _, motion, now = mid_motion()
     late = round(0.6e9)  # a measurement 0.6 s old, as arrived under load
     then = motion.state_at(now - late)
@@ -165,46 +170,85 @@ def test_a_late_measurement_is_compared_with_the_motion_when_measured_and_carrie
     assert abs(motion.state_at(now).position - then.position) > CFG.replan_tolerance
     on_it = JointMotionState(then.position, then.velocity)
     assert motion_start(CFG, motion, on_it, now, 0.0, now - late) == Start(motion.state_at(now), now)
-    # Taken as measured now (no stamp, a stamp from the future, or one older than MEASURED_AGE_MAX_S), the same
-    # measurement is off the motion.
-    for stamp in (None, now + 1, now - round(MEASURED_AGE_MAX_S * 1e9) - 1):
-        assert motion_start(CFG, motion, on_it, now, 0.0, stamp) == Start(on_it, now, from_measured=True)
-    # Off the motion when measured: the plan starts at the measured state carried on to now at its velocity.
+    # Taken as measured now (no stamp, a stamp from the future), the same measurement is off the motion, moving:
+    # nothing the node knows says where the drive is going, so nothing is planned from it.
+    for stamp in (None, now + 1):
+        assert isinstance(motion_start(CFG, motion, on_it, now, 0.0, stamp), Unsettled)
+    # Off the motion when measured, moving: the same.
     off = JointMotionState(then.position - 2 * CFG.replan_tolerance, 0.01)
-    start = motion_start(CFG, motion, off, now, 0.0, now - late)
-    assert start == Start(JointMotionState(off.position + 0.01 * late * 1e-9, 0.01), now, from_measured=True)
+    assert isinstance(motion_start(CFG, motion, off, now, 0.0, now - late), Unsettled)
     # A held drive (at rest) is where it was measured, however late the measurement.
     held = JointMotionState(q)
     assert motion_start(CFG, motion, held, now, 0.0, now - late) == Start(held, now, from_measured=True)
+
+
+def test_after_a_motions_end_a_late_measurement_on_it_starts_at_its_end_at_rest() -> None:
+    """The controller holds a motion's end: a new command just after it, with the latest measurement taken while
+    the drive still moved (late under load), starts from the end at rest in either mode, never from the measured
+    speed carried on."""
+    _, plan, start_ns, motion, _ = mid_motion()
+    end_ns = start_ns + round(plan.duration * 1e9)
+    end = motion.state_at(end_ns)
+    assert end.velocity == 0.0 and end.acceleration == 0.0
+    for lag_s, after_s in itertools.product((0.1, 0.3, 0.5), (0.01, 0.05)):
+        now = end_ns + round(after_s * 1e9)
+        stamp = now - round(lag_s * 1e9)
+        measured = motion.state_at(stamp)
+        assert measured.velocity != 0.0 or stamp >= end_ns
+        for lead in (0.0, ARRIVAL_MARGIN_S):
+            origin = now + seconds_to_ns(lead)
+            assert motion_start(CFG, motion, measured, now, lead, stamp) == Start(JointMotionState(end.position),
+                                                                                   origin), (lag_s, after_s, lead)
 
 
 def test_a_measurement_from_before_the_running_motion_started_leaves_it_alone() -> None:
     """A motion planned from the measured state starts ARRIVAL_MARGIN_S after its command. A measurement stamped
     before that start shows the drive on the previous motion, e.g. still moving toward the far end. Taken on its
     own, it would look far off the new motion's first state. It is no news: the running motion goes on. From the
-    start on, the same position is off the motion."""
+    start on, the same position is off the motion: moving, nothing is planned from it; at rest, from there."""
     q, _, _, _, _ = mid_motion()
     planned_at = 1_800_000_000_000_000_000
     motion = Motion(planned_at + seconds_to_ns(ARRIVAL_MARGIN_S), plan=plan_command(CFG, JointMotionState(q), 0.0))
     now = planned_at + round(0.5e9)
     before = JointMotionState(q + 3 * CFG.replan_tolerance, -0.05)  # on the previous motion, 1.4 s before now
     assert motion_start(CFG, motion, before, now, 0.0, now - round(1.4e9)) == Start(motion.state_at(now), now)
+    # Older still (a stream that stalled, 100 s): no news either.
+    assert motion_start(CFG, motion, before, now, 0.0, now - 100 * 10**9) == Start(motion.state_at(now), now)
     after = motion.start_ns + 1
-    assert now - after <= seconds_to_ns(MEASURED_AGE_MAX_S)
-    start = motion_start(CFG, motion, before, now, 0.0, after)
-    assert start is not None and start.from_measured
+    assert isinstance(motion_start(CFG, motion, before, now, 0.0, after), Unsettled)
+    resting = JointMotionState(before.position)
+    assert motion_start(CFG, motion, resting, now, 0.0, after) == Start(resting, now, from_measured=True)
 
 
-def test_a_measurement_is_carried_on_no_further_than_the_end_of_the_range() -> None:
+def test_a_drive_measured_just_past_an_end_starts_at_the_end_at_rest_whatever_its_speed() -> None:
     lower, upper = driven_range(CFG)
-    speed = 0.05
-    # Toward an end the carried position stops there (and starts at it, at rest); away from it, it moves on.
-    assert carried(CFG, JointMotionState(upper - 0.01, speed), 1.0) == JointMotionState(upper, speed)
-    assert carried(CFG, JointMotionState(lower + 0.01, -speed), 1.0) == JointMotionState(lower, -speed)
-    assert carried(CFG, JointMotionState(lower + 0.01, speed), 0.1).position == pytest.approx(lower + 0.015,
-                                                                                             abs=1e-15)
-    start = motion_start(CFG, None, JointMotionState(upper - 0.01, speed), 10**9, 0.0, 10**9 - round(0.5e9))
-    assert start == Start(JointMotionState(upper), 10**9, clamped=True)
+    tol, rest = CFG.measured_range_tolerance, rest_speed(CFG)
+    now = 10**9
+    for end, outward in ((lower, -1.0), (upper, 1.0)):
+        for past, v in itertools.product((math.ulp(end), 0.5 * tol, tol), (2e-4, -2e-4, 0.0, 0.05, -0.05)):
+            measured = JointMotionState(end + outward * past, v)
+            assert motion_start(CFG, None, measured, now, 0.0) == Start(JointMotionState(end), now, clamped=True), \
+                (end, past, v)
+        # Just inside: at rest where measured; moving faster than rest_speed, nothing is planned from it.
+        inside = end - outward * 0.5 * tol
+        assert motion_start(CFG, None, JointMotionState(inside, rest), now, 0.0) == Start(JointMotionState(inside),
+                                                                                           now)
+        assert isinstance(motion_start(CFG, None, JointMotionState(inside, 2 * rest), now, 0.0), Unsettled)
+        # Further past than the tolerance: as measured (the plan refuses what cannot stop within the range).
+        beyond = end + outward * 2 * tol
+        assert motion_start(CFG, None, JointMotionState(beyond), now, 0.0) == Start(JointMotionState(beyond), now)
+
+
+def test_the_rest_speed_keeps_a_lead_in_from_it_within_the_jerk_limit() -> None:
+    """rest_speed: a quintic lead-in from speed v to rest, over half ARRIVAL_MARGIN_S, peaks at 36 v / d^2 of jerk,
+    which at rest_speed is the rocker's jerk limit (the peak sampled on 20001 points lies below it by rounding)."""
+    d = 0.5 * ARRIVAL_MARGIN_S
+    a = ControllerPoint(0.0, 0.9, rest_speed(CFG), 0.0)
+    b = ControllerPoint(d, 0.9, 0.0, 0.0)
+    c = segment_coefficients(d, a, b)[None, :]
+    jerk = float(segment_extremes(np.array([0.0, d]), c, 3)[0])
+    assert jerk <= LIMITS.at_rocker(3) * (1 + 1e-12)
+    assert jerk >= LIMITS.at_rocker(3) * (1 - 1e-9)
 
 
 def test_forward_setpoints_of_a_trajectory_follow_the_controllers_spline() -> None:
