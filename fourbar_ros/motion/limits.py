@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+import numpy.typing as npt
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.loads import motor_torque
@@ -18,8 +19,8 @@ from fourbar_ros.motion.errors import LimitError
 from fourbar_ros.motion.splines import derivatives_at, hermite_coefficients, segment_extremes
 from fourbar_ros.motion.trajectory import DrivenTrajectory, SplineKind
 
-__all__ = ['RANGE_ULPS', 'JointLimits', 'LimitPolicy', 'Violation', 'enforce_limits', 'range_slack',
-           'segment_magnitudes', 'worst_violation']
+__all__ = ['RANGE_ULPS', 'JointLimits', 'LimitPolicy', 'Violation', 'enforce_limits', 'over_at_rocker',
+           'range_slack', 'segment_magnitudes', 'worst_violation']
 
 LimitPolicy = Literal['reject', 'retime']
 
@@ -140,14 +141,29 @@ def segment_magnitudes(traj: DrivenTrajectory) -> dict[int, FloatArray]:
     return {k: segment_extremes(traj.times, coefficients, k) for k in orders}
 
 
+def over_at_rocker(values: FloatArray, limits: JointLimits, order: int) -> npt.NDArray[np.bool_]:
+    """Where rocker values (|order-th derivative|, rad/s^order) are over the motor's limit on it, judged at the
+    rocker against ``at_rocker(order)``, the double nearest motor / ratio (IEEE division is correctly rounded).
+
+    A double v passes iff v <= fl(motor / ratio): every v within the real limit passes (rounding is monotonic) and
+    none passes beyond it by more than half an ulp of the rocker's limit, the float's own resolution there. A value
+    derived from the limit (ruckig's limits, ``motion_start``'s clamp, a start at the limit) is within it to the
+    bit. Judged at the motor instead, ratio * v rounds once more and such a value comes out an ulp over
+    (31.41592653589793 rad/s by 3.55e-15 rad/s with the defaults)."""
+    over: npt.NDArray[np.bool_] = values > limits.at_rocker(order)
+    return over
+
+
 def motion_violations(traj: DrivenTrajectory, limits: JointLimits) -> list[tuple[int, Violation]]:
-    """(derivative order, the worst segment over the motor's limit on it) for each order over its limit."""
+    """(derivative order, the worst segment over the motor's limit on it, ``over_at_rocker``) for each order over
+    its limit; the violation's value and limit are motor side."""
     out = []
     for order, values in segment_magnitudes(traj).items():
-        v = _worst(traj, *_QUANTITIES[order], limits.ratio * values, limits.motor(order),
-                   'point' if len(traj) == 1 else 'segment from point')
-        if v is not None:
-            out.append((order, v))
+        i = int(np.argmax(values))
+        if over_at_rocker(values[i:i + 1], limits, order)[0]:
+            out.append((order, Violation(i, float(traj.times[i]), *_QUANTITIES[order],
+                                         limits.ratio * float(values[i]), limits.motor(order),
+                                         'point' if len(traj) == 1 else 'segment from point')))
     return out
 
 
@@ -171,7 +187,8 @@ def enforce_limits(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConf
         return traj
     if policy == 'reject':
         raise LimitError(max((v for _, v in motion), key=lambda v: v.ratio).describe())
-    k = max(v.ratio ** (1.0 / order) for order, v in motion)
+    # Over at the rocker, ratio * value may round to the motor's limit itself (a ratio of 1): never below 1.
+    k = max(1.0, *(v.ratio ** (1.0 / order) for order, v in motion))
     for attempt in range(8):  # rounding (of the values, of the times to ns) may leave a point just over: again
         out = traj.scaled_in_time(k)
         left = motion_violations(out, limits)
@@ -179,5 +196,6 @@ def enforce_limits(traj: DrivenTrajectory, limits: JointLimits, cfg: AntennaConf
             return out
         # Times go on the wire in whole ns, which moves a segment's dp/h by up to 0.5 ns / h: add that much too.
         wire = 0.5e-9 / float(np.min(np.diff(out.times))) if len(out) > 1 else 0.0
-        k *= max(v.ratio ** (1.0 / order) for order, v in left) * (1.0 + _RETIME_NUDGE * 2.0 ** attempt + 2.0 * wire)
+        k *= max(1.0, *(v.ratio ** (1.0 / order) for order, v in left)) * (
+            1.0 + _RETIME_NUDGE * 2.0 ** attempt + 2.0 * wire)
     raise LimitError(f'retiming by {k:.6g} left {left[0][1].describe()}')  # pragma: no cover - rounding only

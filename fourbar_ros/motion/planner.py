@@ -16,7 +16,7 @@ from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import LimitError, TrajectoryError
-from fourbar_ros.motion.limits import JointLimits, range_slack, segment_magnitudes, worst_violation
+from fourbar_ros.motion.limits import JointLimits, over_at_rocker, range_slack, segment_magnitudes, worst_violation
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire, static_efforts
 
 #: The shortest piece (s) a segment is split into at a phase boundary when its interpolation passes a limit: the
@@ -84,9 +84,30 @@ class Plan:
         return t[(t > 0.0) & (t < self.duration)]
 
     def position_range(self) -> tuple[float, float]:
-        """Lowest and highest position (rad) over the whole motion."""
+        """Lowest and highest position (rad) over the whole motion, in closed form: at the phases' ends and where the
+        velocity (v + a t + j t^2 / 2 on a phase of constant jerk j) is 0 inside one, each evaluated by ruckig.
+        ruckig's own ``position_extrema`` (taken too) can miss an extremum inside a phase: from a start moving away
+        from the target at the speed limit, one of 0.7196 rad for a motion that reaches 0.7131 rad."""
+        profile = self._trajectory.profiles[0][0]
+        times, start = [0.0, self.duration], 0.0
+        for part in (profile.brake, profile.accel, profile):
+            for h, v, a, j in zip(part.t, part.v, part.a, part.j, strict=False):
+                times += [start + h, *(start + r for r in _velocity_roots(v, a, j) if 0.0 < r < h)]
+                start += h
+        q = self.sample(np.array([t for t in times if t <= self.duration]))[0]
         e = self._trajectory.position_extrema[0]
-        return float(e.min), float(e.max)
+        return min(float(np.min(q)), float(e.min)), max(float(np.max(q)), float(e.max))
+
+
+def _velocity_roots(v: float, a: float, j: float) -> list[float]:
+    """The real roots t (s) of v + a t + j t^2 / 2 = 0 (rad/s, rad/s^2, rad/s^3), by the stable quadratic formula."""
+    if j == 0.0:
+        return [] if a == 0.0 else [-v / a]
+    disc = a * a - 2.0 * j * v
+    if disc < 0.0:
+        return []
+    q = -0.5 * (a + math.copysign(math.sqrt(disc), a))
+    return [2.0 * q / j] + ([v / q] if q != 0.0 else [])
 
 
 def _ruckig() -> Any:
@@ -245,7 +266,7 @@ def trajectory_points(cfg: AntennaConfig, limits: JointLimits, plan: Plan, spaci
         # follow single cubic pieces of the profile, which the quintics reproduce.
         bad = np.zeros(len(out) - 1, dtype=bool)
         for order, m in segment_magnitudes(out).items():
-            bad |= limits.ratio * m > limits.motor(order)
+            bad |= over_at_rocker(m, limits, order)
         switches = on_wire(plan.switch_times())
         i = np.clip(np.searchsorted(times, switches, side='right') - 1, 0, len(times) - 2)
         keep = bad[i] & (switches - times[i] >= SWITCH_FLOOR) & (times[i + 1] - switches >= SWITCH_FLOOR)

@@ -14,6 +14,7 @@ from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.motion.errors import TooManyPointsError, TrajectoryError
+from fourbar_ros.motion.limits import range_slack
 from fourbar_ros.motion.splines import derivative_bound, evaluate, hermite_coefficients
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire, to_driven
 
@@ -73,14 +74,19 @@ def _antenna_coefficients(a: AntennaTrajectory) -> FloatArray:
 def deviation_bounds(cfg: AntennaConfig, traj: DrivenTrajectory, segments: IndexArray | None = None,
                      lam: tuple[float, float] | None = None) -> FloatArray:
     """Per segment (all, or the indices given), the bound on |antenna deviation| (rad) between its points; inf where
-    Q may leave the admitted band. Raises UnreachableError where the request itself leaves [theta_min, theta_max]."""
+    Q may leave the admitted band. Raises UnreachableError where the request itself leaves [theta_min, theta_max]
+    (rad) by more than ``range_slack``: its points count as given (at s = 0 and 1 the points themselves, not the
+    polynomial's rounded value there), its samples between them as evaluated, so a path that ends exactly at an end
+    passes and one that swings past an end between its points does not."""
     l1, l2 = dtheta_dq_bounds(cfg) if lam is None else lam
     idx = np.arange(len(traj) - 1) if segments is None else np.asarray(segments, dtype=np.intp)
     qc = hermite_coefficients(traj.times, traj.positions, traj.velocities, traj.accelerations)[idx]
     tc = _antenna_coefficients(traj.antenna)[idx]
     s = np.linspace(0.0, 1.0, SAMPLES + 1)[None, :]
     t_path = evaluate(tc, s)
-    out = (t_path < cfg.theta_min) | (t_path > cfg.theta_max)
+    t_path[:, 0], t_path[:, -1] = traj.antenna.theta[idx], traj.antenna.theta[idx + 1]
+    slack = range_slack(cfg.theta_min, cfg.theta_max)
+    out = (t_path < cfg.theta_min - slack) | (t_path > cfg.theta_max + slack)
     if out.any():
         i = int(idx[np.argmax(out.any(axis=1))])
         raise UnreachableError(f'the requested path leaves [theta_min, theta_max] = [{cfg.theta_min!r}, '

@@ -10,7 +10,7 @@ import numpy as np
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.interface.stamps import ns_to_seconds
 from fourbar_ros.motion.errors import LimitError, TooManyPointsError
-from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.motion.limits import JointLimits, range_slack
 from fourbar_ros.motion.planner import (
     JointMotionState,
     Plan,
@@ -66,25 +66,36 @@ def trajectory_setpoints(cfg: AntennaConfig, traj: DrivenTrajectory) -> Setpoint
     i = np.clip(np.searchsorted(traj.times, times, side='right') - 1, 0, len(traj) - 2)
     h = traj.times[i + 1] - traj.times[i]
     s = np.clip((times - traj.times[i]) / h, 0.0, 1.0)
+    # At a point's time the point itself (the polynomial at s = 1 need not give it back to the bit).
+    p = np.where(s == 1.0, traj.positions[i + 1], evaluate(c[i], s[:, None])[:, 0])
     # What the spline bounds: linear segments their speed, cubic ones their acceleration too (it may step at a
     # point, where the jerk is unbounded), quintic ones the jerk as well.
     orders = {SplineKind.LINEAR: 1, SplineKind.CUBIC: 2, SplineKind.QUINTIC: 3}[traj.kind]
-    return checked_setpoints(cfg, Setpoints(times, evaluate(c[i], s[:, None])[:, 0]), orders)
+    return checked_setpoints(cfg, Setpoints(times, p), orders)
 
 
 def checked_setpoints(cfg: AntennaConfig, out: Setpoints, orders: int = 3) -> Setpoints:
-    """``out`` if each setpoint is within the driven joint's range over [theta_min, theta_max] and the stream's
+    """``out`` if each setpoint is within the driven joint's range over [theta_min, theta_max] (rad) and the stream's
     speed, acceleration and jerk (up to the derivative ``orders`` its source bounds), as its divided differences give
     them (k! f[t_i .. t_i+k] for order k), are within the motor's limits; else LimitError naming the worst. Samples of
     a motion within the limits pass: each divided difference is an average of the motion's own derivative between
-    its samples."""
+    its samples.
+
+    A setpoint past an end by at most ``range_slack`` is at that end (a plan to the end sampled at its end, a spline
+    evaluated at its end point, pass it by their rounding) and goes out as the end itself: forward_position_controller
+    hands positions to the hardware as they are, so none goes past the range. That moves it by at most the slack,
+    which the derivatives' rounding bound below counts."""
     lower, upper = driven_range(cfg)
+    slack = range_slack(lower, upper)
     p = out.positions
-    outside = (p < lower) | (p > upper)
+    outside = (p < lower - slack) | (p > upper + slack)
     if outside.any():
         i = int(np.argmax(outside))
         raise LimitError(f'setpoint {i} (t = {float(out.times[i]):.6g} s): position {float(p[i])!r} rad is outside '
                          f'the driven joint\'s range [{lower!r}, {upper!r}] rad')
+    if ((p < lower) | (p > upper)).any():
+        p = np.clip(p, lower, upper)
+        out = Setpoints(out.times, p)
     limits = JointLimits.from_config(cfg)
     t, diff, factorial = out.times, p, 1.0
     ulp = float(np.spacing(np.max(np.abs(p)))) if p.size else 0.0
@@ -94,8 +105,9 @@ def checked_setpoints(cfg: AntennaConfig, out: Setpoints, orders: int = 3) -> Se
         diff = np.diff(diff) / (t[order:] - t[:-order])  # Newton's divided differences
         factorial *= order
         value = limits.ratio * factorial * np.abs(diff)
-        # The positions' own rounding (half an ulp each) moves an order-k difference by up to 2^k ulp / h^k.
-        rounding = limits.ratio * 2.0 ** order * ulp / float(np.min(np.diff(t))) ** order
+        # The positions' own rounding (half an ulp each) and the move onto an end (up to the slack each) move an
+        # order-k difference by up to 2^k (ulp + slack) / h^k.
+        rounding = limits.ratio * 2.0 ** order * (ulp + slack) / float(np.min(np.diff(t))) ** order
         i = int(np.argmax(value))
         if value[i] > limits.motor(order) + rounding:
             name, unit = QUANTITIES[order]
