@@ -30,9 +30,11 @@ lint: setup
 test: lint
 	$(BIN)/python -m pytest $(PARALLEL)
 
-# The statistical repeats: each stop case 20 times, the soaks and long bursts, the dense grids and many examples.
+# The statistical repeats: each stop case STOP_REPEATS times (8 cases: 160 stops), the soaks and long bursts, the
+# dense grids and many examples.
+STOP_REPEATS ?= 20
 test-stress: setup
-	$(BIN)/python -m pytest -m stress
+	FOURBAR_STOP_REPEATS=$(STOP_REPEATS) $(BIN)/python -m pytest -m stress
 
 # The ROS layers N times in a row (default 5), then every failure of every run (test id, first message line);
 # nonzero if any run failed. REPEAT_PATHS chooses other tests; the reports stay in REPEAT_KEEP if set.

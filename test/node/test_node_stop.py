@@ -10,9 +10,11 @@ purposes.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import re
 import signal
+import subprocess
 import sys
 from collections.abc import Sequence
 from typing import Any
@@ -40,6 +42,8 @@ STREAM_HZ = 1000.0
 SERVED_BEFORE_SIGNAL = 50
 #: Characters of a failing run's stderr and stdout kept in the report (the end of each).
 KEPT_OUTPUT = 8000
+#: Seconds a signalled node has to exit before it is made to show where it is (SIGABRT) and killed (a deadline).
+STOP_DEADLINE_S = 30.0
 #: A normal rcutils log line (anything else on stderr, e.g. a traceback, is a failure).
 LOG_LINE = re.compile(r'^\[(DEBUG|INFO|WARN|ERROR|FATAL)\] \[\d+\.\d+\] \[')
 
@@ -64,22 +68,53 @@ class Stream(Ticker):
         self.sent += 1
 
 
+def status_text(status: int) -> str:
+    """An exit status as read: ``0``, ``3``, or ``-11 (SIGSEGV)`` for a process a signal ended."""
+    if status < 0:
+        with contextlib.suppress(ValueError):
+            return f'{status} ({signal.Signals(-status).name})'
+    return str(status)
+
+
+def stop_node(proc: NodeProcess, sig: int) -> str | int:
+    """Send ``sig`` and wait for the exit status. A node still running at the deadline is sent SIGABRT, on which
+    faulthandler (``PYTHONFAULTHANDLER``) prints every thread's Python stack (where it hung) before it aborts, and
+    the text says so."""
+    assert proc.proc is not None
+    with contextlib.suppress(ProcessLookupError):
+        proc.proc.send_signal(sig)
+    try:
+        proc.proc.wait(timeout=STOP_DEADLINE_S)
+    except subprocess.TimeoutExpired:
+        with contextlib.suppress(ProcessLookupError):
+            proc.proc.send_signal(signal.SIGABRT)
+        try:
+            aborted = status_text(proc.wait_exit())
+        except NodeStopError as exc:  # not even SIGABRT ended it: killed
+            aborted = str(exc)
+        return f'still running {STOP_DEADLINE_S:g} s after {signal.Signals(sig).name}; after SIGABRT: {aborted}'
+    return proc.wait_exit()
+
+
 def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, repeats: int,
               command: Sequence[str] | None = None) -> list[str]:
     """Start (``command``, default the node's) and signal the node ``repeats`` times; return one entry per failure:
-    its status and the process's whole output (the last ``KEPT_OUTPUT`` characters of stderr and of stdout), so a
-    rare failure can be read."""
+    its exit status (with the signal that ended it, if one did), what went wrong before the stop if anything did
+    (the node not serving), and the process's output (the last ``KEPT_OUTPUT`` characters of stderr and of stdout,
+    where faulthandler's stacks of a crash or a hang land), so a rare failure can be read."""
     pub = ros.publisher(Float64, f'{ns}/antenna_angle_cmd')
     js = ros.collect(JointState, f'{ns}/joint_states')
     tq = ros.collect(Float64, f'{ns}/input_torque')
     failures: list[str] = []
     probes = [LO + (HI - LO) * (i + 0.5) / 600 for i in range(600)]
+    env = ros.env(**{EXECUTOR_ENV: executor, 'PYTHONFAULTHANDLER': '1'})
     try:
         for i in range(repeats):
-            proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'],
-                               ros.env(**{EXECUTOR_ENV: executor}), command=command)
+            proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}'], env,
+                               command=command)
             proc.start()
-            status: int | str
+            status: int | str = 'not signalled'
+            before_stop = ''
             try:
                 ros.wait_subscribers(pub)
                 ros.wait_publishers(js)
@@ -87,21 +122,26 @@ def run_stops(ros: RosSession, sig: int, loaded: bool, ns: str, executor: str, r
                     with Stream(pub):
                         js.clear()
                         js.wait_count(SERVED_BEFORE_SIGNAL)
-                        status = proc.stop(sig)
+                        status = stop_node(proc, sig)
                 else:
                     sync_probe(lambda t: pub.publish(Float64(data=t)), [tq], probes,
                                lambda col, msg, p: bool(msg.data == torque(p)))
-                    status = proc.stop(sig)
-            except NodeStopError as exc:  # killed after the deadline: reported with its output like the others
-                status = str(exc)
+                    status = stop_node(proc, sig)
+            except Exception as exc:  # e.g. it never served: reported with its output like a bad stop
+                before_stop = f', before the stop: {type(exc).__name__}: {exc}'
             finally:
                 proc.kill()
             odd = [line for line in proc.stderr.splitlines() if line.strip() and not LOG_LINE.match(line)]
-            if status != 0 or odd or 'Traceback' in proc.stdout:
-                failures.append(f'run {i}: status {status}, odd stderr lines {odd}\n--- stderr\n'
+            if before_stop or status != 0 or odd or 'Traceback' in proc.stdout:
+                shown = status_text(status) if isinstance(status, int) else status
+                failures.append(f'run {i}: status {shown}{before_stop}, odd stderr lines {odd}\n--- stderr\n'
                                 f'{proc.stderr[-KEPT_OUTPUT:]}\n--- stdout\n{proc.stdout[-KEPT_OUTPUT:]}')
             # The next node must not match this one's endpoints: wait until they are gone.
-            wait_for(lambda: pub.get_subscription_count() == 0, what='the stopped node to leave the graph')
+            try:
+                wait_for(lambda: pub.get_subscription_count() == 0, what='the stopped node to leave the graph')
+            except AssertionError as exc:  # the failures so far are reported with it
+                failures.append(f'run {i}: {exc}; no further runs')
+                break
             js.clear()
             tq.clear()
     finally:
