@@ -191,9 +191,11 @@ class Actuation:
                        'commands go out as they come')
         out = serve_command(cfg, self.contract, self._drive(), theta, now_ns, self.counters)
         if isinstance(out, Refused) and out.wait:
-            pending = self.fates.pending is not None
+            pending = self.fates.pending
             self.fates.wait(out.wait)
-            if pending:  # said once per command, not at every measurement while it waits
+            if pending is not None and pending.fate is Fate.DROPPED:
+                self._problems.warn(out.key, out.line)
+            elif pending is not None:  # said once per command, not at every measurement while it waits
                 self._said(None)
         elif self._emit(cfg, out):
             assert not isinstance(out, Refused)

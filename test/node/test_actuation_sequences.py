@@ -1,0 +1,259 @@
+"""The trajectory mode's actuation in-process, on a clock of the test's own, through random sequences drawn over the
+edges ordinary use meets: the range's exact ends and one ulp inside, measurements late by up to
+``measurement_timeout`` (stamped, zero-stamped, stamped ahead), the controller switched off and on between any two
+callbacks, a setpoint republished at 1 to 50 Hz, commands just after a motion's end.
+
+The drive is the model of joint_trajectory_controller on mock hardware (``rules.controller_motion``, held to the
+real controller by the real-stack tests): it takes each trajectory over ``delay`` s after it went out, its lead-in
+from its own state there, and on deactivation holds where it is. Invariants: the whole reference of every
+trajectory taken over, lead-in included, within the speed, acceleration and jerk limits; every reachable command
+goes out or waits (none refused); each served command one final fate (the latest: held or sent), or joined to the
+one in force; a command whose drive rests on its target is reached.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from typing import Any, ClassVar
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, Phase, settings
+from hypothesis import strategies as st
+from hypothesis.stateful import RuleBasedStateMachine, initialize, invariant, rule, run_state_machine_as_test
+from rclpy.node import Node
+from support.ros_support import RosSession
+
+from fourbar_ros.config.antenna_config import config_from_values
+from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
+from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.motion.planner import driven_angles
+from fourbar_ros.node.actuation import Actuation
+from fourbar_ros.rules.command_fate import Fate, Readiness
+from fourbar_ros.rules.controller_motion import ControllerPoint, Reference, controller_reference
+from fourbar_ros.rules.outgoing import actuation_contract
+from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S
+from fourbar_ros.runtime.problem_log import ProblemLog
+
+pytestmark = pytest.mark.ros
+
+CFG = config_from_values({'mode': 'trajectory'})
+LIMITS = JointLimits.from_config(CFG)
+PERIOD = 0.01  # s: the controller manager's update period at 100 Hz
+#: The reference's extremes are the closed-form maxima of the controller's polynomials, evaluated in float64: a
+#: plan at PLAN_SHRINK of a limit leaves it far below 1 + 1e-9; a stale speed planned into the lead-in is 1.7x to
+#: 100x over (the failures this test was written against).
+ROUNDING = 1e-9
+LO, HI = CFG.theta_min, CFG.theta_max
+EDGES = (LO, math.nextafter(LO, math.inf), HI, math.nextafter(HI, -math.inf))
+THETAS = st.one_of(st.sampled_from(EDGES), st.floats(LO, HI))
+START_NS = 1_700_000_000 * 10**9
+#: When the controller takes over a trajectory sent from a callback other than a command's (s after it).
+RESUMED_DELAY_S = 0.005
+
+
+class Recorder:
+    """Stands for the trajectory publisher: keeps what goes out."""
+
+    def __init__(self) -> None:
+        self.sent: list[Any] = []
+
+    def publish(self, msg: Any) -> None:
+        self.sent.append(msg)
+
+
+def _points(msg: Any) -> list[ControllerPoint]:
+    def one(x: Any) -> float | None:
+        return float(x[0]) if len(x) else None
+
+    return [ControllerPoint(ns_to_seconds(to_ns(p.time_from_start)), float(p.positions[0]), one(p.velocities),
+                            one(p.accelerations)) for p in msg.points]
+
+
+class Sequences(RuleBasedStateMachine):
+    node: Node
+    #: the worst of each order over every sequence run (order: ratio to its limit), and the fates of every command
+    seen: ClassVar[dict[int, float]] = {}
+    fates: ClassVar[dict[str, int]] = {}
+
+    @initialize(theta=THETAS)
+    def start(self, theta: float) -> None:
+        self.now_ns = START_NS
+        self.said: list[str] = []  # the node's warnings, every one (period 0)
+        problems = ProblemLog(lambda level, line: self.said.append(f'{level}: {line}'), period=0.0)
+        self.act = Actuation(self.node, lambda: CFG, problems, actuation_contract(CFG, 'trajectory'))
+        self.act._now_ns = lambda: self.now_ns  # type: ignore[method-assign]  # the test's clock
+        self.out = Recorder()
+        self.act._trajectory_pub = self.out  # type: ignore[assignment]
+        self.act._on_readiness(Readiness.ACTIVE)
+        self.q = float(driven_angles(CFG, np.array([theta]))[0])  # where the drive rests until a takeover
+        self.ref: Reference | None = None  # the controller's reference, times from ref_origin_ns
+        self.ref_origin_ns = 0
+        self.active = True
+        self.taken = 0  # trajectories taken over
+        self.served = 0
+        self.worst = (0.0, '')
+        self.measure(0.0, 'stamped')
+
+    # ------------------------------------------------------------------ the drive
+
+    def drive_at(self, t_ns: int) -> tuple[float, float]:
+        """The drive's position rad and velocity rad/s at ``t_ns``: the reference of the trajectory it follows."""
+        if self.ref is None:
+            return self.q, 0.0
+        p, v, _ = self.ref.sample(ns_to_seconds(t_ns - self.ref_origin_ns))
+        return p, v
+
+    def take_over(self, delay: float) -> None:
+        """The controller takes the latest trajectory sent over ``delay`` s after now, from its own state there."""
+        if len(self.out.sent) <= self.taken or not self.active:
+            return
+        msg = self.out.sent[-1]
+        self.taken = len(self.out.sent)
+        at_ns = self.now_ns + seconds_to_ns(delay)
+        p, v = self.drive_at(at_ns)
+        stamp_ns = to_ns(msg.header.stamp)
+        origin = stamp_ns or at_ns
+        ref = controller_reference(True, _points(msg), 0.0 if stamp_ns else None, ns_to_seconds(at_ns - origin),
+                                   p, v, PERIOD)
+        for order, value in ref.extremes().items():
+            ratio = LIMITS.ratio * value / LIMITS.motor(order)
+            self.seen[order] = max(self.seen.get(order, 0.0), ratio)
+            if ratio > self.worst[0]:
+                self.worst = (ratio, f'order {order} at {ratio:.6g} x its limit; taken over from {p!r} rad, '
+                                     f'{v!r} rad/s; measured {self.act.measured} at {self.act.measured_ns}')
+        self.q, _ = self.drive_at(at_ns)  # (the state held if it is deactivated before moving on)
+        self.ref, self.ref_origin_ns = ref, origin
+        self.now_ns = max(self.now_ns, at_ns)
+
+    # ------------------------------------------------------------------ what the node meets
+
+    @rule(theta=THETAS, delay=st.floats(1e-4, ARRIVAL_MARGIN_S * 0.99))
+    def command(self, theta: float, delay: float) -> None:
+        self.served += 1
+        self.act.command(theta)
+        self.take_over(delay)
+
+    @rule(theta=THETAS, hz=st.one_of(st.sampled_from((1.0, 4.0, 10.0, 50.0)), st.floats(1.0, 50.0)),
+          n=st.integers(2, 30), delay=st.floats(1e-4, 0.02))
+    def republish(self, theta: float, hz: float, n: int, delay: float) -> None:
+        """``ros2 topic pub -r HZ``: the same angle again and again, a measurement between each two."""
+        for _ in range(n):
+            self.served += 1
+            self.act.command(theta)
+            self.take_over(delay)
+            self.advance(1.0 / hz)
+            self.measure(0.0, 'stamped')
+
+    @rule(dt=st.one_of(st.sampled_from((0.01, 0.05, 0.3)), st.floats(0.0, 3.0)))
+    def advance(self, dt: float) -> None:
+        self.now_ns += seconds_to_ns(dt)
+
+    @rule()
+    def to_the_end(self) -> None:
+        """Time to just after the motion's planned end (a command then is the ordinary case of a late one)."""
+        motion = self.act.motion
+        if motion is not None:
+            self.now_ns = max(self.now_ns, motion.start_ns + seconds_to_ns(motion.duration) + seconds_to_ns(0.01))
+
+    @rule(lag=st.one_of(st.sampled_from((0.0, 0.1, 0.3, CFG.measurement_timeout)),
+                        st.floats(0.0, CFG.measurement_timeout)),
+          stamp=st.sampled_from(('stamped', 'zero', 'ahead')))
+    def measure(self, lag: float, stamp: str) -> None:
+        """A measurement of the drive taken ``lag`` s ago, arriving now; or taken now, stamped zero (on arrival) or
+        10 ms ahead (a drive's clock ahead of the node's)."""
+        at_ns = max(self.now_ns - seconds_to_ns(lag), START_NS) if stamp == 'stamped' else self.now_ns
+        p, v = self.drive_at(at_ns)
+        stamp_ns = {'stamped': at_ns, 'zero': 0, 'ahead': at_ns + seconds_to_ns(0.01)}[stamp]
+        self.act.note_measured(p, v, stamp_ns)
+        self.act.note_theta(self.theta_of(p))
+        self.take_over(RESUMED_DELAY_S)  # a held command it resumed
+
+    @rule(lag=st.floats(0.0, 0.1))
+    def switch_off_and_on(self, lag: float) -> None:
+        """The controller deactivated and activated between two callbacks; then a measurement from before it."""
+        self.q, _ = self.drive_at(self.now_ns)
+        self.ref = None  # the controller holds the drive where it is
+        self.act._on_readiness(Readiness.INACTIVE)
+        self.act._on_readiness(Readiness.ACTIVE)
+        self.measure(lag + 0.03, 'stamped')
+
+    @rule()
+    def fate_timer(self) -> None:
+        self.act._on_fate_timer()
+        self.take_over(RESUMED_DELAY_S)
+
+    @staticmethod
+    def theta_of(q: float) -> float:
+        """The antenna angle (rad) at driven angle q (rad): what the node completes from a measurement."""
+        return float(CFG.linkage.from_rocker(q, CFG.driven, CFG.branch).theta)
+
+    # ------------------------------------------------------------------ invariants
+
+    def teardown(self) -> None:
+        for fate, n in self.act.fates.counts.items():
+            self.fates[fate.value] = self.fates.get(fate.value, 0) + n
+        self.fates['repeated'] = self.fates.get('repeated', 0) + self.act.fates.repeats
+
+    @invariant()
+    def within_the_limits(self) -> None:
+        assert self.worst[0] <= 1.0 + ROUNDING, self.worst[1]
+
+    @invariant()
+    def nothing_refused(self) -> None:
+        # every reachable target goes out or waits: nothing dropped as refused, nothing planned past the range
+        dropped = self.act.fates.counts[Fate.DROPPED]
+        assert dropped == 0, self.said[-3:]
+
+    @invariant()
+    def one_fate_each(self) -> None:
+        fates = self.act.fates
+        finals = sum(n for f, n in fates.counts.items() if f.final)
+        live = fates.current is not None and not fates.current.fate.final
+        assert fates.pending is None
+        assert finals + live + fates.repeats == self.served, (self.served, fates.counts, fates.repeats,
+                                                              fates.current)
+
+    @invariant()
+    def reached_where_it_rests(self) -> None:
+        cmd = self.act.fates.current
+        motion = self.act.motion
+        if cmd is None or cmd.fate is not Fate.SENT or motion is None or self.ref is None:
+            return
+        if not motion.done(self.now_ns) or not self.act.measured_ns >= motion.start_ns + seconds_to_ns(
+                motion.duration):
+            return
+        p, v = self.drive_at(self.now_ns)
+        if v == 0.0 and abs(self.theta_of(p) - cmd.theta) <= 0.5 * CFG.reached_tolerance:
+            self.act.note_theta(self.theta_of(p))
+            assert cmd.fate is Fate.REACHED, (cmd, p)
+
+
+@pytest.fixture(scope='module')
+def node(ros: RosSession) -> Iterator[Node]:
+    n = Node('actuation_sequences', context=ros.context)
+    yield n
+    n.destroy_node()
+
+
+def _run(node: Node, examples: int, steps: int) -> None:
+    Sequences.node = node
+    try:
+        # No shrinking: a sequence of a few dozen steps reads as it is, and shrinking one takes minutes.
+        run_state_machine_as_test(Sequences, settings=settings(
+            max_examples=examples, stateful_step_count=steps, deadline=None, derandomize=True,
+            phases=[Phase.explicit, Phase.reuse, Phase.generate], suppress_health_check=list(HealthCheck)))
+    finally:
+        names = {1: 'speed', 2: 'acceleration', 3: 'jerk'}
+        print('worst over every takeover, as a multiple of its limit:',
+              ', '.join(f'{names[k]} {v:.4g}' for k, v in sorted(Sequences.seen.items())), '; fates:', Sequences.fates)
+
+
+def test_random_sequences_keep_every_takeover_within_the_limits_and_every_fate_true(node: Node) -> None:
+    _run(node, examples=25, steps=25)
+
+
+@pytest.mark.stress
+def test_random_sequences_many_and_long(node: Node) -> None:
+    _run(node, examples=400, steps=40)
