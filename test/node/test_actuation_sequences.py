@@ -257,3 +257,18 @@ def test_random_sequences_keep_every_takeover_within_the_limits_and_every_fate_t
 @pytest.mark.stress
 def test_random_sequences_many_and_long(node: Node) -> None:
     _run(node, examples=400, steps=40)
+
+
+@pytest.mark.parametrize('start', [0.0, CFG.theta_min], ids=['resting on the target', 'from theta_min'])
+def test_a_setpoint_republished_at_10_hz_goes_out_once_and_is_reached(node: Node, start: float) -> None:
+    """``ros2 topic pub -r 10`` of 0 rad for 8 s, a measurement between each two: one trajectory, reached, every
+    repeat joined to it, none superseded."""
+    Sequences.node = node
+    machine = Sequences()
+    machine.start(start)
+    machine.republish(0.0, 10.0, 80, 0.005)
+    fates = machine.act.fates
+    seen = {f.value: n for f, n in fates.counts.items() if n} | {'repeated': fates.repeats,
+                                                                    'trajectories': len(machine.out.sent)}
+    print(f'from {start!r} rad:', seen)
+    assert seen == {'sent': 1, 'reached': 1, 'repeated': 79, 'trajectories': 1}, machine.said[-3:]
