@@ -201,6 +201,28 @@ def test_after_a_motions_end_a_late_measurement_on_it_starts_at_its_end_at_rest(
                                                                                    origin), (lag_s, after_s, lead)
 
 
+def test_forward_mode_after_a_motions_end_streams_on_from_the_held_setpoint() -> None:
+    """Forward mode: the controller holds the last setpoint. A command 10 ms after the stream's end, the latest
+    measurement taken 0.3 s before while the drive still moved: the new stream starts at the held setpoint (to the
+    rounding of the plan's end against its last sample: 2 ulps), and its first step is within the speed limit over
+    one period (a speed carried on from the measurement put it 8.4 mrad off, 14x the limit)."""
+    fwd = actuation_contract(CFG, 'forward')
+    q0 = float(driven_angles(CFG, np.array([CFG.theta_min]))[0])
+    start_ns = 1_700_000_000_000_000_000
+    first = serve_command(CFG, fwd, Drive(None, JointMotionState(q0), start_ns), 0.0, start_ns, ActuationCounters())
+    assert isinstance(first, Outgoing) and first.setpoints is not None, first
+    motion, held = first.motion, float(first.setpoints.positions[-1])
+    now = start_ns + round(motion.duration * 1e9) + round(0.01e9)
+    stamp = now - round(0.3e9)
+    measured = motion.state_at(stamp)
+    assert measured.velocity > 0.0
+    out = serve_command(CFG, fwd, Drive(motion, measured, stamp), CFG.theta_max, now, ActuationCounters())
+    assert isinstance(out, Outgoing) and out.setpoints is not None, out
+    assert abs(float(out.setpoints.positions[0]) - held) <= 2 * math.ulp(held)
+    step = abs(float(out.setpoints.positions[1]) - held) * CFG.control_rate
+    assert step <= LIMITS.at_rocker(1), step
+
+
 def test_a_measurement_from_before_the_running_motion_started_leaves_it_alone() -> None:
     """A motion planned from the measured state starts ARRIVAL_MARGIN_S after its command. A measurement stamped
     before that start shows the drive on the previous motion, e.g. still moving toward the far end. Taken on its
