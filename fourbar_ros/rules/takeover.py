@@ -28,7 +28,7 @@ class Start:
     time 0 of the trajectory sent. Continuing a running trajectory, ``before`` holds its points from the one at or
     before now up to the one at ``at`` (excluded; all of them where it ends before ``at``, the drive resting at its
     end until then), times from ``origin_ns`` (its stamp), and ``now_state`` its state now; else ``origin_ns`` is
-    now and ``at`` 0. ``from_measured``: a running motion was left for the measured state; ``clamped``: the
+    now and ``at`` 0. ``from_measured``: the last motion sent was left for the measured state; ``clamped``: the
     measured state was moved onto an end of the range."""
 
     state: JointMotionState
