@@ -172,13 +172,14 @@ def closes(k: DyadConstants, x: FloatArray) -> npt.NDArray[np.bool_]:
 
     The very test closure_array applies (so it agrees with on_invalid='nan' to the last float at the limits).
     """
-    with np.errstate(invalid='ignore'):
-        s = np.sin(0.5 * np.asarray(x, dtype=np.float64))
-    w = 2.0 * (s * k.two_l2) * s
-    far = k.far - w
-    if k.wide:
-        _far_from_pi(k, s, np.cos(0.5 * np.asarray(x, dtype=np.float64)), far)
-    return ~open_factors(k, far, w + k.near)
+    with np.errstate(invalid='ignore'):  # NaN for inf: not closed, like NaN itself
+        half = 0.5 * np.asarray(x, dtype=np.float64)
+        s = np.sin(half)
+        w = 2.0 * (s * k.two_l2) * s
+        far = k.far - w
+        if k.wide:
+            _far_from_pi(k, s, np.cos(half), far)
+        return ~open_factors(k, far, w + k.near)
 
 
 def closure_array(k: DyadConstants, x: FloatArray, branch: Branch,
