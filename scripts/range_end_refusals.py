@@ -6,8 +6,9 @@ For N seeded random starts (default 300, seed 0) and each end (theta_min, theta_
 at rest at a random driven position within the range (``serve_command``, forward and trajectory mode), and a
 two-point antenna trajectory from a random theta to the end, at rest at both points, over 12 s, of each spline
 kind (``serve_antenna_trajectory``, both modes). Every such target is reachable: each refusal is one too many.
-Last, plans from a start moving at exactly the rocker's speed limit (rad/s) towards the end (``plan_command``,
-then its points or setpoints), counting refusals for the limits (a start that cannot stop in the range is not).
+Last, plans from a start moving at exactly the rocker's speed limit (rad/s) towards the end and away from it
+(``plan_command``, then its points or setpoints): refusals for the limits, refusals for not stopping within the
+range (right), and plans accepted whose path (2001 samples) passes the range by more than ``range_slack`` (wrong).
 Prints one line per case: refusals out of N, and the first refusal's line.
 """
 
@@ -23,7 +24,7 @@ from fourbar_ros.core.errors import UnreachableError
 from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.errors import LimitError
-from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.motion.limits import JointLimits, range_slack
 from fourbar_ros.motion.planner import JointMotionState
 from fourbar_ros.rules.motion_plan import driven_range, plan_command, planned_points, planned_setpoints
 from fourbar_ros.rules.outgoing import actuation_contract
@@ -62,18 +63,26 @@ def main(n: int = 300, seed: int = 0) -> None:
                 first = refused[0].line[:150] if refused else ''
                 print(f'{mode:10s} {what:19s} to {name}: {len(refused):3d}/{n} refused  {first}')
     speed = JointLimits.from_config(cfg).at_rocker(1)
+    slack = range_slack(lower, upper)
     for name, end, sign in (('theta_min', cfg.theta_min, -1.0), ('theta_max', cfg.theta_max, 1.0)):
-        for what, sampled in (('setpoints', planned_setpoints), ('points', planned_points)):
-            over: list[str] = []
-            for q in rests:
-                try:
-                    sampled(cfg, plan_command(cfg, JointMotionState(float(q), sign * speed), end))
-                except UnreachableError:
-                    continue
-                except LimitError as exc:
-                    over.append(str(exc)[:120])
-            print(f'at speed limit {what:9s} to {name}: {len(over):3d}/{n} refused  {over[0] if over else ""}')
-
+        for way, direction in (('towards', sign), ('away', -sign)):
+            for what, sampled in (('setpoints', planned_setpoints), ('points', planned_points)):
+                over: list[str] = []
+                cannot_stop = past = 0
+                for q in rests:
+                    try:
+                        plan = plan_command(cfg, JointMotionState(float(q), direction * speed), end)
+                        sampled(cfg, plan)
+                    except UnreachableError:
+                        cannot_stop += 1
+                        continue
+                    except LimitError as exc:
+                        over.append(str(exc)[:100])
+                        continue
+                    path = plan.sample(np.linspace(0.0, plan.duration, 2001))[0]
+                    past += bool(path.min() < lower - slack or path.max() > upper + slack)
+                print(f'at speed limit {way:7s} {what:9s} to {name}: {len(over):3d}/{n} refused for the limits, '
+                      f'{cannot_stop:3d} cannot stop, {past:3d} accepted passing the range  {over[0] if over else ""}')
 
 if __name__ == '__main__':
     main(*(int(a) for a in sys.argv[1:3]))
