@@ -24,9 +24,10 @@ setup(
     extras_require={
         'bags': ['rosbags', 'mcap', 'mcap-ros2-support'],
         'plot': ['matplotlib', 'pillow'],
+        # mujoco: the torque witness (test/core/test_torque_witness.py)
         'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
                  'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py', 'pytest-codeblocks',
-                 'pytest-xdist', 'lxml', 'mujoco', 'rosdep'],  # mujoco: the torque witness (test/core/test_torque_witness.py)
+                 'pytest-xdist', 'lxml', 'mujoco', 'rosdep'],
     },
     zip_safe=True,
     maintainer='fourbar_ros developers',

@@ -13,7 +13,7 @@ import numpy as np
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns
-from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.motion.limits import JointLimits, range_slack
 from fourbar_ros.motion.planner import JointMotionState, rocker_states
 from fourbar_ros.motion.splines import evaluate, segment_extremes
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire
@@ -239,7 +239,8 @@ def _connection_problem(head: DrivenTrajectory, tail: DrivenTrajectory, gap: flo
             return (f'the motor {name} {limits.ratio * value:.6g} {unit} exceeds its limit '
                     f'{limits.motor(order):.6g} {unit}')
     p = evaluate(c, np.linspace(0.0, 1.0, 65)[None, :])
-    if p.min() < lower or p.max() > upper:
+    slack = range_slack(lower, upper)  # a segment to a point at an end evaluates there to its rounding
+    if p.min() < lower - slack or p.max() > upper + slack:
         return f'it passes the driven joint through [{p.min()!r}, {p.max()!r}] rad, beyond [{lower!r}, {upper!r}] rad'
     return None
 
