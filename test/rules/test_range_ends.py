@@ -20,7 +20,7 @@ from support.trajectory_points import Duration, Point
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.core.errors import UnreachableError
-from fourbar_ros.interface.stamps import from_ns, seconds_to_ns
+from fourbar_ros.interface.stamps import from_ns, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT
 from fourbar_ros.motion.limits import JointLimits, range_slack, worst_violation
 from fourbar_ros.motion.planner import JointMotionState, driven_angles, plan_motion
@@ -145,6 +145,22 @@ def test_an_antenna_trajectory_from_an_edge_to_an_end_is_served(mode: str, kind:
        end=st.sampled_from(END_TARGETS))
 def test_an_antenna_trajectory_to_an_end_is_served(mode: str, kind: str, start: float, end: float) -> None:
     check_antenna(mode, kind, start, end)
+
+
+@settings(max_examples=150, deadline=None)
+@given(mode=st.sampled_from(list(MODES)), kind=st.sampled_from(list(KINDS)), rest=RESTS,
+       end=st.sampled_from(END_TARGETS))
+def test_an_antenna_trajectory_held_at_an_end_is_joined_to_the_measured_drive(mode: str, kind: str, rest: float,
+                                                                             end: float) -> None:
+    """Its first point 10 s ahead (time enough from anywhere in the range): the connecting segment from the drive
+    at rest to a point at an end is served, and passes the range by no more than the slack."""
+    msg = antenna_message(KINDS[kind], end, end, 4.0)
+    for point in msg.points:
+        point.time_from_start = Duration(*from_ns(to_ns(point.time_from_start) + seconds_to_ns(10.0)))
+    drive = Drive(measured=JointMotionState(rest), measured_ns=NOW)
+    counters = ActuationCounters()
+    check_sent(serve_antenna_trajectory(CFG, MODES[mode], drive, msg, NOW, counters), q_of(end))
+    assert counters.trajectories_connected == 1
 
 
 def test_the_request_evaluated_at_its_end_passes_the_range() -> None:
