@@ -256,7 +256,7 @@ def test_random_sequences_keep_every_takeover_within_the_limits_and_every_fate_t
 
 @pytest.mark.stress
 def test_random_sequences_many_and_long(node: Node) -> None:
-    _run(node, examples=400, steps=40)
+    _run(node, examples=150, steps=40)
 
 
 @pytest.mark.parametrize('start', [0.0, CFG.theta_min], ids=['resting on the target', 'from theta_min'])
