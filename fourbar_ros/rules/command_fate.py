@@ -93,7 +93,7 @@ class Command:
     held_ns: int = 0  # since when it waits (its latest arrival, or interruption)
     end_ns: int = 0  # the planned end of its motion, once sent
     interruptions: int = 0
-    repeats: int = 0  # the same command received again while it was in force (``CommandFates.repeated``)
+    repeats: int = 0  # the same command received again while it was in force (``CommandFates.repeat``)
 
 
 @dataclass
@@ -114,7 +114,7 @@ class CommandFates:
     counts: dict[Fate, int] = field(default_factory=lambda: dict.fromkeys(Fate, 0))
 
     def _set(self, fate: Fate, reason: str = '', cmd: Command | None = None) -> None:
-        cmd = cmd or self.current
+        cmd = cmd if cmd is not None else self.current
         assert cmd is not None
         cmd.fate, cmd.reason = fate, reason
         self.counts[fate] += 1

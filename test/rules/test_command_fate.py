@@ -93,6 +93,51 @@ def test_a_newer_command_supersedes_the_one_held_or_sent() -> None:
     assert second is not None and second.fate is Fate.SUPERSEDED
 
 
+def test_a_refused_command_is_dropped_and_the_one_in_force_stays() -> None:
+    f = fates()
+    assert f.receive(0.1, 0)
+    f.sent(10 * S)
+    running = f.current
+    assert f.receive(0.2, S)  # planned, then refused: nothing went out
+    f.refused('cannot stop in time')
+    assert f.current is running and running is not None and running.fate is Fate.SENT
+    assert f.counts[Fate.DROPPED] == 1 and f.counts[Fate.SUPERSEDED] == 0 and f.pending is None
+    f.reached(0.1, 10 * S)
+    assert running.fate is Fate.REACHED  # and its fate is still told
+
+
+def test_the_same_command_again_joins_the_one_in_force() -> None:
+    f = fates()
+    assert f.receive(0.1, 0)
+    f.sent(5 * S)
+    cmd = f.current
+    assert f.repeat(0.1 + 0.5e-3, S, None)  # within reached_tolerance, sent: joined
+    assert not f.repeat(0.1 + 2e-3, S, None)  # beyond it: a new command
+    f.reached(0.1, 5 * S)
+    assert f.repeat(0.1, 6 * S, 0.1 + 0.9e-3)  # reached, the drive still there
+    assert not f.repeat(0.1, 7 * S, 0.1 + 5e-3)  # reached, the drive moved off since: a new command
+    assert cmd is not None and cmd.repeats == 2 and f.repeats == 2 and cmd.fate is Fate.REACHED
+    held = fates(ready=Readiness.INACTIVE)
+    held.receive(0.1, 0)
+    assert held.repeat(0.1, 8 * S, None) and held.current is not None and held.current.held_ns == 8 * S
+    held.tick(8 * S + int(9.9 * S), None)  # the hold counts from the latest arrival
+    assert held.current.fate is Fate.HELD
+
+
+def test_a_drive_moving_off_the_motion_holds_a_new_command_or_drops_it_beside_a_sent_one() -> None:
+    f = fates()
+    assert f.receive(0.1, 0)
+    f.wait('the drive is measured moving')
+    assert f.current is not None and f.current.fate is Fate.HELD and not f.due()
+    f.unsettled = ''  # the next measurement: at rest
+    assert f.due()
+    f.sent(S)
+    running = f.current
+    assert f.receive(0.2, S)
+    f.wait('the drive is measured moving')
+    assert f.current is running and running.fate is Fate.SENT and f.counts[Fate.DROPPED] == 1
+
+
 @pytest.mark.parametrize('to', NOT_SENDABLE)
 def test_a_sent_command_interrupted_resumes_or_ends_as_the_parameter_says(to: Readiness) -> None:
     resumed = fates()
