@@ -40,6 +40,7 @@ setup(
             'fourbar = fourbar_ros.commands:main',
             'fourbar_node = fourbar_ros.node:main',
             'fourbar_sim_actuator = fourbar_ros.node:sim_actuator_main',
+            'fourbar_drive_bridge = fourbar_ros.drive.run:main',
         ],
     },
 )
