@@ -36,7 +36,7 @@ PLAN_SHRINK = 1.0 - 1e-4
 PLAN_SHRINKS = (PLAN_SHRINK, 1.0 - 2e-3, 1.0 - 0.15)
 
 __all__ = ['END_SPAN', 'PLAN_SHRINK', 'PLAN_SHRINKS', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles',
-           'min_segment', 'plan_motion', 'plan_to_angle', 'rocker_states', 'sample_grid', 'setpoints',
+           'min_segment', 'plan_motion', 'plan_to_angle', 'rocker_states', 'sample_grid', 'setpoints', 'stream_grid',
            'trajectory_points']
 
 
@@ -179,6 +179,13 @@ def sample_grid(duration: float, step: float) -> FloatArray:
     return np.append(t[t < duration - 0.5 * step], duration) if duration > 0.5 * step else np.array([0.0, duration])
 
 
+def stream_grid(duration: float, step: float) -> FloatArray:
+    """0, step, 2 step, ... up to the first at or after the end (s): a setpoint stream one step apart throughout,
+    so that a controller taking one setpoint per period sees the motion's own differences (an irregular last step
+    published one period after the one before it passed the jerk limit by 1.6x)."""
+    return np.arange(max(math.ceil(duration / step), 0) + 1, dtype=np.float64) * step
+
+
 def min_segment(limits: JointLimits, q_scale: float) -> float:
     """The shortest segment (s) between two points of a plan: the positions on the wire are doubles, each within
     half an ulp of the plan (ruckig's evaluation adds about as much), and the controller's quintic takes its jerk
@@ -316,5 +323,5 @@ def setpoints(cfg: AntennaConfig, plan: Plan, rate: float | None = None) -> Setp
     if plan.duration * hz + 2 > cfg.max_trajectory_points:
         raise TrajectoryError(f'a {plan.duration:.6g} s motion at {hz!r} Hz exceeds '
                               f'max_trajectory_points = {cfg.max_trajectory_points} setpoints')
-    times = sample_grid(plan.duration, 1.0 / hz)
-    return Setpoints(times, plan.sample(times)[0])
+    times = stream_grid(plan.duration, 1.0 / hz)
+    return Setpoints(times, plan.sample(np.minimum(times, plan.duration))[0])

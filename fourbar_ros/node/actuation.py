@@ -267,7 +267,8 @@ class Actuation:
 
     def _drive(self) -> Drive:
         fresh = self.measured_ns >= self.fresh_ns
-        return Drive(self.motion, self.measured if fresh else None, self.measured_ns)
+        setpoint_ns = self.recent_setpoints[-1][0] if self.recent_setpoints else None
+        return Drive(self.motion, self.measured if fresh else None, self.measured_ns, setpoint_ns)
 
     def _emit(self, cfg: AntennaConfig, out: Outgoing | Refused) -> bool:
         """Publish what goes out and follow its motion, or log the refusal (one line); False if nothing went out
@@ -288,9 +289,11 @@ class Actuation:
         return True
 
     def _stream(self, stream: Setpoints) -> None:
-        """Start a setpoint stream (forward mode): the first setpoint now, not one period later."""
-        self._setpoints = stream
-        self._on_control_timer()
+        """Start a setpoint stream (forward mode): the first setpoint now, not one period later; one that continues
+        a running stream (from its next setpoint, ``takeover``) at the next tick, when that one would have gone."""
+        running, self._setpoints = self._setpoints is not None, stream
+        if not running:
+            self._on_control_timer()
 
     def _on_control_timer(self) -> None:
         stream, motion = self._setpoints, self.motion

@@ -17,8 +17,8 @@ from fourbar_ros.motion.planner import (
     Setpoints,
     driven_angles,
     plan_to_angle,
-    sample_grid,
     setpoints,
+    stream_grid,
     trajectory_points,
 )
 from fourbar_ros.motion.splines import evaluate, hermite_coefficients
@@ -56,7 +56,7 @@ def trajectory_setpoints(cfg: AntennaConfig, traj: DrivenTrajectory) -> Setpoint
     through its points (``motion.splines``), sampled at control_rate from 0 to its last time included, checked
     (``checked_setpoints``) before it is returned."""
     hz = cfg.control_rate
-    times = sample_grid(float(traj.times[-1]), 1.0 / hz)
+    times = stream_grid(float(traj.times[-1]), 1.0 / hz)
     if times.size > cfg.max_trajectory_points:
         raise TooManyPointsError(f'{times.size} setpoints at {hz!r} Hz exceed max_trajectory_points = '
                                  f'{cfg.max_trajectory_points}')

@@ -73,12 +73,14 @@ class ActuationCounters:
 
 
 class Drive(NamedTuple):
-    """What the receiver knows of the drive: the ``motion`` it follows, and the ``measured`` driven joint at
-    ``measured_ns`` (node clock)."""
+    """What the receiver knows of the drive: the ``motion`` it follows, the ``measured`` driven joint at
+    ``measured_ns`` (node clock), and in forward mode the time the latest setpoint published stands for
+    (``setpoint_ns``, node clock; None before any)."""
 
     motion: Motion | None = None
     measured: JointMotionState | None = None
     measured_ns: int = 0
+    setpoint_ns: int | None = None
 
 
 class Outgoing(NamedTuple):
@@ -115,7 +117,8 @@ def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: f
     try:
         plan = plan_command(cfg, start.state, theta)
         if isinstance(contract, ForwardControllerSettings):
-            out: Outgoing | Refused = Outgoing(Motion(now_ns, plan=plan), setpoints=planned_setpoints(cfg, plan))
+            out: Outgoing | Refused = Outgoing(Motion(start.origin_ns, plan=plan),
+                                               setpoints=planned_setpoints(cfg, plan))
         else:
             points = continued(start, planned_points(cfg, plan))
             out = _sent(cfg, contract, Motion(start.origin_ns, trajectory=points),
@@ -140,10 +143,12 @@ def serve_antenna_trajectory(cfg: AntennaConfig, contract: Contract, drive: Driv
         if isinstance(start, Unsettled):
             raise CannotReachError(start.reason)
         converted = antenna_motion(cfg, allow_moving_end, msg.joint_names, msg.points, stamp_ns, now_ns, start)
-        motion = Motion(converted.stamp_ns or now_ns, trajectory=converted.trajectory)
-        if isinstance(contract, ForwardControllerSettings):
+        if isinstance(contract, ForwardControllerSettings):  # streamed from the start's origin, not stamped
+            motion = Motion(converted.stamp_ns or (start.origin_ns if start is not None else now_ns),
+                            trajectory=converted.trajectory)
             out: Outgoing | Refused = Outgoing(motion, setpoints=trajectory_setpoints(cfg, converted.trajectory))
         else:
+            motion = Motion(converted.stamp_ns or now_ns, trajectory=converted.trajectory)
             out = _sent(cfg, contract, motion, converted.stamp_ns, now_ns, 'antenna trajectory', counters)
     except FourBarError as exc:
         problem = problem_of(exc)
@@ -180,7 +185,7 @@ def _start(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: int,
     """``motion_start`` (in trajectory mode ``ARRIVAL_MARGIN_S`` ahead of now when it continues the running motion),
     counting a motion left for the measured state and a measured start moved onto the range."""
     lead = ARRIVAL_MARGIN_S if isinstance(contract, TrajectoryControllerSettings) else 0.0
-    start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns)
+    start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns, drive.setpoint_ns)
     if isinstance(start, Start):
         counters.commands_replanned_from_measured += start.from_measured
         counters.measured_start_clamped += start.clamped

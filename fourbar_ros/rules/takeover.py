@@ -14,7 +14,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.numeric import FloatArray
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns
 from fourbar_ros.motion.limits import JointLimits, range_slack
-from fourbar_ros.motion.planner import JointMotionState, rocker_states
+from fourbar_ros.motion.planner import JointMotionState, rocker_states, stream_grid
 from fourbar_ros.motion.splines import evaluate, segment_extremes
 from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory, SplineKind, on_wire
 from fourbar_ros.rules.antenna_trajectory import CannotReachError, Converted
@@ -69,14 +69,17 @@ class Unsettled(NamedTuple):
 
 
 def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotionState | None, now_ns: int,
-                 lead: float, measured_ns: int | None = None) -> Start | Unsettled | None:
+                 lead: float, measured_ns: int | None = None,
+                 setpoint_ns: int | None = None) -> Start | Unsettled | None:
     """Where a new motion starts (``Start``), ``lead`` s after ``now_ns`` in trajectory mode (``lead`` > 0), at now
     in forward mode (``lead`` 0), from what is known of the drive: the last ``motion`` sent (after its end, at its
-    end at rest) and the ``measured`` driven joint at ``measured_ns`` (node clock; None or after now: now).
+    end at rest) and the ``measured`` driven joint at ``measured_ns`` (node clock; None or after now: now); in
+    forward mode ``setpoint_ns``, the time (node clock) the latest setpoint published stands for.
 
     - On the motion, where the measurement is within ``replan_tolerance`` of it at its stamp, predates its start,
       or there is none: continuing a running quintic trajectory at its first point ``lead`` s or more after now
-      (where it ends sooner, at its end held until then), else at its state then.
+      (where it ends sooner, at its end held until then); in forward mode a running stream at its setpoint after
+      the latest published (``_next_setpoint``); else at its state then.
     - Off it, or with no motion: from the measured position at rest, if the drive is measured at rest (within
       ``rest_speed``) or within ``measured_range_tolerance`` past an end of the range (then at that end);
       ``Unsettled`` if it is moving (no velocity is planned from that the node cannot vouch for).
@@ -91,6 +94,8 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
         traj = motion.trajectory
         if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC and not motion.done(now_ns):
             return _continuing(motion, traj, now_ns, lead, motion.state_at(now_ns))
+        if lead == 0.0 and setpoint_ns is not None and not motion.done(now_ns):
+            return _next_setpoint(cfg, motion, setpoint_ns)
         # Not continued point for point (setpoints, a cubic or linear antenna trajectory, or a motion that has
         # ended): from its state where the new one starts, ahead like a start from the measured state, so that it
         # goes out stamped and the node's model of it is the controller's.
@@ -98,6 +103,18 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     if measured is None:
         return None
     return _from_measured(cfg, measured, origin_ns, left=motion is not None)
+
+
+def _next_setpoint(cfg: AntennaConfig, motion: Motion, setpoint_ns: int) -> Start:
+    """Forward mode, a stream running: from its setpoint after the latest one published (at ``setpoint_ns``; one of
+    the stream before it: its first), on its sample grid. The control timer publishes the latest setpoint due at
+    each tick, so the new stream's first setpoint goes out at the tick the running one's next would have: the
+    controller's samples stay one period apart (a new stream from the state at the command's own time, off the grid,
+    stepped by up to two periods' motion in one: 31x the acceleration limit at full speed)."""
+    times = motion.start_ns + seconds_to_ns(stream_grid(motion.duration, 1.0 / cfg.control_rate))
+    after = int(np.searchsorted(times, setpoint_ns, side='right'))
+    at_ns = int(times[min(after, times.size - 1)])
+    return Start(motion.state_at(at_ns), at_ns)
 
 
 def _continuing(motion: Motion, traj: DrivenTrajectory, now_ns: int, lead: float,

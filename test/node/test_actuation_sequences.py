@@ -13,6 +13,7 @@ one in force; a command whose drive rests on its target is reached.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Iterator
 from typing import Any, ClassVar
@@ -272,3 +273,52 @@ def test_a_setpoint_republished_at_10_hz_goes_out_once_and_is_reached(node: Node
                                                                     'trajectories': len(machine.out.sent)}
     print(f'from {start!r} rad:', seen)
     assert seen == {'sent': 1, 'reached': 1, 'repeated': 79, 'trajectories': 1}, machine.said[-3:]
+
+
+class SetpointRecorder:
+    """Stands for the setpoint publisher: keeps each setpoint (rad)."""
+
+    def __init__(self) -> None:
+        self.sent: list[float] = []
+
+    def publish(self, msg: Any) -> None:
+        self.sent.append(float(msg.data[0]))
+
+
+FORWARD = config_from_values({'mode': 'forward'})
+
+
+@pytest.mark.parametrize('target', [FORWARD.theta_min, 0.05], ids=['reversing', 'going on'])
+def test_a_forward_stream_replanned_mid_motion_keeps_the_samples_within_the_limits(node: Node, target: float) -> None:
+    """Forward mode at full speed, a new command between two ticks of the control timer, at 12 phases of the tick
+    against the stream's grid and 12 of the command between ticks: the setpoints as the timer publishes them, one
+    per tick, have divided differences within the speed, acceleration and jerk limits (relative 1e-6: the
+    positions' rounding over T^3). Started from the state at the command's own time, off the stream's grid, the
+    samples stepped by up to two periods' motion in one: 2x the speed, 31x the acceleration, 628x the jerk limit."""
+    period_ns = seconds_to_ns(1.0 / FORWARD.control_rate)
+    worst = dict.fromkeys((1, 2, 3), 0.0)
+    for tick_phase, command_phase in itertools.product(np.linspace(0.0, 0.99, 12), repeat=2):
+        clock = [START_NS]
+        act = Actuation(node, lambda: FORWARD, ProblemLog(lambda _level, _line: None),
+                        actuation_contract(FORWARD, 'forward'))
+        act._now_ns = lambda c=clock: c[0]  # type: ignore[method-assign]
+        out = SetpointRecorder()
+        act._setpoint_pub = out  # type: ignore[assignment]
+        act._on_readiness(Readiness.ACTIVE)
+        act.note_measured(float(driven_angles(FORWARD, np.array([FORWARD.theta_max]))[0]), 0.0, START_NS)
+        act.command(0.0)  # from theta_max to 0 (2.5 s)
+        ticks = START_NS + round(tick_phase * period_ns) + np.arange(1, 400) * period_ns
+        first = len(out.sent)
+        for k, tick in enumerate(ticks):
+            clock[0] = int(tick)
+            act._on_control_timer()
+            if k == 100:  # 1 s into the motion: at full speed
+                clock[0] = int(tick) + round(command_phase * period_ns) + 1
+                act.command(target)
+        q = np.array(out.sent[first:])
+        for order in (1, 2, 3):
+            q = np.diff(q) * FORWARD.control_rate
+            worst[order] = max(worst[order], float(np.max(np.abs(q))) / LIMITS.at_rocker(order))
+    print(f'forward replan mid-stream (to {target!r} rad), worst over every phase, as a multiple of its limit:',
+          {order: round(w, 4) for order, w in worst.items()})
+    assert max(worst.values()) <= 1.0 + 1e-6, worst
