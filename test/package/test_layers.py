@@ -1,5 +1,5 @@
 """The package's layers import one way: core < interface < config < motion < rules < bags < analysis < runtime < drive
-< node < live < commands; no cycles; pure core; no ROS in interface, motion, rules, bags and analysis.
+< node < live < plant < commands; no cycles; pure core; no ROS in interface, motion, rules, bags and analysis.
 
 Read from the source with ``ast`` (nothing of the package is imported), so a violation is reported even in
 modules whose imports would fail here. Lazy imports inside functions count too.
@@ -20,7 +20,7 @@ import fourbar_ros
 PACKAGE_DIR = Path(fourbar_ros.__file__).parent
 #: Lowest first; a module may import only its own layer and the layers before it.
 LAYERS = ('core', 'interface', 'config', 'motion', 'rules', 'bags', 'analysis', 'runtime', 'drive', 'node', 'live',
-          'commands')
+          'plant', 'commands')
 #: Third-party modules the core must never import (ROS, YAML, bags, plotting).
 IMPURE = ('rclpy', 'rosbags', 'mcap', 'mcap_ros2', 'yaml', 'ruamel', 'matplotlib', 'PIL', 'std_msgs', 'sensor_msgs',
           'diagnostic_msgs', 'visualization_msgs', 'geometry_msgs', 'rcl_interfaces', 'builtin_interfaces',

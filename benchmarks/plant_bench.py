@@ -1,0 +1,67 @@
+"""How fast the MuJoCo plant runs: ``python -m benchmarks.plant_bench [--quick]``.
+
+The model of config/antenna.yaml with an antenna weight (``fourbar_ros.plant``), 1 ms steps, in the same interleaved
+rounds: MuJoCo's own batched step (``mj_step`` with ``nstep``: the baseline, no Python per step), ``Plant.step()``
+once per step, and a control loop (the rocker commanded from the core's kinematics, then one step). Reported: the
+real-time factor of each (simulated seconds per CPU second, median over rounds) and each one's cost over the baseline.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import sys
+from typing import Any
+
+import mujoco
+
+from benchmarks import CONFIG, options, print_json
+from benchmarks.timing import Case, interleaved, machine_info
+from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.plant.plant import Plant
+
+#: Steps per timed call.
+STEPS = 1000
+
+
+def run(quick: bool) -> dict[str, Any]:
+    cfg = dataclasses.replace(load_config(CONFIG), antenna_mass=4.0, com_offset_along=0.02)
+    plant = Plant(cfg)
+    plant.set_wind_torque(-cfg.load_torque)
+    model, data = plant.model, plant.data
+    hold = plant.drive_angle_at(0.5 * (cfg.theta_min + cfg.theta_max))
+
+    def batched() -> None:
+        mujoco.mj_step(model, data, nstep=STEPS)
+
+    def stepped() -> None:
+        for _ in range(STEPS):
+            plant.step()
+
+    def loop() -> None:
+        for _ in range(STEPS):
+            plant.command_rocker(plant.drive_angle_at(plant.theta))
+            plant.step()
+        plant.command_rocker(hold)
+
+    repeats = 5 if quick else 25
+    times = interleaved([Case('mujoco_batched', batched, STEPS), Case('plant_step', stepped, STEPS),
+                         Case('control_loop', loop, STEPS)], repeats)
+    base = times['mujoco_batched'][0]
+    return {
+        'timestep_s': plant.timestep, 'steps_per_call': STEPS, 'repeats': repeats,
+        'cpu_s_per_step': {k: v[0] for k, v in times.items()},
+        'wall_s_per_step': {k: v[1] for k, v in times.items()},
+        'real_time_factor': {k: plant.timestep / v[0] for k, v in times.items()},
+        'over_mujoco_batched': {k: v[0] / base for k, v in times.items()},
+        'mujoco': mujoco.__version__,
+        'machine': machine_info(), 'command': 'python -m benchmarks.plant_bench' + (' --quick' if quick else ''),
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = options(sys.argv[1:] if argv is None else argv, __doc__)
+    return print_json(run(args.quick))
+
+
+if __name__ == '__main__':
+    sys.exit(main())
