@@ -2,7 +2,8 @@
 
 The model of config/antenna.yaml with an antenna weight (``fourbar_ros.plant``), 1 ms steps, in the same interleaved
 rounds: MuJoCo's own batched step (``mj_step`` with ``nstep``: the baseline, no Python per step), ``Plant.step()``
-once per step, and a control loop (the rocker commanded from the core's kinematics, then one step). Reported: the
+once per step, a control loop (the rocker commanded from the core's kinematics, then one step) and the stepper
+instead of the servo (its torque set in Python each step). Reported: the
 real-time factor of each (simulated seconds per CPU second, median over rounds) and each one's cost over the baseline.
 """
 
@@ -17,6 +18,7 @@ import mujoco
 from benchmarks import CONFIG, options, print_json
 from benchmarks.timing import Case, interleaved, machine_info
 from fourbar_ros.config.antenna_config import load_config
+from fourbar_ros.plant.mjcf import DriveModel
 from fourbar_ros.plant.plant import Plant
 
 #: Steps per timed call.
@@ -43,9 +45,14 @@ def run(quick: bool) -> dict[str, Any]:
             plant.step()
         plant.command_rocker(hold)
 
+    stepper = Plant(cfg, DriveModel(stepper_torque=cfg.motor_torque_limit))
+
+    def stepper_steps() -> None:
+        stepper.step(STEPS)
+
     repeats = 5 if quick else 25
     times = interleaved([Case('mujoco_batched', batched, STEPS), Case('plant_step', stepped, STEPS),
-                         Case('control_loop', loop, STEPS)], repeats)
+                         Case('control_loop', loop, STEPS), Case('stepper', stepper_steps, STEPS)], repeats)
     base = times['mujoco_batched'][0]
     return {
         'timestep_s': plant.timestep, 'steps_per_call': STEPS, 'repeats': repeats,

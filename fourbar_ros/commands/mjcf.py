@@ -37,6 +37,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help='reducer torsional stiffness, N m/rad at the rocker (default: a rigid reducer)')
     parser.add_argument('--backlash', type=float, default=0.0,
                         help='reducer play, rad at the rocker, total (needs --reducer-stiffness; default: 0)')
+    parser.add_argument('--stepper-torque', type=float, default=None, metavar='N_M',
+                        help='a stepper of this pull-out torque, N m at the motor, instead of the servo (its torque '
+                             'is set each step by the Python plant; default: the servo)')
+    parser.add_argument('--stepper-teeth', type=int, default=defaults.stepper_teeth,
+                        help=f'the stepper\'s rotor teeth (default: {defaults.stepper_teeth}, 1.8 deg full steps)')
 
 
 def run(args: argparse.Namespace) -> int:
@@ -46,7 +51,8 @@ def run(args: argparse.Namespace) -> int:
     cfg = default_config() if args.params is None else load_config(args.params, args.node_name, args.namespace)
     try:
         drive = DriveModel(timestep=args.timestep, rotor_inertia=args.rotor_inertia, kp=args.kp, kv=args.kv,
-                           reducer_stiffness=args.reducer_stiffness, backlash=args.backlash)
+                           reducer_stiffness=args.reducer_stiffness, backlash=args.backlash,
+                           stepper_torque=args.stepper_torque, stepper_teeth=args.stepper_teeth)
     except ValueError as exc:
         raise CommandError(str(exc)) from None
     text = mjcf(cfg, drive)

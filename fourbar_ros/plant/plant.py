@@ -5,6 +5,8 @@ theta as the package signs it; what a reading after ``step`` is of: docs/how-to/
 
 from __future__ import annotations
 
+import math
+
 import mujoco  # type: ignore[import-untyped]
 import numpy as np
 
@@ -38,6 +40,7 @@ class Plant:
         self._antenna = int(self.model.body(ANTENNA_BODY).id)
         self._servo = int(self.model.actuator(SERVO).id)
         self._sites = (int(self.model.site('c_coupler').id), int(self.model.site('c_rocker').id))
+        self._command = 0.0  # the motor angle commanded (rad)
         self.set_drive_angle(self.drive_angle_at(0.5 * (cfg.theta_min + cfg.theta_max)))
 
     # -- conversions ------------------------------------------------------------------------------------------------
@@ -64,12 +67,15 @@ class Plant:
         qpos = self.data.qpos
         qpos[self._gamma], qpos[self._delta], qpos[self._coupler] = gamma, delta, gamma + theta
         qpos[self._motor] = self.motor_angle_for(rocker_angle)
-        self.data.ctrl[self._servo] = qpos[self._motor]
+        self.command_motor(float(qpos[self._motor]))
         mujoco.mj_forward(self.model, self.data)
 
     def command_motor(self, motor_angle: float) -> None:
-        """The servo's position command (rad at the motor)."""
-        self.data.ctrl[self._servo] = motor_angle
+        """The position command (rad at the motor): the servo's, or the stepper's (its electrical angle over
+        ``stepper_teeth``; a whole step is a quarter of an electrical cycle)."""
+        self._command = motor_angle
+        if self.drive.stepper_torque is None:
+            self.data.ctrl[self._servo] = motor_angle
 
     def command_rocker(self, rocker_angle: float) -> None:
         """Command the motor to the angle that puts the driven rocker at ``rocker_angle`` (rad)."""
@@ -82,8 +88,17 @@ class Plant:
         self.data.xfrc_applied[self._antenna, 3:] = (0.0, torque, 0.0)
 
     def step(self, n: int = 1) -> None:
-        """Advance ``n`` timesteps."""
-        mujoco.mj_step(self.model, self.data, nstep=n)
+        """Advance ``n`` timesteps (a stepper: one at a time, its torque set from the state each step began in)."""
+        peak = self.drive.stepper_torque
+        if peak is None:
+            mujoco.mj_step(self.model, self.data, nstep=n)
+            return
+        teeth, damping = self.drive.stepper_teeth, self.drive.stepper_damping
+        qpos, qvel, ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
+        for _ in range(n):
+            error = float(qpos[self._motor]) - self._command
+            ctrl[self._servo] = -peak * math.sin(teeth * error) - damping * float(qvel[self._motor_dof])
+            mujoco.mj_step(self.model, self.data)
 
     def forward(self) -> None:
         """Recompute the forces of the present state (after ``step``, to read them at the state it ended in)."""
@@ -134,6 +149,20 @@ class Plant:
         data = self.data
         on_motor = data.qfrc_constraint[motor] + data.qfrc_spring[motor] + data.qfrc_damper[motor]
         return float(-self.cfg.reducer_ratio * on_motor)
+
+    @property
+    def motor_command(self) -> float:
+        """The motor angle commanded (rad at the motor)."""
+        return self._command
+
+    @property
+    def slipped_cycles(self) -> int:
+        """A stepper's slip: whole electrical cycles (2 pi / ``stepper_teeth`` rad at the motor) between the rotor and
+        its command, the nearest integer (0 while it holds within a half cycle; 0 for the servo)."""
+        if self.drive.stepper_torque is None:
+            return 0
+        cycle = 2.0 * math.pi / self.drive.stepper_teeth
+        return round((self.motor_angle - self._command) / cycle)
 
     @property
     def motor_torque(self) -> float:

@@ -41,6 +41,8 @@ def test_the_drive_options_reach_the_model(capsys: pytest.CaptureFixture[str]) -
     drive = DriveModel(timestep=5e-4, rotor_inertia=2e-5, kp=2.0, kv=0.01, reducer_stiffness=3000.0, backlash=0.001)
     assert status == 0 and out == mjcf(default_config(), drive)
     assert 'springlength="-0.0005 0.0005"' in out
+    status, out, _ = run(['--stepper-torque', '0.009', '--stepper-teeth', '200'], capsys)
+    assert status == 0 and out == mjcf(default_config(), DriveModel(stepper_torque=0.009, stepper_teeth=200))
 
 
 @needs_mujoco
@@ -59,6 +61,7 @@ def test_the_written_model_loads_in_mujoco(tmp_path: Path, capsys: pytest.Captur
                                                    'output a path of its own'),
     (['--backlash', '0.001'], 'backlash: needs a compliant reducer (reducer_stiffness)'),
     (['--kp', '-1.0'], 'kp: must be a positive finite number, got -1.0'),
+    (['--stepper-teeth', '0'], 'stepper_teeth: must be at least 1, got 0'),
     (['--params', '{tmp}/none.yaml'], '{tmp}/none.yaml: cannot read: No such file or directory'),
 ])
 def test_refusals_are_one_line_with_status_2(argv: list[str], message: str, tmp_path: Path,
