@@ -257,15 +257,27 @@ def _random_sequence(rng: np.random.Generator) -> list[dict[str, Any]]:
 
 def _sequences(bringup: tuple[CliEnv, Background], tmp_path: Path, count: int, seed: int) -> None:
     """``count`` random sequences, each started from a reached command and ended with the controller active: the
-    last command is reached, every command of the sequence has one final fate, nothing was refused by the
-    controller's contract and no callback failed; no jump after an activation (``_no_jump``)."""
+    last command in force is reached, every command of the sequence has one final fate or joined the one in force
+    (a repeat within reached_tolerance), nothing was refused by the controller's contract and no callback failed;
+    no jump after an activation (``_no_jump``)."""
     rng = np.random.default_rng(seed)
     steps: list[dict[str, Any]] = []
+    in_force: float | None = None  # the target of the command in force (none here ends otherwise than reached)
+
+    def served(theta: float) -> float:
+        """The command in force after ``theta``: itself, or the one it repeats (within reached_tolerance, joined)."""
+        nonlocal in_force
+        if in_force is None or not abs(theta - in_force) <= REACHED_TOLERANCE:
+            in_force = theta
+        return in_force
+
     for i in range(count):
-        theta = round(float(rng.uniform(-0.09, 0.09)), 4)
+        theta = served(round(float(rng.uniform(-0.09, 0.09)), 4))
         sequence = _random_sequence(rng)
-        last = [s['command'] for s in sequence if 'command' in s]
-        end = last[-1] if last else theta
+        end = theta
+        for s in sequence:
+            if 'command' in s:
+                end = served(s['command'])
         steps += [{'mark': i}, ACTIVE, {'command': theta}, _fate('reached', theta), {'mark': 'start'}, *sequence,
                   _fate('reached', end), {'mark': 'end'}]
     result = _probe(bringup[0], steps, tmp_path)
@@ -275,7 +287,7 @@ def _sequences(bringup: tuple[CliEnv, Background], tmp_path: Path, count: int, s
         sequence = result['log'][i:result['log'].index(end)]
         commands = sum('command' in e['step'] for e in sequence)
         before, after = start['status'], end['status']
-        grown = {f: int(after[f'commands_{f}']) - int(before[f'commands_{f}']) for f in FATES}
+        grown = {f: int(after[f'commands_{f}']) - int(before[f'commands_{f}']) for f in (*FATES, 'repeated')}
         assert sum(grown.values()) == commands, (
             f'{commands} commands, final fates {grown}: {[e["step"] for e in sequence]}')
         refused = {k: v for k, v in after.items() if k.startswith('contract_refused_') and v != before[k]}
