@@ -24,6 +24,7 @@ setup(
     extras_require={
         'bags': ['rosbags', 'mcap', 'mcap-ros2-support'],
         'plot': ['matplotlib', 'pillow'],
+        'plant': ['mujoco'],  # the MuJoCo plant (fourbar_ros.plant)
         # mujoco: the torque witness (test/core/test_torque_witness.py)
         'test': ['pytest', 'hypothesis', 'mpmath', 'ruff', 'mypy', 'types-PyYAML',
                  'catkin_pkg', 'colcon-core', 'colcon-ros', 'colcon-python-setup-py', 'pytest-codeblocks',

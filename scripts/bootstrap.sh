@@ -23,7 +23,7 @@ fi
 # setuptools < 80: colcon-core 0.21 requires it (its ament_python build runs setup.py with this setuptools).
 "$VENV/bin/python" -m pip install --quiet --upgrade pip==25.3 setuptools==79.0.1 wheel==0.45.1
 "$VENV/bin/python" -m pip install --quiet -c requirements/constraints.txt "${ros_reqs[@]}" \
-  --config-settings editable_mode=compat -e '.[bags,plot,test]'
+  --config-settings editable_mode=compat -e '.[bags,plot,plant,test]'
 "$VENV/bin/python" -c 'import rclpy, numpy, rosbags'  # fail here, not later, if the environment is incomplete
 echo "$want" > "$stamp"
 echo "bootstrap: $VENV ready"
