@@ -272,14 +272,16 @@ def _sequences(bringup: tuple[CliEnv, Background], tmp_path: Path, count: int, s
         return in_force
 
     for i in range(count):
-        theta = served(round(float(rng.uniform(-0.09, 0.09)), 4))
+        theta = round(float(rng.uniform(-0.09, 0.09)), 4)
+        start = served(theta)
         sequence = _random_sequence(rng)
-        end = theta
+        end, last = start, theta
         for s in sequence:
             if 'command' in s:
-                end = served(s['command'])
-        steps += [{'mark': i}, ACTIVE, {'command': theta}, _fate('reached', theta), {'mark': 'start'}, *sequence,
-                  _fate('reached', end), {'mark': 'end'}]
+                end, last = served(s['command']), s['command']
+        # The status waited for shows the last command received, so it counts that command's fate or repeat too.
+        steps += [{'mark': i}, ACTIVE, {'command': theta}, _fate('reached', start, last_command_rad=repr(theta)),
+                  {'mark': 'start'}, *sequence, _fate('reached', end, last_command_rad=repr(last)), {'mark': 'end'}]
     result = _probe(bringup[0], steps, tmp_path)
     marks = [e for e in result['log'] if 'mark' in e['step']]
     for start, end in zip(marks[1::3], marks[2::3], strict=True):
