@@ -80,6 +80,12 @@ class ControllerWatch:
         self._set(readiness(((c.name, c.state.label) for c in msg.controllers),
                             ((h.name, h.state.label) for h in msg.hardware_components), self.controller))
 
+    def check(self) -> None:
+        """Look at the graph now, as the periodic check does: after a silence of the measurements, a respawned
+        manager is told apart before its measurements resume a command its predecessor was running."""
+        if self.topic:
+            self._check_manager()
+
     def _check_manager(self) -> None:
         """A manager whose activity publisher left the graph is gone; one that appears beside it is its successor
         (a manager killed stays in the graph until its lease ends): gone too, and subscribing afresh takes the
