@@ -127,9 +127,9 @@ class Actuation:
         """The measured driven joint: position rad, velocity rad/s (None or NaN: not measured), measured at
         ``stamp_ns`` (node clock; 0: on arrival); a non-finite position is ignored."""
         if position - position == 0.0:  # finite
-            if not self.fates.measured:
-                self.watch.check()  # a successor manager is noticed (a readiness change) before this counts
             stamp_ns = stamp_ns or self._now_ns()
+            if stamp_ns >= self.fresh_ns and not self.fates.measured:
+                self.watch.check()  # a successor manager is noticed (a readiness change, fresh_ns now) first
             if stamp_ns < self.fresh_ns:
                 self.counters.measurements_outdated += 1
                 return

@@ -84,7 +84,7 @@ def checked_setpoints(cfg: AntennaConfig, out: Setpoints, orders: int = 3) -> Se
     A setpoint past an end by at most ``range_slack`` is at that end (a plan to the end sampled at its end, a spline
     evaluated at its end point, pass it by their rounding) and goes out as the end itself: forward_position_controller
     hands positions to the hardware as they are, so none goes past the range. That moves it by at most the slack,
-    which the derivatives' rounding bound below counts."""
+    which the derivatives' rounding bound below then counts."""
     lower, upper = driven_range(cfg)
     slack = range_slack(lower, upper)
     p = out.positions
@@ -93,9 +93,10 @@ def checked_setpoints(cfg: AntennaConfig, out: Setpoints, orders: int = 3) -> Se
         i = int(np.argmax(outside))
         raise LimitError(f'setpoint {i} (t = {float(out.times[i]):.6g} s): position {float(p[i])!r} rad is outside '
                          f'the driven joint\'s range [{lower!r}, {upper!r}] rad')
+    moved = 0.0  # the most a setpoint was moved onto an end (rad)
     if ((p < lower) | (p > upper)).any():
         p = np.clip(p, lower, upper)
-        out = Setpoints(out.times, p)
+        moved, out = slack, Setpoints(out.times, p)
     limits = JointLimits.from_config(cfg)
     t, diff, factorial = out.times, p, 1.0
     ulp = float(np.spacing(np.max(np.abs(p)))) if p.size else 0.0
@@ -105,9 +106,9 @@ def checked_setpoints(cfg: AntennaConfig, out: Setpoints, orders: int = 3) -> Se
         diff = np.diff(diff) / (t[order:] - t[:-order])  # Newton's divided differences
         factorial *= order
         value = limits.ratio * factorial * np.abs(diff)
-        # The positions' own rounding (half an ulp each) and the move onto an end (up to the slack each) move an
-        # order-k difference by up to 2^k (ulp + slack) / h^k.
-        rounding = limits.ratio * 2.0 ** order * (ulp + slack) / float(np.min(np.diff(t))) ** order
+        # The positions' own rounding (half an ulp each) and a move onto an end (up to the slack each, where one
+        # was made) move an order-k difference by up to 2^k (ulp + moved) / h^k.
+        rounding = limits.ratio * 2.0 ** order * (ulp + moved) / float(np.min(np.diff(t))) ** order
         i = int(np.argmax(value))
         if value[i] > limits.motor(order) + rounding:
             name, unit = QUANTITIES[order]
