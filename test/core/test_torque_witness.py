@@ -32,6 +32,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pytest
 from support.cli_support import fourbar
+from support.mujoco_log import mujoco_warnings
 
 from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 from fourbar_ros.core.antenna import Driven
@@ -86,16 +87,11 @@ CASES = [
 ]
 
 
-@pytest.fixture
-def mujoco_warnings() -> Iterator[list[str]]:
-    """MuJoCo's warnings (an unstable step) collected instead of written to MUJOCO_LOG.TXT in the working folder."""
-    seen: list[str] = []
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(seen.append)
-    try:
+@pytest.fixture(name='mujoco_warnings')
+def _mujoco_warnings() -> Iterator[list[str]]:
+    """MuJoCo's warnings (an unstable step) collected over the test."""
+    with mujoco_warnings() as seen:
         yield seen
-    finally:
-        mujoco.set_mju_user_warning(previous)
 
 
 def params_file(folder: Path, case: Case) -> Path:

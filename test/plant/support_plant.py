@@ -1,9 +1,7 @@
-"""What the plant's tests share: configurations, settling to rest, holding the rocker exactly, MuJoCo's warnings."""
+"""What the plant's tests share: configurations, settling to rest, holding the rocker exactly."""
 
 from __future__ import annotations
 
-import contextlib
-from collections.abc import Iterator
 from typing import Any
 
 import pytest
@@ -54,15 +52,3 @@ def hold_exactly(plant: Plant, rocker_angle: float) -> None:
     settle(plant)
     plant.command_motor(plant.motor_angle_for(rocker_angle) + plant.motor_torque / plant.drive.kp)
     settle(plant, plant.time + MAX_REST)
-
-
-@contextlib.contextmanager
-def mujoco_warnings() -> Iterator[list[str]]:
-    """MuJoCo's warnings (an unstable step) collected instead of written to MUJOCO_LOG.TXT in the working folder."""
-    seen: list[str] = []
-    previous = mujoco.get_mju_user_warning()
-    mujoco.set_mju_user_warning(seen.append)
-    try:
-        yield seen
-    finally:
-        mujoco.set_mju_user_warning(previous)

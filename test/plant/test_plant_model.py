@@ -15,7 +15,8 @@ import math
 
 import numpy as np
 import pytest
-from support_plant import CASES, Plant, config, hold_exactly, mujoco_warnings, needs_mujoco, settle
+from support.mujoco_log import mujoco_warnings
+from support_plant import CASES, Plant, config, hold_exactly, needs_mujoco, settle
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.loads import pose

@@ -7,7 +7,8 @@ from __future__ import annotations
 import math
 
 import pytest
-from support_plant import Plant, mujoco_warnings, needs_mujoco
+from support.mujoco_log import mujoco_warnings
+from support_plant import Plant, needs_mujoco
 
 from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values
 from fourbar_ros.plant.mjcf import DriveModel
