@@ -11,10 +11,13 @@ from dataclasses import dataclass
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import Driven
 
-__all__ = ['ANTENNA_BODY', 'CLOSURE', 'REDUCER', 'SERVO', 'DriveModel', 'mjcf', 'motor_joint']
+__all__ = ['ANTENNA_BODY', 'ANTENNA_IMU', 'CLOSURE', 'REDUCER', 'SERVO', 'DriveModel', 'mjcf', 'motor_joint']
 
 #: Names in the model besides the robot model's joint names.
 SERVO, REDUCER, CLOSURE, ANTENNA_BODY = 'motor_servo', 'reducer', 'closure_c', 'coupler'
+#: The antenna's accelerometer: a site on the coupler where the robot model puts its ``antenna`` link (axes the
+#: coupler's: x along B -> C, y the joint axes, z up at theta = 0) and an ``<accelerometer>`` sensor of that name.
+ANTENNA_IMU = 'antenna_imu'
 
 
 @dataclass(frozen=True)
@@ -32,9 +35,10 @@ class DriveModel:
     N m s/rad on the linkage's hinges. closure_timeconst: s, the ``solref`` time constant of the closure at C and
     of the rigid reducer (MuJoCo keeps it at least 2 timesteps). stepper_torque: N m at the motor, a stepper's
     pull-out (peak holding) torque instead of the servo (None: the servo); its torque is
-    -stepper_torque sin(stepper_teeth (motor - command)) - stepper_damping motor speed, so it pulls out beyond
-    stepper_torque and slips by whole electrical cycles, 2 pi / stepper_teeth (rad at the motor; 50 teeth: 1.8 deg
-    full steps, 4 per cycle). stepper_damping: N m s/rad at the motor (4e-3: about critical with the defaults).
+    -stepper_torque sin(stepper_teeth (motor - command)) - stepper_damping (motor speed - the command's speed), so
+    it pulls out beyond stepper_torque and slips by whole electrical cycles, 2 pi / stepper_teeth (rad at the motor;
+    50 teeth: 1.8 deg full steps, 4 per cycle). stepper_damping: N m s/rad at the motor (4e-3: about critical with
+    the defaults), on the rotor's speed relative to its field's (``Plant.command_motor``'s speed).
     """
 
     timestep: float = 1e-3
@@ -103,7 +107,8 @@ def mjcf(cfg: AntennaConfig, drive: DriveModel | None = None, model_name: str = 
     Lengths m, masses kg, inertias kg m^2, angles rad, gravity ``cfg.gravity`` m/s^2 along -z. Joint names:
     ``cfg.joint_names`` and ``motor_joint(cfg)``; the servo ``SERVO`` (ctrl: the motor angle, rad; with a stepper, a
     torque actuator whose ctrl is the torque, N m, set each step by ``plant.Plant``); the antenna's
-    body ``ANTENNA_BODY``; keyframe ``home``: at rest at mid-range, unassembled qpos0 aside.
+    body ``ANTENNA_BODY`` with the site and accelerometer ``ANTENNA_IMU`` (specific force, m/s^2, in the site's
+    frame); keyframe ``home``: at rest at mid-range, unassembled qpos0 aside.
     """
     d = drive or DriveModel()
     gamma_joint, delta_joint, coupler_joint = cfg.joint_names
@@ -155,6 +160,7 @@ def mjcf(cfg: AntennaConfig, drive: DriveModel | None = None, model_name: str = 
         <geom type="capsule" fromto="0 0 0 {_n(h)} 0 0" size="{_n(bar)}" {vis} rgba="0.9 0.6 0.1 1"/>
         <site name="c_coupler" pos="{_xz(h, 0.0)}"/>
         <site name="antenna_com" pos="{_xz(*com)}"/>
+        <site name="{ANTENNA_IMU}" pos="{_xz(*com)}"/>
       </body>
     </body>
     <body name="rocker_cd" pos="{_xz(H, 0.0)}" quat="0 0 0 1" gravcomp="1">
@@ -174,6 +180,9 @@ def mjcf(cfg: AntennaConfig, drive: DriveModel | None = None, model_name: str = 
 {tendon}  <actuator>
     {servo}
   </actuator>
+  <sensor>
+    <accelerometer name="{ANTENNA_IMU}" site="{ANTENNA_IMU}"/>
+  </sensor>
   <keyframe>
     <key name="home" qpos="{home}" ctrl="{_n(_home(cfg)[3] if d.stepper_torque is None else 0.0)}"/>
   </keyframe>

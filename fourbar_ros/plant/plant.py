@@ -12,7 +12,7 @@ import numpy as np
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.core.antenna import Driven
-from fourbar_ros.plant.mjcf import ANTENNA_BODY, SERVO, DriveModel, mjcf, motor_joint
+from fourbar_ros.plant.mjcf import ANTENNA_BODY, ANTENNA_IMU, SERVO, DriveModel, mjcf, motor_joint
 
 __all__ = ['Plant']
 
@@ -40,7 +40,10 @@ class Plant:
         self._antenna = int(self.model.body(ANTENNA_BODY).id)
         self._servo = int(self.model.actuator(SERVO).id)
         self._sites = (int(self.model.site('c_coupler').id), int(self.model.site('c_rocker').id))
+        imu = [i for i in range(self.model.nsensor) if self.model.sensor(i).name == ANTENNA_IMU]
+        self._imu = int(self.model.sensor(imu[0]).adr[0]) if imu else None  # an edited model may lack it
         self._command = 0.0  # the motor angle commanded (rad)
+        self._command_speed = 0.0  # its rate (rad/s), for the stepper's damping
         self.set_drive_angle(self.drive_angle_at(0.5 * (cfg.theta_min + cfg.theta_max)))
 
     # -- conversions ------------------------------------------------------------------------------------------------
@@ -70,10 +73,12 @@ class Plant:
         self.command_motor(float(qpos[self._motor]))
         mujoco.mj_forward(self.model, self.data)
 
-    def command_motor(self, motor_angle: float) -> None:
+    def command_motor(self, motor_angle: float, speed: float = 0.0) -> None:
         """The position command (rad at the motor): the servo's, or the stepper's (its electrical angle over
-        ``stepper_teeth``; a whole step is a quarter of an electrical cycle)."""
+        ``stepper_teeth``; a whole step is a quarter of an electrical cycle), whose field turns at ``speed`` rad/s
+        at the motor (a step generator's rate: the stepper's damping acts on the rotor's speed relative to it)."""
         self._command = motor_angle
+        self._command_speed = speed
         if self.drive.stepper_torque is None:
             self.data.ctrl[self._servo] = motor_angle
 
@@ -97,7 +102,8 @@ class Plant:
         qpos, qvel, ctrl = self.data.qpos, self.data.qvel, self.data.ctrl
         for _ in range(n):
             error = float(qpos[self._motor]) - self._command
-            ctrl[self._servo] = -peak * math.sin(teeth * error) - damping * float(qvel[self._motor_dof])
+            slip = float(qvel[self._motor_dof]) - self._command_speed
+            ctrl[self._servo] = -peak * math.sin(teeth * error) - damping * slip
             mujoco.mj_step(self.model, self.data)
 
     def forward(self) -> None:
@@ -130,6 +136,11 @@ class Plant:
     def motor_angle(self) -> float:
         """The rotor's angle (rad at the motor)."""
         return float(self.data.qpos[self._motor])
+
+    @property
+    def motor_velocity(self) -> float:
+        """The rotor's angular velocity (rad/s at the motor)."""
+        return float(self.data.qvel[self._motor_dof])
 
     @property
     def theta(self) -> float:
@@ -168,6 +179,17 @@ class Plant:
     def motor_torque(self) -> float:
         """The servo's torque on the rotor (N m at the motor)."""
         return float(self.data.actuator_force[self._servo])
+
+    @property
+    def antenna_acceleration(self) -> tuple[float, float, float]:
+        """The antenna's accelerometer ``ANTENNA_IMU`` (m/s^2, in the coupler's axes: x along B -> C, y the joint
+        axes, z up at theta = 0): the specific force, its acceleration less gravity, so at rest (-g sin theta, 0,
+        g cos theta). Like the forces, of the state the last ``step`` began in; ``forward()`` recomputes it.
+        KeyError for a model without the sensor."""
+        if self._imu is None:
+            raise KeyError(f'the model has no accelerometer {ANTENNA_IMU!r}')
+        ax, ay, az = (float(v) for v in self.data.sensordata[self._imu:self._imu + 3])
+        return ax, ay, az
 
     @property
     def closure_gap(self) -> float:
