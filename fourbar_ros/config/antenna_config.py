@@ -107,6 +107,8 @@ class AntennaConfig:
     model_mismatch_error_sds: float
     model_mismatch_warn: float
     model_mismatch_error: float
+    slip_stop_mismatch: float
+    slip_stop_time: float
     gamma_joint: str
     delta_joint: str
     coupler_joint: str

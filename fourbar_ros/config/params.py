@@ -283,6 +283,16 @@ PARAMETERS: tuple[ParamSpec, ...] = (
     ParamSpec('model_mismatch_error', float, 0.02, 'rad',
               'Actuator modes, with an antenna sensor and no antenna_sensor_noise: diagnostics ERROR when that RMS '
               'exceeds this.', 0.0, math.pi),
+    ParamSpec('slip_stop_mismatch', float, 0.02, 'rad',
+              'Trajectory and forward modes, with an antenna sensor: when the mean of sensor minus model over the '
+              'last slip_stop_time stays beyond this, the drive may have slipped (an open-loop stepper counts on '
+              'while the antenna stays): the motion stops, the command in force ends interrupted, diagnostics ERROR '
+              'and new commands are dropped until the mean is back within it for slip_stop_time. 0: no stop (also '
+              'releases one).', 0.0, math.pi),
+    ParamSpec('slip_stop_time', float, 0.2, 's',
+              'Actuator modes: the time over which the antenna sensor\'s readings (at least two, by their stamps) '
+              'are averaged for slip_stop_mismatch; the stop follows the first reading past it within this plus one '
+              'reading period.', 0.001, 60.0),
     ParamSpec('gamma_joint', str, 'rocker_ab_joint', '',
               'JointState name of the rocker AB joint (gamma).'),
     ParamSpec('delta_joint', str, 'rocker_cd_joint', '',

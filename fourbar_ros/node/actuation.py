@@ -37,6 +37,7 @@ from fourbar_ros.rules.controller_contract import check_forward_command
 from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.rules.follow_check import LIKELY_CAUSES, FollowCheck
 from fourbar_ros.rules.goal_outcomes import GoalOutcome
+from fourbar_ros.rules.model_check import SlipEvent
 from fourbar_ros.rules.motion_plan import Motion
 from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
 from fourbar_ros.runtime.problem_log import ProblemLog
@@ -86,6 +87,8 @@ class Actuation:
         self.theta: float | None = None  # the last measured antenna angle (rad), for the fates
         self.follow = FollowCheck(cfg.follow_tolerance, cfg.follow_timeout)
         self.not_following = ''  # why the drive did not follow the last sent command, until one is reached
+        #: why the slip stop holds the drive ('' while it does not): new commands are dropped meanwhile
+        self.slipped = ''
         if self.mode == Mode.TRAJECTORY.value and cfg.trajectory_interface == 'action':
             self.goals = TrajectoryGoals(node, cfg.trajectory_controller, problems)
             self.goals.on_end = self._on_goal_end
@@ -175,6 +178,14 @@ class Actuation:
         """Plan and send the motion to a served antenna angle theta (rad), or hold it until it can go."""
         fates, now_ns = self.fates, self._now_ns()
         fates.settings = FateSettings.of(self._config())
+        if self.slipped:  # the count may be off by the slip: a plan from it would move to a wrong place
+            line = f'the motion was stopped: {self.slipped}'
+            if fates.receive(theta, now_ns):
+                fates.refused(line)
+            else:
+                fates.drop(line)
+            self._problems.warn('command after a slip stop', f'command theta = {theta!r} rad dropped: {line}')
+            return
         if fates.repeat(theta, now_ns, self.theta):
             return
         if fates.receive(theta, now_ns):
@@ -208,7 +219,7 @@ class Actuation:
     def _resume(self) -> None:
         """Send a held command that can now go, from the motion the controller still runs where the measured state
         agrees with it (``motion_start``), else from the measured state."""
-        if self.fates.due():
+        if self.fates.due() and not self.slipped:
             assert self.fates.current is not None
             self._send(self.fates.current.theta)
 
@@ -229,6 +240,44 @@ class Actuation:
             self.motion, self._setpoints = None, None
         self._said(before)
         self._resume()
+
+    def on_slip(self, event: SlipEvent, line: str) -> None:
+        """The slip stop (``rules.model_check.SlipStop``): STOP (``line``: why) ends the command in force (sent:
+        interrupted, not resumed; held: dropped) and holds the drive: in forward mode the stream stops (the controller
+        holds its last setpoint), in trajectory mode a motion still running is re-planned to rest at the measured
+        angle; new commands are dropped until CLEARED."""
+        if event is SlipEvent.CLEARED:
+            if self.slipped:
+                self._info(f'slip stop cleared (the antenna sensor agrees with the model again); it was: '
+                           f'{self.slipped}')
+            self.slipped = ''
+            return
+        self.slipped = line
+        fates, now_ns = self.fates, self._now_ns()
+        cmd = fates.current
+        if cmd is not None and cmd.fate is Fate.HELD:
+            fates.drop(line)
+        else:
+            fates.interrupt(line, now_ns, resumable=False)
+        held = self._hold(now_ns)
+        self._problems.error('slip stop', f'motion stopped{held}: {line}')
+
+    def _hold(self, now_ns: int) -> str:
+        """Stop a running motion where the drive is measured (see ``on_slip``); what was done, for the log line."""
+        if self.mode == Mode.FORWARD.value:
+            running = self._setpoints is not None
+            self.motion, self._setpoints = None, None
+            return ' (setpoints stopped: the controller holds the last)' if running else ''
+        motion, theta, cfg = self.motion, self.theta, self._config()
+        if motion is None or motion.done(now_ns) or theta is None:
+            return ''
+        theta = min(max(theta, cfg.theta_min), cfg.theta_max)
+        out = serve_command(cfg, self.contract, self._drive(), theta, now_ns, self.counters)
+        if isinstance(out, Refused):
+            return f' (no hold planned: {out.line})'
+        if not self._emit(cfg, out):
+            return ' (no hold sent)'
+        return f' (held at the measured theta = {theta:.6g} rad)'
 
     def _on_goal_end(self, how: GoalOutcome, line: str) -> None:
         """The latest action goal ended otherwise than succeeded: its command is dropped (rejected) or
@@ -262,6 +311,10 @@ class Actuation:
 
     def _on_antenna_trajectory(self, msg: JointTrajectory) -> None:
         self.counters.trajectories_received += 1
+        if self.slipped:
+            self._problems.warn('antenna trajectory after a slip stop',
+                                f'antenna trajectory dropped: the motion was stopped: {self.slipped}')
+            return
         cfg, now_ns = self._config(), self._now_ns()
         out = serve_antenna_trajectory(cfg, self.contract, self._drive(), msg, now_ns, self.counters)
         if self._emit(cfg, out):

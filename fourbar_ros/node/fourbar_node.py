@@ -152,7 +152,8 @@ class FourBarNode(Node):
             assert contract is not None
             self.actuation = Actuation(self, lambda: self._config, self.problems, contract, subscribe_measured=False)
             if self._config.antenna_sensor_type != SENSOR_NONE:
-                self.model_check = LiveModelCheck(self, self._config, lambda: self._config, qos, self.problems)
+                self.model_check = LiveModelCheck(self, self._config, lambda: self._config, qos, self.problems,
+                                                  on_slip=self.actuation.on_slip)
             self.completion = MeasuredCompletion(
                 self, self._config, self._joint_pub, qos, self.problems, on_measured=self.actuation.note_measured,
                 on_completed=self._on_completed)

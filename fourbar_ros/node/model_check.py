@@ -1,7 +1,8 @@
 """The actuator modes' live check of the model: an antenna angle sensor against the completed angle.
 
 Composed by fourbar_node when ``antenna_sensor_type`` is not ``none``; what is compared and when a reading is
-skipped: ``fourbar_ros.rules.model_check``; how readings are timed: docs/reference/topics.md."""
+skipped: ``fourbar_ros.rules.model_check``; how readings are timed: docs/reference/topics.md. In the actuator modes a
+mismatch that stays beyond ``slip_stop_mismatch`` stops the motion (``SlipStop``, ``on_slip``)."""
 
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.interface.stamps import to_ns
 from fourbar_ros.interface.topics import ANTENNA_SENSORS, Topic
 from fourbar_ros.rules.diagnostics import Level
-from fourbar_ros.rules.model_check import ModelCheck, SensorSkipped, imu_theta
+from fourbar_ros.rules.model_check import ModelCheck, SensorSkipped, SlipEvent, SlipReading, SlipStop, imu_theta
 from fourbar_ros.runtime.problem_log import ProblemLog
 
 
@@ -25,10 +26,14 @@ class LiveModelCheck:
     """The sensor's subscription and the model check's diagnostics."""
 
     def __init__(self, node: Node, cfg: AntennaConfig, config: Callable[[], AntennaConfig],
-                 qos: Callable[[Topic], QoSProfile], problems: ProblemLog) -> None:
+                 qos: Callable[[Topic], QoSProfile], problems: ProblemLog,
+                 on_slip: Callable[[SlipEvent, str], None] | None = None) -> None:
         """``cfg``: the configuration the completion was built with (its geometry); ``config``: the running one
-        (the sensor's offset, the thresholds, the window); ``qos``: the profile of a topic."""
+        (the sensor's offset, the thresholds, the window); ``qos``: the profile of a topic; ``on_slip``: told each
+        event of the slip stop with its line (why it stopped; '' when cleared)."""
         self.check = ModelCheck(cfg)
+        self.slip = SlipStop()
+        self._on_slip = on_slip
         self._config = config
         self._problems = problems
         self._clock = node.get_clock()
@@ -59,14 +64,24 @@ class LiveModelCheck:
         self._compare(stamp if stamp else self._now_ns(), theta)
 
     def _compare(self, stamp_ns: int, theta: float | SensorSkipped) -> None:
-        outcome = self.check.compare(self._config(), stamp_ns, theta, time.monotonic())
+        cfg = self._config()
+        outcome = self.check.compare(cfg, stamp_ns, theta, time.monotonic())
         if isinstance(outcome, SensorSkipped):
             shown = f' ({theta!r} rad)' if isinstance(theta, float) else ''
             self._problems.warn(f'antenna sensor {outcome.value}', f'antenna_angle_sensor reading at {stamp_ns} ns'
                                 f'{shown} skipped: {outcome.value.replace("_", " ")}')
+            return
+        assert isinstance(theta, float)
+        event = self.slip.update(cfg, SlipReading(stamp_ns, outcome, theta - cfg.antenna_sensor_offset))
+        if event is not None and self._on_slip is not None:
+            self._on_slip(event, self.slip.stopped)
 
     def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
-        """(level, message, key/value pairs) of the check: WARN or ERROR from the mismatch's RMS over
-        tracking_window against model_mismatch_warn and model_mismatch_error."""
+        """(level, message, key/value pairs) of the check: WARN or ERROR from the mismatch's window
+        (``ModelCheck.diagnostics``); ERROR while the slip stop holds the drive."""
         level, message, values = self.check.diagnostics(self._config(), time.monotonic())
+        values += self.slip.values()
+        if self.slip.stopped:
+            level, message = 2, (f'motion stopped: {self.slip.stopped}; commands are dropped until the sensor agrees '
+                                 'with the model again (re-home the drive, or slip_stop_mismatch 0 to go on)')
         return Level(level), message, [('antenna_sensor_type', self.sensor_type), *values]

@@ -2,8 +2,8 @@
 
 The mismatch is ``core.calibration.model_mismatch``, the joint paired as ``fourbar calibrate`` pairs it (the
 sensor's latency applied). With the calibration's noise estimate, the window's bias and scatter are tested apart, in
-sds (``window_test``); without, its RMS against absolute limits. docs/how-to/calibrate.md and
-docs/reference/diagnostics.md."""
+sds (``window_test``); without, its RMS against absolute limits. A mean beyond ``slip_stop_mismatch`` stops the motion
+(``SlipStop``). docs/how-to/calibrate.md and docs/reference/diagnostics.md."""
 
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from fourbar_ros.core.calibration import imu_tilt, imu_valid, model_mismatch
 from fourbar_ros.core.errors import FourBarError
 from fourbar_ros.interface.stamps import seconds_to_ns
 
-__all__ = ['HISTORY', 'WINDOW_READINGS', 'ModelCheck', 'SensorCounters', 'SensorSkipped', 'WindowTest',
-           'imu_theta', 'window_test']
+__all__ = ['HISTORY', 'WINDOW_READINGS', 'ModelCheck', 'SensorCounters', 'SensorSkipped', 'SlipEvent', 'SlipReading',
+           'SlipStop', 'WindowTest', 'imu_theta', 'window_test']
 
 #: Completed measurements held for pairing: 10 s of joint_state_broadcaster at 100 Hz.
 HISTORY = 1000
@@ -195,3 +195,82 @@ class ModelCheck:
                         f'{cfg.tracking_window:g} s, above {name} {limit:g} rad (recalibrate: fourbar calibrate)',
                         values)
         return 0, 'ok', values
+
+
+class SlipEvent(enum.Enum):
+    """What a reading did to the slip stop."""
+
+    STOP = 'stop'  # the mean went beyond slip_stop_mismatch: stop the motion
+    CLEARED = 'cleared'  # the mean is back within it (or the stop was turned off): commands may go again
+
+
+@dataclass(frozen=True)
+class SlipReading:
+    """One compared reading as the slip stop holds it: its stamp (ns, node clock), the mismatch (rad, sensor minus
+    model) and the sensor's antenna angle less its offset (rad)."""
+
+    stamp_ns: int
+    mismatch: float
+    sensor: float
+
+
+class SlipStop:
+    """The slip stop over compared readings, by their stamps (no ROS).
+
+    A reading at ``t`` looks at the readings stamped in [t - slip_stop_time, t]: with at least two there and one
+    before (the sensor read across the whole time), their mean mismatch beyond ``slip_stop_mismatch`` (strictly) is
+    a STOP; once stopped, a mean within it over such a window is CLEARED. So when every reading from t1 on is beyond
+    the threshold on one side, the stop comes at the first reading stamped at or after t1 + slip_stop_time; while
+    every reading is within it, never. A reading stamped at or before the latest taken is late and left out
+    (``late``); ``slip_stop_mismatch`` 0 turns the stop off and clears one in force."""
+
+    def __init__(self) -> None:
+        self._readings: deque[SlipReading] = deque()
+        self._before: SlipReading | None = None  # the latest reading older than the window
+        self.stopped = ''  # why the motion stopped ('' while not stopped)
+        self.stops = 0
+        self.late = 0
+        self.mean: float | None = None  # the window's mean mismatch at the latest reading, rad (None: no window)
+
+    def update(self, cfg: AntennaConfig, reading: SlipReading) -> SlipEvent | None:
+        """Take one compared reading under the running configuration ``cfg`` (its slip_stop_mismatch and
+        slip_stop_time); the event it causes, if any."""
+        readings = self._readings
+        if readings and reading.stamp_ns <= readings[-1].stamp_ns:
+            self.late += 1
+            return None
+        readings.append(reading)
+        start = reading.stamp_ns - seconds_to_ns(cfg.slip_stop_time)
+        while readings[0].stamp_ns < start:
+            self._before = readings.popleft()
+        covered = self._before is not None and len(readings) >= 2
+        self.mean = math.fsum(r.mismatch for r in readings) / len(readings) if covered else None
+        limit = cfg.slip_stop_mismatch
+        if limit <= 0.0:
+            return self._clear()
+        if self.mean is None:
+            return None
+        if not self.stopped and abs(self.mean) > limit:
+            sensor = math.fsum(r.sensor for r in readings) / len(readings)
+            self.stopped = (f'the antenna sensor reads {sensor:.6g} rad, the model {sensor - self.mean:.6g} rad from '
+                            f'the measured joint ({self.mean:+.3g} rad over {len(readings)} readings in '
+                            f'{cfg.slip_stop_time:g} s, beyond slip_stop_mismatch {limit:g} rad): the drive may have '
+                            'slipped')
+            self.stops += 1
+            return SlipEvent.STOP
+        if self.stopped and abs(self.mean) <= limit:
+            return self._clear()
+        return None
+
+    def _clear(self) -> SlipEvent | None:
+        if not self.stopped:
+            return None
+        self.stopped = ''
+        return SlipEvent.CLEARED
+
+    def values(self) -> list[tuple[str, str]]:
+        """Diagnostic key/value pairs: whether stopped and why, the stops, the window's mean, the late readings."""
+        return [('slip_stop', f'stopped: {self.stopped}' if self.stopped else 'no'),
+                ('slip_stops', str(self.stops)),
+                ('slip_stop_mean_rad', repr(self.mean) if self.mean is not None else 'none'),
+                ('slip_stop_readings_late', str(self.late))]
