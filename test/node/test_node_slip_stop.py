@@ -1,0 +1,190 @@
+"""fourbar_node's slip stop over the real middleware (trajectory mode, an Imu on antenna_angle_sensor): the measured
+driven joint is an open-loop stepper's count, going on along the sent motion, while the antenna stays where it was
+(the stepper slipped). The mean mismatch passes slip_stop_mismatch, and at the reading stamped slip_stop_time after
+the first one beyond it at the latest the node sends a hold at the measured position, gives the command the fate
+interrupted with the likely cause, reports ERROR and drops a new command; once the sensor agrees with the model for
+slip_stop_time again a new command goes out.
+
+The node runs in-process, in its own namespace; no controller manager (commands go out as they come)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+
+import pytest
+from geometry_msgs.msg import Vector3
+from rclpy.parameter import Parameter
+from sensor_msgs.msg import Imu, JointState
+from std_msgs.msg import Float64
+from support.paths import REPO
+from support.ros_support import RosSession
+from trajectory_msgs.msg import JointTrajectory
+
+from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.interface.stamps import seconds_to_ns
+from fourbar_ros.interface.topics import COMMAND, MEASURED_JOINT_STATES, trajectory_topic
+from fourbar_ros.node.fourbar_node import FourBarNode
+from fourbar_ros.rules.command_fate import Fate
+from fourbar_ros.rules.diagnostics import Level
+
+pytestmark = pytest.mark.ros
+
+YAML = REPO / 'config' / 'antenna.yaml'
+CFG = default_config()
+DRIVEN = CFG.driven_joint
+G = 9.80665  # m/s^2
+NS = 1_000_000_000
+START, TARGET = -0.08, 0.1  # rad of theta: the command moves 0.18 rad, past the 0.02 rad threshold on the way
+
+
+def core_theta(q: float) -> float:
+    """The antenna angle (rad) the core gives for the driven joint q (rad)."""
+    return float(CFG.linkage.from_rocker(q, CFG.driven, CFG.measured_branch).theta)
+
+
+def _imu(theta: float, stamp_ns: int) -> Imu:
+    """An Imu at rest on the antenna tilted by theta (rad): gravity's reaction in the coupler frame."""
+    msg = Imu(linear_acceleration=Vector3(x=-G * math.sin(theta), y=0.0, z=G * math.cos(theta)))
+    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, NS)
+    return msg
+
+
+class Rig:
+    """The node, a publisher of the count, one of the Imu, one of commands, and a collector of trajectories."""
+
+    def __init__(self, ros: RosSession) -> None:
+        self.ros = ros
+        self.ns = '/slip_stop_test'
+        params = [Parameter('mode', value='trajectory'), Parameter('joint_state_rate', value=0.0),
+                  Parameter('antenna_sensor_type', value='imu'), Parameter('measurement_timeout', value=60.0),
+                  ]
+        self.node = FourBarNode(context=ros.context, namespace=self.ns, parameter_overrides=params,
+                                cli_args=['--ros-args', '--params-file', str(YAML)])
+        ros.add_node(self.node)
+        self.measured = ros.publisher(JointState, f'{self.ns}/{MEASURED_JOINT_STATES.name}')
+        self.sensor = ros.publisher(Imu, f'{self.ns}/antenna_angle_sensor')
+        self.commands = ros.publisher(Float64, f'{self.ns}/{COMMAND.name}')
+        self.trajectories = ros.collect(JointTrajectory,
+                                        f'{self.ns}/{trajectory_topic(CFG.trajectory_controller).name}')
+        for pub in (self.measured, self.sensor, self.commands):
+            ros.wait_subscribers(pub)
+        ros.wait_publishers(self.trajectories)
+        assert self.node.completion is not None and self.node.model_check is not None
+        assert self.node.actuation is not None
+        self.actuation = self.node.actuation
+        self.completed = self.node.completion.counters
+        self.check = self.node.model_check
+
+    def now_ns(self) -> int:
+        ns: int = self.node.get_clock().now().nanoseconds
+        return ns
+
+    def measure(self, q: float, stamp_ns: int) -> None:
+        """Publish one count and wait until the node completed it."""
+        before = self.completed.measurements_completed
+        msg = JointState(name=[DRIVEN], position=[q])
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, NS)
+        self.measured.publish(msg)
+        self.ros.wait_for(lambda: self.completed.measurements_completed > before, what='the count completed')
+
+    def read(self, theta: float, stamp_ns: int) -> None:
+        """Publish one Imu reading and wait until the node compared it."""
+        before = self.check.check.counters.sensor_readings_compared
+        self.sensor.publish(_imu(theta, stamp_ns))
+        self.ros.wait_for(lambda: self.check.check.counters.sensor_readings_compared > before,
+                          what='the reading compared')
+
+    def command(self, theta: float) -> None:
+        """Publish a command and wait until the node gave it a fate."""
+        before = sum(self.actuation.fates.counts.values())
+        self.commands.publish(Float64(data=theta))
+        self.ros.wait_for(lambda: sum(self.actuation.fates.counts.values()) > before, what='the command taken')
+
+    def status(self) -> tuple[Level, str, dict[str, str]]:
+        with self.ros.paused():  # not halfway through a callback
+            s = self.node.diagnostic_status()
+        return Level(s.level[0]), s.message, {kv.key: kv.value for kv in s.values}
+
+    def close(self) -> None:
+        self.ros.uncollect(self.trajectories)
+        self.ros.destroy(self.measured, self.sensor, self.commands)
+        self.ros.remove_node(self.node)
+
+
+@pytest.fixture
+def rig(ros: RosSession) -> Iterator[Rig]:
+    r = Rig(ros)
+    yield r
+    r.close()
+
+
+def _q(theta: float) -> float:
+    return float(CFG.linkage.rocker_angles(theta, CFG.branch)[0 if CFG.gamma_joint == DRIVEN else 1])
+
+
+def test_a_count_going_on_while_the_antenna_stays_stops_the_motion(rig: Rig) -> None:
+    limit, window = rig.node.config.slip_stop_mismatch, rig.node.config.slip_stop_time
+    assert (limit, window) == (0.02, 0.2)
+    q0, stay = _q(START), core_theta(_q(START))
+    for _ in range(3):  # at rest, the antenna where the count says
+        stamp = rig.now_ns()
+        rig.measure(q0, stamp)
+        rig.read(stay, stamp)
+    rig.command(TARGET)
+    first = rig.trajectories.wait_count(1)[0]
+    assert rig.actuation.fates.current is not None and rig.actuation.fates.current.fate is Fate.SENT
+    motion = rig.actuation.motion
+    assert motion is not None
+    # The stepper slipped at the start: its count follows the sent motion, the antenna stays at START.
+    seen: list[tuple[int, float, float]] = []  # (stamp ns, the count rad, sensor minus model rad)
+    end = motion.start_ns + seconds_to_ns(motion.duration)
+    while not rig.check.slip.stopped:
+        stamp = rig.now_ns()
+        assert stamp < end, f'no stop before the motion\'s end; the last readings (stamp, count, mismatch): {seen[-5:]}'
+        q = motion.state_at(stamp).position
+        rig.measure(q, stamp)
+        rig.read(stay, stamp)
+        seen.append((stamp, q, stay - core_theta(q)))
+    stop_stamp, q_stop, _ = seen[-1]
+    t1 = next(s for s, _, m in seen if abs(m) > limit)  # the first reading beyond the threshold
+    due = next((s for s, _, _ in seen if s >= t1 + seconds_to_ns(window)), None)
+    lie = (f'the count read {q_stop:.6f} rad (theta {core_theta(q_stop):.6f} rad) at the stop, the antenna stayed at '
+           f'{stay:.6f} rad; first reading beyond {limit} rad at {(t1 - seen[0][0]) / NS:.3f} s, the stop at '
+           f'{(stop_stamp - seen[0][0]) / NS:.3f} s after the first moving count')
+    assert t1 <= stop_stamp and (due is None or stop_stamp <= due), lie
+    print(f'\n{lie}; {len(seen)} readings, {(stop_stamp - t1) / NS:.3f} s from the first one beyond the threshold')
+
+    # The hold: a trajectory to rest at the count's position at the stop (theta from it, back through the core).
+    hold = rig.trajectories.wait_count(2)[1]
+    assert hold.points[-1].positions[0] == pytest.approx(q_stop, abs=1e-9), (hold.points[-1].positions, lie)
+    # at rest at its end as the controller checks it: |velocity| within float's epsilon (the planner's rounding)
+    assert all(abs(v) <= 1.2e-7 for v in hold.points[-1].velocities), hold.points[-1].velocities
+    assert first.points[-1].positions[0] == pytest.approx(_q(TARGET), abs=1e-9)
+    cmd = rig.actuation.fates.current
+    assert cmd is not None and cmd.fate is Fate.INTERRUPTED and cmd.theta == TARGET, (cmd, lie)
+    assert cmd.reason.startswith(f'the antenna sensor reads {stay:.6g} rad, the model ') and cmd.reason.endswith(
+        'the drive may have slipped'), cmd.reason
+    level, message, values = rig.status()
+    assert level is Level.ERROR and message.startswith('motion stopped: the antenna sensor reads'), message
+    assert values['command_fate'] == 'interrupted' and values['slip_stops'] == '1', values
+    assert values['slip_stop'].startswith('stopped: '), values
+
+    # A new command is dropped while the sensor disagrees: the count is off by the slip.
+    dropped = rig.actuation.fates.counts[Fate.DROPPED]
+    rig.command(0.0)
+    assert rig.actuation.fates.counts[Fate.DROPPED] == dropped + 1
+    assert len(rig.trajectories) == 2, [t.points[-1].positions for t in rig.trajectories.messages]
+
+    # Re-homed: the count reads where the antenna is; once the sensor agrees for slip_stop_time, commands go again.
+    start = rig.now_ns()
+    while rig.check.slip.stopped:
+        stamp = rig.now_ns()
+        assert stamp < start + 10 * seconds_to_ns(window), f'not cleared: mean {rig.check.slip.mean!r} rad'
+        rig.measure(q0, stamp)
+        rig.read(stay, stamp)
+    assert rig.status()[0] is not Level.ERROR
+    rig.command(0.0)
+    assert rig.actuation.fates.current is not None and rig.actuation.fates.current.theta == 0.0
+    assert rig.actuation.fates.current.fate is Fate.SENT
+    rig.trajectories.wait_count(3)
