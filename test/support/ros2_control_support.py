@@ -6,6 +6,7 @@ checkout). ``with_ros2_control`` puts the latter on a child process's paths, as 
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import sys
 from pathlib import Path
@@ -44,6 +45,9 @@ def ros2_control_missing(env: dict[str, str]) -> str | None:
                if not any((root / 'share' / 'ament_index' / 'resource_index' / 'packages' / name).exists()
                           for root in roots)]
     if not missing:
+        if importlib.util.find_spec('ros2param') is None:  # the spawner imports it (controller_manager's services)
+            return ('the ros2 command line (ros2param) is not installed in this environment: the controller '
+                    "manager's spawner imports it (scripts/install_ros_cli.sh installs it)")
         return None
     return (f'ros2_control is not installed here ({", ".join(missing)} missing): source a ROS 2 Jazzy install '
             f'with ros2_control and ros2_controllers, or set {PREFIX_ENV} to an install space of them')
