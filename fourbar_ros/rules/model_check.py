@@ -231,11 +231,13 @@ class SlipStop:
         self.stops = 0
         self.late = 0
         self.mean: float | None = None  # the window's mean mismatch at the latest reading, rad (None: no window)
+        self.last_ns: int | None = None  # the stamp of the latest reading taken (ns)
 
     def update(self, cfg: AntennaConfig, reading: SlipReading) -> SlipEvent | None:
         """Take one compared reading under the running configuration ``cfg`` (its slip_stop_mismatch and
         slip_stop_time); the event it causes, if any."""
         readings = self._readings
+        self.last_ns = reading.stamp_ns
         if readings and reading.stamp_ns <= readings[-1].stamp_ns:
             self.late += 1
             return None
