@@ -3,9 +3,10 @@ driven joint is an open-loop stepper's count, going on along the sent motion, wh
 (the stepper slipped). The mean mismatch passes slip_stop_mismatch, and at the reading stamped slip_stop_time after
 the first one beyond it at the latest the node sends a hold at the measured position, gives the command the fate
 interrupted with the likely cause, reports ERROR and drops a new command; once the sensor agrees with the model for
-slip_stop_time again a new command goes out.
+slip_stop_time again a new command goes out. In forward mode the setpoints stop. On the MuJoCo plant, its stepper
+slipping in a gust beyond pull-out, with its count as the measured joint and its accelerometer as the Imu, stops too.
 
-The node runs in-process, in its own namespace; no controller manager (commands go out as they come)."""
+The nodes run in-process, each in its own namespace; no controller manager (commands go out as they come)."""
 
 from __future__ import annotations
 
@@ -63,10 +64,10 @@ def _imu(theta: float, stamp_ns: int) -> Imu:
 class Rig:
     """The node, a publisher of the count, one of the Imu, one of commands, and a collector of trajectories."""
 
-    def __init__(self, ros: RosSession, **overrides: Any) -> None:
+    def __init__(self, ros: RosSession, mode: str = 'trajectory', **overrides: Any) -> None:
         self.ros = ros
         self.ns = f'/slip_stop_test_{next(_ns)}'
-        params = [Parameter('mode', value='trajectory'), Parameter('joint_state_rate', value=0.0),
+        params = [Parameter('mode', value=mode), Parameter('joint_state_rate', value=0.0),
                   Parameter('antenna_sensor_type', value='imu'), Parameter('measurement_timeout', value=60.0),
                   *(Parameter(k, value=v) for k, v in overrides.items())]
         self.node = FourBarNode(context=ros.context, namespace=self.ns, parameter_overrides=params,
@@ -79,7 +80,8 @@ class Rig:
                                         f'{self.ns}/{trajectory_topic(CFG.trajectory_controller).name}')
         for pub in (self.measured, self.sensor, self.commands):
             ros.wait_subscribers(pub)
-        ros.wait_publishers(self.trajectories)
+        if mode == 'trajectory':
+            ros.wait_publishers(self.trajectories)
         assert self.node.completion is not None and self.node.model_check is not None
         assert self.node.actuation is not None
         self.actuation = self.node.actuation
@@ -90,20 +92,17 @@ class Rig:
         ns: int = self.node.get_clock().now().nanoseconds
         return ns
 
-    def measure(self, q: float, stamp_ns: int) -> None:
-        """Publish one count and wait until the node completed it."""
-        before = self.completed.measurements_completed
-        msg = JointState(name=[DRIVEN], position=[q])
-        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp_ns, NS)
-        self.measured.publish(msg)
-        self.ros.wait_for(lambda: self.completed.measurements_completed > before, what='the count completed')
-
-    def read(self, theta: float, stamp_ns: int, msg: Imu | None = None) -> None:
-        """Publish one Imu reading (of ``theta``, or ``msg``) and wait until the node compared it."""
-        before = self.check.check.counters.sensor_readings_compared
+    def pair(self, q: float, theta: float, stamp_ns: int, msg: Imu | None = None) -> None:
+        """Publish a count ``q`` (rad) and then an Imu reading (of ``theta`` rad, or ``msg``), both stamped
+        ``stamp_ns``; wait until the model check noted the count and the slip stop took the reading (each the last
+        step of its callback but for what the stop does, so no pause of the executor is needed)."""
+        check = self.check
+        measured = JointState(name=[DRIVEN], position=[q])
+        measured.header.stamp.sec, measured.header.stamp.nanosec = divmod(stamp_ns, NS)
+        self.measured.publish(measured)
+        wait_for(lambda: bool(check.check._stamps) and check.check._stamps[-1] == stamp_ns, what='the count noted')
         self.sensor.publish(_imu(theta, stamp_ns) if msg is None else msg)
-        self.ros.wait_for(lambda: self.check.check.counters.sensor_readings_compared > before,
-                          what='the reading compared')
+        wait_for(lambda: check.slip.last_ns == stamp_ns, what='the reading taken by the slip stop')
 
     def command(self, theta: float) -> None:
         """Publish a command and wait until the node gave it a fate."""
@@ -126,8 +125,8 @@ class Rig:
 def rigs(ros: RosSession) -> Iterator[Any]:
     made: list[Rig] = []
 
-    def make(**overrides: Any) -> Rig:
-        made.append(Rig(ros, **overrides))
+    def make(mode: str = 'trajectory', **overrides: Any) -> Rig:
+        made.append(Rig(ros, mode, **overrides))
         return made[-1]
 
     yield make
@@ -146,8 +145,7 @@ def test_a_count_going_on_while_the_antenna_stays_stops_the_motion(rigs: Any) ->
     q0, stay = _q(START), core_theta(_q(START))
     for _ in range(3):  # at rest, the antenna where the count says
         stamp = rig.now_ns()
-        rig.measure(q0, stamp)
-        rig.read(stay, stamp)
+        rig.pair(q0, stay, stamp)
     rig.command(TARGET)
     first = rig.trajectories.wait_count(1)[0]
     assert rig.actuation.fates.current is not None and rig.actuation.fates.current.fate is Fate.SENT
@@ -160,8 +158,7 @@ def test_a_count_going_on_while_the_antenna_stays_stops_the_motion(rigs: Any) ->
         stamp = rig.now_ns()
         assert stamp < end, f'no stop before the motion\'s end; the last readings (stamp, count, mismatch): {seen[-5:]}'
         q = motion.state_at(stamp).position
-        rig.measure(q, stamp)
-        rig.read(stay, stamp)
+        rig.pair(q, stay, stamp)
         seen.append((stamp, q, stay - core_theta(q)))
     stop_stamp, q_stop, _ = seen[-1]
     t1 = next(s for s, _, m in seen if abs(m) > limit)  # the first reading beyond the threshold
@@ -198,8 +195,7 @@ def test_a_count_going_on_while_the_antenna_stays_stops_the_motion(rigs: Any) ->
     while rig.check.slip.stopped:
         stamp = rig.now_ns()
         assert stamp < start + 10 * seconds_to_ns(window), f'not cleared: mean {rig.check.slip.mean!r} rad'
-        rig.measure(q0, stamp)
-        rig.read(stay, stamp)
+        rig.pair(q0, stay, stamp)
     assert rig.status()[0] is not Level.ERROR
     rig.command(0.0)
     assert rig.actuation.fates.current is not None and rig.actuation.fates.current.theta == 0.0
@@ -236,12 +232,7 @@ def test_the_plant_stepper_slipping_in_a_gust_stops_the_motion(rigs: Any) -> Non
         ax, ay, az = plant.antenna_acceleration()
         msg = Imu(linear_acceleration=Vector3(x=ax, y=ay, z=az))
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(stamp, NS)
-        measured = JointState(name=[DRIVEN], position=[count])
-        measured.header.stamp = msg.header.stamp
-        rig.measured.publish(measured)
-        wait_for(lambda: bool(check.check._stamps) and check.check._stamps[-1] == stamp, what='the count noted')
-        rig.sensor.publish(msg)
-        wait_for(lambda: check.slip.last_ns == stamp, what='the Imu taken by the slip stop')
+        rig.pair(count, 0.0, stamp, msg)
         return stamp, count
 
     for _ in range(3):
@@ -275,3 +266,35 @@ def test_the_plant_stepper_slipping_in_a_gust_stops_the_motion(rigs: Any) -> Non
     assert level is Level.ERROR and message.startswith('motion stopped: '), (message, lie)
     hold = rig.trajectories.wait_count(2)[1]
     assert hold.points[-1].positions[0] == pytest.approx(count, abs=1e-9), (hold.points[-1].positions, lie)
+
+
+def test_in_forward_mode_the_setpoints_stop_and_the_controller_holds_the_last(rigs: Any) -> None:
+    """Forward mode: the count follows the streamed setpoints, the antenna stays; at the stop the stream ends (the
+    forward controller holds its last setpoint) and no setpoint goes out after it, over the next three control
+    periods of the node's clock."""
+    rig = rigs('forward')
+    limit = rig.node.config.slip_stop_mismatch
+    q0, stay = _q(START), core_theta(_q(START))
+    for _ in range(3):
+        stamp = rig.now_ns()
+        rig.pair(q0, stay, stamp)
+    rig.command(TARGET)
+    motion = rig.actuation.motion
+    assert motion is not None
+    seen: list[tuple[int, float]] = []
+    while not rig.check.slip.stopped:
+        stamp = rig.now_ns()
+        assert stamp < motion.start_ns + seconds_to_ns(motion.duration), f'no stop; the last (stamp, count) {seen[-3:]}'
+        q = motion.state_at(stamp).position
+        rig.pair(q, stay, stamp)
+        seen.append((stamp, q))
+    assert abs(stay - core_theta(seen[-1][1])) > limit / 2, seen[-3:]  # the window's mean passed the limit
+    with rig.ros.paused():
+        published, stopped_ns = rig.actuation.counters.setpoints_published, rig.now_ns()
+        assert rig.actuation.motion is None, 'the stream still followed'
+    period = seconds_to_ns(1.0 / rig.node.config.control_rate)
+    rig.ros.wait_for(lambda: rig.now_ns() > stopped_ns + 3 * period, what='three control periods')
+    assert rig.actuation.counters.setpoints_published == published, (published, rig.actuation.counters)
+    cmd = rig.actuation.fates.current
+    assert cmd is not None and cmd.fate is Fate.INTERRUPTED and 'the drive may have slipped' in cmd.reason, cmd
+    assert rig.status()[0] is Level.ERROR
