@@ -40,7 +40,7 @@ setup(
         'console_scripts': [
             'fourbar = fourbar_ros.commands:main',
             'fourbar_node = fourbar_ros.node:main',
-            'fourbar_sim_actuator = fourbar_ros.node:sim_actuator_main',
+            'fourbar_sim_actuator = fourbar_ros.plant.sim_drive:sim_actuator_main',
             'fourbar_drive_bridge = fourbar_ros.drive.run:main',
             'fourbar_mujoco_drive = fourbar_ros.plant.run:main',
         ],

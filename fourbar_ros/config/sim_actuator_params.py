@@ -34,13 +34,21 @@ SIM_PARAMETERS: tuple[ParamSpec, ...] = (
               'joint (gamma_joint or delta_joint, as driven_rocker says), the URDF\'s ros2_control joint.'),
     ParamSpec('publish_rate', float, 100.0, 'Hz',
               'Rate of the measured joint_states (and of the simulation step).', 0.1, 10000.0),
+    ParamSpec('drive', str, 'mujoco', '',
+              'What follows the controller\'s position command: mujoco, the MuJoCo plant (its servo, the linkage\'s '
+              'inertia, the configured load as a wind and gravity; the measured effort is its reducer torque), or lag, '
+              'a first-order lag under the limits below whose effort is the load model\'s. Without the mujoco package '
+              '(or started other than by the fourbar_sim_actuator script) mujoco falls back to lag, logged once.',
+              choices=('mujoco', 'lag')),
     ParamSpec('time_constant', float, 0.05, 's',
-              'First-order lag of the drive behind its position reference.', 1e-4, 100.0),
+              'First-order lag of the drive behind its position reference (the lag drive).', 1e-4, 100.0),
     ParamSpec('max_velocity', float, _MOTOR_SPEED / _RATIO, 'rad/s',
-              'Speed limit of the joint (default: motor_speed_limit\'s default through the default reducer_ratio).',
+              'Speed limit of the joint, the lag drive\'s (default: motor_speed_limit\'s default through the default '
+              'reducer_ratio).',
               1e-9, 1.0e6),
     ParamSpec('max_acceleration', float, _MOTOR_ACCELERATION / _RATIO, 'rad/s^2',
-              'Acceleration limit of the joint (default: motor_acceleration_limit\'s default through reducer_ratio).',
+              'Acceleration limit of the joint, the lag drive\'s (default: motor_acceleration_limit\'s default '
+              'through reducer_ratio).',
               1e-9, 1.0e9),
     ParamSpec('initial_theta', float, 0.0, 'rad',
               'Antenna angle the drive starts at (clamped into [theta_min, theta_max]).', -math.pi, math.pi),
@@ -72,6 +80,7 @@ class SimSettings:
 
     joint: str
     publish_rate: float
+    drive: str
     time_constant: float
     max_velocity: float
     max_acceleration: float

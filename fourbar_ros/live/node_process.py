@@ -23,7 +23,8 @@ from fourbar_ros.runtime.stop import STOP
 #: The console scripts ``fourbar_node`` and ``fourbar_sim_actuator`` (setup.py) as ``python -c`` programs, for an
 #: uninstalled tree.
 NODE_MAIN = 'import sys; from fourbar_ros.node import main; sys.exit(main())'
-SIM_ACTUATOR_MAIN = 'import sys; from fourbar_ros.node import sim_actuator_main; sys.exit(sim_actuator_main())'
+SIM_ACTUATOR_MAIN = ('import sys; from fourbar_ros.plant.sim_drive import sim_actuator_main; '
+                     'sys.exit(sim_actuator_main())')
 #: Domain ids a fourbar run may take: safe on Linux (discovery ports outside the ephemeral range) and
 #: clear of the ranges developers use by hand (10-89).
 FREE_DOMAIN_IDS: tuple[int, ...] = (*range(90, 102), *range(215, 233))

@@ -8,7 +8,7 @@ from __future__ import annotations
 import argparse
 import itertools
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, NoReturn
 
 from fourbar_ros.core.errors import one_line
@@ -19,6 +19,8 @@ from fourbar_ros.runtime.stop import STOP
 if TYPE_CHECKING:
     from rclpy.executors import Executor
     from rclpy.node import Node
+
+    from fourbar_ros.node.sim_actuator import DriveFactory
 
 
 def params_files(argv: list[str]) -> list[str]:
@@ -165,9 +167,10 @@ def main(args: list[str] | None = None) -> int:
                       argv, kind, (ConfigError, InvalidParameterTypeException, InvalidParameterValueException))
 
 
-def sim_actuator_main(args: list[str] | None = None) -> int:
+def sim_actuator_main(args: list[str] | None = None, drives: Mapping[str, DriveFactory] | None = None) -> int:
     """Console script ``fourbar_sim_actuator``: exit 0 on Ctrl-C/SIGTERM (also while starting), 2 with one line on
-    bad parameters."""
+    bad parameters. ``drives``: the drives offered besides the lag (``SimActuator``; the installed script offers the
+    MuJoCo plant, ``plant.sim_drive``)."""
     STOP.install(raises=_quiet_exit)
     from fourbar_ros.config.antenna_config import ConfigError
     from fourbar_ros.node.sim_actuator import SimActuator
@@ -178,7 +181,7 @@ def sim_actuator_main(args: list[str] | None = None) -> int:
     if kind is None:
         STOP.raises = None
         return 2
-    return serve_node(SIM_EXECUTABLE, SimActuator, argv, kind, (ConfigError,))
+    return serve_node(SIM_EXECUTABLE, lambda: SimActuator(drives=drives), argv, kind, (ConfigError,))
 
 
 if __name__ == '__main__':

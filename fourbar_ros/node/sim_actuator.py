@@ -6,9 +6,9 @@ docs/how-to/ros2-control.md#without-hardware-the-simulated-actuator."""
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
@@ -17,7 +17,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory
 
-from fourbar_ros.config.antenna_config import ConfigError, config_from_values, declared_values
+from fourbar_ros.config.antenna_config import AntennaConfig, ConfigError, config_from_values, declared_values
 from fourbar_ros.config.controllers import forward_controller, trajectory_controller
 from fourbar_ros.config.robot_model import driven_angle, joint_limits
 from fourbar_ros.config.sim_actuator_params import NODE_NAME, SIM_PARAMETERS, sim_settings
@@ -46,6 +46,54 @@ WARN_THROTTLE_S = 1.0
 MAX_CATCH_UP = 1000
 
 
+class SimDrive(Protocol):
+    """What follows the controller's position command (rad at the driven joint): its true state and effort."""
+
+    @property
+    def position(self) -> float:
+        """The driven joint's angle (rad)."""
+
+    @property
+    def velocity(self) -> float:
+        """The driven joint's speed (rad/s)."""
+
+    def advance(self, dt: float, reference: float) -> None:
+        """Move ``dt`` s (in the drive's whole steps) under the position command ``reference`` (rad), held."""
+
+    def effort(self) -> float:
+        """The torque (N m, + increasing joint angle) the drive applies to the driven joint now."""
+
+
+#: A drive option: (configuration, starting joint angle rad, joint range lower and upper rad) -> the drive.
+DriveFactory = Callable[[AntennaConfig, float, float, float], SimDrive]
+
+
+class LagDrive:
+    """The ``lag`` drive: ``LagActuator`` with the load model's torque at its position as the effort."""
+
+    def __init__(self, cfg: AntennaConfig, actuator: LagActuator) -> None:
+        self.cfg = cfg
+        self.actuator = actuator
+
+    @property
+    def position(self) -> float:
+        """The driven joint's angle (rad)."""
+        return self.actuator.position
+
+    @property
+    def velocity(self) -> float:
+        """The driven joint's speed (rad/s)."""
+        return self.actuator.velocity
+
+    def advance(self, dt: float, reference: float) -> None:
+        """``LagActuator.advance``."""
+        self.actuator.advance(dt, reference)
+
+    def effort(self) -> float:
+        """``effort_at`` the present position (N m; raises the core's FourBarError off the rocker's reach)."""
+        return effort_at(self.cfg, self.actuator.position)
+
+
 @dataclass
 class SimCounters:
     """What the node did besides following trajectories (``TrajectoryFollower.counters``), for tests."""
@@ -62,12 +110,17 @@ class SimCounters:
 
 
 class SimActuator(Node):
-    """The simulated drive. Raises ConfigError from the constructor if its parameters are invalid."""
+    """The simulated drive. Raises ConfigError from the constructor if its parameters are invalid.
 
-    def __init__(self, node_name: str = NODE_NAME, **kwargs: Any) -> None:
+    ``drives``: the drive options offered besides ``lag`` (name -> factory; the console script offers ``mujoco``,
+    ``plant.sim_drive``). A ``drive`` parameter naming one not offered falls back to ``lag``, logged once."""
+
+    def __init__(self, node_name: str = NODE_NAME, drives: Mapping[str, DriveFactory] | None = None,
+                 **kwargs: Any) -> None:
         super().__init__(node_name, **kwargs)
         get_logger: Callable[[], RcutilsLogger] = self.get_logger
         self._warn: Callable[..., object] = get_logger().warning
+        info: Callable[..., object] = get_logger().info
         #: warnings throttled per problem kind (each refusal rule its own), not per call site
         self._problems = ProblemLog(lambda _level, line: self._warn(line), WARN_THROTTLE_S)
         startup = {name: p.value for name, p in self._parameter_overrides.items()}  # see FourBarNode._startup_values
@@ -88,8 +141,16 @@ class SimActuator(Node):
         self.declare_parameters('', list(own))
         cfg, s = self.config, self.settings
         lim = joint_limits(cfg)[cfg.driven_joint]
-        self.drive = LagActuator(DriveLimits(lim.lower, lim.upper, s.max_velocity, s.max_acceleration,
-                                             s.time_constant), driven_angle(cfg, s.initial_theta))
+        start = driven_angle(cfg, s.initial_theta)
+        factory = (drives or {}).get(s.drive)
+        self.drive_kind = s.drive if factory is not None else 'lag'
+        if s.drive != self.drive_kind:
+            info(f'drive {s.drive!r} is not available here (the mujoco package, through the '
+                              f'fourbar_sim_actuator script): the lag drive follows the commands')
+        self.drive: SimDrive = (
+            factory(cfg, start, lim.lower, lim.upper) if factory is not None else
+            LagDrive(cfg, LagActuator(DriveLimits(lim.lower, lim.upper, s.max_velocity, s.max_acceleration,
+                                                  s.time_constant), start)))
         self.encoder = Encoder(s.encoder_counts_per_rev, cfg.reducer_ratio, s.position_offset, s.position_noise,
                                s.velocity_noise, s.effort_noise, s.noise_seed)
         self.counters = SimCounters()
@@ -215,7 +276,7 @@ class SimActuator(Node):
         drive = self.drive
         drive.advance(dt, self._reference)  # the position command of the last update, held over the interval
         try:
-            effort = effort_at(self.config, drive.position)
+            effort = drive.effort()
         except FourBarError as exc:  # the drive stays in the tilt range's rocker range: a core bug if here
             effort = math.nan
             self._problems.warn('no effort', f'no effort at {drive.position!r} rad: {exc}')
