@@ -221,8 +221,10 @@ class SlipStop:
     before (the sensor read across the whole time), their mean mismatch beyond ``slip_stop_mismatch`` (strictly) is
     a STOP; once stopped, a mean within it over such a window is CLEARED. So when every reading from t1 on is beyond
     the threshold on one side, the stop comes at the first reading stamped at or after t1 + slip_stop_time; while
-    every reading is within it, never. A reading stamped at or before the latest taken is late and left out
-    (``late``); ``slip_stop_mismatch`` 0 turns the stop off and clears one in force."""
+    every reading is within it, never. A reading stamped at or before the latest taken, by at most slip_stop_time,
+    is late and left out (``late``); one stamped further back is a clock that went back (a replayed or restarted
+    clock): the window starts afresh from it (``restarts``), a stop in force stays. ``slip_stop_mismatch`` 0 turns
+    the stop off and clears one in force."""
 
     def __init__(self) -> None:
         self._readings: deque[SlipReading] = deque()
@@ -230,19 +232,24 @@ class SlipStop:
         self.stopped = ''  # why the motion stopped ('' while not stopped)
         self.stops = 0
         self.late = 0
+        self.restarts = 0  # readings stamped more than slip_stop_time before the latest: the window started afresh
         self.mean: float | None = None  # the window's mean mismatch at the latest reading, rad (None: no window)
         self.last_ns: int | None = None  # the stamp of the latest reading taken (ns)
 
     def update(self, cfg: AntennaConfig, reading: SlipReading) -> SlipEvent | None:
         """Take one compared reading under the running configuration ``cfg`` (its slip_stop_mismatch and
         slip_stop_time); the event it causes, if any."""
-        readings = self._readings
+        readings, window_ns = self._readings, seconds_to_ns(cfg.slip_stop_time)
         self.last_ns = reading.stamp_ns
-        if readings and reading.stamp_ns <= readings[-1].stamp_ns:
+        if readings and reading.stamp_ns < readings[-1].stamp_ns - window_ns:  # the clock went back: start afresh
+            readings.clear()
+            self._before = None
+            self.restarts += 1
+        elif readings and reading.stamp_ns <= readings[-1].stamp_ns:
             self.late += 1
             return None
         readings.append(reading)
-        start = reading.stamp_ns - seconds_to_ns(cfg.slip_stop_time)
+        start = reading.stamp_ns - window_ns
         while readings[0].stamp_ns < start:
             self._before = readings.popleft()
         covered = self._before is not None and len(readings) >= 2
@@ -275,4 +282,5 @@ class SlipStop:
         return [('slip_stop', f'stopped: {self.stopped}' if self.stopped else 'no'),
                 ('slip_stops', str(self.stops)),
                 ('slip_stop_mean_rad', repr(self.mean) if self.mean is not None else 'none'),
-                ('slip_stop_readings_late', str(self.late))]
+                ('slip_stop_readings_late', str(self.late)),
+                ('slip_stop_restarts', str(self.restarts))]

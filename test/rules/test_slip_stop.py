@@ -136,9 +136,9 @@ def test_late_readings_are_left_out() -> None:
     stop = SlipStop()
     agreeing = [(k * 10_000_000, 0.0) for k in range(30)]
     assert _feed(stop, cfg, agreeing) == []
-    # readings stamped at or before the latest: far off, yet left out
-    assert _feed(stop, cfg, [(290_000_000, 1.0), (100_000_000, 1.0)] * 20) == [] and stop.late == 40
-    assert stop.mean == 0.0
+    # readings stamped at or before the latest, by at most slip_stop_time: far off, yet left out
+    assert _feed(stop, cfg, [(290_000_000, 1.0), (190_000_000, 1.0)] * 20) == [] and stop.late == 40
+    assert stop.mean == 0.0 and stop.restarts == 0
     slipped = [(300_000_000 + k * 10_000_000, 0.05) for k in range(20)]
     assert _feed(stop, cfg, slipped)[0][1] is SlipEvent.STOP and stop.stopped
     # a late agreeing reading does not clear it either
@@ -214,3 +214,49 @@ def test_always_stops_by_the_first_reading_slip_stop_time_after_the_first_beyond
     assert events and events[0][1] is SlipEvent.STOP, events
     assert t1 <= events[0][0] <= due, (events[0][0], t1, due)
     assert len(events) == 1, events
+
+
+def test_a_clock_that_went_back_starts_the_window_afresh() -> None:
+    """A reading stamped more than slip_stop_time before the latest (a replayed clock, a restarted drive's stamps):
+    not late but a new time base; the window starts from it, so a stop needs slip_stop_time of readings again, and
+    a stop in force stays until such a window agrees."""
+    cfg = _cfg(slip_stop_time=0.1)
+    stop = SlipStop()
+    assert _feed(stop, cfg, [(100 * NS + k * 10_000_000, 0.05) for k in range(20)])[0][1] is SlipEvent.STOP
+    back = [(k * 10_000_000, 0.0) for k in range(20)]
+    events = _feed(stop, cfg, back)
+    assert stop.restarts == 1 and stop.late == 0, (stop.restarts, stop.late)
+    assert events == [(110_000_000, SlipEvent.CLEARED)], events  # the first window of the new time base
+    fresh = SlipStop()
+    assert _feed(fresh, cfg, [(100 * NS + k * 10_000_000, 0.0) for k in range(20)]) == []
+    assert _feed(fresh, cfg, [(k * 10_000_000, 0.05) for k in range(20)]) == [(110_000_000, SlipEvent.STOP)]
+
+
+def test_the_antenna_staying_while_the_count_goes_on_stops_within_the_time_after_the_threshold() -> None:
+    """The stepper stalls at theta = 0.009 rad (gamma 0.8745 rad) while its count goes on at 0.1 rad/s of the rocker
+    (the antenna stays): the mismatch grows by 0.078 rad/s and passes 0.02 rad 0.26 s in; a 100 Hz sensor with 1 mrad
+    of noise, seed fixed: the stop comes within slip_stop_time and a period after the first reading beyond it, well
+    under a second after the stall in all."""
+    cfg = _cfg()
+    rng = np.random.default_rng(11)
+    check, stop = ModelCheck(cfg), SlipStop()
+    q_stall, speed, stall_s = 0.8745, 0.1, 1.0
+    stay = _theta(cfg, q_stall)
+    first_beyond: int | None = None
+    for k in range(300):
+        t = k / 100
+        stamp = k * NS // 100
+        q = q_stall + speed * max(t - stall_s, 0.0)  # at rest until the stall, then the count alone goes on
+        check.note_measured(stamp, q)
+        sensor = (_theta(cfg, q) if t <= stall_s else stay) + float(rng.normal(0.0, 1e-3))
+        m = check.compare(cfg, stamp, sensor, t)
+        assert isinstance(m, float)
+        if first_beyond is None and abs(stay - _theta(cfg, q)) > cfg.slip_stop_mismatch:
+            first_beyond = stamp
+        if stop.update(cfg, SlipReading(stamp, m, sensor)) is SlipEvent.STOP:
+            break
+    assert first_beyond is not None and stop.stopped, (first_beyond, stop.mean)
+    delay, after = stamp / NS - stall_s, (stamp - first_beyond) / NS
+    print(f'\nstall at 0.1 rad/s of the count: stop {delay:.3f} s after the stall, {after:.3f} s after the model '
+          f'passed the threshold')
+    assert 0.0 <= after <= cfg.slip_stop_time + 0.01 and delay < 1.0, (delay, after)
