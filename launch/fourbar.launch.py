@@ -4,7 +4,8 @@ file), RViz, the simulated actuator (for users without the drive's hardware) or 
     ros2 launch fourbar_ros fourbar.launch.py [params_file:=FILE] [namespace:=NS] [use_sim_time:=true]
         [robot_state_publisher:=true|false] [rviz:=true|false] [mode:=open_loop|trajectory|forward]
         [sim_actuator:=true|false]
-        [use_ros2_control:=true|false] [hardware_plugin:=PLUGIN] [controllers_file:=FILE] [effort_feedforward:=true]
+        [use_ros2_control:=true|false] [hardware:=mock|bridge|mujoco] [drive_backend:=simulated|MODULE:CLASS]
+        [hardware_plugin:=PLUGIN] [controllers_file:=FILE] [effort_feedforward:=true]
         [trajectory_interface:=topic|action] [enclaves:=true|false]
 
 mode (fourbar_node's parameter, default: the parameter file's, else open_loop): trajectory or forward send the
@@ -15,7 +16,12 @@ sim_actuator:=true: the simulated actuator stands in for the controllers and the
 sends what that controller accepts; respawned 2 s after it dies), the description from robot_state_publisher's
 topic, spawners for joint_state_broadcaster and the mode's controller (at every start of the manager), and
 hardware_plugin in the URDF's <ros2_control> tag (default
-mock_components/GenericSystem, a mock that echoes commands: announced at startup). effort_feedforward:=true adds the
+mock_components/GenericSystem, a mock that echoes commands: announced at startup). hardware:=bridge (or mujoco): the
+plugin is JointStateTopicSystem on the namespace's drive_joint_commands / drive_joint_states, the other end
+fourbar_drive_bridge with drive_backend (or fourbar_mujoco_drive, the MuJoCo plant); the manager starts the component
+inactive (hardware_components_initial_state) and the bridge activates it after a reading of the drive inside the
+driven range; the spawners start on the bridge's activation line, at each activation (a respawned manager's
+included), not at the manager's start (docs/how-to/drive-bridge.md). effort_feedforward:=true adds the
 effort command interface to the URDF and sets the node's parameter; the controllers file must then give
 joint_trajectory_controller command_interfaces [position, effort]. trajectory_interface (the node's parameter,
 default: the parameter file's): action sends trajectories as FollowJointTrajectory goals. enclaves:=true starts
@@ -38,7 +44,7 @@ from launch import LaunchContext, LaunchDescription
 from dataclasses import replace
 
 from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction, RegisterEventHandler
-from launch.event_handlers import OnProcessStart
+from launch.event_handlers import OnProcessIO, OnProcessStart
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
@@ -55,6 +61,15 @@ from fourbar_ros.interface.topics import (
 )
 from fourbar_ros.config.robot_model import DEFAULT_HARDWARE_PLUGIN as MOCK_PLUGIN  # ros2_control's mock
 from fourbar_ros.config.sim_actuator_params import NODE_NAME as SIM_NODE_NAME
+from fourbar_ros.drive.rules import ACTIVATED_MARK
+
+#: The ``hardware`` argument's values: ros2_control's mock (or hardware_plugin), the drive bridge, the MuJoCo plant.
+HARDWARE = ('mock', 'bridge', 'mujoco')
+#: The topic-based plugin of hardware:=bridge|mujoco, its topics (relative: in the launch's namespace).
+TOPIC_PLUGIN = 'joint_state_topic_hardware_interface/JointStateTopicSystem'
+DRIVE_COMMANDS, DRIVE_STATES = 'drive_joint_commands', 'drive_joint_states'
+#: The executables at the plugin's other end: the bridge (a drive backend), the bridge on the MuJoCo plant.
+BRIDGE_EXECUTABLE = {'bridge': 'fourbar_drive_bridge', 'mujoco': 'fourbar_mujoco_drive'}
 
 #: This file lives in share/fourbar_ros/launch (installed) or launch/ (source tree); config/ and rviz/ are beside.
 SHARE = Path(__file__).resolve().parent.parent
@@ -118,10 +133,29 @@ def _setup(context: LaunchContext) -> list[object]:
     want_control = _true(arg('use_ros2_control'))
     effort = _true(arg('effort_feedforward'))
     plugin = arg('hardware_plugin')
+    hardware = arg('hardware')
     controllers = arg('controllers_file')
     enclaves = _true(arg('enclaves'))
     ros_namespace = '' if namespace == '/' else namespace
+    if hardware not in HARDWARE:
+        raise RuntimeError(f'fourbar.launch.py: hardware:={hardware}: expected one of {", ".join(HARDWARE)}')
+    if hardware != 'mock':
+        if not want_control:
+            raise RuntimeError(f'fourbar.launch.py: hardware:={hardware} needs use_ros2_control:=true')
+        if plugin != MOCK_PLUGIN:
+            raise RuntimeError(f'fourbar.launch.py: hardware:={hardware} brings its own plugin ({TOPIC_PLUGIN}); '
+                               'hardware_plugin:= is for hardware:=mock (a plugin of your own)')
+        if enclaves:
+            raise RuntimeError(f'fourbar.launch.py: hardware:={hardware} has no enclave in the package\'s policy; '
+                               'start it with enclaves:=false')
+        plugin = TOPIC_PLUGIN
     cfg, urdf = robot_description_for(params_file, NODE_NAME, namespace, hardware_plugin=plugin)
+    if hardware != 'mock':  # the plugin's topics, relative: its node lives in the manager's namespace
+        kept = tuple(e for e in cfg.hardware_parameters
+                     if e.partition('=')[0] not in ('joint_commands_topic', 'joint_states_topic'))
+        cfg = replace(cfg, hardware_parameters=(*kept, f'joint_commands_topic={DRIVE_COMMANDS}',
+                                                 f'joint_states_topic={DRIVE_STATES}'))
+        urdf = robot_description(cfg, hardware_plugin=plugin)
     mode = arg('mode') or cfg.mode
     if want_control and want_sim:
         raise RuntimeError('fourbar.launch.py: sim_actuator:=true and use_ros2_control:=true both drive the joint; '
@@ -162,7 +196,9 @@ def _setup(context: LaunchContext) -> list[object]:
             actions.append(LogInfo(msg='fourbar.launch.py: robot_state_publisher is not installed; not starting it '
                                        '(no robot model in TF; install ros-jazzy-robot-state-publisher)'))
     if want_control:
-        actions += _ros2_control(cfg, mode, ros_namespace, controllers, plugin, use_sim_time, enclaves)
+        bridge = None if hardware == 'mock' else _bridge(hardware, arg('drive_backend'), params_file, cfg.hardware_id,
+                                                          ros_namespace, use_sim_time)
+        actions += _ros2_control(cfg, mode, ros_namespace, controllers, plugin, use_sim_time, enclaves, bridge)
     if want_rviz:
         if _installed_executable('rviz2', 'rviz2'):
             config = _rviz_config(SHARE / 'rviz' / 'fourbar.rviz', cfg.frame_id, namespace)
@@ -184,10 +220,27 @@ def _in_enclave(enclaves: bool, name: str) -> dict[str, list[str]]:
     return {'ros_arguments': ['--enclave', name]} if enclaves else {}
 
 
+def _bridge(hardware: str, backend: str, params_file: str, component: str, ros_namespace: str,
+            use_sim_time: bool) -> Node:
+    """The plugin's other end for hardware:=bridge|mujoco: it activates ``component`` after a reading in range."""
+    executable = BRIDGE_EXECUTABLE[hardware]
+    if not _installed_executable('fourbar_ros', executable):
+        raise RuntimeError(f'fourbar.launch.py: hardware:={hardware} needs fourbar_ros\'s {executable}, which is not '
+                           'installed')
+    params: dict[str, object] = {'config_file': params_file, 'joint_commands_topic': DRIVE_COMMANDS,
+                                 'joint_states_topic': DRIVE_STATES, 'hardware_component': component,
+                                 'controller_manager': 'controller_manager', 'use_sim_time': use_sim_time}
+    if hardware == 'bridge':
+        params['backend'] = backend
+    return Node(package='fourbar_ros', executable=executable, namespace=ros_namespace, output='screen',
+                emulate_tty=False, parameters=[params])
+
+
 def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, plugin: str,
-                  use_sim_time: bool, enclaves: bool) -> list[object]:
+                  use_sim_time: bool, enclaves: bool, bridge: Node | None = None) -> list[object]:
     """ros2_control_node with ``controllers`` (the description from robot_state_publisher's topic) and the
-    spawners of joint_state_broadcaster and the mode's controller, as the ros2_control_demos jazzy bringups do."""
+    spawners of joint_state_broadcaster and the mode's controller, as the ros2_control_demos jazzy bringups do.
+    With ``bridge``: the component starts inactive, the spawners start on each of the bridge's activation lines."""
     from fourbar_ros.config.antenna_config import AntennaConfig
 
     assert isinstance(cfg, AntennaConfig)
@@ -203,8 +256,11 @@ def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, 
                                    'ros-jazzy-ros2-controllers)'))
         return actions
     controller = cfg.trajectory_controller if mode == Mode.TRAJECTORY.value else cfg.forward_controller
+    overrides: dict[str, object] = {'use_sim_time': use_sim_time}
+    if bridge is not None:
+        overrides['hardware_components_initial_state.inactive'] = [cfg.hardware_id]
     manager = Node(package='controller_manager', executable='ros2_control_node', namespace=ros_namespace,
-                   output='screen', parameters=[controllers, {'use_sim_time': use_sim_time}],
+                   output='screen', parameters=[controllers, overrides],
                    remappings=[('~/robot_description', 'robot_description')],
                    respawn=True, respawn_delay=CONTROLLER_MANAGER_RESPAWN_S,
                    **_in_enclave(enclaves, BRINGUP_ENCLAVES['controller_manager']))
@@ -215,9 +271,14 @@ def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, 
                      **_in_enclave(enclaves, BRINGUP_ENCLAVES['spawner']))
                 for name in ('joint_state_broadcaster', controller)]
 
-    # At every start of the manager, its respawns included, new spawners bring the controllers up again.
-    actions += [manager, RegisterEventHandler(OnProcessStart(target_action=manager, on_start=spawners))]
-    return actions
+    if bridge is None:  # at every start of the manager, its respawns included, new spawners bring them up again
+        return [*actions, manager, RegisterEventHandler(OnProcessStart(target_action=manager, on_start=spawners))]
+
+    def on_bridge_output(event: object) -> list[Node]:  # each activation, a respawned manager's included
+        text: bytes = getattr(event, 'text', b'')
+        return spawners() if ACTIVATED_MARK.encode() in text else []
+    watch = OnProcessIO(target_action=bridge, on_stdout=on_bridge_output, on_stderr=on_bridge_output)
+    return [*actions, RegisterEventHandler(watch), bridge, manager]
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -242,6 +303,13 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument('use_ros2_control', default_value='false',
                               description='start ros2_control_node, joint_state_broadcaster and the mode\'s '
                                           'controller for the drive (where ros2_control is installed)'),
+        DeclareLaunchArgument('hardware', default_value='mock', choices=list(HARDWARE),
+                              description='the drive under ros2_control: mock (hardware_plugin), bridge '
+                                          '(fourbar_drive_bridge with drive_backend, on the topic-based plugin) or '
+                                          'mujoco (the MuJoCo plant on it)'),
+        DeclareLaunchArgument('drive_backend', default_value='simulated',
+                              description='with hardware:=bridge: the bridge\'s backend (simulated, or '
+                                          'MODULE:CLASS, your DriveBackend)'),
         DeclareLaunchArgument('hardware_plugin', default_value=MOCK_PLUGIN,
                               description='the hardware plugin of the URDF\'s <ros2_control> block (the default is '
                                           'a mock that moves no motor)'),

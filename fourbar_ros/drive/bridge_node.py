@@ -1,7 +1,9 @@
 """fourbar_drive_bridge: a Python drive (``DriveBackend``) on the topics of the topic-based hardware plugin.
 
 Commands (sensor_msgs/JointState) in, through ``fourbar_ros.drive.rules``, to the backend; its readings out as
-joint states at ``state_rate`` Hz; diagnostics once a second. docs/how-to/drive-bridge.md.
+joint states at ``state_rate`` Hz; diagnostics once a second. With ``hardware_component`` set, the bridge asks the
+controller manager (``controller_manager``, its node name) to activate that component after a reading in range
+(``rules.Activation``). docs/how-to/drive-bridge.md.
 """
 
 from __future__ import annotations
@@ -17,15 +19,16 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
 from fourbar_ros.config.antenna_config import AntennaConfig, default_config, load_config
 from fourbar_ros.config.robot_model import driven_angle
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.drive.backend import DriveBackend, SimulatedBackend
-from fourbar_ros.drive.rules import WATCHDOG_TIMEOUT_S, DriveLimits, DriveRules
+from fourbar_ros.drive.rules import ACTIVE, WATCHDOG_TIMEOUT_S, Activation, DriveLimits, DriveRules
 from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.runtime.executor import MessageInfoCallback
 from fourbar_ros.runtime.problem_log import ProblemLog
 
 NODE_NAME = 'fourbar_drive_bridge'
@@ -34,11 +37,13 @@ SIMULATED = 'simulated'
 #: The plugin's own defaults (its hardware parameters ``joint_commands_topic`` and ``joint_states_topic``).
 COMMANDS_TOPIC, STATES_TOPIC = '/robot_joint_commands', '/robot_joint_states'
 DIAGNOSTICS_PERIOD_S = 1.0
+#: rmw's "no sequence number" (RMW_MESSAGE_INFO_SEQUENCE_NUMBER_UNSUPPORTED, the largest uint64).
+SEQUENCE_UNSUPPORTED = 2**64 - 1
 _RELIABLE: Callable[..., Any] = QoSProfile  # rclpy's constructor is unannotated
 
 
 class BackendError(ValueError):
-    """A ``backend`` parameter that names nothing usable (one line)."""
+    """A parameter of the bridge (its ``backend`` above all) that names nothing usable (one line)."""
 
 
 def load_backend(spec: str, cfg: AntennaConfig, simulated_position: float) -> DriveBackend:
@@ -67,7 +72,8 @@ class DriveBridge(Node):
         p = {name: self.declare_parameter(name, value).value for name, value in (
             ('config_file', ''), ('backend', SIMULATED), ('simulated_position', math.nan),
             ('joint_commands_topic', COMMANDS_TOPIC), ('joint_states_topic', STATES_TOPIC),
-            ('state_rate', 100.0), ('watchdog_timeout', WATCHDOG_TIMEOUT_S))}
+            ('state_rate', 100.0), ('watchdog_timeout', WATCHDOG_TIMEOUT_S), ('hardware_component', ''),
+            ('controller_manager', 'controller_manager'))}
         cfg = load_config(p['config_file']) if p['config_file'] else default_config()
         if not (p['state_rate'] > 0.0 and p['watchdog_timeout'] > 0.0):
             raise BackendError('state_rate and watchdog_timeout must be > 0')
@@ -87,11 +93,70 @@ class DriveBridge(Node):
                                  _RELIABLE(depth=10, reliability=ReliabilityPolicy.RELIABLE))
         self.create_timer(1.0 / p['state_rate'], guard.wrap('state', self._on_state), clock=steady)
         self.create_timer(DIAGNOSTICS_PERIOD_S, guard.wrap('diagnostics', self._on_diagnostics), clock=steady)
+        self.activation: Activation | None = None
+        if p['hardware_component']:
+            self._manage(str(p['hardware_component']), str(p['controller_manager']).rstrip('/'))
+
+    def _manage(self, component: str, manager: str) -> None:
+        """Activate ``component`` of the controller manager ``manager`` after a reading in range (rules.Activation):
+        its activity (reliable, transient local, as the manager publishes it) and its set_hardware_component_state.
+        controller_manager_msgs is imported here only: the bridge without a component needs no ros2_control."""
+        try:  # untyped messages: Any
+            activity: Any = importlib.import_module('controller_manager_msgs.msg').ControllerManagerActivity
+            service: Any = importlib.import_module('controller_manager_msgs.srv').SetHardwareComponentState
+            self._lifecycle_state: Any = importlib.import_module('lifecycle_msgs.msg').State
+        except ImportError as exc:
+            raise BackendError(f'hardware_component {component!r} needs controller_manager_msgs (ros2_control): '
+                               f'{one_line(exc)}') from None
+        self.activation = Activation(self.rules.limits, self.joint, component)
+        self._request_type = service
+        self._set_state = self.create_client(service, f'{manager}/set_hardware_component_state')
+        on_activity = self.problems.guard.wrap('activity', MessageInfoCallback(self._on_activity))
+        self.create_subscription(
+            activity, f'{manager}/activity', on_activity,
+            _RELIABLE(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+
+    def _on_activity(self, msg: Any, info: dict[str, Any]) -> None:
+        assert self.activation is not None
+        sequence = info.get('publication_sequence_number')
+        if sequence is not None and not 0 < sequence < SEQUENCE_UNSUPPORTED:
+            sequence = None
+        states = [c.state.label for c in msg.hardware_components if c.name == self.activation.component]
+        line = self.activation.on_activity(sequence, states[0] if states else None)
+        if line is not None:
+            self._info(line)
+
+    def _activate(self, position: float) -> None:
+        """Ask the manager for the component active; its answer is logged (rules.Activation.on_response)."""
+        assert self.activation is not None
+        request = self._request_type.Request()
+        request.name = self.activation.component
+        state = self._lifecycle_state
+        request.target_state = state(id=state.PRIMARY_STATE_ACTIVE, label=ACTIVE)
+        future = self._set_state.call_async(request)
+        result: Callable[[], Any] = future.result
+        failure: Callable[[], Any] = future.exception
+        when_done: Callable[[Callable[[object], None]], None] = future.add_done_callback
+
+        def done(_: object) -> None:
+            assert self.activation is not None
+            response = result() if failure() is None else None
+            ok, label = (bool(response.ok), str(response.state.label)) if response is not None else (False, '')
+            line = self.activation.on_response(ok, label)
+            if line is not None and ok:
+                self._info(line)
+            elif line is not None:
+                self.problems.error('activation', line)
+        when_done(self.problems.guard.wrap('activation', done))
 
     def _log(self, level: str, line: str) -> None:
         get_logger: Callable[[], Any] = self.get_logger  # rclpy's logger accessor is unannotated
         logger = get_logger()
         (logger.error if level == 'error' else logger.warning)(line)
+
+    def _info(self, line: str) -> None:
+        get_logger: Callable[[], Any] = self.get_logger  # rclpy's logger accessor is unannotated
+        get_logger().info(line)
 
     def _write(self, target: float | None, held_before: str) -> None:
         if self.rules.held and self.rules.held != held_before:
@@ -127,8 +192,20 @@ class DriveBridge(Node):
             msg.velocity = [report.velocity]
             msg.effort = [] if report.effort is None else [report.effort]
             self.states.publish(msg)
+            if self.activation is not None:
+                self._after_reading(report.position)
         held = self.rules.held
         self._write(self.rules.on_tick(now), held)
+
+    def _after_reading(self, position: float) -> None:
+        assert self.activation is not None
+        subscribed: Callable[[], int] = self.states.get_subscription_count
+        ready: Callable[[], bool] = self._set_state.service_is_ready
+        action = self.activation.on_reading(position, subscribed() > 0 and ready())
+        if action == ACTIVE:
+            self._activate(position)
+        elif action is not None:
+            self.problems.error('activation', action)
 
     def diagnostic_status(self) -> DiagnosticStatus:
         """The bridge's status: WARN with no reading yet or held, values its counters."""
@@ -137,9 +214,16 @@ class DriveBridge(Node):
         status.hardware_id = self.joint
         status.message = self.rules.status
         status.level = DiagnosticStatus.WARN if self.rules.report is None or self.rules.held else DiagnosticStatus.OK
+        activation = self.activation
+        if activation is not None and activation.refused and activation.manager_state != ACTIVE:
+            status.level, status.message = DiagnosticStatus.ERROR, activation.refused
         values = [('backend', self.backend_name), *((k, str(v)) for k, v in asdict(self.rules.counters).items()),
                   ('read_errors', str(self.read_errors)), ('write_errors', str(self.write_errors)),
                   *self.problems.guard.diagnostic_values()]
+        if activation is not None:
+            values += [('hardware_component', activation.component),
+                       ('hardware_state', activation.manager_state or 'not heard'),
+                       ('activations', str(activation.activations)), ('activation', activation.last_line)]
         status.values = [KeyValue(key=k, value=v) for k, v in values]
         return status
 

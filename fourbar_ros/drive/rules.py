@@ -160,3 +160,92 @@ class DriveRules:
         self.moving = False
         assert self.report is not None  # moving implies a reading
         return self.report.position if self.limits.in_range(self.report.position) else None
+
+
+#: The lifecycle labels of a hardware component in the controller manager's activity (lifecycle_msgs/State).
+INACTIVE, ACTIVE = 'inactive', 'active'
+#: What the bridge's activation line starts with: the launch file starts the controllers' spawners on it.
+ACTIVATED_MARK = 'hardware component active:'
+
+
+def activated_line(component: str, joint: str, position: float) -> str:
+    """The bridge's log line once the controller manager activated ``component`` at a reading of ``joint``."""
+    return f'{ACTIVATED_MARK} {component!r} activated at the drive reading {joint} = {position!r} rad'
+
+
+@dataclass
+class Activation:
+    """When the bridge asks the controller manager to activate its hardware component (pure: no ROS).
+
+    The manager starts the component inactive (``hardware_components_initial_state.inactive``): its state
+    interfaces read the plugin's topic, nothing is written and no controller may claim its command interfaces. The
+    bridge asks for ``active`` once per manager (a new one: its activity's publication sequence restarts, or it is
+    the first the bridge hears) while that manager reports the component inactive and never reported it active
+    (a component someone deactivated is left alone), after a reading inside ``limits`` went out with the plugin
+    subscribed to the readings and the manager's service at hand. The activation is confirmed (one line) by the
+    manager's answer or by its report of the component active, whichever comes first (an answer can be lost).
+    A reading outside the range is refused with one line.
+    """
+
+    limits: DriveLimits
+    joint: str
+    component: str
+    manager_state: str = ''  #: the component's state as the manager last reported it ('' : not heard)
+    armed: bool = False  #: a new manager reported the component inactive; no request sent for it yet
+    pending: bool = False  #: a request is in flight
+    refused: str = ''  #: the out-of-range line of this manager, once logged
+    last_line: str = ''  #: the latest outcome (activated, refused, failed), for diagnostics
+    activations: int = 0
+    _sequence: int | None = None
+    _requested: bool = False  #: activation was asked of the present manager
+    _seen_active: bool = False  #: the present manager reported the component active (then it is left alone)
+    _confirmed: bool = False  #: the present manager activated it on the bridge's request
+    _position: float = math.nan  #: the reading (rad) the request was sent on
+
+    def on_activity(self, sequence: int | None, state: str | None) -> str | None:
+        """The manager's activity (``sequence``: its publication sequence number, None where the middleware does
+        not give one: every report counts as a new manager) with ``state``, the component's label (None: absent).
+        The activation line when this report confirms the bridge's request, else None."""
+        if self._sequence is None or sequence is None or sequence <= self._sequence:  # a new manager
+            self._requested = self._seen_active = self._confirmed = self.pending = False
+            self.refused = ''
+        self._sequence = sequence
+        if state is None:
+            return None
+        self.manager_state = state
+        self._seen_active = self._seen_active or state == ACTIVE
+        self.armed = state == INACTIVE and not (self._seen_active or self._requested)
+        return self._confirm() if state == ACTIVE and self._requested else None
+
+    def _confirm(self) -> str | None:
+        if self._confirmed:
+            return None
+        self._confirmed, self.pending, self.manager_state = True, False, ACTIVE
+        self.activations += 1
+        self.last_line = activated_line(self.component, self.joint, self._position)
+        return self.last_line
+
+    def on_reading(self, position: float, ready: bool) -> str | None:
+        """After ``position`` rad was published (``ready``: the plugin subscribed to the readings and the manager's
+        service at hand): ACTIVE to request activation, a line to log for a refusal (once per manager), else None."""
+        if not self.armed or self.pending or not ready:
+            return None
+        if self.limits.in_range(position):
+            self.armed, self.pending, self._requested = False, True, True
+            self._position = position
+            return ACTIVE
+        if self.refused:
+            return None
+        self.refused = self.last_line = (
+            f'not activating hardware component {self.component!r}: the drive reads {self.joint} = {position!r} '
+            f'rad, outside the driven range [{self.limits.lower!r}, {self.limits.upper!r}] rad')
+        return self.refused
+
+    def on_response(self, ok: bool, state: str) -> str | None:
+        """The manager's answer (``ok``, the component's state label): the line to log (None: already confirmed)."""
+        if ok and state == ACTIVE:
+            return self._confirm()
+        self.pending = False
+        self.last_line = f'the controller manager did not activate hardware component {self.component!r} ' \
+                         f'(state {state!r})'
+        return self.last_line

@@ -23,11 +23,14 @@ if (_why := launch_missing()) is not None:
     pytest.skip(_why, allow_module_level=True)
 
 from launch.actions import DeclareLaunchArgument, LogInfo, OpaqueFunction, RegisterEventHandler
+from launch.event_handlers import OnProcessIO
+from launch.events.process import ProcessIO
 from launch.utilities import perform_substitutions
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterFile
 
 from fourbar_ros.config.security import BRINGUP_ENCLAVES, POLICY_FILE, enclave
+from fourbar_ros.drive.rules import activated_line
 from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME, Mode
 from launch import LaunchContext
 
@@ -59,18 +62,28 @@ class Started:
         self.context.launch_configurations.update(arguments)
         (setup,) = [e for e in description.entities if isinstance(e, OpaqueFunction)]
         actions = setup.execute(self.context) or []
-        # What starts once another process has (the spawners, at each start of the controller manager): as the
-        # handler would start it the first time.
-        actions += [a for r in actions if isinstance(r, RegisterEventHandler)
-                    for a in r.event_handler.handle(None, self.context) or []]  # type: ignore[arg-type]
+        # What starts once another process has (the spawners, at each start of the controller manager, or on the
+        # drive bridge's activation line): as the handler would start it the first time.
+        self.handlers = [r.event_handler for r in actions if isinstance(r, RegisterEventHandler)]
+        actions += [a for h in self.handlers for a in h.handle(self._event(h), self.context) or []]
         self.nodes = [a for a in actions if isinstance(a, Node)]
         self.logs = [self.text(a.msg) for a in actions if isinstance(a, LogInfo)]
+
+    @staticmethod
+    def _event(handler: Any) -> Any:
+        """The event ``handler`` waits for: None for a process start, else the bridge's activation line."""
+        if not isinstance(handler, OnProcessIO):
+            return None
+        line = f'[INFO] [0.0] [fourbar_drive_bridge]: {activated_line("c", "j", 0.0)}\n'.encode()
+        return ProcessIO(text=line, fd=2, action=None, name='bridge', cmd=[], cwd=None, env=None, pid=0)
 
     def text(self, subs: Any) -> str:
         return subs if isinstance(subs, str) else perform_substitutions(self.context, list(subs))
 
     def value(self, v: Any) -> Any:
         """A parameter value as the node receives it (launch_ros passes a string as YAML text)."""
+        if isinstance(v, (tuple, list)) and v and isinstance(v[0], (tuple, list)):  # a list of strings
+            return [yaml.safe_load(self.text(item)) for item in v]
         if isinstance(v, (tuple, list)) and v and not isinstance(v[0], (bool, int, float, str)):
             return yaml.safe_load(self.text(v))
         return v
@@ -161,6 +174,35 @@ def test_forward_mode_spawns_the_forward_controller_and_a_real_plugin_is_not_cal
     assert not any('mock' in line for line in s.logs)
 
 
+@pytest.mark.parametrize(('hardware', 'executable'), [('bridge', 'fourbar_drive_bridge'),
+                                                      ('mujoco', 'fourbar_mujoco_drive')])
+def test_the_bridge_bringup_starts_the_component_inactive_and_spawns_on_the_bridges_activation(
+        hardware: str, executable: str) -> None:
+    s = Started(everything, use_ros2_control='true', namespace='tilt', hardware=hardware,
+                drive_backend='acme.drive:Tilt')
+    rsp = s.one('robot_state_publisher', 'robot_state_publisher')
+    hardware_block = ET.fromstring(s.parameters(rsp)[1]['robot_description']).find('ros2_control/hardware')
+    assert hardware_block is not None
+    assert hardware_block.findtext('plugin') == 'joint_state_topic_hardware_interface/JointStateTopicSystem'
+    params = {p.get('name'): p.text for p in hardware_block.iter('param')}
+    assert params == {'joint_commands_topic': 'drive_joint_commands', 'joint_states_topic': 'drive_joint_states'}
+    manager = s.one('controller_manager', 'ros2_control_node')
+    assert s.parameters(manager)[1]['hardware_components_initial_state.inactive'] == ['fourbar_antenna_tilt']
+    bridge = s.one('fourbar_ros', executable)
+    assert s.text(bridge._Node__node_namespace) == '/tilt'
+    values = s.parameters(bridge)[1]
+    assert {k: values[k] for k in ('joint_commands_topic', 'joint_states_topic', 'hardware_component',
+                                   'controller_manager')} == {
+        'joint_commands_topic': 'drive_joint_commands', 'joint_states_topic': 'drive_joint_states',
+        'hardware_component': 'fourbar_antenna_tilt', 'controller_manager': 'controller_manager'}
+    assert values.get('backend') == ('acme.drive:Tilt' if hardware == 'bridge' else None)
+    # The spawners start on the bridge's activation line, not on the manager's start.
+    assert [type(h).__name__ for h in s.handlers] == ['OnProcessIO']
+    spawned = [s.arguments(n)[0] for n in s.node('controller_manager', 'spawner')]
+    assert spawned == ['joint_state_broadcaster', 'joint_trajectory_controller']
+    assert not any('a mock' in line for line in s.logs)
+
+
 def test_the_hardware_parameters_reach_the_launched_robot_description(tmp_path: Any) -> None:
     params = tmp_path / 'antenna.yaml'
     params.write_text((REPO / 'config' / 'antenna.yaml').read_text(encoding='utf-8').replace(
@@ -237,8 +279,13 @@ def test_without_ros2_control_installed_one_line_says_so() -> None:
 
 
 @pytest.mark.parametrize('arguments', [{'use_ros2_control': 'true', 'sim_actuator': 'true'},
-                                       {'use_ros2_control': 'true', 'mode': 'open_loop'}],
-                         ids=['sim and ros2_control', 'open_loop with ros2_control'])
+                                       {'use_ros2_control': 'true', 'mode': 'open_loop'},
+                                       {'hardware': 'bridge'},
+                                       {'use_ros2_control': 'true', 'hardware': 'bridge', 'hardware_plugin': 'a/B'},
+                                       {'use_ros2_control': 'true', 'hardware': 'bridge', 'enclaves': 'true'},
+                                       {'use_ros2_control': 'true', 'hardware': 'real'}],
+                         ids=['sim and ros2_control', 'open_loop with ros2_control', 'bridge without ros2_control',
+                              'bridge and a plugin', 'bridge in enclaves', 'unknown hardware'])
 def test_combinations_that_cannot_work_are_refused_in_one_line(arguments: dict[str, str]) -> None:
     with pytest.raises(RuntimeError) as err:
         Started(everything, **arguments)
