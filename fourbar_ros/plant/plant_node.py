@@ -1,5 +1,4 @@
-"""fourbar_mujoco_drive: the drive bridge on the MuJoCo plant (``PlantBackend``), with a wind, the antenna's IMU and
-the plant's truth.
+"""fourbar_mujoco_drive: the drive bridge on the MuJoCo plant (``PlantBackend``), its wind, IMU and truth.
 
 Parameters, topics and what the plant reports: docs/how-to/mujoco-plant.md#the-plant-as-a-drive.
 """
