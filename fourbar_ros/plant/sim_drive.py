@@ -1,7 +1,7 @@
 """The MuJoCo plant as the simulated actuator's drive, and ``fourbar_sim_actuator``'s main that offers it.
 
 ``PlantDrive`` takes the trajectory follower's reference as the servo's position command (at the driven rocker,
-through the reducer) and steps the plant in whole timesteps; what the simulated actuator publishes as measured is
+through the reducer; interpolated linearly over the update period) and steps the plant in whole timesteps; what the simulated actuator publishes as measured is
 then the plant's: the driven rocker's angle and speed, and ``drive_torque`` as the effort (N m, + in the sense of
 increasing rocker angle). The configured ``load_torque`` L acts as a steady wind of -L on the antenna and
 ``antenna_mass`` as gravity, so at rest the effort is the node's ``input_torque``.
@@ -41,19 +41,25 @@ class PlantDrive:
         self.plant.set_wind_torque(-cfg.load_torque if wind is None else wind)
         self._step_ns = round(self.plant.timestep * 1e9)
         self._pending_ns = 0
+        self._command = self.plant.rocker_angle  # the last command reached (rad at the rocker)
 
     def clamp(self, reference: float) -> float:
         """The reference within the joint's range (rad)."""
         return min(max(reference, self.lower), self.upper)
 
     def advance(self, dt: float, reference: float) -> None:
-        """Command the rocker to ``reference`` (rad, clamped; held over the interval) and step ``dt`` s in whole
-        timesteps."""
+        """Step ``dt`` s in whole timesteps towards the position command ``reference`` (rad, clamped), reached at
+        the interval's end: the servo's command moves linearly from the previous one over the interval's steps, as
+        a drive in cyclic synchronous position mode interpolates between its setpoints."""
         self._pending_ns += max(round(dt * 1e9), 0)
         steps, self._pending_ns = divmod(self._pending_ns, self._step_ns)
-        self.plant.command_rocker(self.clamp(reference))
+        target = self.clamp(reference)
+        previous = self._command
+        for k in range(1, int(steps) + 1):
+            self.plant.command_rocker(previous + (target - previous) * k / steps)
+            self.plant.step(1)
         if steps:
-            self.plant.step(int(steps))
+            self._command = target
 
     @property
     def position(self) -> float:

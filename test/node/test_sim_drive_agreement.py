@@ -3,7 +3,8 @@
 moves and rests.
 
 The reference is what the controller writes: a smooth motion r(t) (speed at most V, the joint's limit) sampled
-one update period P ahead and held over the period, a staircase c with |c(s) - c(t)| <= V (|s - t| + P). Each drive
+one update period P ahead; the lag holds it over the period, the plant's drive moves its servo's command linearly
+to it over the period; either is a command c with |c(s) - c(t)| <= V (|s - t| + P). Each drive
 is, while its limits do not bind, linear with a non-negative impulse response h of unit mass, so
 x(t) - c(t) = int h(u) (c(t - u) - c(t)) du and |x - c| <= V (mean delay + P):
 
@@ -22,9 +23,8 @@ agree within the plant's soft-constraint bound (its reducer torque against the l
 docs/how-to/mujoco-plant.md: 5.3e-6 relative measured; 1e-5 held) plus the load model's change over the angles'
 difference (its slope, by a central difference, times it).
 
-What the lag cannot imitate, so not asserted: in motion the plant's effort carries the linkage's inertia, kicked at
-each update by the staircase (the servo's 50 Hz response to a step of V P), which the static load model has not;
-the sampled velocity then ripples about the reference's. And with its own default limits (the motor's speed and
+What the lag cannot imitate, so not asserted: in motion the plant's effort carries the linkage's inertia, which the
+static load model has not (the servo's 50 Hz response at each change of the interpolated command's slope). And with its own default limits (the motor's speed and
 acceleration through the reducer, braking within the error left) the lag falls behind further, where the plant,
 with an unlimited servo, does not.
 """
