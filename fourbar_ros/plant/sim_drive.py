@@ -1,11 +1,8 @@
 """The MuJoCo plant as the simulated actuator's drive, and ``fourbar_sim_actuator``'s main that offers it.
 
-``PlantDrive`` takes the trajectory follower's reference as the servo's position command (at the driven rocker,
-through the reducer; interpolated linearly over the update period) and steps the plant in whole timesteps; what the simulated actuator publishes as measured is
-then the plant's: the driven rocker's angle and speed, and ``drive_torque`` as the effort (N m, + in the sense of
-increasing rocker angle). The configured ``load_torque`` L acts as a steady wind of -L on the antenna and
-``antenna_mass`` as gravity, so at rest the effort is the node's ``input_torque``.
-What the drive option changes: docs/how-to/ros2-control.md#without-hardware-the-simulated-actuator.
+``PlantDrive`` takes the follower's reference as the servo's command (interpolated over the update period) and
+publishes the plant's rocker angle, speed and ``drive_torque`` (N m, + increasing rocker angle) as measured; the
+configured ``load_torque`` L is a wind of -L. docs/how-to/ros2-control.md#without-hardware-the-simulated-actuator.
 """
 
 from __future__ import annotations

@@ -24,9 +24,9 @@ docs/how-to/mujoco-plant.md: 5.3e-6 relative measured; 1e-5 held) plus the load 
 difference (its slope, by a central difference, times it).
 
 What the lag cannot imitate, so not asserted: in motion the plant's effort carries the linkage's inertia, which the
-static load model has not (the servo's 50 Hz response at each change of the interpolated command's slope). And with its own default limits (the motor's speed and
-acceleration through the reducer, braking within the error left) the lag falls behind further, where the plant,
-with an unlimited servo, does not.
+static load model has not (the servo's 50 Hz response at each change of the interpolated command's slope). And
+with its own default limits (the motor's speed and acceleration through the reducer, braking within the error left)
+the lag falls behind further, where the plant, with an unlimited servo, does not.
 """
 
 from __future__ import annotations

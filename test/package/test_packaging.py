@@ -36,7 +36,7 @@ def test_setup_declares_the_console_script_and_ros_install_dir() -> None:
     setup_py = (REPO / 'setup.py').read_text(encoding='utf-8')
     # The executables the launch file, the process helpers and the commands name (interface.topics).
     assert f"'{NODE_EXECUTABLE} = fourbar_ros.node:main'" in setup_py
-    assert f"'{SIM_EXECUTABLE} = fourbar_ros.node:sim_actuator_main'" in setup_py
+    assert f"'{SIM_EXECUTABLE} = fourbar_ros.plant.sim_drive:sim_actuator_main'" in setup_py
     cfg = (REPO / 'setup.cfg').read_text(encoding='utf-8')
     assert 'install_scripts=$base/lib/fourbar_ros' in cfg and 'script_dir=$base/lib/fourbar_ros' in cfg
 
