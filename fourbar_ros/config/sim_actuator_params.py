@@ -34,11 +34,12 @@ SIM_PARAMETERS: tuple[ParamSpec, ...] = (
               'joint (gamma_joint or delta_joint, as driven_rocker says), the URDF\'s ros2_control joint.'),
     ParamSpec('publish_rate', float, 100.0, 'Hz',
               'Rate of the measured joint_states (and of the simulation step).', 0.1, 10000.0),
-    ParamSpec('drive', str, 'mujoco', '',
+    ParamSpec('drive', str, 'lag', '',
               'What follows the controller\'s position command: mujoco, the MuJoCo plant (its servo, the linkage\'s '
               'inertia, the configured load as a wind and gravity; the measured effort is its reducer torque), or lag, '
-              'a first-order lag under the limits below whose effort is the load model\'s. Without the mujoco package '
-              '(or started other than by the fourbar_sim_actuator script) mujoco falls back to lag, logged once.',
+              'a first-order lag under the limits below whose effort is the load model\'s (the default). Without the '
+              'mujoco package (or started other than by the fourbar_sim_actuator script) mujoco falls back to lag, '
+              'logged once.',
               choices=('mujoco', 'lag')),
     ParamSpec('time_constant', float, 0.05, 's',
               'First-order lag of the drive behind its position reference (the lag drive).', 1e-4, 100.0),

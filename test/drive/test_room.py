@@ -1,4 +1,5 @@
-"""The drive room's imports: only the ``fourbar`` commands may import it, and its backend and rules run without ROS."""
+"""The drive room's imports: only the ``fourbar`` commands and the plant (a drive of its own) import it; its backend
+and rules run without ROS."""
 
 from __future__ import annotations
 
@@ -25,10 +26,11 @@ PURE = ('fourbar_ros.drive.backend', 'fourbar_ros.drive.rules')
 ROS = ('rclpy', 'sensor_msgs', 'std_msgs', 'diagnostic_msgs', 'rcl_interfaces', 'builtin_interfaces')
 
 
-def test_only_the_commands_import_the_drive_room() -> None:
+def test_only_the_commands_and_the_plant_import_the_drive_room() -> None:
     outside = [f'{name} -> {dep}' for name, deps in GRAPH.items() for dep in deps
                if dep.startswith('fourbar_ros.drive') and not name.startswith(('fourbar_ros.drive',
-                                                                                 'fourbar_ros.commands'))]
+                                                                                 'fourbar_ros.commands',
+                                                                                 'fourbar_ros.plant'))]
     assert not outside, '\n'.join(outside)
 
 
