@@ -1,7 +1,9 @@
 """The package's launch file with ``use_ros2_control:=true`` on the real controller manager (mock hardware), in the
 root namespace and in one, in trajectory and forward mode: the spawners activate the controllers, a command moves
 the joint, joint_states carries the completed linkage, SIGINT ends everything with status 0; and the controller
-manager clamps a trajectory sent straight to the controller past the joint's limit.
+manager clamps a trajectory sent straight to the controller past the joint's limit. With ``hardware:=bridge`` and
+``hardware:=mujoco`` (the drive bridge, and the bridge on the MuJoCo plant) the launch line as typed activates the
+hardware on the bridge's first reading and a command moves the drive.
 
 Runs where the ros2 command line, launch_ros and ros2_control are installed; skipped elsewhere with the reason.
 """
@@ -115,4 +117,48 @@ def test_a_trajectory_past_the_limit_is_clamped_by_the_controller_manager(instal
         assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
     finally:
         follow.kill()
+        launch.kill()
+
+
+@pytest.mark.parametrize('hardware', ['bridge', 'mujoco'])
+def test_the_bridge_bringup_moves_the_drive(install: CliEnv, hardware: str) -> None:
+    # The launch line as typed with the drive bridge on the topic-based plugin (the bridge's simulated drive, or the
+    # MuJoCo plant's stepper): the hardware starts inactive, the bridge activates it on its first reading, the
+    # spawners follow, and a command moves the drive's reported joint to the commanded angle.
+    if (why := ros2_control_missing(install.env)) is not None:
+        pytest.skip(why)
+    if hardware == 'mujoco':
+        pytest.importorskip('mujoco')
+    cfg = load_config(install.prefix / 'share' / 'fourbar_ros' / 'config' / 'antenna.yaml')
+    ns = '/tilt_drive'
+    launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_drive',
+                         'use_ros2_control:=true', f'hardware:={hardware}', 'rviz:=false'], install.env,
+                        cwd=install.cwd)
+    try:
+        launch.wait_output(lambda t: 'hardware component active' in t, 'the bridge activating the hardware')
+        launch.wait_output(lambda t: 'Configured and activated joint_trajectory_controller' in t,
+                           'joint_trajectory_controller active')
+        target = 0.05
+        q = float(cfg.linkage.rocker_angles(target, cfg.branch)[0 if cfg.driven_joint == cfg.gamma_joint else 1])
+
+        def at_target(text: str) -> bool:
+            return any(abs(d['position'][0] - q) < 1e-3 for d in echoed_messages(text) if d.get('position'))
+        follow = Background([ros2(), 'topic', 'echo', f'{ns}/joint_state_broadcaster/joint_states',
+                             'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
+        try:
+            echo = echo_once(install.env, f'{ns}/joint_states', 'sensor_msgs/msg/JointState')
+            try:
+                publish_until_echoed(install.env, echo, f'{ns}/antenna_angle_cmd', target)
+            finally:
+                echo.kill()
+            follow.wait_output(at_target, f'the drive at the commanded angle {q} rad')
+        except AssertionError as exc:
+            output = launch.stdout[-6000:] + launch.stderr[-4000:]
+            raise AssertionError(f'{exc}\nthe launch\'s output: {output}') from None
+        finally:
+            follow.kill()
+        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+        assert not launch.descendants(), 'a process outlived ros2 launch'
+    finally:
         launch.kill()
