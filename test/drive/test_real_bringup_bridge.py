@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import math
 import os
-import signal
 import subprocess
 import sys
 import time
-from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -32,9 +30,9 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from recording_drive import LOG_ENV, START_ENV, writes
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
-from support.isolation import kill_group
+from support.drive_stack import PLUGIN, Processes, manager_executable, topic_plugin_missing
 from support.paths import REPO
-from support.ros2_control_support import ros2_control_missing, with_ros2_control
+from support.ros2_control_support import with_ros2_control
 from support.ros_support import RosSession
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -45,7 +43,6 @@ from fourbar_ros.drive.rules import ACTIVATED_MARK, DriveLimits
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-PLUGIN = 'joint_state_topic_hardware_interface/JointStateTopicSystem'
 COMMANDS, STATES = 'drive_joint_commands', 'drive_joint_states'  # relative: in the manager's namespace
 CFG = config_from_values({'hardware_parameters': [f'joint_commands_topic={COMMANDS}',
                                                   f'joint_states_topic={STATES}']})
@@ -71,25 +68,6 @@ CASES = [
 ]
 
 
-def _missing(env: dict[str, str]) -> str | None:
-    why = ros2_control_missing(env)
-    if why is not None:
-        return why
-    roots = [Path(p) for p in env.get('AMENT_PREFIX_PATH', '').split(os.pathsep) if p]
-    index = Path('share') / 'ament_index' / 'resource_index' / 'packages' / 'joint_state_topic_hardware_interface'
-    if not any((root / index).exists() for root in roots):
-        return f'the topic-based hardware plugin ({PLUGIN}) is not installed with ros2_control'
-    return None
-
-
-def _executable(env: dict[str, str], name: str) -> str:
-    for root in env['AMENT_PREFIX_PATH'].split(os.pathsep):
-        path = Path(root) / 'lib' / 'controller_manager' / name
-        if path.exists():
-            return str(path)
-    raise AssertionError(f'controller_manager/{name} not found')
-
-
 def _position(msg: JointState) -> float | None:
     names = list(msg.name)
     return float(msg.position[names.index(JOINT)]) if JOINT in names and msg.position else None
@@ -102,58 +80,11 @@ def _direction(start: float) -> float:
     return 1.0 if start < MID else -1.0
 
 
-class Processes:
-    """Child processes in groups of their own, each ended (SIGINT, then SIGKILL) on leaving; logs in files."""
-
-    def __init__(self, tmp: Path) -> None:
-        self.tmp = tmp
-        self.procs: list[tuple[subprocess.Popen[bytes], Path]] = []
-
-    def start(self, name: str, args: list[str], env: dict[str, str]) -> subprocess.Popen[bytes]:
-        log = self.tmp / f'{name}.log'
-        with open(log, 'wb') as out:
-            proc = subprocess.Popen(args, env=env, stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
-        self.procs.append((proc, log))
-        return proc
-
-    def log(self, name: str) -> str:
-        path = self.tmp / f'{name}.log'
-        return path.read_text(errors='replace') if path.exists() else ''
-
-    def logs(self) -> str:
-        return '\n'.join(f'--- {log.name}\n{log.read_text(errors="replace")[-3000:]}' for _, log in self.procs)
-
-    @staticmethod
-    def stop(proc: subprocess.Popen[bytes]) -> int:
-        if proc.poll() is None:
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-        kill_group(proc.pid)
-        return proc.returncode
-
-    def close(self) -> None:
-        for proc, _ in reversed(self.procs):
-            self.stop(proc)
-
-
-@pytest.fixture
-def processes(tmp_path: Path) -> Iterator[Processes]:
-    procs = Processes(tmp_path)
-    try:
-        yield procs
-    finally:
-        procs.close()
-
-
 @pytest.mark.parametrize(('case', 'start', 'outside'), CASES, ids=[c[0] for c in CASES])
 def test_the_bringup_moves_the_drive_only_as_commanded(ros: RosSession, processes: Processes, tmp_path: Path,
                                                        case: str, start: float, outside: float | None) -> None:
     env = with_ros2_control(ros.env(PYTHON=sys.executable))
-    if (why := _missing(env)) is not None:
+    if (why := topic_plugin_missing(env)) is not None:
         pytest.skip(why)
     assert start != INITIAL and LIMITS.in_range(start) and (outside is None or not LIMITS.in_range(outside))
     namespace = f'/bringup_{CASES.index((case, start, outside))}'
@@ -179,7 +110,7 @@ def test_the_bringup_moves_the_drive_only_as_commanded(ros: RosSession, processe
 
     try:
         processes.start('controller_manager', [
-            _executable(env, 'ros2_control_node'), '--ros-args', '-r', f'__ns:={namespace}',
+            manager_executable(env, 'ros2_control_node'), '--ros-args', '-r', f'__ns:={namespace}',
             '--params-file', str(REPO / CONTROLLERS_FILE), '--params-file', str(initial_state)], env)
         if outside is not None:  # a bridge on a drive just outside the range: it refuses, nothing moves
             refusing = bridge('outside', outside)
@@ -198,8 +129,9 @@ def test_the_bringup_moves_the_drive_only_as_commanded(ros: RosSession, processe
         # The activation line needs the manager's report of the component inactive: after a refusing bridge, it
         # shows the component was still inactive.
         ros.wait_for(lambda: ACTIVATED_MARK in processes.log('bridge'), TIMEOUT, 'the bridge activating the hardware')
-        spawner = processes.start('spawner', [sys.executable, _executable(env, 'spawner'), 'joint_state_broadcaster',
-                                              'joint_trajectory_controller', '-c', manager], env)
+        spawner = processes.start('spawner', [sys.executable, manager_executable(env, 'spawner'),
+                                              'joint_state_broadcaster', 'joint_trajectory_controller', '-c', manager],
+                                  env)
         ros.wait_for(lambda: spawner.poll() is not None, TIMEOUT, 'the spawner')
         assert spawner.returncode == 0
         measured.wait_match(lambda m: _position(m) == start, TIMEOUT)
