@@ -39,6 +39,29 @@ def install(ros2_cli: CliEnv) -> CliEnv:
     return ros2_cli
 
 
+def _wait_measured_at(install: CliEnv, launch: Background, ns: str, q: float) -> None:
+    """Wait for the broadcaster's measured driven joint within 1e-3 rad of ``q``; else fail with the launch's output
+    (what the node, the bridge and the controllers logged meanwhile)."""
+    def at_target(text: str) -> bool:
+        return any(abs(d['position'][0] - q) < 1e-3 for d in echoed_messages(text) if d.get('position'))
+    follow = Background([ros2(), 'topic', 'echo', f'{ns}/joint_state_broadcaster/joint_states',
+                         'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
+    try:
+        follow.wait_output(at_target, f'the measured joint at the commanded angle {q} rad')
+    except AssertionError as exc:
+        output = launch.stdout[-6000:] + launch.stderr[-4000:]
+        raise AssertionError(f'{exc}\nthe launch\'s output: {output}') from None
+    finally:
+        follow.kill()
+
+
+def _assert_clean_stop(launch: Background) -> None:
+    """SIGINT ends ros2 launch with status 0, no traceback and no process left."""
+    assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
+    assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
+    assert not launch.descendants(), 'a process outlived ros2 launch'
+
+
 @pytest.mark.parametrize(('namespace', 'mode'), [('', 'trajectory'), ('tilt', 'trajectory'), ('tilt', 'forward')])
 def test_the_bringup_moves_the_joint(install: CliEnv, namespace: str, mode: str) -> None:
     # The launch file's bringup on the real controller manager with the mock hardware: the spawners activate the
@@ -64,20 +87,8 @@ def test_the_bringup_moves_the_joint(install: CliEnv, namespace: str, mode: str)
         other = cfg.delta_joint if cfg.driven_joint == cfg.gamma_joint else cfg.gamma_joint
         assert state['name'] == [cfg.driven_joint, other, cfg.coupler_joint] and len(state['effort']) == 3, state
 
-        def at_target(text: str) -> bool:
-            return any(abs(d['position'][0] - q) < 1e-3 for d in echoed_messages(text) if d.get('position'))
-        follow = Background([ros2(), 'topic', 'echo', f'{ns}/joint_state_broadcaster/joint_states',
-                             'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
-        try:
-            follow.wait_output(at_target, f'the measured joint at the commanded angle {q} rad')
-        except AssertionError as exc:  # what the node and the controllers logged meanwhile
-            output = launch.stdout[-4000:] + launch.stderr[-4000:]
-            raise AssertionError(f'{exc}\nthe launch\'s output: {output}') from None
-        finally:
-            follow.kill()
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
-        assert not launch.descendants(), 'a process outlived ros2 launch'
+        _wait_measured_at(install, launch, ns, q)
+        _assert_clean_stop(launch)
     finally:
         launch.kill()
 
@@ -140,25 +151,12 @@ def test_the_bridge_bringup_moves_the_drive(install: CliEnv, hardware: str) -> N
                            'joint_trajectory_controller active')
         target = 0.05
         q = float(cfg.linkage.rocker_angles(target, cfg.branch)[0 if cfg.driven_joint == cfg.gamma_joint else 1])
-
-        def at_target(text: str) -> bool:
-            return any(abs(d['position'][0] - q) < 1e-3 for d in echoed_messages(text) if d.get('position'))
-        follow = Background([ros2(), 'topic', 'echo', f'{ns}/joint_state_broadcaster/joint_states',
-                             'sensor_msgs/msg/JointState'], install.env, cwd=install.cwd)
+        echo = echo_once(install.env, f'{ns}/joint_states', 'sensor_msgs/msg/JointState')
         try:
-            echo = echo_once(install.env, f'{ns}/joint_states', 'sensor_msgs/msg/JointState')
-            try:
-                publish_until_echoed(install.env, echo, f'{ns}/antenna_angle_cmd', target)
-            finally:
-                echo.kill()
-            follow.wait_output(at_target, f'the drive at the commanded angle {q} rad')
-        except AssertionError as exc:
-            output = launch.stdout[-6000:] + launch.stderr[-4000:]
-            raise AssertionError(f'{exc}\nthe launch\'s output: {output}') from None
+            publish_until_echoed(install.env, echo, f'{ns}/antenna_angle_cmd', target)
         finally:
-            follow.kill()
-        assert launch.interrupt(group=True) == 0, launch.stdout[-2000:] + launch.stderr[-2000:]
-        assert 'Traceback' not in launch.stdout + launch.stderr, launch.stdout[-3000:] + launch.stderr[-3000:]
-        assert not launch.descendants(), 'a process outlived ros2 launch'
+            echo.kill()
+        _wait_measured_at(install, launch, ns, q)
+        _assert_clean_stop(launch)
     finally:
         launch.kill()
