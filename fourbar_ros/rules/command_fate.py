@@ -133,11 +133,12 @@ class CommandFates:
         return self.unsettled if self.measured else 'no measured driven joint yet'
 
     def repeat(self, theta: float, now_ns: int, measured_theta: float | None) -> bool:
-        """Whether a command to ``theta`` (rad) at ``now_ns`` repeats the one in force (within ``reached_tolerance``
-        of its target) and joins it, starting nothing new: one held (it waits from this arrival), one sent, or one
-        reached where the drive is still measured there (``measured_theta``, rad)."""
+        """Whether a command to ``theta`` (rad) at ``now_ns`` repeats the one in force (the same angle: a republished
+        setpoint is the same float) and joins it, starting nothing new: one held (it waits from this arrival), one
+        sent, or one reached where the drive is still measured there (within ``reached_tolerance`` of
+        ``measured_theta``, rad). A different angle, however close, is a new command."""
         cmd, tol = self.current, self.settings.reached_tolerance
-        if cmd is None or not abs(theta - cmd.theta) <= tol:
+        if cmd is None or theta != cmd.theta:
             return False
         if cmd.fate is Fate.HELD:
             cmd.held_ns = now_ns

@@ -258,16 +258,16 @@ def _random_sequence(rng: np.random.Generator) -> list[dict[str, Any]]:
 def _sequences(bringup: tuple[CliEnv, Background], tmp_path: Path, count: int, seed: int) -> None:
     """``count`` random sequences, each started from a reached command and ended with the controller active: the
     last command in force is reached, every command of the sequence has one final fate or joined the one in force
-    (a repeat within reached_tolerance), nothing was refused by the controller's contract and no callback failed;
+    (a repeat of the same angle), nothing was refused by the controller's contract and no callback failed;
     no jump after an activation (``_no_jump``)."""
     rng = np.random.default_rng(seed)
     steps: list[dict[str, Any]] = []
     in_force: float | None = None  # the target of the command in force (none here ends otherwise than reached)
 
     def served(theta: float) -> float:
-        """The command in force after ``theta``: itself, or the one it repeats (within reached_tolerance, joined)."""
+        """The command in force after ``theta``: itself, or the one it repeats (the same angle, joined)."""
         nonlocal in_force
-        if in_force is None or not abs(theta - in_force) <= REACHED_TOLERANCE:
+        if in_force is None or theta != in_force:
             in_force = theta
         return in_force
 

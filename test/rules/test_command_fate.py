@@ -4,6 +4,7 @@ it, and the last command reached whenever the controller ends active and the dri
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -111,8 +112,9 @@ def test_the_same_command_again_joins_the_one_in_force() -> None:
     assert f.receive(0.1, 0)
     f.sent(5 * S)
     cmd = f.current
-    assert f.repeat(0.1 + 0.5e-3, S, None)  # within reached_tolerance, sent: joined
-    assert not f.repeat(0.1 + 2e-3, S, None)  # beyond it: a new command
+    assert f.repeat(0.1, S, None)  # the same angle, sent: joined
+    assert not f.repeat(0.1 + 0.5e-3, S, None)  # a step within reached_tolerance is still a new command
+    assert not f.repeat(float(np.nextafter(0.1, 1.0)), S, None)  # as is one ulp
     f.reached(0.1, 5 * S)
     assert f.repeat(0.1, 6 * S, 0.1 + 0.9e-3)  # reached, the drive still there
     assert not f.repeat(0.1, 7 * S, 0.1 + 5e-3)  # reached, the drive moved off since: a new command
