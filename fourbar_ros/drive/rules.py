@@ -208,9 +208,10 @@ class Activation:
         The activation line when this report confirms the bridge's request, else None."""
         if self._sequence is None or sequence is None or sequence <= self._sequence:  # a new manager
             self._requested = self._seen_active = self._confirmed = self.pending = False
-            self.refused = ''
+            self.refused = self.manager_state = ''
         self._sequence = sequence
-        if state is None:
+        if state is None:  # the component is not (yet) the manager's: nothing to ask of it
+            self.armed = False
             return None
         self.manager_state = state
         self._seen_active = self._seen_active or state == ACTIVE
