@@ -23,7 +23,7 @@ import pytest
 import yaml
 from support.colcon_support import CliEnv, launch_missing, ros2_cli_missing
 from support.paths import REPO
-from support.real_controller import Judged, judged, message_points, random_steps, takeovers
+from support.real_controller import Judged, judged, message_points, random_steps, seen_around, takeovers
 from support.ros2_control_support import ros2_control_missing
 
 if (_why := ros2_cli_missing() or launch_missing()) is not None:
@@ -134,7 +134,8 @@ def _check(launched: Launched, steps: list[dict[str, object]], tmp_path: Path) -
     assert not disagree, (f'the contract and the real controller disagree on {len(disagree)}: {disagree[:5]}; the '
                           'controller logged (last 8 lines):\n' + '\n'.join(said))
     off = [r for r in results if (r.model > BOUND_RAD or r.follower > BOUND_RAD) and not r.held]
-    assert not off, f'{len(off)} trajectories off the real controller by more than {BOUND_RAD} rad:\n{report}\n{off}'
+    assert not off, (f'{len(off)} trajectories off the real controller by more than {BOUND_RAD} rad:\n{report}\n{off}'
+                     f'\nthe first, as recorded:\n{seen_around(recording, off[0])}')
     held = [r for r in results if r.held and r.model > BOUND_RAD]
     if held:  # the controller's tolerance check, which the model leaves out: it says so in its log
         launch.wait_output(lambda t: 'Holding position due to state tolerance violation' in t,

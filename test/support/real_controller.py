@@ -66,7 +66,8 @@ class Judged:
     """One recorded trajectory against the real controller: its index in the recording, its kind, stamp kind
     ('zero', 'future', 'past'), whether it took over a running one, the updates compared, the largest
     |model - real| and |simulated follower - real| of the reference position (rad), and whether the controller held
-    the measured position from the takeover on instead (its tolerance check, which the model leaves out)."""
+    the measured position from the takeover on instead (its tolerance check, which the model leaves out); ``first``
+    is the index of its takeover's state in the recording."""
 
     index: int
     kind: str
@@ -76,6 +77,24 @@ class Judged:
     model: float
     follower: float
     held: bool = False
+    first: int = 0
+
+
+def seen_around(recording: dict[str, Any], judged: Judged, before: int = 3, after: int = 3) -> str:
+    """What the recording holds around a judged trajectory's takeover, for a failure message: the trajectory (its
+    stamp and receive time, ns, the stamp relative to the receive time) and the controller's states from ``before``
+    updates ahead of the takeover to ``after`` past it (stamps relative to the receive time, ns)."""
+    traj = recording['trajectories'][judged.index]
+    received = int(traj['received'])
+    offset = int(traj['stamp']) - received if traj['stamp'] else 0
+    lines = [f'trajectory {judged.index}: stamp {traj["stamp"]} ({offset} ns from its receipt), received {received}, '
+             f'seen {traj.get("seen")}, points {traj["points"]}']
+    states = recording['states']
+    for k in range(max(judged.first - before, 0), min(judged.first + after + 1, len(states))):
+        s = states[k]
+        lines.append(f'  {"->" if k == judged.first else "  "} state {k}: at {s["stamp"] - received} ns, ref_tfs '
+                     f'{s["ref_tfs"]}, fb_tfs {s["fb_tfs"]}, ref {s["ref"][0]}, fb {s["fb"][0]}')
+    return '\n'.join(lines)
 
 
 def _kind(points: list[list[float | None]]) -> str:
@@ -164,6 +183,14 @@ class Takeovers:
     unknown: frozenset[int]
 
 
+def _first_sample(s: dict[str, Any]) -> bool:
+    """Whether update ``s`` may be a trajectory's first sample: there the controller sets the trajectory's time to the
+    update's (reference and feedback ``time_from_start`` equal to the ns; later updates add the measured period,
+    which differs by hundreds of ns) and interpolates from the measured state at zero elapsed time, so the reference
+    position is the feedback position exactly."""
+    return bool(s['ref_tfs'] == s['fb_tfs'] and s['ref'][0][0] == s['fb'][0][0])
+
+
 def _start(s: dict[str, Any]) -> int:
     """The start (ns, header clock) of the trajectory an update follows: its time less its ``time_from_start``."""
     return int(s['stamp']) - int(s['fb_tfs'])
@@ -189,7 +216,9 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     # The judge's own: each update follows the stamped trajectory that starts where it does and had arrived, else the
     # latest zero-stamped one that arrived before the update's trajectory started (at its takeover). A stamp in the
     # past can equal an earlier zero-stamped trajectory's takeover time to the millisecond: before its own arrival
-    # the updates follow that one.
+    # the updates follow that one. Two random stamps can also lie within a millisecond of each other: the newer one
+    # replaces the older from its takeover (its first sample: reference and feedback times equal), unless the
+    # controller refused it.
     own = [i for i, t in enumerate(trajectories) if not t['echoed']]
     stamped = {t['stamp']: i for i, t in enumerate(trajectories) if not t['echoed'] and t['stamp'] != 0}
     zero = [i for i in own if trajectories[i]['stamp'] == 0]
@@ -197,6 +226,8 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
     for k, s in enumerate(states):
         at = _start(s)
         match = [i for x, i in stamped.items() if abs(at - x) < 1_000_000 and s['stamp'] > arrivals[i]]
+        if len(match) > 1:
+            match = [max((i for i in match if i in follows or _first_sample(s)), default=match[0])]
         if not match:
             match = [i for i in zero if arrivals[i] < at][-1:]
         if match and s['stamp'] > arrivals[match[0]]:
@@ -206,7 +237,7 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
             k = follows[i][0]
             s, before = states[k], states[k - 1] if k > 0 else None
             gapless = before is not None and s['stamp'] - before['stamp'] < 1.5 * period * NS_PER_S
-            exact = s['ref_tfs'] == s['fb_tfs'] and (
+            exact = _first_sample(s) and (
                 s['fb_tfs'] == 0 if trajectories[i]['stamp'] == 0 else gapless and k - 1 not in follows[i])
             taken[i] = (k, exact)
         elif not any(arrivals[i] < s['stamp'] < arrivals[i + 1] for s in states):
@@ -223,7 +254,7 @@ def takeovers(recording: dict[str, Any], velocity_state: bool, period: float) ->
         if unique:  # the first update that follows its start, wherever the judge saw it pass
             found = [k for k, s in enumerate(states) if s['stamp'] > since and abs(_start(s) - t['stamp']) < 1_000_000
                      ][:1]
-            exact = bool(found) and states[found[0]]['ref_tfs'] == states[found[0]]['fb_tfs']
+            exact = bool(found) and _first_sample(states[found[0]])
         if not found:
             unknown.add(i)
             continue
@@ -273,5 +304,5 @@ def judged(recording: dict[str, Any], settings: TrajectoryControllerSettings, jo
         here = states[k]['fb'][0][0]
         held = all(s['ref'][0][0] == here and s['ref'][1][0] == 0.0 for s in states[k + 1:upto])
         out.append(Judged(index, _kind(traj['points']), stamp, k > 0 and states[k - 1]['ref'][1][0] != 0.0, upto - k,
-                          _worst(states, model, k, upto), worst_follower, held))
+                          _worst(states, model, k, upto), worst_follower, held, k))
     return out
