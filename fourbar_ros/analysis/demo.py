@@ -32,6 +32,7 @@ from fourbar_ros.interface.topics import (
 )
 from fourbar_ros.rules.completion import completed_names
 from fourbar_ros.rules.policy import Outcome, Policy, Served, serve
+from fourbar_ros.rules.simulated_drive import effort_at
 
 FloatArray = npt.NDArray[np.float64]
 IntArray = npt.NDArray[np.int64]
@@ -297,6 +298,12 @@ class Summary:
     completion_velocity: float  #: rad/s, the same for the velocities
     completed_paired: int  #: completed messages matched to a measurement by stamp
     completed_unpaired: int
+    effort_rest: float  #: N m at the driven rocker: max |measured effort - input_torque| at rest (NaN: none)
+    effort_rest_count: int
+    effort_motion: float  #: N m, the same over the other paired measurements (NaN: none)
+    effort_motion_count: int
+    #: N m, max |measured effort - the load model's torque at the measured angle| over those (NaN: none)
+    effort_motion_model: float
 
     @property
     def speed_margin(self) -> float:
@@ -344,6 +351,46 @@ def completion_deviation(rec: Recording, cfg: AntennaConfig) -> tuple[float, flo
     return position, velocity, paired, considered - paired
 
 
+#: A measurement is at rest when its driven-joint speed is at most this (rad/s): the linkage's damping and inertia
+#: then add nothing visible to the static torque (the plant's hinge damping, 1e-2 N m s/rad, gives 1e-8 N m).
+REST_SPEED = 1e-6
+
+
+@dataclass(frozen=True)
+class EffortCheck:
+    """Each measurement after the first ``input_torque``: its time (s), measured effort minus the latest
+    ``input_torque`` received by then (N m at the driven rocker), and whether it was at rest at the command in
+    force: speed at most REST_SPEED and antenna angle (completed by the core) within trajectory_tolerance of it;
+    and the effort minus the load model's torque at the measured angle (``effort_at``; N m, NaN off its reach):
+    what the drive adds to the statics, the linkage's dynamics."""
+
+    t: FloatArray
+    difference: FloatArray
+    at_rest: npt.NDArray[np.bool_]
+    model_difference: FloatArray
+
+
+def effort_check(rec: Recording, cfg: AntennaConfig) -> EffortCheck:
+    """The measured effort against the node's predicted ``input_torque`` (``EffortCheck``)."""
+    m, torque = rec.measured, rec.input_torque
+    i = np.searchsorted(torque.t, m.position.t, side='right') - 1
+    keep = (i >= 0) & np.isfinite(m.effort)
+    t, idx = m.position.t[keep], i[keep]
+    difference = m.effort[keep] - torque.value[idx]
+    command = commanded_at(rec.command, t)
+    near = np.abs(antenna_of(cfg, m.position.value[keep]) - command) <= cfg.trajectory_tolerance
+    at_rest = near & (np.abs(m.velocity[keep]) <= REST_SPEED)
+    model = np.array([_effort_at(cfg, float(q)) for q in m.position.value[keep]], dtype=np.float64)
+    return EffortCheck(t, difference, at_rest, m.effort[keep] - model)
+
+
+def _effort_at(cfg: AntennaConfig, q: float) -> float:
+    try:
+        return effort_at(cfg, q)
+    except FourBarError:
+        return math.nan
+
+
 def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
     """The figures of a recording."""
     if rec.command.t.size == 0 or rec.antenna.t.size == 0:
@@ -356,6 +403,8 @@ def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
     worst = int(np.argmax(np.abs(error)))
     torque = np.concatenate([rec.input_torque.value, rec.planned_effort, rec.measured.effort])
     position, velocity, paired, unpaired = completion_deviation(rec, cfg)
+    check = effort_check(rec, cfg)
+    rest, motion = np.abs(check.difference[check.at_rest]), np.abs(check.difference[~check.at_rest])
     return Summary(
         final_error=float(rec.command.value[-1] - rec.antenna.value[-1]),  # the last served, once settled
         worst_error=float(error[worst]), worst_error_t=float(t[worst]),
@@ -363,15 +412,23 @@ def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
         peak_speed_measured=_peak(rec.measured.velocity), peak_speed_planned=_peak(rec.planned_velocity),
         torque_limit=cfg.motor_torque_limit, peak_motor_torque=abs(motor_torque(cfg, _peak(torque))),
         completion_position=position, completion_velocity=velocity, completed_paired=paired,
-        completed_unpaired=unpaired)
+        completed_unpaired=unpaired,
+        effort_rest=_peak(rest), effort_rest_count=int(rest.size),
+        effort_motion=_peak(motion), effort_motion_count=int(motion.size),
+        effort_motion_model=_peak(check.model_difference[~check.at_rest]))
 
 
 def _deg(x: float) -> str:
     return f'{math.degrees(x):+.4f} deg'
 
 
-def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: Mapping[str, str]) -> list[str]:
-    """The demo's short report."""
+#: What the simulated actuator's measured effort is, by its drive (``drive`` parameter).
+DRIVE_EFFORT = {'mujoco': "the MuJoCo plant's reducer torque", 'lag': "the load model's torque at its angle"}
+
+
+def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: Mapping[str, str],
+                  drive: str = 'lag') -> list[str]:
+    """The demo's short report; ``drive``: the simulated actuator's (a key of DRIVE_EFFORT)."""
     speed_peak = float(np.nanmax([s.peak_speed_measured, s.peak_speed_planned]))
     return [
         f'command  {_deg(float(rec.command.value.min()))} .. {_deg(float(rec.command.value.max()))} '
@@ -388,6 +445,10 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
         f'margin {100 * s.torque_margin:.1f}%',
         f'margin   worst {100 * min(s.speed_margin, s.torque_margin):.1f}% '
         f'({"speed" if s.speed_margin <= s.torque_margin else "torque"})',
+        f'effort   measured - input_torque at the driven rocker: max |d| at rest {s.effort_rest:.3g} N m over '
+        f'{s.effort_rest_count} measurements, in motion {s.effort_motion:.3g} N m over {s.effort_motion_count} '
+        f'({s.effort_motion_model:.3g} N m off the load model at the measured angle; drive {drive}: '
+        f'{DRIVE_EFFORT.get(drive, drive)})',
         f'counts   {rec.trajectories} trajectories, {rec.planned.t.size} planned points followed, '
         f'{rec.measured.position.t.size} measured joint_states, {rec.completed.stamp_ns.size} completed, '
         f'{rec.antenna_recorded} antenna_angle, {rec.input_torque.t.size} input_torque, {rec.diagnostics} diagnostics',
@@ -399,14 +460,15 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
 
 def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str) -> Path:
     """Write a PNG: commanded, planned and measured antenna angle; tracking error; driven-joint speed against its
-    limit; motor torque (planned feed-forward, measured effort) against its limit; all against time."""
+    limit; motor torque (planned feed-forward, measured effort, the node's input_torque) against its limit; measured
+    effort minus input_torque and minus the load model at the rocker (``effort_check``); all against time."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    fig, (ax_angle, ax_error, ax_speed, ax_torque) = plt.subplots(
-        4, 1, figsize=(8.5, 10.0), sharex=True, layout='constrained', height_ratios=(3, 1.6, 2, 2))
+    fig, (ax_angle, ax_error, ax_speed, ax_torque, ax_effort) = plt.subplots(
+        5, 1, figsize=(8.5, 12.0), sharex=True, layout='constrained', height_ratios=(3, 1.6, 2, 2, 1.6))
     ax_angle.step(rec.command.t, np.degrees(rec.command.value), where='post', color='tab:red', lw=1.2,
                   label='commanded (antenna_angle_cmd)')
     ax_angle.plot(rec.planned.t, np.degrees(antenna_of(cfg, rec.planned.value)), color='tab:blue', ls='--', lw=1,
@@ -441,13 +503,28 @@ def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str)
                    label='measured effort')
     ax_torque.plot(rec.planned.t, motor_torque(cfg, rec.planned_effort), color='tab:blue', ls='--', lw=1,
                    label='planned feed-forward')
+    if rec.input_torque.t.size:
+        ax_torque.step(rec.input_torque.t, motor_torque(cfg, rec.input_torque.value), where='post',
+                       color='tab:orange', lw=1, label='input_torque (node)')
     ax_torque.axhline(cfg.motor_torque_limit, color='tab:red', ls=':', lw=1.2,
                       label=f'motor limit {cfg.motor_torque_limit:g} N m')
     ax_torque.set_ylim(0.0, 1.2 * max(cfg.motor_torque_limit, s.peak_motor_torque))
     ax_torque.set_ylabel(f'torque at the motor (N m)\n(rocker / ({cfg.reducer_ratio:g} x {cfg.reducer_efficiency:g}))')
-    ax_torque.set_xlabel('time since the first command (s)')
-    ax_torque.legend(loc='lower left', fontsize=8, ncols=3)
-    for ax in (ax_angle, ax_error, ax_speed, ax_torque):
+    ax_torque.legend(loc='lower left', fontsize=8, ncols=2)
+
+    check = effort_check(rec, cfg)
+    ax_effort.plot(check.t, check.difference, color='k', lw=0.8, label='measured effort - input_torque')
+    ax_effort.plot(check.t, check.model_difference, color='tab:blue', lw=0.8,
+                   label='measured effort - load model at the measured angle')
+    ax_effort.plot(check.t[check.at_rest], check.difference[check.at_rest], ls='none', marker='.', ms=3,
+                   color='tab:green', label='at rest at the command')
+    ax_effort.axhline(0.0, color='0.5', lw=0.6)
+    ax_effort.set_ylabel('effort - input_torque\n(N m at the rocker)')
+    ax_effort.set_xlabel('time since the first command (s)')
+    ax_effort.legend(loc='upper left', fontsize=8, ncols=1,
+                     title=f'max |d|: at rest {s.effort_rest:.2g} N m, in motion {s.effort_motion:.2g} N m',
+                     title_fontsize=8)
+    for ax in (ax_angle, ax_error, ax_speed, ax_torque, ax_effort):
         ax.grid(True, alpha=0.3)
     fig.suptitle(title, fontsize=10)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -102,6 +102,10 @@ def run(args: argparse.Namespace) -> int:
     if args.domain_id is not None and not 0 <= args.domain_id <= 232:
         raise CommandError(f'--domain-id must be in 0..232, got {args.domain_id}')
     chosen, source = (args.domain_id, '--domain-id') if args.domain_id is not None else _environment_domain()
+    drive = demo_drive()
+    if drive != 'mujoco':
+        print(f'{prog}: note: the mujoco package is not installed (the plant extra): the simulated actuator runs '
+              'its lag drive, whose effort is the load model\'s', file=sys.stderr, flush=True)
     period = pace(stream.values, cfg)
     first = stream.stamps_ns[0] if stream.stamps_ns else 0
     paced = dataclasses.replace(stream, stamps_ns=tuple(first + seconds_to_ns(i * period) for i in range(len(stream))))
@@ -117,21 +121,29 @@ def run(args: argparse.Namespace) -> int:
         print(f'{prog}: fourbar_node (mode trajectory) and the simulated actuator with {args.params} on '
               f'ROS_DOMAIN_ID {domain_id} ({source}; this host only); replaying {len(stream)} commands from '
               f'{args.bag}, one every {period * 1e3:.1f} ms', flush=True)
-        replay_seconds, diagnostics = _run_ros(args, paced, domain_id, outputs, topics, cfg)
+        replay_seconds, diagnostics = _run_ros(args, paced, domain_id, outputs, topics, cfg, drive)
 
     rec = recording(read_messages(outputs, topics.all()), topics, cfg)  # read back with rosbags
     figures = summarize(rec, cfg)
     png = plot_demo(rec, figures, cfg, out / 'demo.png',
                     f'fourbar demo: {args.bag.name} replayed into fourbar_node (mode trajectory) driving the '
-                    f'simulated actuator\n({args.params}; driven rocker {cfg.driven.value}, {cfg.reducer_ratio:g}:1, '
-                    f'motor {cfg.motor_speed_limit:.4g} rad/s, {cfg.motor_acceleration_limit:g} rad/s^2, '
-                    f'{cfg.motor_jerk_limit:g} rad/s^3)')
-    for line in summary_lines(rec, figures, cfg, diagnostics):
+                    f'simulated actuator (drive {drive})\n({args.params}; driven rocker {cfg.driven.value}, '
+                    f'{cfg.reducer_ratio:g}:1, motor {cfg.motor_speed_limit:.4g} rad/s, '
+                    f'{cfg.motor_acceleration_limit:g} rad/s^2, {cfg.motor_jerk_limit:g} rad/s^3)')
+    for line in summary_lines(rec, figures, cfg, diagnostics, drive):
         print(line)
     print(f'replay   {len(stream)} commands in {replay_seconds:.2f} s; outputs bag {outputs} ({args.storage})')
     print(f'plot     {png}')
     print(f'{prog}: done in {time.monotonic() - start:.1f} s')
     return 0
+
+
+def demo_drive() -> str:
+    """The simulated actuator's drive in the demo: ``mujoco`` (the MuJoCo plant) where the mujoco package imports,
+    else ``lag``."""
+    import importlib.util
+
+    return 'mujoco' if importlib.util.find_spec('mujoco') is not None else 'lag'
 
 
 #: Measured antenna angles in a row within the tolerance of the last command that end the run.
@@ -144,7 +156,7 @@ def _settled(antenna: list[float], target: float, tolerance: float, samples: int
 
 
 def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: Path, topics: object,
-             cfg: object) -> tuple[float, dict[str, str]]:
+             cfg: object, drive: str) -> tuple[float, dict[str, str]]:
     """Node and simulated actuator processes, in-process paced replay and recording. Returns (replay seconds,
     last diagnostics). A process that fails or a node that does not answer raises CommandError with status 1.
     """
@@ -175,11 +187,13 @@ def _run_ros(args: argparse.Namespace, stream: object, domain_id: int, outputs: 
     commands = served(stream.values, cfg).theta
     if commands.size == 0:
         raise CommandError(f'{args.bag}: the node serves none of its {len(stream)} commands', status=2)
-    # The drive starts at rest at the first served command; its limits are the motor's through the reducer.
+    # The drive starts at rest at the first served command; its limits are the motor's through the reducer (the
+    # plant's servo takes the motor's speed limit from the parameters itself).
     node = NodeProcess(node_args(args.params, '-p', 'mode:=trajectory', '-p', 'joint_state_rate:=0.0',
                                  '-r', f'{MEASURED_JOINT_STATES.name}:={BROADCASTER_JOINT_STATES.name}'), env,
                        log_path=args.out / 'node.log')
-    sim = NodeProcess(node_args(args.params, '-p', f'initial_theta:={float(commands[0])!r}',
+    sim = NodeProcess(node_args(args.params, '-p', f'drive:={drive}',
+                                '-p', f'initial_theta:={float(commands[0])!r}',
                                 '-p', f'max_velocity:={cfg.motor_speed_limit / cfg.reduction!r}',
                                 '-p', f'max_acceleration:={cfg.motor_acceleration_limit / cfg.reduction!r}'),
                       env, command=sim_actuator_command(), log_path=args.out / 'sim_actuator.log')

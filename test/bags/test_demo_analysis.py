@@ -27,6 +27,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 from fourbar_ros.core.completion import complete
 from fourbar_ros.core.loads import pose
 from fourbar_ros.rules.completion import completed_names
+from fourbar_ros.rules.simulated_drive import effort_at
 
 Msg = SimpleNamespace  # a decoded message's stand-in: fields as rosbags gives them
 T0 = 1_700_000_000_000_000_000  # ns, the first command's receive time
@@ -147,9 +148,22 @@ def test_summary_figures(cfg: AntennaConfig) -> None:
     assert s.torque_margin == pytest.approx(1.0 - s.peak_motor_torque / cfg.motor_torque_limit, rel=1e-12)
     # The completion was built with the identical scalar core calls: exactly 0.
     assert (s.completion_position, s.completion_velocity, s.completed_paired, s.completed_unpaired) == (0, 0, 201, 0)
-    lines = summary_lines(rec, s, cfg, {'commands_received': '2'})
-    assert [line.split()[0] for line in lines] == ['command', 'tracking', 'speed', 'torque', 'margin', 'counts',
-                                                   'check']
+    # Effort - input_torque (3 N m from 2 ms, -4 N m from 1.002 s): the first measurement (0 s) precedes any
+    # input_torque. At rest at a command (speed 0, the antenna angle on it): 0.01..0.5 s, effort 2 against 3, and
+    # 1.5..1.99 s, effort 3 against -4. The rest moves, or (2 s) stands 1e-3 rad off the command, beyond
+    # trajectory_tolerance: its effort 3 against -4 is the largest.
+    assert (s.effort_rest, s.effort_rest_count) == (7.0, 100)
+    assert (s.effort_motion, s.effort_motion_count) == (7.0, 100)
+    # Off the load model at the measured angle, over the same measurements in motion (0.51..1.49 s, and 2 s).
+    measured = [m for _, m in _recording(cfg, lag=lag)[demo_topics(cfg.trajectory_controller).measured]]
+    moving = measured[51:150] + measured[200:]
+    assert s.effort_motion_model == max(abs(m.effort[0] - effort_at(cfg, m.position[0])) for m in moving)
+    lines = summary_lines(rec, s, cfg, {'commands_received': '2'}, 'mujoco')
+    assert [line.split()[0] for line in lines] == ['command', 'tracking', 'speed', 'torque', 'margin', 'effort',
+                                                   'counts', 'check']
+    assert lines[5] == ('effort   measured - input_torque at the driven rocker: max |d| at rest 7 N m over 100 '
+                        f'measurements, in motion 7 N m over 100 ({s.effort_motion_model:.3g} N m off the load model '
+                        "at the measured angle; drive mujoco: the MuJoCo plant's reducer torque)")
 
 
 def test_completion_check_sees_a_wrong_coupler(cfg: AntennaConfig) -> None:

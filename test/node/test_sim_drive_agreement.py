@@ -4,8 +4,9 @@ moves and rests.
 
 The reference is what the controller writes: a smooth motion r(t) (speed at most V, the joint's limit) sampled
 one update period P ahead; the lag holds it over the period, the plant's drive moves its servo's command linearly
-to it over the period; either is a command c with |c(s) - c(t)| <= V (|s - t| + P). Each drive
-is, while its limits do not bind, linear with a non-negative impulse response h of unit mass, so
+to it over the period (the time between the updates, all one period here; its speed limit, the motor's, is V and
+does not bind); either is a command c with |c(s) - c(t)| <= V (|s - t| + P). Each drive is, while its limits
+do not bind, linear with a non-negative impulse response h of unit mass, so
 x(t) - c(t) = int h(u) (c(t - u) - c(t)) du and |x - c| <= V (mean delay + P):
 
 - the lag: mean delay tau (its exact step r + (x - r) e^(-h/tau) weights the past geometrically, mean
@@ -26,13 +27,14 @@ difference (its slope, by a central difference, times it).
 What the lag cannot imitate, so not asserted: in motion the plant's effort carries the linkage's inertia, which the
 static load model has not (the servo's 50 Hz response at each change of the interpolated command's slope). And
 with its own default limits (the motor's speed and acceleration through the reducer, braking within the error left)
-the lag falls behind further, where the plant, with an unlimited servo, does not.
+the lag falls behind further, where the plant, whose servo has the speed limit only, does not.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import random
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -151,3 +153,41 @@ def test_the_lag_and_the_plant_agree_within_their_lags_and_at_rest(
             effort_bound = (REST_EFFORT_REL * abs(lag_effort)
                             + slope(cfg, plant.position, lim.lower, lim.upper) * gap * (1 + 1e-3))
             assert abs(effort - lag_effort) <= effort_bound, ('at rest', k, effort, lag_effort, effort_bound)
+
+
+def test_late_and_early_updates_move_the_plant_no_faster_than_the_reference() -> None:
+    """A loaded machine's timer: each update up to 0.6 periods late (a periodic timer keeps its phase, so a late one
+    is followed by an early one), the reference a ramp at 0.9 V sampled one period ahead, as the controller writes it.
+    Each setpoint is reached over the real time between its update and the one before, so the servo's command moves
+    at the reference's mean speed over that time: at most 0.9 V (to rounding). Spread over the next
+    interval instead, a setpoint after a late update would move at up to 0.9 V (1.6 / 0.4) = 3.6 V. The rocker
+    follows the command through the servo's non-negative impulse response (the load's slope dT/dq > 0 only stiffens
+    it), up to the soft reducer's own mode, so it stays under V, 10% above the reference's speed; at rest at the end
+    it stands at the last setpoint less the servo's deflection under the load."""
+    cfg = BASE
+    lim = joint_limits(cfg)[cfg.driven_joint]
+    vmax = lim.velocity
+    speed = 0.9 * vmax
+    start, move = lim.lower + 0.1, 1.5  # rad, s
+
+    def reference(t: float) -> float:
+        return start + speed * min(max(t - 0.1, 0.0), move)
+    plant = PlantDrive(cfg, start, lim.lower, lim.upper, DRIVE)
+    rng = random.Random(7)
+    before, setpoint, command, stepped = 0.0, reference(PERIOD), plant.command, plant.plant.data.time
+    peak_command = peak_rocker = 0.0
+    for k in range(1, round((move + 0.5) / PERIOD)):
+        at = k * PERIOD + rng.uniform(0.0, 0.6 * PERIOD)
+        plant.advance(at - before, setpoint)
+        # over the whole timesteps the interval made (the rest of it waits for the next)
+        if plant.plant.data.time > stepped:
+            peak_command = max(peak_command, abs(plant.command - command) / (plant.plant.data.time - stepped))
+        peak_rocker = max(peak_rocker, abs(plant.velocity))
+        before, setpoint, command, stepped = at, reference(at + PERIOD), plant.command, plant.plant.data.time
+    # to rounding: a setpoint's span is whole ns, off by up to 0.5 ns of an interval of at least 0.4 P (twice held)
+    assert peak_command <= speed * (1 + 1e-9 / (0.4 * PERIOD)), (peak_command, speed)
+    assert peak_rocker <= vmax, (peak_rocker, speed, vmax)
+    effort = plant.effort()
+    deflection = effort / (DRIVE.kp * cfg.reducer_ratio ** 2)  # rad at the rocker, against the load
+    final = reference(move + 0.1)
+    assert abs(plant.position - (final - deflection)) <= 1e-3 * abs(deflection), (plant.position, final, deflection)
