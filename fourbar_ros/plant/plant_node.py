@@ -43,7 +43,9 @@ PLANT_PARAMETERS: tuple[tuple[str, float | int, str], ...] = (
     ('encoder_counts', 0, 'an encoder on the driven rocker, counts per revolution (0: none, the drive reports '
                           'its step count, open loop)'),
     ('reducer_stiffness', 0.0, 'N m/rad at the rocker (0: a rigid reducer)'),
-    ('backlash', 0.0, 'rad at the rocker, total play (needs reducer_stiffness)'),
+    ('reducer_damping', 0.0, 'N m s/rad at the rocker, of a compliant reducer'),
+    ('backlash', 0.0, 'rad at the rocker, total play (needs reducer_stiffness; undamped, the play can rattle on '
+                      'for good once shaken: give reducer_damping)'),
     ('wind_torque', math.nan, 'steady wind on the antenna, N m, + theta (NaN: -load_torque, the design load); '
                               'settable at run time, also by the wind_torque topic'),
 )
@@ -124,7 +126,7 @@ class MujocoDrive(DriveBridge):
             stepper = stepper_drive(cfg, None if math.isnan(pull_out) else pull_out).stepper_torque
             drive = DriveModel(stepper_torque=None if pull_out == 0.0 else stepper,
                                reducer_stiffness=stiffness if stiffness > 0.0 else None,
-                               backlash=float(p['backlash']))
+                               reducer_damping=float(p['reducer_damping']), backlash=float(p['backlash']))
             counts, wind = int(p['encoder_counts']), float(p['wind_torque'])
             self._built = PlantBackend(cfg, drive, None if math.isnan(start) else start, self._plant_clock,
                                        counts if counts > 0 else None, int(p['microsteps']),
