@@ -201,7 +201,7 @@ class DriveBridge(Node):
         assert self.activation is not None
         subscribed: Callable[[], int] = self.states.get_subscription_count
         ready: Callable[[], bool] = self._set_state.service_is_ready
-        action = self.activation.on_reading(position, subscribed() > 0 and ready())
+        action = self.activation.on_reading(position, subscribed() > 0 and ready(), self._now())
         if action == ACTIVE:
             self._activate(position)
         elif action is not None:

@@ -166,6 +166,10 @@ class DriveRules:
 INACTIVE, ACTIVE = 'inactive', 'active'
 #: What the bridge's activation line starts with: the launch file starts the controllers' spawners on it.
 ACTIVATED_MARK = 'hardware component active:'
+#: Seconds without an answer after which an activation request counts as lost and is sent again: a respawned
+#: manager reports the component before its service is up, and its dead predecessor's service, still in the graph
+#: until its lease ends, makes the bridge's client look ready, so the first request can reach no one.
+ANSWER_TIMEOUT_S = 1.0
 
 
 def activated_line(component: str, joint: str, position: float) -> str:
@@ -182,9 +186,10 @@ class Activation:
     bridge asks for ``active`` once per manager (a new one: its activity's publication sequence restarts, or it is
     the first the bridge hears) while that manager reports the component inactive and never reported it active
     (a component someone deactivated is left alone), after a reading inside ``limits`` went out with the plugin
-    subscribed to the readings and the manager's service at hand. The activation is confirmed (one line) by the
-    manager's answer or by its report of the component active, whichever comes first (an answer can be lost).
-    A reading outside the range is refused with one line.
+    subscribed to the readings and the manager's service at hand; a request unanswered for ``answer_timeout`` s
+    counts as lost and is sent again on such a reading. The activation is confirmed (one line) by the manager's
+    answer or by its report of the component active, whichever comes first (an answer can be lost). A reading
+    outside the range is refused with one line.
     """
 
     limits: DriveLimits
@@ -196,26 +201,30 @@ class Activation:
     refused: str = ''  #: the out-of-range line of this manager, once logged
     last_line: str = ''  #: the latest outcome (activated, refused, failed), for diagnostics
     activations: int = 0
+    answer_timeout: float = ANSWER_TIMEOUT_S
     _sequence: int | None = None
     _requested: bool = False  #: activation was asked of the present manager
     _seen_active: bool = False  #: the present manager reported the component active (then it is left alone)
     _confirmed: bool = False  #: the present manager activated it on the bridge's request
     _position: float = math.nan  #: the reading (rad) the request was sent on
+    _asked_at: float = 0.0  #: when (s) the request was sent
+    _lost: bool = False  #: the request in flight went unanswered for answer_timeout: to be sent again
+    _reported: str | None = None  #: the component's state in the present manager's latest report (None: absent)
 
     def on_activity(self, sequence: int | None, state: str | None) -> str | None:
         """The manager's activity (``sequence``: its publication sequence number, None where the middleware does
         not give one: every report counts as a new manager) with ``state``, the component's label (None: absent).
         The activation line when this report confirms the bridge's request, else None."""
         if self._sequence is None or sequence is None or sequence <= self._sequence:  # a new manager
-            self._requested = self._seen_active = self._confirmed = self.pending = False
+            self._requested = self._seen_active = self._confirmed = self.pending = self._lost = False
             self.refused = self.manager_state = ''
-        self._sequence = sequence
+        self._sequence, self._reported = sequence, state
         if state is None:  # the component is not (yet) the manager's: nothing to ask of it
             self.armed = False
             return None
         self.manager_state = state
         self._seen_active = self._seen_active or state == ACTIVE
-        self.armed = state == INACTIVE and not (self._seen_active or self._requested)
+        self.armed = state == INACTIVE and not self._seen_active and (self._lost or not self._requested)
         return self._confirm() if state == ACTIVE and self._requested else None
 
     def _confirm(self) -> str | None:
@@ -226,14 +235,18 @@ class Activation:
         self.last_line = activated_line(self.component, self.joint, self._position)
         return self.last_line
 
-    def on_reading(self, position: float, ready: bool) -> str | None:
-        """After ``position`` rad was published (``ready``: the plugin subscribed to the readings and the manager's
-        service at hand): ACTIVE to request activation, a line to log for a refusal (once per manager), else None."""
+    def on_reading(self, position: float, ready: bool, now: float = 0.0) -> str | None:
+        """After ``position`` rad was published at ``now`` s (``ready``: the plugin subscribed to the readings and
+        the manager's service at hand): ACTIVE to request activation (again, once the request in flight is
+        ``answer_timeout`` s old), a line to log for a refusal (once per manager), else None."""
+        if self.pending and now - self._asked_at > self.answer_timeout:
+            self.pending, self._lost = False, True
+            self.armed = self._reported == INACTIVE and not self._seen_active
         if not self.armed or self.pending or not ready:
             return None
         if self.limits.in_range(position):
-            self.armed, self.pending, self._requested = False, True, True
-            self._position = position
+            self.armed, self.pending, self._requested, self._lost = False, True, True, False
+            self._position, self._asked_at = position, now
             return ACTIVE
         if self.refused:
             return None

@@ -12,7 +12,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fourbar_ros.config.antenna_config import default_config
-from fourbar_ros.drive.rules import ACTIVATED_MARK, ACTIVE, INACTIVE, Activation, DriveLimits, activated_line
+from fourbar_ros.drive.rules import (
+    ACTIVATED_MARK,
+    ACTIVE,
+    ANSWER_TIMEOUT_S,
+    INACTIVE,
+    Activation,
+    DriveLimits,
+    activated_line,
+)
 
 CFG = default_config()
 LIMITS = DriveLimits.from_config(CFG)
@@ -104,6 +112,33 @@ def test_a_respawned_manager_is_asked_again_only_after_a_fresh_reading() -> None
     assert a.on_activity(3, ACTIVE) == activated_line(COMPONENT, JOINT, LOW) and a.activations == 2
 
 
+def test_an_unanswered_request_is_sent_again_after_the_answer_timeout() -> None:
+    # A respawned manager reports the component before its service is up; its dead predecessor's service makes the
+    # client look ready: the first request can reach no one.
+    a = _activation()
+    a.on_activity(1, INACTIVE)
+    assert a.on_reading(MID, True, 10.0) == ACTIVE
+    assert a.on_reading(MID, True, 10.0 + ANSWER_TIMEOUT_S) is None, 'asked again before the answer timeout'
+    assert a.on_reading(math.nextafter(HIGH, math.inf), True, 12.0).startswith(REFUSED)  # type: ignore[union-attr]
+    assert a.on_reading(LOW, False, 12.0) is None, 'asked again with the service not at hand'
+    assert a.on_reading(LOW, True, 12.0) == ACTIVE
+    assert a.on_response(True, ACTIVE) == activated_line(COMPONENT, JOINT, LOW)
+    assert a.on_response(True, ACTIVE) is None and a.on_reading(LOW, True, 20.0) is None and a.activations == 1
+
+
+def test_a_request_is_not_sent_again_once_answered_or_reported() -> None:
+    for answer in ((True, ACTIVE), (False, INACTIVE)):
+        a = _activation()
+        a.on_activity(1, INACTIVE)
+        assert a.on_reading(MID, True, 0.0) == ACTIVE
+        a.on_response(*answer)
+        assert a.on_reading(MID, True, 10.0) is None, f'asked again after the answer {answer}'
+    a = _activation()
+    a.on_activity(1, INACTIVE)
+    assert a.on_reading(MID, True, 0.0) == ACTIVE and a.on_activity(2, ACTIVE) is not None
+    assert a.on_reading(MID, True, 10.0) is None, 'asked again after the report of the component active'
+
+
 def test_without_sequence_numbers_every_report_is_a_new_manager() -> None:
     a = _activation()
     a.on_activity(None, ACTIVE)
@@ -135,6 +170,8 @@ class Life:
     refusals: int = 0
     outstanding: bool = False  #: a request it has not answered
     requested_at: float = math.nan  #: the reading (rad) the request went out on
+    asked_at: float = math.nan  #: when (s) the latest request went out
+    lost: bool = False  #: the latest request went unanswered for the answer timeout: to be sent again
     last_sequence: int = 0
 
 
@@ -149,6 +186,7 @@ EVENT = st.one_of(
     st.tuples(st.just('reading'), POSITION, READY),
     st.tuples(st.just('reading'), POSITION, READY),
     st.tuples(st.just('answer'), st.booleans(), st.sampled_from([ACTIVE, ACTIVE, INACTIVE, ''])),
+    st.tuples(st.just('wait'), st.sampled_from([0.5, ANSWER_TIMEOUT_S, 1.5 * ANSWER_TIMEOUT_S]), st.none()),  # s
 )
 
 
@@ -156,13 +194,18 @@ EVENT = st.one_of(
 @given(events=st.lists(EVENT, min_size=20, max_size=60))
 def test_a_random_sequence_keeps_the_promises(events: list[tuple[str, object, object]]) -> None:
     """Activation is asked only on a ready, finite reading inside the range, published after the present manager
-    reported the component inactive (never having reported it active), and at most once per manager, a failed
-    request included; a reading outside is refused in one line per manager; each request is confirmed in one line
-    (answer or report, whichever first) naming its reading; ``manager_state`` is the present manager's."""
+    reported the component inactive (never having reported it active), and once per manager, a failed request
+    included, again only once a request went unanswered for the answer timeout (s); a reading outside is refused
+    in one line per manager; each activation is confirmed in one line (answer or report, whichever first) naming
+    its reading; ``manager_state`` is the present manager's."""
     a = _activation()
     life: Life | None = None  # None: no manager heard yet
     confirmed = 0  # confirmations of the managers before the present one
+    now = 0.0  # s
     for kind, x, y in events:
+        if kind == 'wait':
+            now += float(x)  # type: ignore[arg-type]
+            continue
         if kind == 'answer':
             if life is None or not life.outstanding:
                 continue  # nobody to answer: a dead manager never does
@@ -173,7 +216,7 @@ def test_a_random_sequence_keeps_the_promises(events: list[tuple[str, object, ob
                 assert (line is not None) == (life.confirmations == 0), f'answer {ok, label}: {line!r}'
                 if line is not None:
                     assert line == activated_line(COMPONENT, JOINT, life.requested_at)
-                    life.confirmations += 1
+                    life.confirmations, life.shown = life.confirmations + 1, ACTIVE
             else:
                 assert line is not None and ACTIVATED_MARK not in line and not a.pending, line
             continue
@@ -192,23 +235,25 @@ def test_a_random_sequence_keeps_the_promises(events: list[tuple[str, object, ob
             if state == ACTIVE and life.requests == 0:
                 life.seen_active = True
             if line is not None:
-                assert state == ACTIVE and life.requests == 1 and life.confirmations == 0, \
+                assert state == ACTIVE and life.requests >= 1 and life.confirmations == 0, \
                     f'a confirmation line on {state!r} after {life}'
                 assert line == activated_line(COMPONENT, JOINT, life.requested_at)
                 life.confirmations += 1
-            elif state == ACTIVE and life.requests == 1:
+            elif state == ACTIVE and life.requests >= 1:
                 assert life.confirmations == 1, f'the report of the component active confirmed nothing: {life}'
             assert a.manager_state == life.shown, f'state {a.manager_state!r} shown after {life}'
             continue
         position, ready = float(x), bool(y)  # type: ignore[arg-type]
-        action = a.on_reading(position, ready)
-        eligible = (life is not None and ready and life.reported == INACTIVE and not life.seen_active
-                    and life.requests == 0)
+        action = a.on_reading(position, ready, now)
+        if life is not None and life.outstanding and now - life.asked_at > ANSWER_TIMEOUT_S:
+            life.outstanding, life.lost = False, True  # unanswered for the timeout: to be asked again
+        eligible = (life is not None and ready and life.reported == INACTIVE and life.confirmations == 0
+                    and ((not life.seen_active and life.requests == 0) or life.lost))
         if action == ACTIVE:
             assert eligible and life is not None, f'asked on {position!r} (ready {ready}) after {life}'
             assert LIMITS.in_range(position) and math.isfinite(position), f'asked on {position!r} rad'
             life.requests += 1
-            life.outstanding, life.requested_at = True, position
+            life.outstanding, life.requested_at, life.asked_at, life.lost = True, position, now, False
         elif action is not None:
             assert eligible and life is not None and not LIMITS.in_range(position), \
                 f'refused {position!r} (ready {ready}) after {life}: {action!r}'

@@ -60,8 +60,8 @@ TIMEOUT = 60.0
 RESEND_S = 0.5  # s between two sends of the command until the drive moves
 
 #: A probe on the manager's activity (reliable, transient local, as the manager publishes it): one line per report,
-#: ``<publication sequence number> <the component's state label>`` (controller_manager_msgs needs ros2_control's
-#: paths, so it runs as a child process).
+#: ``<publication sequence number> <the component's state label> <source timestamp ns, system clock>``
+#: (controller_manager_msgs needs ros2_control's paths, so it runs as a child process).
 PROBE = '''
 import sys, rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -71,7 +71,7 @@ rclpy.init()
 node = rclpy.create_node('activity_probe')
 def on(msg, info):
     states = [c.state.label for c in msg.hardware_components if c.name == sys.argv[2]]
-    print(info['publication_sequence_number'], states[0] if states else '-', flush=True)
+    print(info['publication_sequence_number'], states[0] if states else '-', info['source_timestamp'], flush=True)
 node.create_subscription(ControllerManagerActivity, sys.argv[1], MessageInfoCallback(on), QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
 try:
@@ -90,9 +90,12 @@ def _activations(processes: Processes) -> list[str]:
     return [line for line in processes.log('bridge').splitlines() if ACTIVATED_MARK in line]
 
 
-def _reports(processes: Processes) -> list[tuple[int, str]]:
+def _reports(processes: Processes, after_ns: int = 0, before_ns: float = math.inf) -> list[tuple[int, str]]:
+    """The probe's (sequence number, state) of the reports published in (``after_ns``, ``before_ns``) (their
+    source timestamps, system clock, ns), in the order heard."""
     rows = [line.split() for line in processes.log('activity').splitlines()]
-    return [(int(row[0]), row[1]) for row in rows if len(row) == 2 and row[0].isdigit()]
+    return [(int(row[0]), row[1]) for row in rows
+            if len(row) == 3 and row[0].isdigit() and row[2].isdigit() and after_ns < int(row[2]) < before_ns]
 
 
 def test_a_respawned_manager_is_activated_on_a_fresh_reading_and_nothing_moves_uncommanded(
@@ -128,19 +131,18 @@ def test_a_respawned_manager_is_activated_on_a_fresh_reading_and_nothing_moves_u
                                    '-p', f'hardware_component:={COMPONENT}',
                                    '-p', f'joint_commands_topic:={COMMANDS}', '-p', f'joint_states_topic:={STATES}'],
                         {**env, START_ENV: START.hex(), LOG_ENV: str(record)})
-        ros.wait_for(lambda: len(_activations(processes)) == 1, TIMEOUT, 'the bridge activating the first manager')
+        ros.wait_for(lambda: len(_activations(processes)) >= 1, TIMEOUT, 'the bridge activating the first manager')
         spawn('spawner')
         measured.wait_match(lambda m: _position(m) == START, TIMEOUT)
         ros.wait_for(lambda: any(s == 'active' for _, s in _reports(processes)), TIMEOUT, 'the report of it active')
-        before_kill = _reports(processes)
 
         first.send_signal(signal.SIGKILL)
         first.wait()
-        killed_at = time.monotonic()
+        killed_at, killed_ns = time.monotonic(), time.time_ns()
         heard = len(measured.messages)
         lines_while_dead = _activations(processes)
         processes.start('controller_manager_2', manager_args, env)  # as the launch's respawn does
-        ros.wait_for(lambda: len(_activations(processes)) == 2, TIMEOUT, 'the bridge activating the new manager')
+        ros.wait_for(lambda: len(_activations(processes)) >= 2, TIMEOUT, 'the bridge activating the new manager')
         reactivated_s = time.monotonic() - killed_at
         spawn('spawner_2')
         measured.wait_match(lambda m: _position(m) == START, TIMEOUT, start=heard)
@@ -161,14 +163,16 @@ def test_a_respawned_manager_is_activated_on_a_fresh_reading_and_nothing_moves_u
             return any(w != q for _, q, w in writes(record))
         ros.wait_for(moved, TIMEOUT, f'the drive moving on the command towards {TARGET!r} rad')
 
-        lines, reports = _activations(processes), _reports(processes)
+        # The new manager's reports: its latest (after the spawners) says the component active.
+        ros.wait_for(lambda: (_reports(processes, killed_ns)[-1:] or [(0, '')])[-1][1] == 'active', TIMEOUT,
+                     'the probe hearing the new manager report the component active')
+        lines, new = _activations(processes), _reports(processes, killed_ns)
+        before_kill = _reports(processes, before_ns=killed_ns)
         assert len(lines_while_dead) == 1, f'activation lines before the new manager started: {lines_while_dead}'
         # Both activations on the drive's own position: a reading the bridge published, not the plugin's start.
         expected = activated_line(COMPONENT, JOINT, START)
         assert len(lines) == 2 and all(line.endswith(expected) for line in lines), lines
-        old = [seq for seq, _ in before_kill]
-        new = reports[len(before_kill):]
-        assert new and new[0][0] <= old[-1] and new[-1][1] == 'active', \
+        assert before_kill and new[0][0] <= before_kill[-1][0], \
             f'the new manager\'s reports {new} after the old one\'s {before_kill}: its sequence did not restart'
         recorded = writes(record)
         early = [(t, q, w) for t, q, w in recorded if t < commanded_at]
