@@ -128,8 +128,9 @@ def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
               for name, _, value in (entry.partition('=') for entry in cfg.hardware_parameters)]
     return [
         f'  <ros2_control name={quoteattr(cfg.hardware_id)} type="system">',
-        '    <!-- The drive\'s hardware interface goes here (mock_components/GenericSystem: commands echoed); its '
-        'parameters: the parameter hardware_parameters. -->',
+        # No ': ' nor ' #' in the comments: a ``-p robot_description:=...`` value is parsed as YAML.
+        '    <!-- The drive\'s hardware interface goes here (mock_components/GenericSystem echoes the commands); its '
+        'parameters come from the parameter hardware_parameters. -->',
         '    <hardware>',
         f'      <plugin>{escape(hardware_plugin)}</plugin>',
         *params,
@@ -139,7 +140,7 @@ def ros2_control_block(cfg: AntennaConfig, limit: JointLimit,
         f'        <param name="min">{_num(limit.lower)}</param>',
         f'        <param name="max">{_num(limit.upper)}</param>',
         '      </command_interface>',
-        *(['      <command_interface name="effort"/>  <!-- effort_feedforward: [position, effort] -->']
+        *(['      <command_interface name="effort"/>  <!-- effort_feedforward (position, then effort) -->']
           if cfg.effort_feedforward else []),
         '      <state_interface name="position">',
         f'        <param name="initial_value">{_num(driven_angle(cfg))}</param>',
