@@ -30,34 +30,41 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from recording_drive import LOG_ENV, START_ENV, writes
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
-from support.drive_stack import PLUGIN, Processes, manager_executable, topic_plugin_missing
+from support.drive_stack import (
+    CFG,
+    COMMANDS,
+    COMPONENT,
+    INITIAL,
+    JOINT,
+    LIMITS,
+    PLUGIN,
+    RESEND_S,
+    STATES,
+    STEP,
+    STEP_S,
+    TIMEOUT,
+    Processes,
+    joint_position,
+    manager_executable,
+    topic_plugin_missing,
+)
 from support.paths import REPO
 from support.ros2_control_support import with_ros2_control
 from support.ros_support import RosSession
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from fourbar_ros.config.antenna_config import config_from_values
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
-from fourbar_ros.config.robot_model import driven_angle, robot_description
-from fourbar_ros.drive.rules import ACTIVATED_MARK, DriveLimits, activated_line
+from fourbar_ros.config.robot_model import robot_description
+from fourbar_ros.drive.rules import ACTIVATED_MARK, activated_line
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-COMMANDS, STATES = 'drive_joint_commands', 'drive_joint_states'  # relative: in the manager's namespace
-CFG = config_from_values({'hardware_parameters': [f'joint_commands_topic={COMMANDS}',
-                                                  f'joint_states_topic={STATES}']})
-JOINT, COMPONENT = CFG.driven_joint, CFG.hardware_id
-LIMITS = DriveLimits.from_config(CFG)
-INITIAL = driven_angle(CFG)  # the URDF's initial_value: the plugin's position state before its first reading
 #: The drive's angle (rad): a quarter of the range from the end farther from INITIAL (never the plugin's start).
 START = (0.75 * LIMITS.lower + 0.25 * LIMITS.upper if 0.5 * (LIMITS.lower + LIMITS.upper) < INITIAL
          else 0.25 * LIMITS.lower + 0.75 * LIMITS.upper)
-STEP, STEP_S = 0.005, 1  # the commanded move (rad) away from INITIAL and its duration (s): within the speed limit
 TARGET = START + math.copysign(STEP, START - INITIAL)
 NAMESPACE = '/respawn_bridge'
 MANAGER = f'{NAMESPACE}/controller_manager'
-TIMEOUT = 60.0
-RESEND_S = 0.5  # s between two sends of the command until the drive moves
 
 #: A probe on the manager's activity (reliable, transient local, as the manager publishes it): one line per report,
 #: ``<publication sequence number> <the component's state label> <source timestamp ns, system clock>``
@@ -79,11 +86,6 @@ try:
 except BaseException:
     pass
 '''
-
-
-def _position(msg: JointState) -> float | None:
-    names = list(msg.name)
-    return float(msg.position[names.index(JOINT)]) if JOINT in names and msg.position else None
 
 
 def _activations(processes: Processes) -> list[str]:
@@ -133,7 +135,7 @@ def test_a_respawned_manager_is_activated_on_a_fresh_reading_and_nothing_moves_u
                         {**env, START_ENV: START.hex(), LOG_ENV: str(record)})
         ros.wait_for(lambda: len(_activations(processes)) >= 1, TIMEOUT, 'the bridge activating the first manager')
         spawn('spawner')
-        measured.wait_match(lambda m: _position(m) == START, TIMEOUT)
+        measured.wait_match(lambda m: joint_position(m) == START, TIMEOUT)
         ros.wait_for(lambda: any(s == 'active' for _, s in _reports(processes)), TIMEOUT, 'the report of it active')
 
         first.send_signal(signal.SIGKILL)
@@ -145,7 +147,7 @@ def test_a_respawned_manager_is_activated_on_a_fresh_reading_and_nothing_moves_u
         ros.wait_for(lambda: len(_activations(processes)) >= 2, TIMEOUT, 'the bridge activating the new manager')
         reactivated_s = time.monotonic() - killed_at
         spawn('spawner_2')
-        measured.wait_match(lambda m: _position(m) == START, TIMEOUT, start=heard)
+        measured.wait_match(lambda m: joint_position(m) == START, TIMEOUT, start=heard)
 
         trajectory = ros.publisher(JointTrajectory, f'{NAMESPACE}/joint_trajectory_controller/joint_trajectory', 10)
         ros.wait_subscribers(trajectory)
@@ -183,10 +185,10 @@ def test_a_respawned_manager_is_activated_on_a_fresh_reading_and_nothing_moves_u
         assert early == [], f'writes before the command (kill at {killed_at!r} s): {early}'
         assert moving[0][0] > commanded_at and (moving[0][2] - moving[0][1]) * (TARGET - START) > 0, \
             f'the first moving write {moving[:1]} (command at {commanded_at!r} s towards {TARGET!r} rad)'
-        seen = [_position(m) for m in measured.messages[:before_command]]
+        seen = [joint_position(m) for m in measured.messages[:before_command]]
         assert seen and all(q == START for q in seen), f'the broadcasters before the command: {set(seen)}'
         assert len(measured.messages[heard:before_command]) > 0, 'nothing heard from the new manager\'s broadcaster'
-        assert INITIAL not in [_position(m) for m in measured.messages], f'initial_value {INITIAL!r} published'
+        assert INITIAL not in [joint_position(m) for m in measured.messages], f'initial_value {INITIAL!r} published'
         print(f'respawn: reports of the first manager {before_kill}, of the new one {new}; re-activated '
               f'{reactivated_s:.2f} s after the kill; no write before the command; first motion '
               f'{moving[0][2] - moving[0][1]!r} rad towards {TARGET!r}')

@@ -5,8 +5,8 @@ the bridge (its executable, ``backend:=recording_drive:RecordingDrive``, every w
 reading of the drive inside the driven range; the controllers are spawned after that. From drive angles at both ends
 of the range, one ulp inside each, mid-range (away from the model's ``initial_value``), and one ulp outside each end
 (a bridge that refuses, then one in range on the same manager): no write moves the drive before the first command,
-the broadcaster never publishes ``initial_value``, and the first motion is the commanded one. Then the launch file
-as users type it (``hardware:=bridge``), a command through fourbar_node, and a respawned controller manager.
+the broadcaster never publishes ``initial_value``, and the first motion is the commanded one. (The launch file as
+users type it: test/package/test_real_bringup.py; a respawned manager: test_bridge_respawn.py.)
 
 Skipped, with the reason, where ros2_control or the topic plugin is not installed.
 """
@@ -30,32 +30,38 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from recording_drive import LOG_ENV, START_ENV, writes
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
-from support.drive_stack import PLUGIN, Processes, manager_executable, topic_plugin_missing
+from support.drive_stack import (
+    CFG,
+    COMMANDS,
+    COMPONENT,
+    INITIAL,
+    JOINT,
+    LIMITS,
+    PLUGIN,
+    RESEND_S,
+    STATES,
+    STEP,
+    STEP_S,
+    TIMEOUT,
+    Processes,
+    joint_position,
+    manager_executable,
+    topic_plugin_missing,
+)
 from support.paths import REPO
 from support.ros2_control_support import with_ros2_control
 from support.ros_support import RosSession
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from fourbar_ros.config.antenna_config import config_from_values
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
-from fourbar_ros.config.robot_model import driven_angle, robot_description
-from fourbar_ros.drive.rules import ACTIVATED_MARK, DriveLimits
+from fourbar_ros.config.robot_model import robot_description
+from fourbar_ros.drive.rules import ACTIVATED_MARK
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
-COMMANDS, STATES = 'drive_joint_commands', 'drive_joint_states'  # relative: in the manager's namespace
-CFG = config_from_values({'hardware_parameters': [f'joint_commands_topic={COMMANDS}',
-                                                  f'joint_states_topic={STATES}']})
-JOINT, COMPONENT = CFG.driven_joint, CFG.hardware_id
-LIMITS = DriveLimits.from_config(CFG)
-INITIAL = driven_angle(CFG)  # the URDF's initial_value: the plugin's position state before its first reading
 MID = 0.5 * (LIMITS.lower + LIMITS.upper)
 BACKEND = 'recording_drive:RecordingDrive'
 REFUSED = 'not activating hardware component'
-#: The commanded move (rad) and its duration (s): 0.005 rad/s, within the speed limit at the rocker.
-STEP, STEP_S = 0.005, 1
-TIMEOUT = 60.0
-RESEND_S = 0.5  # s between two sends of the command until the drive moves
 PLUGIN_THRESHOLD = 1e-5  # rad: JointStateTopicSystem's default trigger_joint_command_threshold
 
 #: (case, the drive's angle at bringup rad, an angle outside the range a first bridge refuses on the same manager).
@@ -66,11 +72,6 @@ CASES = [
     ('one ulp below the upper end', math.nextafter(LIMITS.upper, -math.inf), None),
     ('upper end', LIMITS.upper, math.nextafter(LIMITS.upper, math.inf)),
 ]
-
-
-def _position(msg: JointState) -> float | None:
-    names = list(msg.name)
-    return float(msg.position[names.index(JOINT)]) if JOINT in names and msg.position else None
 
 
 def _direction(start: float) -> float:
@@ -134,7 +135,7 @@ def test_the_bringup_moves_the_drive_only_as_commanded(ros: RosSession, processe
                                   env)
         ros.wait_for(lambda: spawner.poll() is not None, TIMEOUT, 'the spawner')
         assert spawner.returncode == 0
-        measured.wait_match(lambda m: _position(m) == start, TIMEOUT)
+        measured.wait_match(lambda m: joint_position(m) == start, TIMEOUT)
         trajectory = ros.publisher(JointTrajectory, f'{namespace}/joint_trajectory_controller/joint_trajectory', 10)
         ros.wait_subscribers(trajectory)
         target = start + _direction(start) * STEP
@@ -150,11 +151,11 @@ def test_the_bringup_moves_the_drive_only_as_commanded(ros: RosSession, processe
             if time.monotonic() - sent[0] >= RESEND_S:
                 trajectory.publish(command)
                 sent[0] = time.monotonic()
-            return any(_position(m) != start for m in drive.messages[readings:])
+            return any(joint_position(m) != start for m in drive.messages[readings:])
         ros.wait_for(moved, TIMEOUT, f'the drive moving on the command towards {target!r} rad')
         # The plugin sends no command within its trigger_joint_command_threshold of the state it read (1e-5 rad,
         # upstream's default): once the controller holds the target, the drive rests within that of it.
-        drive.wait_match(lambda m: abs((_position(m) or math.inf) - target) <= PLUGIN_THRESHOLD, TIMEOUT)
+        drive.wait_match(lambda m: abs((joint_position(m) or math.inf) - target) <= PLUGIN_THRESHOLD, TIMEOUT)
         recorded = writes(tmp_path / 'bridge.writes')
         early = [(t, q, w) for t, q, w in recorded if t < commanded_at]
         moving = [(t, q, w) for t, q, w in recorded if w != q]
@@ -163,9 +164,10 @@ def test_the_bringup_moves_the_drive_only_as_commanded(ros: RosSession, processe
         assert largest == 0.0, f'{case}: a write before the command moved the drive by {largest!r} rad: {early}'
         assert moving and moving[0][0] > commanded_at and (moving[0][2] - moving[0][1]) * _direction(start) > 0, \
             f'{case}: the first moving write {moving[:1]} (command at {commanded_at!r} s towards {target!r} rad)'
-        seen = [_position(m) for m in measured.messages[:before]]
+        seen = [joint_position(m) for m in measured.messages[:before]]
         assert seen and all(q == start for q in seen), f'{case}: the broadcaster before the command: {set(seen)}'
-        assert INITIAL not in [_position(m) for m in measured.messages], f'{case}: initial_value {INITIAL!r} published'
+        published = [joint_position(m) for m in measured.messages]
+        assert INITIAL not in published, f'{case}: initial_value {INITIAL!r} published'
         print(f'{case}: start {start!r} rad, {len(early)} writes before the command, largest motion {largest!r} rad; '
               f'first motion {moving[0][2] - moving[0][1]!r} rad towards {target!r}')
     except AssertionError as exc:

@@ -1,5 +1,5 @@
-"""The drive bridge's real-stack tests' shared parts: what the topic-based plugin needs, the controller manager's
-executables, and child processes with their logs in files."""
+"""The drive bridge's real-stack tests' shared parts: what the topic-based plugin needs, the configuration its
+topics are set in, the controller manager's executables, and child processes with their logs in files."""
 
 from __future__ import annotations
 
@@ -8,13 +8,37 @@ import signal
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
 
+from fourbar_ros.config.antenna_config import config_from_values
+from fourbar_ros.config.robot_model import driven_angle
+from fourbar_ros.drive.rules import DriveLimits
 from support.isolation import kill_group
 from support.ros2_control_support import ros2_control_missing
 
+if TYPE_CHECKING:  # the message packages come with ROS: the pure drive tests share this module's fixture
+    from sensor_msgs.msg import JointState
+
 PLUGIN = 'joint_state_topic_hardware_interface/JointStateTopicSystem'
+COMMANDS, STATES = 'drive_joint_commands', 'drive_joint_states'  # relative: in the manager's namespace
+#: The shipped configuration with the plugin's topics as hardware parameters.
+CFG = config_from_values({'hardware_parameters': [f'joint_commands_topic={COMMANDS}',
+                                                  f'joint_states_topic={STATES}']})
+JOINT, COMPONENT = CFG.driven_joint, CFG.hardware_id
+LIMITS = DriveLimits.from_config(CFG)
+INITIAL = driven_angle(CFG)  # the URDF's initial_value: the plugin's position state before its first reading
+#: The commanded move (rad) and its duration (s): 0.005 rad/s, within the speed limit at the rocker.
+STEP, STEP_S = 0.005, 1
+TIMEOUT = 60.0
+RESEND_S = 0.5  # s between two sends of the command until the drive moves
+
+
+def joint_position(msg: JointState) -> float | None:
+    """The driven joint's position (rad) in ``msg``, None where it has none."""
+    names = list(msg.name)
+    return float(msg.position[names.index(JOINT)]) if JOINT in names and msg.position else None
 
 
 def topic_plugin_missing(env: dict[str, str]) -> str | None:
