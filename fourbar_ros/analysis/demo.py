@@ -304,6 +304,7 @@ class Summary:
     effort_motion_count: int
     #: N m, max |measured effort - the load model's torque at the measured angle| over those (NaN: none)
     effort_motion_model: float
+    effort: EffortCheck  #: the comparison measurement by measurement, which those figures sum up
 
     @property
     def speed_margin(self) -> float:
@@ -415,7 +416,7 @@ def summarize(rec: Recording, cfg: AntennaConfig) -> Summary:
         completed_unpaired=unpaired,
         effort_rest=_peak(rest), effort_rest_count=int(rest.size),
         effort_motion=_peak(motion), effort_motion_count=int(motion.size),
-        effort_motion_model=_peak(check.model_difference[~check.at_rest]))
+        effort_motion_model=_peak(check.model_difference[~check.at_rest]), effort=check)
 
 
 def _deg(x: float) -> str:
@@ -461,7 +462,7 @@ def summary_lines(rec: Recording, s: Summary, cfg: AntennaConfig, diagnostics: M
 def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str) -> Path:
     """Write a PNG: commanded, planned and measured antenna angle; tracking error; driven-joint speed against its
     limit; motor torque (planned feed-forward, measured effort, the node's input_torque) against its limit; measured
-    effort minus input_torque and minus the load model at the rocker (``effort_check``); all against time."""
+    effort minus input_torque and minus the load model at the rocker (``s.effort``); all against time."""
     import matplotlib
 
     matplotlib.use('Agg')
@@ -512,7 +513,7 @@ def plot(rec: Recording, s: Summary, cfg: AntennaConfig, path: Path, title: str)
     ax_torque.set_ylabel(f'torque at the motor (N m)\n(rocker / ({cfg.reducer_ratio:g} x {cfg.reducer_efficiency:g}))')
     ax_torque.legend(loc='lower left', fontsize=8, ncols=2)
 
-    check = effort_check(rec, cfg)
+    check = s.effort
     ax_effort.plot(check.t, check.difference, color='k', lw=0.8, label='measured effort - input_torque')
     ax_effort.plot(check.t, check.model_difference, color='tab:blue', lw=0.8,
                    label='measured effort - load model at the measured angle')
