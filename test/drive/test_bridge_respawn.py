@@ -26,18 +26,14 @@ import pytest
 pytest.importorskip('rclpy')
 
 from builtin_interfaces.msg import Duration
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from recording_drive import LOG_ENV, START_ENV, writes
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
 from support.drive_stack import (
-    CFG,
     COMMANDS,
     COMPONENT,
     INITIAL,
     JOINT,
     LIMITS,
-    PLUGIN,
     RESEND_S,
     STATES,
     STEP,
@@ -46,6 +42,7 @@ from support.drive_stack import (
     Processes,
     joint_position,
     manager_executable,
+    publish_description,
     topic_plugin_missing,
 )
 from support.paths import REPO
@@ -54,7 +51,6 @@ from support.ros_support import RosSession
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
-from fourbar_ros.config.robot_model import robot_description
 from fourbar_ros.drive.rules import ACTIVATED_MARK, activated_line
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -107,9 +103,7 @@ def test_a_respawned_manager_is_activated_on_a_fresh_reading_and_nothing_moves_u
         pytest.skip(why)
     assert START != INITIAL and LIMITS.in_range(START) and LIMITS.in_range(TARGET)
     env['PYTHONPATH'] = os.pathsep.join([str(Path(__file__).parent), env.get('PYTHONPATH', '')])
-    description = ros.publisher(String, f'{NAMESPACE}/robot_description',
-                                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    description.publish(String(data=robot_description(CFG, hardware_plugin=PLUGIN)))
+    publish_description(ros, NAMESPACE)
     # The bridge's readings are not subscribed here: its readiness must be the plugin's subscription alone.
     measured = ros.collect(JointState, f'{NAMESPACE}/joint_state_broadcaster/joint_states')
     initial_state = tmp_path / 'initial_state.yaml'

@@ -26,18 +26,14 @@ pytest.importorskip('rclpy')
 
 from builtin_interfaces.msg import Duration
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from recording_drive import LOG_ENV, START_ENV, writes
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
 from support.drive_stack import (
-    CFG,
     COMMANDS,
     COMPONENT,
     INITIAL,
     JOINT,
     LIMITS,
-    PLUGIN,
     RESEND_S,
     STATES,
     STEP,
@@ -46,6 +42,7 @@ from support.drive_stack import (
     Processes,
     joint_position,
     manager_executable,
+    publish_description,
     topic_plugin_missing,
 )
 from support.paths import REPO
@@ -54,7 +51,6 @@ from support.ros_support import RosSession
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
-from fourbar_ros.config.robot_model import robot_description
 from fourbar_ros.drive.rules import ACTIVATED_MARK
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -91,9 +87,7 @@ def test_the_bringup_moves_the_drive_only_as_commanded(ros: RosSession, processe
     namespace = f'/bringup_{CASES.index((case, start, outside))}'
     manager = f'{namespace}/controller_manager'
     env['PYTHONPATH'] = os.pathsep.join([str(Path(__file__).parent), env.get('PYTHONPATH', '')])
-    description = ros.publisher(String, f'{namespace}/robot_description',
-                                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    description.publish(String(data=robot_description(CFG, hardware_plugin=PLUGIN)))
+    publish_description(ros, namespace)
     measured = ros.collect(JointState, f'{namespace}/joint_state_broadcaster/joint_states')
     drive = ros.collect(JointState, f'{namespace}/{STATES}')
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics')

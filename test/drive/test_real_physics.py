@@ -5,9 +5,10 @@ reducer's backlash, compliance and the stepper's deflection allow, and a gust th
 
 One bringup for the module: the controller manager, ``fourbar_mujoco_drive`` (a compliant reducer with 1 mrad of play
 at the rocker, the design load as the steady wind) and the spawner as child processes; fourbar_node in-process.
-The backlash test ends xfail, naming the moves, where the stepper slipped whole cycles on the node's own moves (the
-plant's step generator reaches each command within one command period and then stops dead, so a command that comes
-late halts the field under a moving rotor); what it asserts holds for the rotor's position either way.
+The backlash test ends xfail, naming the moves, where the stepper slipped whole cycles on the node's own moves (a
+defect of the plant's drive whose cause is not settled; its step generator reaches each command within one command
+period and then stops dead, and commands 4 to 16 ms apart slip it in process too); what it asserts holds for the
+rotor's position either way.
 Skipped, with the reason, where ros2_control, the topic plugin or mujoco is not installed.
 """
 
@@ -25,17 +26,22 @@ pytest.importorskip('rclpy')
 pytest.importorskip('mujoco', reason='the MuJoCo plant needs the mujoco package (pip install mujoco)')
 
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64, String
-from support.drive_stack import PLUGIN, Processes, manager_executable, topic_plugin_missing
+from std_msgs.msg import Float64
+from support.drive_stack import (
+    CFG,
+    COMMANDS,
+    STATES,
+    Processes,
+    manager_executable,
+    publish_description,
+    topic_plugin_missing,
+)
 from support.paths import REPO
 from support.ros2_control_support import with_ros2_control
 from support.ros_support import Collector, RosSession
 
-from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
-from fourbar_ros.config.robot_model import robot_description
 from fourbar_ros.drive.rules import ACTIVATED_MARK
 from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, COMMAND, INPUT_TORQUE, MEASURED_JOINT_STATES
 from fourbar_ros.node.fourbar_node import FourBarNode
@@ -50,9 +56,6 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 YAML = REPO / 'config' / 'antenna.yaml'
 NAMESPACE = '/real_physics'
 MANAGER = f'{NAMESPACE}/controller_manager'
-COMMANDS, STATES = 'drive_joint_commands', 'drive_joint_states'  # relative: in the manager's namespace
-CFG: AntennaConfig = config_from_values({'hardware_parameters': [f'joint_commands_topic={COMMANDS}',
-                                                                 f'joint_states_topic={STATES}']})
 JOINT, MOTOR = CFG.driven_joint, f'{CFG.driven_joint}_motor'
 RATIO = CFG.reducer_ratio
 #: The plant's reducer: stiffness N m/rad, damping N m s/rad and total play rad, all at the rocker (a soft worm or
@@ -138,9 +141,7 @@ def stack(ros: RosSession, tmp_path_factory: pytest.TempPathFactory) -> Iterator
         pytest.skip(why)
     tmp = tmp_path_factory.mktemp('real_physics')
     processes = Processes(tmp)
-    description = ros.publisher(String, f'{NAMESPACE}/robot_description',
-                                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    description.publish(String(data=robot_description(CFG, hardware_plugin=PLUGIN)))
+    publish_description(ros, NAMESPACE)
     initial_state = tmp / 'initial_state.yaml'
     initial_state.write_text(f'{MANAGER}:\n  ros__parameters:\n    hardware_components_initial_state:\n'
                              f'      inactive: [{CFG.hardware_id}]\n', encoding='utf-8')
@@ -307,8 +308,8 @@ def test_the_true_angle_rests_within_the_backlash_of_the_command(sweep: list[Vis
             slips.append(lines[-1])
     print('\n' + '\n'.join(lines))
     if slips:  # the true angle is then off the command by the slip besides the bound
-        pytest.xfail('the stepper slipped on the node\'s move (likely the plant\'s step generator stopping dead '
-                     'between late commands: commands 4 to 16 ms apart slip it offline too): ' + '; '.join(slips))
+        pytest.xfail('the stepper slipped on the node\'s move (the plant\'s drive; cause not settled, commands 4 to '
+                     '16 ms apart slip it in process too): ' + '; '.join(slips))
 
 
 #: The gust: a steady wind of three design loads (N m on the antenna, + theta), against the motion or, reversed, with

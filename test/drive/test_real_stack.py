@@ -16,15 +16,13 @@ import pytest
 pytest.importorskip('rclpy')
 
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
-from std_msgs.msg import String
-from support.drive_stack import PLUGIN, Processes, manager_executable, topic_plugin_missing
+from support.drive_stack import Processes, manager_executable, publish_description, topic_plugin_missing
 from support.ros2_control_support import with_ros2_control
 from support.ros_support import RosSession
 
 from fourbar_ros.config.antenna_config import config_from_values
-from fourbar_ros.config.robot_model import driven_angle, robot_description
+from fourbar_ros.config.robot_model import driven_angle
 from fourbar_ros.drive.backend import SimulatedBackend
 from fourbar_ros.drive.bridge_node import DriveBridge
 from fourbar_ros.motion.limits import JointLimits
@@ -53,9 +51,7 @@ def test_the_broadcaster_publishes_the_drives_position_before_anything_commands(
     bridge = DriveBridge(backend=backend, context=ros.context, parameter_overrides=[
         Parameter('joint_commands_topic', value=COMMANDS), Parameter('joint_states_topic', value=STATES)])
     ros.add_node(bridge)
-    description = ros.publisher(String, f'{NAMESPACE}/robot_description',
-                                QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
-    description.publish(String(data=robot_description(cfg, hardware_plugin=PLUGIN)))
+    description = publish_description(ros, NAMESPACE, cfg)
     measured = ros.collect(JointState, f'{NAMESPACE}/joint_states')
     params = tmp_path / 'controllers.yaml'
     params.write_text(f'{MANAGER}:\n  ros__parameters:\n    update_rate: 100\n    joint_state_broadcaster:\n'

@@ -8,18 +8,20 @@ import signal
 import subprocess
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import pytest
 
-from fourbar_ros.config.antenna_config import config_from_values
-from fourbar_ros.config.robot_model import driven_angle
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values
+from fourbar_ros.config.robot_model import driven_angle, robot_description
 from fourbar_ros.drive.rules import DriveLimits
 from support.isolation import kill_group
 from support.ros2_control_support import ros2_control_missing
 
 if TYPE_CHECKING:  # the message packages come with ROS: the pure drive tests share this module's fixture
     from sensor_msgs.msg import JointState
+
+    from support.ros_support import RosSession
 
 PLUGIN = 'joint_state_topic_hardware_interface/JointStateTopicSystem'
 COMMANDS, STATES = 'drive_joint_commands', 'drive_joint_states'  # relative: in the manager's namespace
@@ -33,6 +35,18 @@ INITIAL = driven_angle(CFG)  # the URDF's initial_value: the plugin's position s
 STEP, STEP_S = 0.005, 1
 TIMEOUT = 60.0
 RESEND_S = 0.5  # s between two sends of the command until the drive moves
+
+
+def publish_description(ros: RosSession, namespace: str, cfg: AntennaConfig = CFG) -> Any:
+    """``cfg``'s URDF with the topic plugin on ``namespace``/robot_description, transient local as
+    robot_state_publisher publishes it (a manager started later gets it); the publisher."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    from std_msgs.msg import String
+
+    publisher = ros.publisher(String, f'{namespace}/robot_description',
+                              QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    publisher.publish(String(data=robot_description(cfg, hardware_plugin=PLUGIN)))
+    return publisher
 
 
 def joint_position(msg: JointState) -> float | None:
