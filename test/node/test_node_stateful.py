@@ -9,7 +9,8 @@ and parameter changes. After every step, both sides having handled it:
 - the whole motion the controller makes of each (``rules.controller_motion``, from the state measured at its
   takeover, lead-in included) is within the motor's speed, acceleration and jerk limits;
 - at every takeover the node promises continuity for, the reference's acceleration steps by at most
-  ``TAKEOVER_STEP`` of the limit (``continuity``).
+  ``TAKEOVER_STEP`` of the limit (``continuity``); not promised where the trajectory is taken over after its
+  departure from the motion it continues (delivered later than the node's ``ARRIVAL_MARGIN_S``: counted, printed).
 
 ``make test`` runs a few short sequences (seconds); ``make test-stress`` many longer ones (minutes).
 """
@@ -35,6 +36,7 @@ from support.ros_support import RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.interface.stamps import to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.node.fourbar_node import FourBarNode
@@ -128,6 +130,15 @@ class Rig:
         self.recent: deque[str] = deque(maxlen=12)
         self.worst_step_after: list[str] = []
         self.sim.follower.on_takeover = self._taken_over
+        #: (arrival ns, departure ns or None) of each trajectory the sim accepted and has not taken over yet, and
+        #: the (stamp ns, points) of the latest accepted: the departure is where the node's new plan leaves the
+        #: motion it continues (``_departure_ns``)
+        self.departures: deque[tuple[int, int | None]] = deque()
+        self.last_accepted: tuple[int, Any] | None = None
+        #: takeovers after their trajectory's departure (delivered later than the node's arrival margin), and the
+        #: latest by how much (s)
+        self.late = 0
+        self.latest = 0.0
         #: every measured driven position the node's completion passed on to the actuation
         self.seen: set[float] = set()
         completion = self.node.completion
@@ -145,6 +156,9 @@ class Rig:
         def received(*args: Any) -> Any:
             refusal = receive(*args)
             _names, points, stamp, now = args
+            if refusal is None:
+                self.departures.append((now, _departure_ns(stamp, points, self.last_accepted)))
+                self.last_accepted = (stamp, points)
             self.recent.append(f'the sim received {len(points)} points, stamp {stamp}, at {now}, first at '
                                f'{points[0].time_from_start if points else None}')
             if refusal is not None:
@@ -170,9 +184,21 @@ class Rig:
         follower = self.sim.follower
         assert follower.trajectory is not None
         holds = follower.counters.tolerance_holds + follower.counters.goal_time_holds
+        taken_ns = round(follower.trajectory.start * 1e9)
+        departure = None
+        while self.departures and self.departures[0][0] <= taken_ns + 1000:  # the sim's clock in float s: +-1 us
+            departure = self.departures.popleft()[1]
+        # Taken over after its departure, the trajectory reached the controller later than the node's arrival margin
+        # (a loaded machine): the reference is then part-way into the new plan, off the running one, and the node
+        # promises no continuity there.
+        late = departure is not None and taken_ns > departure
+        if late:
+            assert departure is not None
+            self.late += 1
+            self.latest = max(self.latest, (taken_ns - departure) * 1e-9)
         # A controller that held on a tolerance since the last takeover dropped the motion the node may go on
         # from: the node notices only once the drive is replan_tolerance off it.
-        step = (None if self.after_fault or holds > self.holds
+        step = (None if self.after_fault or holds > self.holds or late
                 else continuity(follower.previous, follower.trajectory))
         self.after_fault, self.holds = False, holds
         if step is not None:
@@ -200,6 +226,25 @@ class Rig:
         self.ros.destroy(self.cmd, self.antenna, self.fake)
         self.ros.remove_node(self.node)
         self.ros.remove_node(self.sim)
+
+
+def _departure_ns(stamp_ns: int, points: Any, previous: tuple[int, Any] | None) -> int | None:
+    """Where a trajectory's own motion starts (ns, node clock): continuing the previous one (the same stamp), at
+    the last of the leading points it repeats to the bit (the node's new plan starts at the running trajectory's
+    point there); else at its first point. None for a zero stamp (it starts on arrival)."""
+    if stamp_ns == 0:
+        return None
+
+    def key(p: Any) -> tuple[Any, ...]:
+        return (to_ns(p.time_from_start), tuple(p.positions), tuple(p.velocities), tuple(p.accelerations))
+    at = to_ns(points[0].time_from_start)
+    if previous is not None and previous[0] == stamp_ns:
+        old = {key(p) for p in previous[1]}
+        for p in points:
+            if key(p) not in old:
+                break
+            at = to_ns(p.time_from_start)
+    return stamp_ns + at
 
 
 @pytest.fixture(scope='module')
@@ -341,7 +386,8 @@ def _run(rig: Rig, examples: int, steps: int) -> None:
         suppress_health_check=list(HealthCheck)))
     print(f'stateful: {len(rig.references)} trajectories taken over; the worst whole-motion limit ratio '
           f'{rig.worst:.9f}; continuity checked at {rig.continuous_checked} takeovers, the largest acceleration '
-          f'step {rig.worst_step:.2%} of the limit; node counters {rig.node.actuation.counters.as_dict()}')
+          f'step {rig.worst_step:.2%} of the limit; {rig.late} taken over after their departure (the latest by '
+          f'{rig.latest:.3g} s); node counters {rig.node.actuation.counters.as_dict()}')
 
 
 def test_random_sequences_never_stop_the_node_nor_break_the_contract_or_the_limits(rig: Rig) -> None:

@@ -310,15 +310,18 @@ def _probe(node: Node, spec_path: str, out_path: str) -> int:
     rec = _Recorder(node)
 
     def ready() -> bool:
+        # Both sides of discovery: the node's antenna angle says a state relayed reached it (a state published
+        # before the node matched the probe's publisher is lost, and a held stream would then leave it with none).
         return (rec.held.get_subscription_count() >= 1 and rec.commands.get_subscription_count() >= 1
-                and bool(rec.states) and bool(rec.fed) and rec.status.get('controller_state') == 'active')
+                and bool(rec.states) and rec.angles >= 1 and rec.status.get('controller_state') == 'active')
     try:
         _wait(ready, 'the node, the controller and the broadcaster', DISCOVERY_S)
         _wait(rec.at_rest, 'the drive at rest')
     except TimeoutError as exc:
         print(f'{exc}: subscribers {HELD} {rec.held.get_subscription_count()}, {COMMANDS} '
               f'{rec.commands.get_subscription_count()}; controller states {len(rec.states)}, states fed '
-              f'{len(rec.fed)}, the node\'s status {rec.status}', file=sys.stderr)
+              f'{len(rec.fed)}, antenna angles from the node {rec.angles}, the node\'s status {rec.status}',
+              file=sys.stderr)
         return 1
     events: dict[str, int] = {'start': rec.now()}
     switch_ns = None
