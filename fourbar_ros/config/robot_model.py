@@ -12,7 +12,8 @@ from xml.sax.saxutils import escape, quoteattr
 
 import numpy as np
 
-from fourbar_ros.config.antenna_config import AntennaConfig, load_config
+from fourbar_ros.config.antenna_config import AntennaConfig, config_from_values, load_config
+from fourbar_ros.config.rcl_yaml import ConfigError
 from fourbar_ros.core.antenna import Driven
 from fourbar_ros.core.completion import coupler_joint_position
 from fourbar_ros.interface.topics import NODE_NAME
@@ -195,6 +196,29 @@ def robot_description(cfg: AntennaConfig, robot_name: str = 'fourbar',
     lines += ros2_control_block(cfg, limits[cfg.driven_joint], hardware_plugin)
     lines.append('</robot>')
     return '\n'.join(lines) + '\n'
+
+
+def check_robot_model_kept(running: AntennaConfig, proposed: AntennaConfig, changed: Iterable[str]) -> None:
+    """Raise ConfigError (one line) where a run-time change from ``running`` to ``proposed`` alters the robot model:
+    the controller manager enforces the joint limits it loaded at launch, and robot_state_publisher publishes its
+    frames, so a node planning with other lengths, limits or ratio would move the drive where they do not agree. The
+    error names each of the ``changed`` parameters that alters the model by itself (every one where none does
+    alone)."""
+    before = robot_description(running)
+    if robot_description(proposed) == before:
+        return
+    values, wanted = running.as_values(), proposed.as_values()
+    names = [n for n in changed if wanted.get(n) != values.get(n)]
+
+    def alters(name: str) -> bool:
+        try:
+            return robot_description(config_from_values({**values, name: wanted[name]}, [name])) != before
+        except (ConfigError, ValueError):  # not valid alone (e.g. one end of the range past the other)
+            return True
+    at_fault = [n for n in names if alters(n)] or names
+    raise ConfigError(f'{", ".join(at_fault)}: feeds the robot model the controller manager and robot_state_publisher '
+                      'loaded at launch (joint limits, lengths, ratio), so it cannot change at run time: set it in '
+                      'the parameter file and relaunch', at_fault)
 
 
 def robot_description_for(params: str | Path, node_name: str = NODE_NAME, namespace: str = '/',
