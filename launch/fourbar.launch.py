@@ -28,7 +28,9 @@ default: the parameter file's): action sends trajectories as FollowJointTrajecto
 every node but RViz in its SROS2 enclave of the package's policy (fourbar_ros.config.security; the security how-to).
 
 robot_state_publisher, RViz and ros2_control start only where they are installed; otherwise one log line says so
-(ros2_control's bringup then does not start). Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0.
+(ros2_control's bringup then does not start). Ctrl-C (SIGINT) stops every process and `ros2 launch` exits 0. An
+argument this file does not declare (a misspelled name) is refused before anything starts: one error line names it
+and the arguments taken, and `ros2 launch` exits 1 (fourbar_ros.config.launch_arguments).
 """
 
 from __future__ import annotations
@@ -49,6 +51,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 from fourbar_ros.config.controllers import CONTROLLERS_FILE
+from fourbar_ros.config.launch_arguments import refuse_undeclared
 from fourbar_ros.config.security import BRINGUP_ENCLAVES, enclave
 from fourbar_ros.interface.topics import (
     BROADCASTER_JOINT_STATES,
@@ -282,8 +285,9 @@ def _ros2_control(cfg: object, mode: str, ros_namespace: str, controllers: str, 
 
 
 def generate_launch_description() -> LaunchDescription:
-    """Arguments, then the nodes (resolved once the arguments are known)."""
-    return LaunchDescription([
+    """The check of the command line's arguments, the arguments, then the nodes (resolved once the arguments are
+    known)."""
+    arguments = [
         DeclareLaunchArgument('params_file', default_value=str(SHARE / 'config' / 'antenna.yaml'),
                               description='ROS 2 parameter file of fourbar_node (also the source of the URDF)'),
         DeclareLaunchArgument('namespace', default_value='',
@@ -324,5 +328,6 @@ def generate_launch_description() -> LaunchDescription:
         DeclareLaunchArgument('enclaves', default_value='false',
                               description='start each node (not RViz) in its SROS2 enclave of the package\'s policy '
                                           '(with ROS_SECURITY_ENABLE=true and a keystore that has them)'),
-        OpaqueFunction(function=_setup),
-    ])
+    ]
+    return LaunchDescription([OpaqueFunction(function=refuse_undeclared(Path(__file__).name, arguments)), *arguments,
+                              OpaqueFunction(function=_setup)])

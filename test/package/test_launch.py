@@ -1,12 +1,14 @@
 """``ros2 launch fourbar_ros fourbar.launch.py`` over a colcon-built install: the node in the given namespace
-answers commands, arguments reach the node, robot_state_publisher / RViz start only where installed (else one log
-line), SIGINT ends everything with status 0; and one launch_testing test (``launch_test``, on a domain of its own).
+answers commands, arguments reach the node (one it does not declare is refused before anything starts),
+robot_state_publisher / RViz start only where installed (else one log line), SIGINT ends everything with status 0;
+and one launch_testing test (``launch_test``, on a domain of its own).
 
 Runs where the ros2 command line and launch_ros are importable; skipped elsewhere with the reason.
 """
 
 from __future__ import annotations
 
+import re
 import sys
 from pathlib import Path
 
@@ -96,6 +98,24 @@ def test_launch_arguments_reach_the_node_and_ctrl_c_ends_with_0(install: CliEnv,
         assert not launch.descendants(), 'a process outlived ros2 launch'
     finally:
         launch.kill()
+
+
+#: A line of a process launch started: its own output ("[fourbar_node-1] ...") or launch's note of its start.
+PROCESS_LINE = re.compile(r'^\[[\w.]+-\d+\]|process started with pid', re.MULTILINE)
+
+
+def test_an_undeclared_argument_is_refused_in_one_line_before_anything_starts(install: CliEnv) -> None:
+    shown = run([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', '--show-args'], install.env, cwd=install.cwd)
+    assert shown.returncode == 0, shown.stdout + shown.stderr
+    declared = sorted(re.findall(r"^    '(\w+)':$", shown.stdout, re.MULTILINE))
+    assert {'hardware', 'namespace', 'params_file', 'use_ros2_control'} <= set(declared), shown.stdout
+    out = run([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_refused',
+               'use_ros2_control:=true', 'hardwre:=mujoco'], install.env, cwd=install.cwd)
+    text = out.stdout + out.stderr
+    refused = [line for line in text.splitlines() if 'hardwre' in line]
+    want = f'fourbar.launch.py: unknown launch argument hardwre; it takes: {", ".join(declared)}'
+    assert out.returncode == 1 and len(refused) == 1 and refused[0].endswith(want), (out.returncode, refused, text)
+    assert not PROCESS_LINE.search(text) and 'Traceback' not in text, text  # nothing started
 
 
 def test_sim_actuator_argument_starts_the_simulated_drive(install: CliEnv) -> None:

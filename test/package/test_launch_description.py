@@ -1,8 +1,8 @@
 """launch/fourbar.launch.py evaluated in-process: the nodes it starts for each combination of arguments, their
 packages, executables, parameters, remappings and the spawners' arguments, the mock hardware announced, and the
-combinations it refuses. Where ros2_control or robot_state_publisher is not installed (here), the launch file's
-check for them is replaced, so what it would start with them is checked too; that the processes run is
-test/package/test_launch.py's (through ``ros2 launch``).
+combinations and the undeclared arguments it refuses. Where ros2_control or robot_state_publisher is not installed
+(here), the launch file's check for them is replaced, so what it would start with them is checked too; that the
+processes run is test/package/test_launch.py's (through ``ros2 launch``).
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from launch.utilities import perform_substitutions
 from launch_ros.actions import Node
 from launch_ros.parameter_descriptions import ParameterFile
 
+from fourbar_ros.config.launch_arguments import UnknownLaunchArgumentError
 from fourbar_ros.config.security import BRINGUP_ENCLAVES, POLICY_FILE, enclave
 from fourbar_ros.drive.rules import activated_line
 from fourbar_ros.interface.topics import BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME, Mode
@@ -53,14 +54,17 @@ class Started:
         module = load_launch_file()
         module._installed_executable = installed
         description = module.generate_launch_description()
-        self.context = LaunchContext()
+        # As `ros2 launch ... name:=value` runs it: the pairs are the context's argv and launch configurations before
+        # the file's first entity (the check of the arguments), the declared defaults fill in the rest.
+        self.context = LaunchContext(argv=[f'{name}:={value}' for name, value in arguments.items()])
+        self.context.launch_configurations.update(arguments)
+        check, setup = [e for e in description.entities if isinstance(e, OpaqueFunction)]
+        assert description.entities[0] is check and check.execute(self.context) == []
         for entity in description.entities:
-            if isinstance(entity, DeclareLaunchArgument):
+            if isinstance(entity, DeclareLaunchArgument) and entity.name not in arguments:
                 default = entity.default_value
                 self.context.launch_configurations[entity.name] = (
                     perform_substitutions(self.context, default) if default else '')
-        self.context.launch_configurations.update(arguments)
-        (setup,) = [e for e in description.entities if isinstance(e, OpaqueFunction)]
         actions = setup.execute(self.context) or []
         # What starts once another process has (the spawners, at each start of the controller manager, or on the
         # drive bridge's activation line): as the handler would start it the first time.
@@ -290,6 +294,14 @@ def test_combinations_that_cannot_work_are_refused_in_one_line(arguments: dict[s
     with pytest.raises(RuntimeError) as err:
         Started(everything, **arguments)
     assert '\n' not in str(err.value) and str(err.value).startswith('fourbar.launch.py: ')
+
+
+def test_an_argument_the_launch_does_not_declare_is_refused_first_in_one_line() -> None:
+    declared = sorted(e.name for e in load_launch_file().generate_launch_description().entities
+                      if isinstance(e, DeclareLaunchArgument))
+    with pytest.raises(UnknownLaunchArgumentError) as err:
+        Started(everything, use_ros2_control='true', hardwre='mujoco')  # the check runs before anything else
+    assert str(err.value) == f'fourbar.launch.py: unknown launch argument hardwre; it takes: {", ".join(declared)}'
 
 
 def test_the_node_name_is_the_interfaces() -> None:
