@@ -39,6 +39,7 @@ from fourbar_ros.interface.topics import (  # noqa: E402
     Topic,
     every_endpoint,
     qos_override_parameters,
+    services,
 )
 
 PACKAGE = REPO / 'fourbar_ros'
@@ -51,7 +52,8 @@ def _qos(topic: Topic) -> str:
 
 
 def topics_table() -> str:
-    """One table per mode: topic, type, direction, QoS, content."""
+    """One table per mode: topic, type, direction, QoS, content; then the mode's services, if any: name, type,
+    what a call does."""
     out: list[str] = []
     for mode in Mode:
         out += [f'### `mode: {mode.value}`', '', '| Topic | Type | Dir | QoS | Content |', '|---|---|---|---|---|']
@@ -60,6 +62,10 @@ def topics_table() -> str:
             out.append(f'| `{e.topic.name}` | `{e.topic.msgtype}` | {e.direction.value} | {_qos(e.topic)} '
                        f'| {content} |')
         out.append('')
+        if services(mode):
+            out += ['| Service | Type | Call |', '|---|---|---|']
+            out += [f'| `{srv.name}` | `{srv.srvtype}` | {srv.content} |' for srv in services(mode)]
+            out.append('')
     return '\n'.join(out)
 
 

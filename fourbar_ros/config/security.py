@@ -27,6 +27,7 @@ from fourbar_ros.interface.topics import (
     activity_topic,
     every_endpoint,
     forward_topic,
+    services,
     trajectory_action,
     trajectory_topic,
 )
@@ -106,7 +107,8 @@ def profiles(trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
             name = LAUNCH_REMAPPINGS.get(e.topic.name, e.topic.name)
             (publish if e.direction is Direction.OUT else subscribe).add(name)
         actions = (trajectory_action(trajectory_controller),) if mode is Mode.TRAJECTORY else ()
-        out.append(Profile(enclave(mode), NODE_NAME, tuple(sorted(publish)), tuple(sorted(subscribe)),
+        served = tuple(sorted({*RCLPY_SERVICES, *(srv.name for srv in services(mode))}))
+        out.append(Profile(enclave(mode), NODE_NAME, tuple(sorted(publish)), tuple(sorted(subscribe)), served,
                            action_calls=actions))
     sim_in = {trajectory_topic(trajectory_controller).name, forward_topic(forward_controller).name}
     sim_out = {*RCLPY_PUBLISH, BROADCASTER_JOINT_STATES.name, activity_topic(DEFAULT_CONTROLLER_MANAGER).name}

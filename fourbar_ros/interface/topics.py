@@ -20,6 +20,8 @@ MARKER_ARRAY = 'visualization_msgs/msg/MarkerArray'
 JOINT_TRAJECTORY = 'trajectory_msgs/msg/JointTrajectory'
 FLOAT64_MULTI_ARRAY = 'std_msgs/msg/Float64MultiArray'
 IMU = 'sensor_msgs/msg/Imu'
+BOOL = 'std_msgs/msg/Bool'
+TRIGGER = 'std_srvs/srv/Trigger'
 
 #: Keep-last depth of the command subscription and the per-command outputs: how far a burst may run ahead.
 STREAM_DEPTH = 1000
@@ -86,6 +88,33 @@ DIAGNOSTICS = Topic('/diagnostics', DIAGNOSTIC_ARRAY, STATUS_DEPTH)
 #: Antenna trajectories in (actuator modes): a JointTrajectory of the one joint ANTENNA_JOINT, positions theta rad,
 #: optional velocities rad/s and accelerations rad/s^2. Reliable: a trajectory is one message, not a stream.
 ANTENNA_TRAJECTORY = Topic('antenna_trajectory', JOINT_TRAJECTORY, STATUS_DEPTH)
+#: Actuator modes: the halt from a button (the node's own name: ``~/halt``), true halts, false does nothing (only the
+#: ``~/resume`` service resumes, so a bouncing button never does). Reliable, as ``ros2 topic pub`` and rclpy publish
+#: by default (a best-effort publisher does not match it).
+HALT_TOPIC = Topic('~/halt', BOOL, STATUS_DEPTH)
+
+
+@dataclass(frozen=True)
+class Service:
+    """A service the node serves: name, service type, what a call does."""
+
+    name: str
+    srvtype: str
+    content: str
+
+
+#: Actuator modes: the operator's halt and its end (``rules.halt``).
+HALT_SERVICE = Service('~/halt', TRIGGER, 'halt: the command in force ends (held: dropped; sent: interrupted, not '
+                       'resumed), a running motion brakes to rest within the motor\'s limits (at rest nothing is '
+                       'sent), and every new command and antenna trajectory is dropped until `~/resume`; answers '
+                       'success, also when already halted (the message says which)')
+RESUME_SERVICE = Service('~/resume', TRIGGER, 'clear the halt: nothing moves, the next command does; success false '
+                         'when not halted')
+
+
+def services(mode: Mode) -> tuple[Service, ...]:
+    """The services fourbar_node serves in ``mode`` besides rclpy's own (parameters, type description)."""
+    return () if mode is Mode.OPEN_LOOP else (HALT_SERVICE, RESUME_SERVICE)
 
 
 @dataclass(frozen=True)
@@ -196,6 +225,8 @@ _MEASURED = (
              'rad, optional velocities rad/s and accelerations rad/s^2'),
     Endpoint(MEASURED_JOINT_STATES, Direction.IN, 'the measured driven joint (position rad, velocity rad/s, '
              f'effort N m); the launch file remaps it to `{BROADCASTER_JOINT_STATES.name}`'),
+    Endpoint(HALT_TOPIC, Direction.IN, 'the halt from a button: `true` halts as the `~/halt` service does, '
+             '`false` does nothing (only the `~/resume` service resumes)'),
     Endpoint(JOINT_STATES, Direction.OUT, 'per measurement, every joint at its stamp: [driven, other rocker, '
              'coupler] positions rad (the measured one, then completed exactly), velocities rad/s (chain rule; '
              'empty without a measured velocity), efforts [measured, 0, 0] N m'),

@@ -36,8 +36,8 @@ PLAN_SHRINK = 1.0 - 1e-4
 PLAN_SHRINKS = (PLAN_SHRINK, 1.0 - 2e-3, 1.0 - 0.15)
 
 __all__ = ['END_SPAN', 'PLAN_SHRINK', 'PLAN_SHRINKS', 'JointMotionState', 'Plan', 'Setpoints', 'driven_angles',
-           'min_segment', 'plan_motion', 'plan_to_angle', 'rocker_states', 'sample_grid', 'setpoints', 'stream_grid',
-           'trajectory_points']
+           'min_segment', 'plan_motion', 'plan_stop', 'plan_to_angle', 'rocker_states', 'sample_grid', 'setpoints',
+           'stream_grid', 'trajectory_points']
 
 
 @dataclass(frozen=True)
@@ -58,10 +58,13 @@ class Setpoints:
 
 
 class Plan:
-    """A planned motion of the driven joint (wraps a ruckig trajectory); times in s from the plan's start."""
+    """A planned motion of the driven joint (wraps a ruckig trajectory); times in s from the plan's start.
+    ``extrema``: ruckig's ``position_extrema`` are taken too (not under its velocity interface, where their minimum
+    reads 0.0: seen for a stop from 0.85 to 0.8625 rad)."""
 
-    def __init__(self, trajectory: Any) -> None:
+    def __init__(self, trajectory: Any, extrema: bool = True) -> None:
         self._trajectory = trajectory
+        self._extrema = extrema
         self.duration = float(trajectory.duration)
 
     def state_at(self, t: float) -> JointMotionState:
@@ -95,6 +98,8 @@ class Plan:
                 times += [start + h, *(start + r for r in _velocity_roots(v, a, j) if 0.0 < r < h)]
                 start += h
         q = self.sample(np.array([t for t in times if t <= self.duration]))[0]
+        if not self._extrema:
+            return float(np.min(q)), float(np.max(q))
         e = self._trajectory.position_extrema[0]
         return min(float(np.min(q)), float(e.min)), max(float(np.max(q)), float(e.max))
 
@@ -138,6 +143,31 @@ def plan_motion(start: JointMotionState, target: float, limits: JointLimits) -> 
     if result not in (rk.Result.Working, rk.Result.Finished):
         raise TrajectoryError(f'no motion from {start} to {target!r} rad within the limits: ruckig says {result}')
     return Plan(trajectory)
+
+
+def plan_stop(start: JointMotionState, limits: JointLimits) -> Plan:
+    """The time-optimal jerk-limited stop from ``start``: to rest (velocity and acceleration 0) as soon as
+    ``limits`` allow, wherever that is (ruckig's velocity interface; the plan's end is the stopping position, rad).
+    The same limits' margins as ``plan_motion`` (PLAN_SHRINKS). From rest it is a plan of no duration there.
+
+    Raises TrajectoryError (one line) for a non-finite state, or if ruckig finds no profile.
+    """
+    values = (start.position, start.velocity, start.acceleration)
+    if not all(math.isfinite(v) for v in values):
+        raise TrajectoryError(f'non-finite motion input: start {start}')
+    rk = _ruckig()
+    inp = rk.InputParameter(1)
+    inp.control_interface = rk.ControlInterface.Velocity
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [start.position], [start.velocity], [
+        start.acceleration]
+    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
+        [shrink * limits.at_rocker(k)] for k, shrink in zip((1, 2, 3), PLAN_SHRINKS, strict=True))
+    trajectory = rk.Trajectory(1)
+    result = rk.Ruckig(1).calculate(inp, trajectory)
+    if result not in (rk.Result.Working, rk.Result.Finished):
+        raise TrajectoryError(f'no stop from {start} within the limits: ruckig says {result}')
+    return Plan(trajectory, extrema=False)
 
 
 def plan_to_angle(cfg: AntennaConfig, limits: JointLimits, start: JointMotionState, theta: float) -> Plan:

@@ -13,16 +13,21 @@ from typing import Any
 from builtin_interfaces.msg import Duration, Time
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray, Header
+from std_msgs.msg import Bool, Float64MultiArray, Header
+from std_srvs.srv import Trigger  # type: ignore[import-untyped,unused-ignore]
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import AntennaConfig
 from fourbar_ros.config.controllers import ForwardControllerSettings, TrajectoryControllerSettings
+from fourbar_ros.core.errors import one_line
 from fourbar_ros.interface.joint_trajectory import TYPE_NAMES, joint_trajectory
-from fourbar_ros.interface.stamps import seconds_to_ns, to_ns
+from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import (
     ANTENNA_TRAJECTORY,
+    HALT_SERVICE,
+    HALT_TOPIC,
     MEASURED_JOINT_STATES,
+    RESUME_SERVICE,
     Mode,
     forward_topic,
     trajectory_topic,
@@ -37,9 +42,18 @@ from fourbar_ros.rules.controller_contract import check_forward_command
 from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.rules.follow_check import LIKELY_CAUSES, FollowCheck
 from fourbar_ros.rules.goal_outcomes import GoalOutcome
+from fourbar_ros.rules.halt import Halt
 from fourbar_ros.rules.model_check import SlipEvent
 from fourbar_ros.rules.motion_plan import Motion
-from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, Refused, serve_antenna_trajectory, serve_command
+from fourbar_ros.rules.serve import (
+    ActuationCounters,
+    Drive,
+    Outgoing,
+    Refused,
+    serve_antenna_trajectory,
+    serve_brake,
+    serve_command,
+)
 from fourbar_ros.runtime.problem_log import ProblemLog
 
 #: Setpoints kept in ``recent_setpoints`` (the last seconds of the stream at the default rate).
@@ -89,6 +103,8 @@ class Actuation:
         self.not_following = ''  # why the drive did not follow the last sent command, until one is reached
         #: why the slip stop holds the drive ('' while it does not): new commands are dropped meanwhile
         self.slipped = ''
+        #: the operator's halt (``halt``, ``resume``): new commands are dropped while ``halt.why`` is set
+        self.halt = Halt()
         if self.mode == Mode.TRAJECTORY.value and cfg.trajectory_interface == 'action':
             self.goals = TrajectoryGoals(node, cfg.trajectory_controller, problems)
             self.goals.on_end = self._on_goal_end
@@ -105,6 +121,10 @@ class Actuation:
         controller = cfg.forward_controller if self.mode == Mode.FORWARD.value else cfg.trajectory_controller
         self.watch = ControllerWatch(node, cfg.controller_manager, controller, problems, self._on_readiness)
         periodic_timer(node, FATE_CHECK_S, problems.guard.wrap('command_fate_timer', self._on_fate_timer))
+        wrap = problems.guard.wrap
+        node.create_service(Trigger, HALT_SERVICE.name, wrap('srv_halt', self._on_halt_call, _failed))
+        node.create_service(Trigger, RESUME_SERVICE.name, wrap('srv_resume', self._on_resume_call, _failed))
+        node.create_subscription(Bool, HALT_TOPIC.name, wrap('sub_halt', self._on_halt_msg), qos(HALT_TOPIC))
         node.create_subscription(JointTrajectory, ANTENNA_TRAJECTORY.name,
                                  problems.guard.wrap('sub_antenna_trajectory', self._on_antenna_trajectory),
                                  qos(ANTENNA_TRAJECTORY))
@@ -178,6 +198,14 @@ class Actuation:
         """Plan and send the motion to a served antenna angle theta (rad), or hold it until it can go."""
         fates, now_ns = self.fates, self._now_ns()
         fates.settings = FateSettings.of(self._config())
+        if self.halt.why:
+            line = self.halt.dropped_line(f'command theta = {theta!r} rad')
+            if fates.receive(theta, now_ns):
+                fates.refused(line)
+            else:
+                fates.drop(line)
+            self._problems.warn('command while halted', line)
+            return
         if self.slipped:  # the count may be off by the slip: a plan from it would move to a wrong place
             line = f'the motion was stopped: {self.slipped}'
             if fates.receive(theta, now_ns):
@@ -219,7 +247,7 @@ class Actuation:
     def _resume(self) -> None:
         """Send a held command that can now go, from the motion the controller still runs where the measured state
         agrees with it (``motion_start``), else from the measured state."""
-        if self.fates.due() and not self.slipped:
+        if self.fates.due() and not self.slipped and not self.halt.why:
             assert self.fates.current is not None
             self._send(self.fates.current.theta)
 
@@ -261,6 +289,66 @@ class Actuation:
             fates.interrupt(line, now_ns, resumable=False)
         held = self._hold(now_ns)
         self._problems.error('slip stop', f'motion stopped{held}: {line}')
+
+    # ------------------------------------------------------------------ the operator's halt
+
+    def on_halt(self, why: str) -> tuple[bool, str]:
+        """Halt (``why``: who asked): the command in force ends (held: dropped; sent: interrupted, not resumed),
+        a running motion brakes to rest within the limits (``serve_brake``; at rest nothing is sent), and new
+        commands and antenna trajectories are dropped until ``on_resume``. (False, the state) if already halted;
+        else (True, what was done), one line."""
+        now_ns = self._now_ns()
+        if not self.halt.halt(why, now_ns):
+            return False, f'already halted ({self.halt.since(now_ns)})'
+        line = f'halted {why}'
+        cmd = self.fates.current
+        if cmd is not None and cmd.fate is Fate.HELD:
+            self.fates.drop(line)
+        else:
+            self.fates.interrupt(line, now_ns, resumable=False)
+        done = self._brake(now_ns)
+        self._problems.warn('halt', f'{line}: {done}; commands are dropped until ~/resume')
+        return True, f'halted: {done}'
+
+    def on_resume(self) -> tuple[bool, str]:
+        """Clear the halt; nothing moves (the next command does). (False, why not) if not halted."""
+        was = self.halt.resume()
+        if not was:
+            return False, 'not halted: nothing to resume'
+        self._info(f'halt cleared (it was {was}): the next command moves the drive')
+        return True, f'resumed (halted {was}): the next command moves the drive'
+
+    def _brake(self, now_ns: int) -> str:
+        """Stop a running motion (``on_halt``); what was done, for the log line and the answer."""
+        forward = self.mode == Mode.FORWARD.value
+        motion = self.motion
+        if motion is None or (self._setpoints is None if forward else motion.done(now_ns)):
+            return 'at rest, nothing sent'
+        cfg = self._config()
+        out = serve_brake(cfg, self.contract, self._drive(), now_ns, self.counters)
+        if isinstance(out, Refused):
+            if forward:  # the stream stops: the controller holds its last setpoint
+                self.motion, self._setpoints = None, None
+            self._problems.error(out.key, f'halt: {out.line}')
+            return out.line + (' (setpoints stopped: the controller holds the last)' if forward else '')
+        if not self._emit(cfg, out):
+            return 'no brake sent (no action server)'
+        end = out.motion.state_at(out.motion.start_ns + seconds_to_ns(out.motion.duration)).position
+        return (f'braking to rest at {cfg.driven_joint} = {end:.6g} rad, '
+                f'{ns_to_seconds(out.motion.start_ns - now_ns) + out.motion.duration:.3g} s from now')
+
+    def _on_halt_call(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        _, response.message = self.on_halt('by the ~/halt service')
+        response.success = True  # halted, whether now or before
+        return response
+
+    def _on_resume_call(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success, response.message = self.on_resume()
+        return response
+
+    def _on_halt_msg(self, msg: Bool) -> None:
+        if msg.data:  # false does nothing: a bouncing button never resumes
+            self.on_halt('by the ~/halt topic')
 
     def _hold(self, now_ns: int) -> str:
         """Stop a running motion where the drive is measured (see ``on_slip``); what was done, for the log line."""
@@ -311,6 +399,9 @@ class Actuation:
 
     def _on_antenna_trajectory(self, msg: JointTrajectory) -> None:
         self.counters.trajectories_received += 1
+        if self.halt.why:
+            self._problems.warn('antenna trajectory while halted', self.halt.dropped_line('antenna trajectory'))
+            return
         if self.slipped:
             self._problems.warn('antenna trajectory after a slip stop',
                                 f'antenna trajectory dropped: the motion was stopped: {self.slipped}')
@@ -375,17 +466,25 @@ class Actuation:
 
     def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
         """(level, message, key/value pairs) for the node's status: the mode, the controller's readiness and the
-        current command's fate, the counters (and the goals', action interface). ERROR while the drive does not
-        follow; WARN while a command is held, or when the latest one was dropped or interrupted."""
+        current command's fate, the counters (and the goals', action interface), the halt. ERROR while the drive does
+        not follow; WARN while halted, while a command is held, or when the latest one was dropped or interrupted."""
         values = [('mode', self.mode), ('controller', self.watch.controller),
                   ('controller_activity', self.watch.topic or f'not followed: {self.watch.why_not_followed}'),
                   *self.fates.values(), *((k, str(v)) for k, v in self.counters.as_dict().items())]
         if self.goals is not None:
             values += self.goals.diagnostic_values()
         values.append(('drive_follows', 'no: ' + self.not_following if self.not_following else 'yes'))
+        values += self.halt.values(self._now_ns())
         if self.not_following:
             return Level.ERROR, f'{self.not_following}; likely: {LIKELY_CAUSES}', values
+        if self.halt.why:
+            return Level.WARN, f'halted {self.halt.since(self._now_ns())}: call ~/resume', values
         cmd = self.fates.current
         if cmd is not None and cmd.fate in (Fate.HELD, Fate.DROPPED, Fate.INTERRUPTED):
             return Level.WARN, f'command theta = {cmd.theta!r} rad {cmd.fate.value}: {cmd.reason}', values
         return Level.OK, 'ok', values
+
+
+def _failed(exc: Exception) -> Trigger.Response:
+    """What a halt or resume call whose callback raised answers (the exception counted and logged by the guard)."""
+    return Trigger.Response(success=False, message=f'{type(exc).__name__}: {one_line(exc)}')

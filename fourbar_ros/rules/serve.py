@@ -2,7 +2,8 @@
 
 ``serve_command`` (a served command) and ``serve_antenna_trajectory`` (an antenna trajectory message) return
 ``Outgoing`` (a trajectory, or setpoints in forward mode) or ``Refused``, counted in ``ActuationCounters``; the node
-calls them per message, ``fourbar process`` per recorded message. How: docs/explanation/motion.md."""
+calls them per message, ``fourbar process`` per recorded message; ``serve_brake`` is the halt's stop. How:
+docs/explanation/motion.md."""
 
 from __future__ import annotations
 
@@ -16,7 +17,8 @@ from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.interface.joint_trajectory import PointFields
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import MEASURED_JOINT_STATES
-from fourbar_ros.motion.planner import JointMotionState, Setpoints
+from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.motion.planner import JointMotionState, Setpoints, plan_stop
 from fourbar_ros.rules.antenna_trajectory import (
     CannotReachError,
     Converted,
@@ -57,6 +59,7 @@ class ActuationCounters:
     measured_start_clamped: int = 0  # a start measured outside the range by at most measured_range_tolerance
     trajectories_connected: int = 0  # antenna trajectories given a connecting segment from the drive's state
     setpoints_published: int = 0
+    brakes_planned: int = 0  # the halt's stops planned from a running motion (``serve_brake``)
     #: measurements stamped before the controller's latest readiness change or the measurements' latest stop
     measurements_outdated: int = 0
     rejected: dict[TrajectoryProblem, int] = field(default_factory=lambda: dict.fromkeys(TrajectoryProblem, 0))
@@ -127,6 +130,35 @@ def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: f
         out = Refused(f'command {type(exc).__name__}', f'command theta = {theta!r} rad not planned: {one_line(exc)}')
     counters.commands_planned += isinstance(out, Outgoing)
     counters.commands_not_planned += isinstance(out, Refused)
+    return out
+
+
+def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: int,
+                counters: ActuationCounters) -> Outgoing | Refused:
+    """The halt's stop at ``now_ns``: the time-optimal brake to rest (``plan_stop``, wherever the limits bring the
+    drive to rest) from where a command's motion would start (``motion_start``: the running trajectory's state at
+    its takeover ``ARRIVAL_MARGIN_S`` ahead, its points up to there repeated; in forward mode the running stream's
+    next setpoint, on its grid), as trajectory points or setpoints for ``contract``'s controller. Not a return to
+    the measured angle: that would turn a moving drive back. Refused where no start can be vouched for."""
+    lead = ARRIVAL_MARGIN_S if isinstance(contract, TrajectoryControllerSettings) else 0.0
+    start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns, drive.setpoint_ns)
+    if start is None:
+        return Refused('brake no start', f'no brake planned: no measured {cfg.driven_joint} on '
+                       f'{MEASURED_JOINT_STATES.name} yet')
+    if isinstance(start, Unsettled):
+        return Refused('brake unsettled', f'no brake planned: {start.reason}')
+    try:
+        plan = plan_stop(start.state, JointLimits.from_config(cfg))
+        if isinstance(contract, ForwardControllerSettings):
+            out: Outgoing | Refused = Outgoing(Motion(start.origin_ns, plan=plan),
+                                               setpoints=planned_setpoints(cfg, plan))
+        else:
+            points = continued(start, planned_points(cfg, plan))
+            out = _sent(cfg, contract, Motion(start.origin_ns, trajectory=points),
+                        outgoing_stamp(cfg, start, points, now_ns), now_ns, 'brake', counters)
+    except FourBarError as exc:
+        out = Refused(f'brake {type(exc).__name__}', f'no brake planned: {one_line(exc)}')
+    counters.brakes_planned += isinstance(out, Outgoing)
     return out
 
 

@@ -37,6 +37,7 @@ from fourbar_ros.interface.topics import (
     activity_topic,
     every_endpoint,
     forward_topic,
+    services,
     trajectory_action,
     trajectory_topic,
 )
@@ -83,7 +84,8 @@ def test_every_endpoint_of_the_mode_is_allowed_in_its_direction_and_nothing_else
         # The launch file remaps the measured joint to the broadcaster's topic: the name on the wire.
         name = BROADCASTER_JOINT_STATES.name if e.topic == MEASURED_JOINT_STATES else e.topic.name
         (publish if e.direction is Direction.OUT else subscribe).add(name)
-    want = {'publish': publish, 'subscribe': subscribe, 'reply': set(RCLPY_SERVICES)}
+    want = {'publish': publish, 'subscribe': subscribe,
+            'reply': {*RCLPY_SERVICES, *(srv.name for srv in services(mode))}}
     if mode is Mode.TRAJECTORY:  # trajectory_interface: action
         want['call'] = {trajectory_action('joint_trajectory_controller')}
     assert allowed == want

@@ -59,12 +59,11 @@ def node(request: pytest.FixtureRequest, ros: RosSession) -> Iterator[FourBarNod
 
 def test_the_node_creates_exactly_the_documented_topics(node: FourBarNode) -> None:
     mode = Mode(node.get_parameter('mode').value)
-    ns = node.get_namespace()
     want: set[Row] = set()
     watched = node.get_parameter('controller_manager').value if activity_type()[0] is not None else ''
     for e in endpoints(mode, antenna_sensor_type=node.get_parameter('antenna_sensor_type').value,
                        controller_manager=watched):
-        name = e.topic.name if e.topic.name.startswith('/') else f'{ns}/{e.topic.name}'
+        name = node.resolve_topic_name(e.topic.name)  # in the namespace; `~/` in the node's own
         want.add((name, e.topic.msgtype, e.direction, e.topic.depth, e.topic.reliability.value,
                   e.topic.transient_local))
     got: set[Row] = set()
