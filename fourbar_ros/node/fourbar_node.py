@@ -31,6 +31,7 @@ from fourbar_ros.config.antenna_config import (
     unknown_in_node_sections,
 )
 from fourbar_ros.config.params import PARAMETERS_BY_NAME, is_foreign
+from fourbar_ros.config.robot_model import check_robot_model_kept
 from fourbar_ros.core.antenna import LinkageState
 from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.core.loads import Pose, pose_solver, solve
@@ -237,6 +238,7 @@ class FourBarNode(Node):
             pending = config_from_values(proposed, changed)
             if self.actuation is not None:
                 check_replan_tolerance(pending, self.actuation.contract)
+                check_robot_model_kept(self._config, pending, changed)
         except ConfigError as exc:
             return SetParametersResult(successful=False, reason=str(exc))
         self._pending = pending

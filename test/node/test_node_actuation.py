@@ -234,6 +234,27 @@ def test_a_replan_tolerance_not_below_the_path_tolerance_is_refused_at_run_time(
         assert node.set_parameters([Parameter('replan_tolerance', value=CFG.replan_tolerance)])[0].successful
 
 
+@pytest.mark.parametrize('name, value', [('motor_speed_limit', 2.0 * CFG.motor_speed_limit),
+                                         ('theta_max', CFG.theta_max - 0.01),
+                                         ('reducer_ratio', 2.0 * CFG.reducer_ratio)])
+def test_a_change_that_alters_the_robot_model_is_refused_at_run_time(traj: Pair, name: str, value: float) -> None:
+    """The controller manager enforces the robot model's limits as loaded at launch: a change that would make the
+    node plan with others is refused in one line naming it, counted, nothing changed; a change the model does not
+    hold (load_torque) applies."""
+    node = traj.node
+    rejected = node.counters.parameter_changes_rejected
+    result = node.set_parameters([Parameter(name, value=value)])[0]
+    assert not result.successful and result.reason.startswith(f'{name}: feeds the robot model'), result
+    assert '\n' not in result.reason, result
+    assert getattr(node.config, name) == getattr(CFG, name)
+    assert node.counters.parameter_changes_rejected == rejected + 1
+    try:
+        assert node.set_parameters([Parameter('load_torque', value=2.0)])[0].successful
+        assert node.config.load_torque == 2.0
+    finally:
+        assert node.set_parameters([Parameter('load_torque', value=CFG.load_torque)])[0].successful
+
+
 def test_replanning_mid_motion_continues_the_running_motion(traj: Pair) -> None:
     before = len(traj.trajectories)
     traj.command(CFG.theta_max)  # a motion of seconds ...
