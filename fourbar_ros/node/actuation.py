@@ -325,6 +325,7 @@ class Actuation:
         if motion is None or (self._setpoints is None if forward else motion.done(now_ns)):
             return 'at rest, nothing sent'
         cfg = self._config()
+        from_measured = self.counters.brakes_from_measured
         out = serve_brake(cfg, self.contract, self._drive(), now_ns, self.counters)
         if isinstance(out, Refused):
             if forward:  # the stream stops: the controller holds its last setpoint
@@ -334,7 +335,9 @@ class Actuation:
         if not self._emit(cfg, out):
             return 'no brake sent (no action server)'
         end = out.motion.state_at(out.motion.start_ns + seconds_to_ns(out.motion.duration)).position
-        return (f'braking to rest at {cfg.driven_joint} = {end:.6g} rad, '
+        how = (' from the measured state (measured moving off the motion sent)'
+               if self.counters.brakes_from_measured > from_measured else '')
+        return (f'braking to rest at {cfg.driven_joint} = {end:.6g} rad{how}, '
                 f'{ns_to_seconds(out.motion.start_ns - now_ns) + out.motion.duration:.3g} s from now')
 
     def _on_halt_call(self, _request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:

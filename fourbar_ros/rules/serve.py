@@ -60,6 +60,7 @@ class ActuationCounters:
     trajectories_connected: int = 0  # antenna trajectories given a connecting segment from the drive's state
     setpoints_published: int = 0
     brakes_planned: int = 0  # the halt's stops planned from a running motion (``serve_brake``)
+    brakes_from_measured: int = 0  # of them, from the measured state: the drive measured moving off the motion
     #: measurements stamped before the controller's latest readiness change or the measurements' latest stop
     measurements_outdated: int = 0
     rejected: dict[TrajectoryProblem, int] = field(default_factory=lambda: dict.fromkeys(TrajectoryProblem, 0))
@@ -139,14 +140,23 @@ def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: in
     drive to rest) from where a command's motion would start (``motion_start``: the running trajectory's state at
     its takeover ``ARRIVAL_MARGIN_S`` ahead, its points up to there repeated; in forward mode the running stream's
     next setpoint, on its grid), as trajectory points or setpoints for ``contract``'s controller. Not a return to
-    the measured angle: that would turn a moving drive back. Refused where no start can be vouched for."""
+    the measured angle: that would turn a moving drive back.
+
+    In trajectory mode, where the drive is measured moving off every motion the node knows (``Unsettled``), from
+    the measured state instead (``_measured_brake_start``): the controller's lead-in starts from the drive's state,
+    and a brake not sent would leave the drive running on to the old target. Refused where no start can be vouched
+    for: no motion and no measurement, or in forward mode off the running stream (the caller stops the stream:
+    the controller holds its last setpoint)."""
     lead = ARRIVAL_MARGIN_S if isinstance(contract, TrajectoryControllerSettings) else 0.0
     start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns, drive.setpoint_ns)
     if start is None:
         return Refused('brake no start', f'no brake planned: no measured {cfg.driven_joint} on '
                        f'{MEASURED_JOINT_STATES.name} yet')
+    off_motion = isinstance(start, Unsettled)
     if isinstance(start, Unsettled):
-        return Refused('brake unsettled', f'no brake planned: {start.reason}')
+        if lead == 0.0 or drive.measured is None:
+            return Refused('brake unsettled', f'no brake planned: {start.reason}')
+        start = _measured_brake_start(drive.measured, drive.measured_ns, now_ns)
     try:
         plan = plan_stop(start.state, JointLimits.from_config(cfg))
         if isinstance(contract, ForwardControllerSettings):
@@ -159,7 +169,19 @@ def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: in
     except FourBarError as exc:
         out = Refused(f'brake {type(exc).__name__}', f'no brake planned: {one_line(exc)}')
     counters.brakes_planned += isinstance(out, Outgoing)
+    counters.brakes_from_measured += off_motion and isinstance(out, Outgoing)
     return out
+
+
+def _measured_brake_start(measured: JointMotionState, measured_ns: int, now_ns: int) -> Start:
+    """The brake's start from a drive measured moving (position rad, velocity rad/s at ``measured_ns``, node clock;
+    0 or after now: now): that state at acceleration 0, brought at its velocity to ``ARRIVAL_MARGIN_S`` after
+    ``now_ns``, the trajectory's time 0 (as every start from the measured state: the controller's lead-in carries
+    the drive from its state at the takeover to the first point)."""
+    at_ns = min(measured_ns, now_ns) if measured_ns > 0 else now_ns
+    origin_ns = now_ns + seconds_to_ns(ARRIVAL_MARGIN_S)
+    q = measured.position + measured.velocity * ns_to_seconds(origin_ns - at_ns)
+    return Start(JointMotionState(q, measured.velocity, 0.0), origin_ns, from_measured=True)
 
 
 def serve_antenna_trajectory(cfg: AntennaConfig, contract: Contract, drive: Drive, msg: Any, now_ns: int,

@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 import pytest
-from builtin_interfaces.msg import Duration
+from builtin_interfaces.msg import Duration, Time
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Bool, Float64, Float64MultiArray
@@ -316,6 +316,78 @@ def test_a_halt_at_rest_sends_nothing_and_the_topic_halts_on_true_only(traj: Rig
     with rig.ros.paused():
         assert rig.sent() == sent, rig.sides()
     assert rig.call(rig.resume_client).success
+
+
+#: replan_tolerance (rad) for the off-motion halt, and the measurement jump (rad) behind the sim's latest: with the
+#: drive's own lag behind its reference (>= 0) the node's measured state is off the motion by more than the tolerance.
+#: The jump is small so that the controller's lead-in, which starts from the drive's true state and so bridges it, is
+#: a motion within the limits too: a cubic bridging 2e-5 rad in d s peaks at 6 * 2e-5 / d^2 rad/s^2 and
+#: 12 * 2e-5 / d^3 rad/s^3, within 0.2 and 2.0 for a takeover up to 0.2 s after the call (d >= 0.05 s).
+OFF_TOLERANCE, JUMP = 1e-5, 2e-5
+
+
+def test_a_halt_with_the_drive_measured_moving_off_the_motion_brakes_from_the_measured_state(traj: Rig) -> None:
+    """The node's measured state jumps off its motion while the drive cruises (a faulty count, beside the sim's own
+    measurements), and the halt comes before the sim's next: the brake is planned from the measured state (no start
+    on the motion can be vouched for), sent, taken over, and the drive comes to rest within the limits, short of
+    the target. The jump and the halt are handed to the node's own callbacks back to back with the executor paused,
+    so that the sim's next measurement cannot come between them."""
+    rig, act = traj, traj.actuation
+    if act.halt.why:  # left halted by a failed test before
+        rig.call(rig.resume_client)
+    tolerance = rig.node.get_parameter('replan_tolerance').value
+    assert rig.node.set_parameters([Parameter('replan_tolerance', value=OFF_TOLERANCE)])[0].successful
+    try:
+        q_start = act.measured.position
+        lower, upper = q_of(CFG.theta_min), q_of(CFG.theta_max)
+        target = CFG.theta_max if q_start - lower < upper - q_start else CFG.theta_min
+        q_target = q_of(target)
+        direction = float(np.sign(q_target - q_start))
+        first, taken = len(rig.trajectories), len(rig.taken_over)
+        rig.command(target)
+        rig.trajectories.wait_count(first + 1)
+        cruise = PLAN_SHRINK * LIMITS.at_rocker(1)
+
+        def cruising(m: JointState) -> bool:
+            """Measured half a second (ten lag time constants) into the plan's cruise: the drive's lag settled."""
+            motion = act.motion
+            t = to_ns(m.header.stamp)
+            return motion is not None and all(
+                abs(s.acceleration) <= 1e-9 and abs(abs(s.velocity) - cruise) <= 1e-9 * cruise
+                for s in (motion.state_at(t - 500_000_000), motion.state_at(t)))
+        rig.measured.wait_match(cruising, start=len(rig.measured))
+        from_measured, brakes = act.counters.brakes_from_measured, act.counters.brakes_planned
+        with rig.ros.paused():
+            m, m_ns = act.measured, act.measured_ns
+            jumped = JointState(name=[JOINT], position=[m.position - direction * JUMP], velocity=[m.velocity],
+                                effort=[0.0])
+            jumped.header.stamp = Time(sec=m_ns // 10**9, nanosec=m_ns % 10**9)
+            act._on_measured(jumped)
+            on = act.motion.state_at(act.measured_ns)
+            off = act.measured.position - on.position
+            t0 = rig.now_ns()
+            answer = act._on_halt_call(Trigger.Request(), Trigger.Response())
+        assert abs(off) > OFF_TOLERANCE, (off, m, on)
+        assert answer.success and answer.message.startswith('halted: braking to rest at ') and \
+            'from the measured state' in answer.message, (answer.message, rig.sides())
+        assert (act.counters.brakes_planned, act.counters.brakes_from_measured) == (brakes + 1, from_measured + 1)
+        brake = rig.trajectories.wait_count(first + 2)[-1]
+        q_rest = brake.points[-1].positions[0]
+        q_from = m.position - direction * JUMP
+        assert direction * (q_rest - q_from) > 0.0 and direction * (q_target - q_rest) > 0.0, (q_from, q_rest,
+                                                                                               q_target)
+        rest = rig.at_rest(q_rest, len(rig.measured))
+        wait_for(lambda: len(rig.taken_over) > taken + 1, what='the brake taken over')
+        worst = ratio(rig.taken_over[-1])  # the brake as the controller runs it, its lead-in from the drive included
+        assert worst <= 1.0 + ROUNDING, (worst, rig.taken_over[-1], rig.sides())
+        print(f'\noff the motion by {off:+.3g} rad at {m.velocity:.4g} rad/s: the drive at rest at {q_rest:.6f} rad '
+              f'{(to_ns(rest.header.stamp) - t0) * 1e-9:.3f} s after the halt (planned at rest '
+              f'{planned_end(act.motion, t0):.3f} s after it); {q_target - q_rest:+.4f} rad short of the target; '
+              f'the brake\'s worst limit ratio {worst:.6f}')
+    finally:
+        rig.node.set_parameters([Parameter('replan_tolerance', value=tolerance)])
+        if act.halt.why:
+            rig.call(rig.resume_client)
 
 
 def test_in_forward_mode_a_halt_brakes_the_stream_on_its_grid_within_the_limits(fwd: Rig) -> None:

@@ -151,11 +151,55 @@ def test_no_brake_without_a_state_to_brake_from() -> None:
     traj = actuation_contract(CFG, 'trajectory')
     none = serve_brake(CFG, traj, Drive(), START_NS, ActuationCounters())
     assert isinstance(none, Refused) and none.key == 'brake no start', none
-    first, now = running('trajectory')
-    # measured moving, well off the motion: no start can be vouched for
+    # forward mode, measured moving off the running stream: the node stops the stream (the controller holds its
+    # last setpoint); no stream is started from a state off the one the controller holds
+    first, now = running('forward')
     off = JointMotionState(first.motion.state_at(now).position + 10 * CFG.replan_tolerance, 0.05)
-    out = serve_brake(CFG, traj, Drive(first.motion, off, now), now, ActuationCounters())
+    out = serve_brake(CFG, actuation_contract(CFG, 'forward'), Drive(first.motion, off, now, now), now,
+                      ActuationCounters())
     assert isinstance(out, Refused) and out.key == 'brake unsettled' and 'measured moving' in out.line, out
+
+
+def test_with_no_measurement_the_brake_starts_from_the_running_motion() -> None:
+    first, now = running('trajectory')
+    counters = ActuationCounters()
+    out = serve_brake(CFG, actuation_contract(CFG, 'trajectory'), Drive(first.motion), now, counters)
+    assert isinstance(out, Outgoing) and out.stamp_ns == first.motion.start_ns, out
+    assert (counters.brakes_planned, counters.brakes_from_measured) == (1, 0), counters
+
+
+@pytest.mark.parametrize('age_ms', [0, 10, -5], ids=['now', '10ms_old', 'stamped_ahead'])
+def test_off_every_motion_the_brake_starts_from_the_measured_state_brought_to_its_start(age_ms: int) -> None:
+    """Measured moving well off the running trajectory (a faulty count, another sender): the brake is the
+    time-optimal stop from the measured position and velocity at acceleration 0, brought at that velocity from the
+    measurement's stamp (one ahead of now: now) to ARRIVAL_MARGIN_S after now, the trajectory's time 0 and stamp;
+    short of the old target, within the limits."""
+    first, now = running('trajectory')
+    motion = first.motion
+    measured_ns = now - age_ms * 1_000_000
+    on = motion.state_at(measured_ns)
+    assert on.velocity > 0.9 * PLAN_SHRINKS[0] * LIMITS.at_rocker(1), on  # cruising
+    measured = JointMotionState(on.position - 3 * CFG.replan_tolerance, on.velocity)  # behind, as after a slip
+    counters = ActuationCounters()
+    out = serve_brake(CFG, actuation_contract(CFG, 'trajectory'), Drive(motion, measured, measured_ns), now, counters)
+    assert isinstance(out, Outgoing), out
+    assert (counters.brakes_planned, counters.brakes_from_measured) == (1, 1), counters
+    origin = now + seconds_to_ns(ARRIVAL_MARGIN_S)
+    assert out.stamp_ns == out.motion.start_ns == origin, (out.stamp_ns, origin)
+    brake = out.motion.trajectory
+    assert brake is not None and brake.velocities is not None and brake.accelerations is not None
+    at = min(measured_ns, now)
+    q0 = measured.position + measured.velocity * (origin - at) * 1e-9
+    assert brake.times[0] == 0.0
+    assert brake.positions[0] == pytest.approx(q0, abs=1e-12), (brake.positions[0], q0)
+    assert brake.velocities[0] == pytest.approx(measured.velocity, abs=1e-12)
+    assert abs(brake.accelerations[0]) <= 1e-12, brake.accelerations[0]
+    stop = plan_stop(JointMotionState(q0, measured.velocity, 0.0), LIMITS)
+    q_rest = float(brake.positions[-1])
+    assert q_rest == pytest.approx(stop.state_at(stop.duration).position, abs=1e-12)
+    assert abs(brake.velocities[-1]) <= 1e-9 and abs(brake.accelerations[-1]) <= 1e-9, brake
+    assert q0 < q_rest < q_of(CFG.theta_max)  # on the way, short of the old target
+    assert worst_violation(brake, LIMITS, CFG) is None  # the points and the quintics between them
 
 
 def test_plan_command_and_the_stop_agree_where_the_command_brakes_hardest() -> None:
