@@ -5,9 +5,14 @@
 
 - copy: rosbags reads every raw message of a 200,000-command bag and writes it to a new bag (same storage);
 - floor: rosbags reads every raw message of the same bag and writes the messages `fourbar process` writes for it
-  (joint_states and input_torque per command, precomputed bytes): the storage cost of the output alone;
+  (joint_states and input_torque per command, precomputed bytes of the package's CDR encoding): the storage cost
+  of the output alone, with three writers: rosbags' Writer message by message (``floor``), the ``mcap`` package's
+  chunked Writer message by message (``floor_mcap``, mcap storage only: uncompressed 1 MiB chunks, as rosbags
+  writes them) and the package's storage layer a block of rows at a time (``floor_rows``,
+  ``StorageAdapter.write_rows``, what `fourbar process` writes with);
 - process: `fourbar process IN OUT --params config/antenna.yaml` in-process (``fourbar_ros.commands.main``);
-- ratios process/copy, floor/copy and process/floor of the median CPU times over ``--rounds`` interleaved rounds;
+- ratios process/copy, floor/copy and process/floor (each floor, and the fastest) of the median CPU times over
+  ``--rounds`` interleaved rounds;
 - ``--memory N...``: peak RSS (VmHWM) of a fresh process copying, or processing, an N-command bag.
 
 Figures as JSON (``--markdown``: as the table of docs/benchmarks.md), which explains them.
@@ -90,21 +95,38 @@ def process(src: Path, dst: Path, storage: Storage) -> int:
         return main(['process', str(src), str(dst), '--params', str(CONFIG), '--storage', storage.value])
 
 
-def outputs_of(src: Path, storage: Storage) -> tuple[list[tuple[str, str]], dict[int, list[tuple[int, bytes]]]]:
-    """The (topic, type) `fourbar process` writes for ``src`` and its messages by log time (ns): (topic index, raw)."""
+#: What `fourbar process` writes for a bag: its (topic, type), its messages by log time (ns) as (topic index, raw),
+#: and for mcap each topic's schema (name, encoding, text) and channel metadata as the file holds them.
+Outputs = tuple[list[tuple[str, str]], dict[int, list[tuple[int, bytes]]],
+                list[tuple[tuple[str, str, bytes], dict[str, str]]]]
+
+
+def outputs_of(src: Path, storage: Storage) -> Outputs:
+    """What `fourbar process` writes for ``src`` (``Outputs``)."""
+    from mcap.reader import make_reader
     from rosbags.rosbag2 import Reader
 
     with tempfile.TemporaryDirectory(prefix='process_bench.') as tmp:
         process(src, Path(tmp) / 'out', storage)
+        channels: list[tuple[tuple[str, str, bytes], dict[str, str]]] = []
+        if storage is Storage.MCAP:
+            with (Path(tmp) / 'out' / 'out.mcap').open('rb') as f:
+                summary = make_reader(f).get_summary()
+                assert summary is not None
+                for channel in summary.channels.values():
+                    schema = summary.schemas[channel.schema_id]
+                    channels.append(((schema.name, schema.encoding, schema.data), dict(channel.metadata)))
         with Reader(Path(tmp) / 'out') as reader:
             index = {c.id: i for i, c in enumerate(reader.connections)}
             by_log: dict[int, list[tuple[int, bytes]]] = {}
             for conn, stamp, data in reader.messages():
                 by_log.setdefault(stamp, []).append((index[conn.id], bytes(data)))
-            return [(c.topic, c.msgtype) for c in reader.connections], by_log
+            # floor_rows writes rows: one message per topic, in topic order, at each log time
+            assert all([i for i, _ in row] == list(range(len(index))) for row in by_log.values())
+            return [(c.topic, c.msgtype) for c in reader.connections], by_log, channels
 
 
-def floor(src: Path, dst: Path, storage: Storage, outputs: Any) -> int:
+def floor(src: Path, dst: Path, storage: Storage, outputs: Outputs) -> int:
     """Read every raw message of ``src`` with rosbags and write its precomputed ``outputs`` (``outputs_of``) with
     rosbags' writer (same storage); the number of messages written."""
     from rosbags.rosbag2 import Reader, Writer
@@ -112,7 +134,7 @@ def floor(src: Path, dst: Path, storage: Storage, outputs: Any) -> int:
     from fourbar_ros.bags.storage import jazzy_typestore, recorded_qos
     from fourbar_ros.bags.storage.adapters import adapter
 
-    topics, by_log = outputs
+    topics, by_log, _ = outputs
     count = 0
     with Reader(src) as reader, Writer(dst, version=9, storage_plugin=adapter(storage).plugin) as writer:
         conns = [writer.add_connection(t, m, typestore=jazzy_typestore(), offered_qos_profiles=[recorded_qos()])
@@ -124,6 +146,61 @@ def floor(src: Path, dst: Path, storage: Storage, outputs: Any) -> int:
     return count
 
 
+def floor_mcap(src: Path, dst: Path, storage: Storage, outputs: Outputs) -> int:
+    """``floor`` with the ``mcap`` package's chunked Writer (no compression, 1 MiB chunks like rosbags' writer; the
+    ros2 profile, schemas and channel metadata of `fourbar process`'s file; no metadata.yaml); the number of
+    messages written (0 for sqlite3: not timed)."""
+    if storage is not Storage.MCAP:
+        return 0
+    from mcap.writer import CompressionType
+    from mcap.writer import Writer as McapWriter
+    from rosbags.rosbag2 import Reader
+
+    topics, by_log, meta = outputs
+    count = 0
+    dst.mkdir()
+    with Reader(src) as reader, (dst / f'{dst.name}.mcap').open('wb') as f:
+        writer = McapWriter(f, chunk_size=2**20, compression=CompressionType.NONE)
+        writer.start('ros2', 'process_bench')
+        schemas = {schema: writer.register_schema(*schema) for schema in dict.fromkeys(s for s, _ in meta)}
+        channels = [writer.register_channel(t, 'cdr', schemas[schema], metadata)
+                    for (t, _), (schema, metadata) in zip(topics, meta, strict=True)]
+        add = writer.add_message
+        for _, stamp, _ in reader.messages():
+            for i, raw in by_log.get(stamp, ()):
+                add(channels[i], stamp, raw, stamp)
+                count += 1
+        writer.finish()
+    return count
+
+
+def floor_rows(src: Path, dst: Path, storage: Storage, outputs: Outputs) -> int:
+    """``floor`` through the package's storage layer: its Writer (``BagWriter``, no atomic commit) with the adapter's
+    ``write_rows``, a block of ``BLOCK`` read messages' outputs per call, as `fourbar process` writes; the number of
+    messages written."""
+    from itertools import islice
+
+    from rosbags.rosbag2 import Reader
+
+    from fourbar_ros.bags.storage import jazzy_typestore, recorded_qos
+    from fourbar_ros.bags.storage.adapters import adapter
+    from fourbar_ros.bags.storage.write import BagWriter as Writer
+
+    topics, by_log, _ = outputs
+    store = adapter(storage)
+    count = 0
+    with Reader(src) as reader, Writer(dst, version=9, storage_plugin=store.plugin) as writer:
+        conns = [writer.add_connection(t, m, typestore=jazzy_typestore(), offered_qos_profiles=[recorded_qos()])
+                 for t, m in topics]
+        messages = reader.messages()
+        while block := list(islice(messages, BLOCK)):
+            rows = [by_log[stamp] for _, stamp, _ in block if stamp in by_log]
+            stamps = [stamp for _, stamp, _ in block if stamp in by_log]
+            store.write_rows(writer, stamps, [(conn, [row[i][1] for row in rows]) for i, conn in enumerate(conns)])
+            count += len(rows) * len(conns)
+    return count
+
+
 def read(src: Path, dst: Path, storage: Storage) -> int:
     """Read every raw message of ``src`` with rosbags (nothing written); the number of messages."""
     from rosbags.rosbag2 import Reader
@@ -132,7 +209,9 @@ def read(src: Path, dst: Path, storage: Storage) -> int:
         return sum(1 for _ in reader.messages())
 
 
-KINDS: dict[str, Callable[..., int]] = {'read': read, 'copy': copy_bag, 'floor': floor, 'process': process}
+KINDS: dict[str, Callable[..., int]] = {'read': read, 'copy': copy_bag, 'floor': floor, 'floor_mcap': floor_mcap,
+                                       'floor_rows': floor_rows, 'process': process}
+FLOORS = ('floor', 'floor_mcap', 'floor_rows')
 
 
 def timed(kind: str, src: Path, out: Path, storage: Storage, *extra: Any) -> tuple[float, float]:
@@ -155,34 +234,48 @@ def speed(n: int, rounds: int, storage: Storage) -> dict[str, Any]:
         times: dict[str, list[tuple[float, float]]] = {kind: [] for kind in KINDS}
         for _ in range(rounds):
             for kind, row in times.items():
-                row.append(timed(kind, bag, out, storage, *((outputs,) if kind == 'floor' else ())))
+                row.append(timed(kind, bag, out, storage, *((outputs,) if kind in FLOORS else ())))
+    if storage is not Storage.MCAP:  # floor_mcap writes mcap only
+        del times['floor_mcap']
     cpu = {kind: statistics.median(c for c, _ in row) for kind, row in times.items()}
+    floors = [kind for kind in FLOORS if kind in cpu]
+    fastest = min(floors, key=cpu.__getitem__)
     written = sum(map(len, outputs[1].values()))
     return {'commands': n, 'storage': storage.value, 'rounds': rounds,
             'messages_written': {'copy': n, 'floor_and_process': written},
             'write_us_per_message': {'copy': (cpu['copy'] - cpu['read']) / n * 1e6,
-                                     'floor': (cpu['floor'] - cpu['read']) / written * 1e6},
-            'rules_and_cdr_us_per_command': (cpu['process'] - cpu['floor']) / n * 1e6,
+                                     **{kind: (cpu[kind] - cpu['read']) / written * 1e6 for kind in floors}},
+            'rules_and_cdr_us_per_command': (cpu['process'] - cpu['floor_rows']) / n * 1e6,
             **{f'{kind}_cpu_s': [c for c, _ in row] for kind, row in times.items()},
             **{f'{kind}_median_cpu_s': m for kind, m in cpu.items()},
             **{f'{kind}_median_wall_s': statistics.median(w for _, w in row) for kind, row in times.items()},
-            'ratio': cpu['process'] / cpu['copy'], 'floor_ratio': cpu['floor'] / cpu['copy'],
-            'process_over_floor': cpu['process'] / cpu['floor']}
+            'ratio': cpu['process'] / cpu['copy'],
+            **{f'{kind}_ratio': cpu[kind] / cpu['copy'] for kind in floors},
+            **{f'process_over_{kind}': cpu['process'] / cpu[kind] for kind in floors},
+            'fastest_floor': fastest, 'process_over_fastest_floor': cpu['process'] / cpu[fastest]}
+
+
+WRITERS = {'floor': "rosbags' Writer, a message at a time",
+           'floor_mcap': "the `mcap` package's chunked Writer, a message at a time",
+           'floor_rows': "the package's storage layer, a block of rows at a time (`write_rows`, what process writes "
+                         "with)"}
 
 
 def where_the_time_goes(f: dict[str, Any]) -> str:
-    """The speed figures in words: what the copy and the floor cost and what is left for process (markdown)."""
+    """The speed figures in words: what the copy and each floor cost and what is left for process (markdown)."""
+    per = f['write_us_per_message']
+    floors = [kind for kind in WRITERS if kind in per]
+    writers = '; '.join(f'{WRITERS[kind]}: {per[kind]:.2f} us per message, floor/copy {f[f"{kind}_ratio"]:.2f}, '
+                        f'process/floor {f[f"process_over_{kind}"]:.2f}' for kind in floors)
     return (f'`fourbar process` of a {f["commands"]:,}-command {f["storage"]} bag takes **{f["ratio"]:.2f}x** the '
-            f'CPU time of a rosbags copy of it and **{f["process_over_floor"]:.2f}x the floor**, a rosbags read of the '
-            f'input plus rosbags\' writer writing the same output messages (precomputed bytes; floor/copy '
-            f'{f["floor_ratio"]:.2f}). '
+            f'CPU time of a rosbags copy of it and **{f["process_over_fastest_floor"]:.2f}x the fastest floor** '
+            f'({f["fastest_floor"]}). A floor is a rosbags read of the input plus writing the same output messages '
+            f'(precomputed bytes of the package\'s CDR encoding); by writer: {writers}. '
             f'The output holds {f["messages_written"]["floor_and_process"]:,} messages (joint_states and input_torque '
-            f'per served command) against the copy\'s {f["commands"]:,}, and rosbags\' writer costs '
-            f'{f["write_us_per_message"]["floor"]:.1f} us per message ({f["write_us_per_message"]["copy"]:.1f} us in '
-            f'the copy) against {f["read_median_cpu_s"] / f["commands"] * 1e6:.1f} us to read one: writing twice the '
-            f'messages is what sets the floor above the copy. What process adds to the floor (decoding, the node\'s '
-            f'rules on blocks, CDR encoding, the atomic commit) is '
-            f'{f["rules_and_cdr_us_per_command"]:.2f} us per command.\n')
+            f'per served command) against the copy\'s {f["commands"]:,}; rosbags\' writer costs '
+            f'{per["copy"]:.2f} us per message in the copy, against {f["read_median_cpu_s"] / f["commands"] * 1e6:.2f} '
+            f'us to read one. What process adds to the rows floor (decoding, the node\'s rules on blocks, CDR '
+            f'encoding, the atomic commit) is {f["rules_and_cdr_us_per_command"]:.2f} us per command.\n')
 
 
 def child(kind: str, src: Path, dst: Path, storage: Storage) -> None:
@@ -217,6 +310,7 @@ def run(quick: bool) -> dict[str, Any]:
     figures: dict[str, Any] = {'speed': speed(n, rounds, DEFAULT_STORAGE)}
     figures['process_over_copy_ratio'] = figures['speed']['ratio']
     figures['floor_over_copy_ratio'] = figures['speed']['floor_ratio']
+    figures['process_over_fastest_floor'] = figures['speed']['process_over_fastest_floor']
     figures['memory'] = {f'{r["kind"]}_{r["commands"]}_peak_rss_mib': r['max_rss_mib']
                          for r in memory([20_000] if quick else [200_000, 2_000_000], DEFAULT_STORAGE)}
     return figures

@@ -121,7 +121,6 @@ def process_bag(src: str | os.PathLike[str] | BagReader, dst: str | os.PathLike[
             qos = [recorded_qos()]  # the node's publishers: reliable, volatile
             js_conn = bag.add_topic(joint_topic, JOINT_STATE, qos)
             tq_conn = bag.add_topic(torque_topic, FLOAT64, qos)
-            write = bag.writer.write
             for stamps, values in _command_blocks(reader, chosen, block):
                 served = serve(values, cfg.theta_min, cfg.theta_max, policy, reach)
                 stats.count(served.outcomes)
@@ -132,16 +131,12 @@ def process_bag(src: str | os.PathLike[str] | BagReader, dst: str | os.PathLike[
                                              out.has_velocity)
                 except ValueError as exc:
                     raise BagError(f'{reader.path}: {exc}') from None
-                tq = encode_float64s(out.input_torque)
-                for stamp, js_raw, tq_raw in zip(out.stamps_ns.tolist(), js, tq, strict=True):
-                    write(js_conn, stamp, js_raw)
-                    write(tq_conn, stamp, tq_raw)
+                bag.write_rows(out.stamps_ns.tolist(), ((js_conn, js), (tq_conn, encode_float64s(out.input_torque))))
                 stats.published += out.stamps_ns.size
                 stats.with_velocity += int(np.count_nonzero(out.has_velocity))
                 if on_block is not None:
                     on_block(stats.commands)
             if stats.commands == 0:
                 raise BagError(f'{reader.path}: topic {chosen} has no messages')
-            bag.counts[joint_topic] = bag.counts[torque_topic] = stats.published
     stats.seconds = time.perf_counter() - start
     return stats

@@ -1,18 +1,18 @@
 """The small protocol each storage adapter (mcap, sqlite3) implements, like ``rosbags``' storage plugins.
 
 Reading a complete bag and writing one go through ``rosbags`` (its Reader and Writer pick the plugin);
-an adapter adds what rosbags does not offer: flushing an open writer, and scanning what a killed
-recording left in a storage file (``reindex``).
+an adapter adds what rosbags does not offer: flushing an open writer, writing many messages in one call, and
+scanning what a killed recording left in a storage file (``reindex``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Protocol
 
-from rosbags.interfaces import Qos
+from rosbags.interfaces import Connection, Qos
 from rosbags.rosbag2 import StoragePlugin, Writer
 
 from fourbar_ros.interface.topics import Storage
@@ -37,6 +37,9 @@ class FoundTopic:
 #: A stored message: (topic id of the file, receive time in ns since the epoch, CDR bytes).
 StoredMessage = tuple[int, int, bytes]
 
+#: Rows of messages for ``StorageAdapter.write_rows``: one (connection, CDR bytes per row) per column.
+Columns = Sequence[tuple[Connection, Sequence[bytes | memoryview]]]
+
 
 @dataclass
 class ScanState:
@@ -57,6 +60,19 @@ class StorageAdapter(Protocol):
     def flush(self, writer: Writer) -> None:
         """Hand every message written so far to the OS (no fsync)."""
 
+    def write_rows(self, writer: Writer, stamps_ns: Sequence[int], columns: Columns) -> None:
+        """Write row i's message of every column at ``stamps_ns[i]`` (ns since the epoch), row by row and in
+        column order: the bag is the one ``writer.write`` called in that order makes."""
+
     def scan(self, file: Path, state: ScanState) -> Iterator[FoundTopic | StoredMessage]:
         """Yield topics (when first seen) and messages of every complete record of ``file``, in stored order;
         stop quietly at the first incomplete or corrupt one (noted in ``state``)."""
+
+
+def write_one_by_one(writer: Writer, stamps_ns: Sequence[int], columns: Columns) -> None:
+    """``StorageAdapter.write_rows`` through ``writer.write``, message by message."""
+    conns = [conn for conn, _ in columns]
+    write = writer.write
+    for stamp, row in zip(stamps_ns, zip(*(raws for _, raws in columns), strict=True), strict=True):
+        for conn, raw in zip(conns, row, strict=True):
+            write(conn, stamp, raw)

@@ -3,14 +3,14 @@
 from __future__ import annotations
 
 import sqlite3
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Writer
 
 from fourbar_ros.bags.storage.common import parse_offered_qos, type_hash
-from fourbar_ros.bags.storage.protocol import FoundTopic, ScanState, StoredMessage
+from fourbar_ros.bags.storage.protocol import Columns, FoundTopic, ScanState, StoredMessage, write_one_by_one
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.interface.topics import Storage
 
@@ -31,6 +31,10 @@ class Sqlite3Storage:
         storage = writer.storage
         assert isinstance(storage, Sqlite3Writer)
         storage.conn.commit()
+
+    def write_rows(self, writer: Writer, stamps_ns: Sequence[int], columns: Columns) -> None:
+        """Through ``writer.write``, message by message (an insert per message either way)."""
+        write_one_by_one(writer, stamps_ns, columns)
 
     def scan(self, file: Path, state: ScanState) -> Iterator[FoundTopic | StoredMessage]:
         """Every committed row (sqlite rolls an uncommitted transaction back when it opens the file)."""

@@ -11,11 +11,11 @@ import secrets
 import shutil
 from collections.abc import Sequence
 from pathlib import Path
-from types import TracebackType
+from types import MappingProxyType, TracebackType
 from typing import TYPE_CHECKING
 
 from rosbags.interfaces import Connection, Qos
-from rosbags.rosbag2 import Writer
+from rosbags.rosbag2 import StoragePlugin, Writer
 
 from fourbar_ros.bags.storage.adapters import adapter
 from fourbar_ros.bags.storage.common import (
@@ -25,6 +25,8 @@ from fourbar_ros.bags.storage.common import (
     jazzy_typestore,
     recorded_qos,
 )
+from fourbar_ros.bags.storage.mcap_storage import McapChunkWriter
+from fourbar_ros.bags.storage.protocol import Columns
 from fourbar_ros.core.errors import one_line
 from fourbar_ros.interface.topics import DEFAULT_STORAGE, FLOAT64, Storage
 
@@ -39,6 +41,12 @@ def fsync_path(path: Path) -> None:
         os.fsync(fd)
     finally:
         os.close(fd)
+
+
+class BagWriter(Writer):
+    """rosbags' Writer with the package's mcap storage writer (``McapChunkWriter``: the same file, faster)."""
+
+    STORAGE_PLUGINS = MappingProxyType({**Writer.STORAGE_PLUGINS, StoragePlugin.MCAP: McapChunkWriter})
 
 
 class AtomicBagWriter:
@@ -82,8 +90,8 @@ class AtomicBagWriter:
         """Create the temporary bag directory and open the storage; on any exception, nothing is left."""
         try:
             tmp = self._make_work_dir()
-            self._writer = Writer(tmp / self.path.name, version=METADATA_VERSION,
-                                  storage_plugin=self.adapter.plugin)
+            self._writer = BagWriter(tmp / self.path.name, version=METADATA_VERSION,
+                                     storage_plugin=self.adapter.plugin)
             self._writer.open()
         except BaseException:
             self.abort()
@@ -143,6 +151,17 @@ class AtomicBagWriter:
         """Append one serialized (CDR) message received at ``stamp_ns`` (ns since the epoch)."""
         self.writer.write(conn, int(stamp_ns), data)
         self.counts[conn.topic] += 1
+
+    def write_rows(self, stamps_ns: Sequence[int], columns: Columns) -> None:
+        """Write row i's message of every column, a (connection, serialized messages) pair, at ``stamps_ns[i]``
+        (ns since the epoch), row by row and in column order: the bag ``write`` called in that order makes, for a
+        fraction of its cost per message in mcap."""
+        for conn, raws in columns:
+            if len(raws) != len(stamps_ns):
+                raise BagError(f'{self.path}: {len(stamps_ns)} stamps for {len(raws)} messages on {conn.topic}')
+        self.adapter.write_rows(self.writer, stamps_ns, columns)
+        for conn, _ in columns:
+            self.counts[conn.topic] += len(stamps_ns)
 
     def set_custom_data(self, key: str, value: str) -> None:
         """Store a string in the bag's metadata ``custom_data``."""
