@@ -146,12 +146,15 @@ def read_calibration_data(path: str | os.PathLike[str], driven_joint: str, angle
             chosen = bag.find(MEASURED, joint_topic)
         except BagError as exc:
             raise CalibrationError(str(exc)) from None
-        messages = [(conn.topic == chosen, log, data) for conn, log, data in bag.messages([chosen, angle_topic])]
-    raws = {topic: [bytes(d) for is_joint, _, d in messages if is_joint is (topic == chosen)]
-            for topic in (chosen, angle_topic)}
-    logs = {topic: [t for is_joint, t, _ in messages if is_joint is (topic == chosen)]
-            for topic in (chosen, angle_topic)}
-    del messages
+        raws: dict[str, list[bytes]] = {chosen: [], angle_topic: []}
+        logs: dict[str, list[int]] = {chosen: [], angle_topic: []}
+        # one pass, each message appended to its topic's lists: no per-message tuple, no second pass
+        streams = {c.id: (raws[c.topic].append, logs[c.topic].append) for c in bag.connections
+                   if c.topic in raws}
+        for conn, log, data in bag.messages([chosen, angle_topic]):
+            add_raw, add_log = streams[conn.id]
+            add_raw(bytes(data))
+            add_log(log)
     if not raws[chosen]:
         raise CalibrationError(f'{p}: topic {chosen} has no messages')
     if not raws[angle_topic]:
