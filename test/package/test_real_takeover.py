@@ -6,7 +6,10 @@ measured driven joint on ``held_joint_states`` and its commands on ``takeover_cm
 it relays joint_state_broadcaster's states with their own stamps, and holds them where a case says. Each case
 judges the controller's reference, update by update (``~/controller_state``), from the takeover of the node's plan
 to the end of its motion: within the driven rocker's speed, acceleration and jerk limits, and starting where the
-drive rests.
+drive rests. A third case halts a far move with ``ros2 service call .../halt std_srvs/srv/Trigger`` at cruising
+speed: the reference brakes to rest within the limits short of the target, the drive stays there through a
+deactivation and activation of the controller and a command while halted (dropped), and moves again after
+``.../resume`` and a command.
 
 Runs where the ros2 command line, launch_ros and ros2_control are installed; skipped elsewhere with the reason.
 """
@@ -262,3 +265,83 @@ def test_a_measurement_from_before_the_controller_switched_off_and_on_starts_no_
                f'{(ev["then"] - ev["fed"]) / 1e6:+.1f} ms from the feed')
     assert had['stamp'] < switch
     _judge(rec, ('the feed', ev['fed']), had, context, logged)
+
+
+#: Case 3, the halt: from theta_min the far move to theta_max (5 s, cruising from 0.43 s to 4.56 s at the plan's top
+#: speed); the halt by ``ros2 service call`` once the drive moves at CRUISE of the speed limit or faster; while halted
+#: the command HALT_DROPPED; after the resume HALT_THEN (the drive left at rest there for what follows).
+HALT_FROM, HALT_FIRST, HALT_DROPPED, HALT_THEN = CFG.theta_min, CFG.theta_max, 0.05, 0.0
+
+
+def _received_before(rows: list[dict[str, Any]], t: int) -> dict[str, Any]:
+    """The last row received by ``t`` (ns)."""
+    return [r for r in rows if r['received'] <= t][-1]
+
+
+def test_a_halt_by_the_ros2_command_line_brakes_the_drive_to_rest_within_the_limits_and_holds_it_until_resumed(
+        bringup: Bringup, tmp_path: Path) -> None:
+    scenario = {'kind': 'halt', 'ros2': ros2(), 'from': HALT_FROM, 'from_end': _gamma(HALT_FROM),
+                'first': HALT_FIRST, 'first_end': _gamma(HALT_FIRST), 'cruise': CRUISE * LIMIT[1],
+                'halted': HALT_DROPPED, 'then': HALT_THEN, 'then_end': _gamma(HALT_THEN)}
+    rec, logged = _probe(bringup, scenario, tmp_path)
+    ev, calls, statuses, states = rec['events'], rec['calls'], rec['statuses'], rec['states']
+    halt, resume = calls['halt'], calls['resume']
+    assert halt['rc'] == 0 and 'success=True' in halt['stdout'] and 'halted: braking to rest at' in halt['stdout'], (
+        f'{" ".join(halt["argv"])}: exit {halt["rc"]}\n{halt["stdout"]}{halt["stderr"]}')
+    # What the node sent from the halt call to the command after the resume: the brake only.
+    sent = [t for t in rec['trajectories'] if ev['halt_call'] < t['received'] < ev['then']]
+    assert len(sent) == 1, [_plan_line(t, ev['halt_call']) for t in sent]
+    brake = sent[0]
+    q_rest, q_target = brake['points'][-1][1], _gamma(HALT_FIRST)
+    direction = float(np.sign(q_target - _gamma(HALT_FROM)))
+    at_call = _received_before(rec['measured'], ev['halt_call'])
+    # The controller's reference from the halt call to the deactivation, update by update: the far move's last
+    # updates, the brake's takeover (it continues the far move's trajectory, with its stamp and its points up to the
+    # departure: no new start to find it by) and the brake.
+    k0 = next(k for k, s in enumerate(states) if s['stamp'] > ev['halt_call'])
+    k_off = next(k for k, s in enumerate(states) if s['received'] >= ev['deactivate_request'])
+    judged = states[:k_off]
+    worst = _worst(judged, k0)
+    rest = next((k for k in range(k0, k_off) if all(s['fb'][1][0] == 0.0 for s in judged[k:])), None)
+    lines = [f'far move theta {HALT_FROM} -> {HALT_FIRST} rad; `{" ".join(halt["argv"][1:])}` started at '
+             f'{at_call["velocity"]!r} rad/s, {at_call["position"]!r} rad measured, exited '
+             f'{(ev["halt_answered"] - ev["halt_call"]) / 1e9:.3f} s later: {halt["stdout"].strip().splitlines()[-1]}',
+             f'the node sent: {_plan_line(brake, ev["halt_call"])} from the call (received '
+             f'{(brake["received"] - ev["halt_call"]) / 1e9:.3f} s after it)',
+             f'{k_off - k0} updates judged from the call to the deactivation (times from the first)',
+             *(f'worst {w.line()}' for w in worst)]
+    if rest is not None:
+        lines.append(f'the drive at rest (feedback velocity 0 from then on) at {judged[rest]["fb"][0][0]!r} rad, '
+                     f'{(judged[rest]["stamp"] - ev["halt_call"]) / 1e9:.3f} s after the halt call started, '
+                     f'{(judged[rest]["stamp"] - brake["received"]) / 1e9:.3f} s after the brake was sent; '
+                     f'{q_target - q_rest:+.4f} rad short of the target')
+    report = '\n'.join(lines + [f'the controller logged: {line.strip()}' for line in logged.splitlines()
+                                if JTC in line and ('tolerance' in line or 'Holding' in line)][:5])
+    print(report)
+    assert direction * at_call['velocity'] >= CRUISE * LIMIT[1], f'the drive was not cruising at the call:\n{report}'
+    over = [w for w in worst if w.ratio > 1.0 + MARGIN]
+    assert not over, f'the controller\'s reference went over the limits braking:\n{report}'
+    assert rest is not None, f'the drive did not come to rest before the deactivation:\n{report}'
+    assert abs(judged[rest]['fb'][0][0] - q_rest) <= EXACT_RAD, f'the drive rests off the brake\'s end:\n{report}'
+    # on the way: beyond where it was at the call, short of the target
+    assert direction * (q_rest - at_call['position']) > 0.0 and direction * (q_target - q_rest) > 0.0, report
+    # At rest there through the deactivation and the activation, the command while halted and the resume.
+    after = [m for m in rec['measured'] if judged[rest]['stamp'] <= m['stamp'] and m['received'] < ev['then']]
+    moved = [m for m in after if m['velocity'] != 0.0 or abs(m['position'] - q_rest) > EXACT_RAD]
+    assert after and not moved, (f'{len(moved)} of {len(after)} broadcaster states after the rest off it, the first '
+                                 f'{moved[:3]}:\n{report}')
+    assert any(m['stamp'] > ev['activated'] for m in after), f'no state after the activation:\n{report}'
+    halted, dropped = statuses['halted'], statuses['dropped']
+    assert halted['halted'].startswith('yes: by the ~/halt service, ') and halted['command_fate'] == 'interrupted', (
+        halted)
+    assert int(dropped['halt_dropped']) == int(halted['halt_dropped']) + 1, (halted, dropped)
+    assert dropped['command_fate'] == 'interrupted' and dropped['command_theta_rad'] == repr(float(HALT_FIRST)), (
+        dropped)
+    assert resume['rc'] == 0 and 'success=True' in resume['stdout'] and 'resumed (halted by the ~/halt service' in (
+        resume['stdout']), f'{" ".join(resume["argv"])}: exit {resume["rc"]}\n{resume["stdout"]}{resume["stderr"]}'
+    # After the resume the command moves the drive to its target, within the limits, and leaves it at rest there.
+    k1 = _takeover(states, ev['then'])
+    over = [w for w in _worst(states, k1) if w.ratio > 1.0 + MARGIN]
+    assert not over, [w.line() for w in over]
+    last = rec['measured'][-1]
+    assert last['velocity'] == 0.0 and abs(last['position'] - _gamma(HALT_THEN)) <= EXACT_RAD, last

@@ -20,16 +20,26 @@ first trajectory after the command that ends at the command's driven angle (``*_
   deactivate, then activate joint_trajectory_controller (the controller manager's service), each once the node's
   status shows the controller's state; feed the held state stamped nearest ``before_switch`` before the switch (the
   first update without the controller) and wait for the node's antenna angle of it; command ``then``; once it is
-  taken in, relay again and wait for its plan.
+  taken in, relay again and wait for its plan;
+- ``{"kind": "halt", "ros2": path, "from": theta, "from_end": q, "first": theta, "first_end": q, "cruise": rad/s,
+  "halted": theta, "then": theta, "then_end": q}``: command ``from`` and wait for the drive at rest there; command
+  ``first``; once the drive moves at ``cruise`` or faster, ``ros2 service call NAMESPACE/takeover_node/halt
+  std_srvs/srv/Trigger`` (the ``ros2`` command line at ``path``); wait for the node's brake and the drive at rest
+  after it; deactivate, then activate joint_trajectory_controller as in "switch"; wait for three antenna angles
+  from the node after that; command ``halted`` and wait for the node's status to count it dropped; ``ros2 service
+  call .../resume``; command ``then``, wait for its plan and the drive at rest at its end.
 OUT.json, times in ns on the node clock: ``states`` (every ``~/controller_state``, as jtc_judge.py records them),
 ``trajectories`` (the node's, as jtc_judge.py records them), ``measured`` (every broadcaster state: stamp, received,
 position rad, velocity rad/s, whether relayed), ``fed`` (each state the node got: stamp, sent, position, velocity),
-``events`` (name -> time), ``switch_ns`` (the switch's update; "switch" only) and ``status`` (the node's last).
+``events`` (name -> time), ``switch_ns`` (the switch's update; "switch" only), ``status`` (the node's last),
+``statuses`` (name -> the node's status then) and ``calls`` (name -> a command line's argv, exit code, stdout, stderr;
+"halt" only).
 """
 
 from __future__ import annotations
 
 import json
+import subprocess
 import sys
 import threading
 import time
@@ -305,7 +315,81 @@ def _switched(rec: _Recorder, spec: dict[str, Any], events: dict[str, int], node
     return switch_ns
 
 
-def _probe(node: Node, spec_path: str, out_path: str) -> int:
+#: How close (rad) the drive rests at a command's driven angle: the mock hardware's state is the controller's command,
+#: which is the last point's position once the trajectory has ended (the same float, through the messages).
+AT_RAD = 1e-9
+
+
+def _rest_at(rec: _Recorder, q: float, since: int, what: str) -> None:
+    """Wait for the drive at rest (``at_rest``) at ``q`` (rad), measured after ``since`` (ns)."""
+    def there() -> bool:
+        with rec.lock:
+            last = rec.measured[-1]
+        return last['received'] > since and abs(last['position'] - q) <= AT_RAD and rec.at_rest()
+    _wait(there, f'the drive at rest at {q!r} rad {what}')
+
+
+def _cli(spec: dict[str, Any], namespace: str, service: str, calls: dict[str, Any], events: dict[str, int],
+         rec: _Recorder) -> None:
+    """``ros2 service call NAMESPACE/takeover_node/SERVICE std_srvs/srv/Trigger``, recorded under ``service``, with
+    events ``SERVICE_call`` (before the command line starts) and ``SERVICE_answered`` (after it exits)."""
+    argv = [spec['ros2'], 'service', 'call', f'{namespace}/{NODE}/{service}', 'std_srvs/srv/Trigger']
+    events[f'{service}_call'] = rec.now()
+    try:
+        done = subprocess.run(argv, capture_output=True, text=True, timeout=EVENT_S, check=False,
+                              stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired as exc:
+        raise TimeoutError(f'takeover_probe: {" ".join(argv)}: no exit in {EVENT_S} s: {exc.stdout!r} '
+                           f'{exc.stderr!r}') from None
+    events[f'{service}_answered'] = rec.now()
+    calls[service] = {'argv': argv, 'rc': done.returncode, 'stdout': done.stdout, 'stderr': done.stderr}
+
+
+def _halted(rec: _Recorder, spec: dict[str, Any], events: dict[str, int], node: Node, namespace: str,
+            calls: dict[str, Any], statuses: dict[str, dict[str, str]]) -> None:
+    """The scenario "halt"."""
+    _command(rec, spec['from'], events, 'from')
+    _rest_at(rec, spec['from_end'], events['from'], 'where the far move starts')
+    _command(rec, spec['first'], events, 'first')
+    _plan(rec, spec['first_end'], events['first'], 'for the far move')
+
+    def cruising() -> bool:
+        with rec.lock:
+            v = rec.measured[-1]['velocity']
+        return v is not None and abs(v) >= spec['cruise']
+    _wait(cruising, f'the drive at {spec["cruise"]} rad/s')
+    _cli(spec, namespace, 'halt', calls, events, rec)
+
+    def brake() -> dict[str, Any] | None:
+        with rec.lock:
+            return next((t for t in rec.trajectories if t['received'] > events['halt_call']), None)
+    _wait(brake, 'the node\'s brake after the halt call')
+    plan = brake()
+    assert plan is not None
+    events['brake'], end = plan['received'], _end_ns(plan)
+    _wait(lambda: rec.now() >= end, 'the brake\'s planned end')
+    _rest_at(rec, plan['points'][-1][1], end, 'after the brake')
+    events['rest_seen'] = rec.now()
+    statuses['halted'] = dict(rec.status)
+    _switch(node, rec, events, 'deactivate', 'inactive')
+    _switch(node, rec, events, 'activate', 'active')
+    with rec.lock:
+        angles = rec.angles
+    _wait(lambda: rec.angles >= angles + 3, 'three antenna angles from the node after the activation')
+    events['measured_again'] = rec.now()
+    dropped = int(rec.status['halt_dropped'])
+    _command(rec, spec['halted'], events, 'halted', taken=False)
+    _wait(lambda: int(rec.status.get('halt_dropped', '0')) > dropped, 'the node\'s status counting the command '
+          'while halted dropped')
+    events['halted_dropped'] = rec.now()
+    statuses['dropped'] = dict(rec.status)
+    _cli(spec, namespace, 'resume', calls, events, rec)
+    _command(rec, spec['then'], events, 'then')
+    plan = _plan(rec, spec['then_end'], events['then'], 'after the resume')
+    _rest_at(rec, spec['then_end'], _end_ns(plan), 'at the end of the motion after the resume')
+
+
+def _probe(node: Node, spec_path: str, out_path: str, namespace: str = '') -> int:
     spec = json.loads(Path(spec_path).read_text(encoding='utf-8'))
     rec = _Recorder(node)
 
@@ -325,27 +409,32 @@ def _probe(node: Node, spec_path: str, out_path: str) -> int:
         return 1
     events: dict[str, int] = {'start': rec.now()}
     switch_ns = None
+    calls: dict[str, Any] = {}
+    statuses: dict[str, dict[str, str]] = {}
     try:
         if spec['kind'] == 'late':
             _late(rec, spec, events)
+        elif spec['kind'] == 'halt':
+            _halted(rec, spec, events, node, namespace, calls, statuses)
         else:
             switch_ns = _switched(rec, spec, events, node)
     except TimeoutError as exc:
-        print(f'{exc}; the node\'s status: {rec.status}', file=sys.stderr)
+        print(f'{exc}; the node\'s status: {rec.status}; events {events}; command lines {calls}', file=sys.stderr)
         return 1
     with rec.lock:
         end = max(_end_ns(t) for t in rec.trajectories) + round(TAIL_S * NS)
     _wait(lambda: rec.now() >= end and rec.states[-1]['stamp'] >= end, 'the controller\'s states after the end')
     with rec.lock:
         out = {'states': rec.states, 'trajectories': rec.trajectories, 'measured': rec.measured, 'fed': rec.fed,
-               'events': events, 'switch_ns': switch_ns, 'status': rec.status}
+               'events': events, 'switch_ns': switch_ns, 'status': rec.status, 'statuses': statuses,
+               'calls': calls}
     Path(out_path).write_text(json.dumps(out), encoding='utf-8')
     return 0
 
 
 def main(namespace: str, spec_path: str, out_path: str) -> int:
     with probe_node('takeover_probe', namespace) as node:
-        return _probe(node, spec_path, out_path)
+        return _probe(node, spec_path, out_path, namespace)
 
 
 if __name__ == '__main__':
