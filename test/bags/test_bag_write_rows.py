@@ -18,8 +18,8 @@ from fourbar_ros.bags.storage.adapters import adapter
 from fourbar_ros.interface.cdr import encode_float64s, encode_joint_states
 from fourbar_ros.interface.topics import Storage
 
-ROWS = 30_000  # about 6 MB of mcap records: several 1 MiB chunks
-BLOCKS = (1, 2, 997, 20_000)  # then the rest: blocks that start and end anywhere in a chunk
+ROWS = 12_000  # about 2.9 MB of mcap: a chunk the flush closes, two closed at 1 MiB, the last
+BLOCKS = (1, 2, 997, 6_000)  # then the rest: blocks that start and end anywhere in a chunk
 T0_NS = 1_700_000_000_000_000_000
 
 

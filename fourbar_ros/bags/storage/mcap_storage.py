@@ -9,9 +9,11 @@ from bisect import bisect_right
 from collections import defaultdict
 from collections.abc import Iterator, Sequence
 from io import BytesIO
-from itertools import accumulate, chain
+from itertools import repeat
 from pathlib import Path
 
+import numpy as np
+from rosbags.interfaces import Connection
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.enums import CompressionMode
 from rosbags.rosbag2.storage_mcap import McapWriter, PendingChunk
@@ -34,46 +36,84 @@ _CHUNK_LIMIT = 2**20
 
 
 class McapChunkWriter(McapWriter):
-    """rosbags' mcap storage writer, writing the same file byte for byte, faster for many messages.
+    """rosbags' mcap storage writer, writing the same file byte for byte, faster.
 
     rosbags' writer costs a few microseconds per message in Python calls (a BytesIO per record and per-field
-    writes, again for each message's index entry when a chunk closes). ``write_rows`` builds each record's head
-    with one struct call and joins a chunk's records into one write; ``close_chunk`` packs a chunk's message
-    index with one struct call per topic. Both keep the writer's state as its ``write`` and ``close_chunk`` do
-    (the open chunk's records, message index and time range; the file's time range, counts and chunk indexes),
-    so either way of writing, and any mix, gives the file rosbags' writer gives. Installed by ``BagWriter``.
+    writes, again for each message's index entry when a chunk closes). Here a record's head is one struct call,
+    ``write_rows`` joins a chunk's records into one write, and the open chunk's message index is kept flat
+    (``index``) and packed with one struct call per topic when the chunk closes. The writer's state is kept as
+    rosbags' ``write`` and ``close_chunk`` keep it (the open chunk's records and time range; the file's time
+    range, counts and chunk indexes), so ``write``, ``write_rows`` and any mix of them give the file rosbags'
+    writer gives. Installed by ``BagWriter``.
     """
+
+    def __init__(self, path: Path, compression: CompressionMode) -> None:
+        super().__init__(path, compression)
+        #: The open chunk's message index: per channel id, in the order first written, (log time ns, offset of the
+        #: record in the chunk) pairs one after the other (rosbags' ``chunk.msgs`` is left empty).
+        self.index: dict[int, list[int]] = {}
+
+    def holds_messages(self) -> bool:
+        """Whether the open chunk holds a message."""
+        return bool(self.index)
+
+    def write(self, connection: Connection, timestamp: int, data: bytes | memoryview) -> None:
+        """Write one message (log and publish time ``timestamp``, ns), as rosbags' writer does."""
+        chunk, cid = self.chunk, connection.id
+        self.message_start_time = min(timestamp, self.message_start_time)
+        self.message_end_time = max(timestamp, self.message_end_time)
+        self.channel_stats[cid] += 1
+        chunk.message_start_time = min(timestamp, chunk.message_start_time)
+        chunk.message_end_time = max(timestamp, chunk.message_end_time)
+        bio = chunk.bio
+        self.index.setdefault(cid, []).extend((timestamp, bio.tell()))
+        bio.write(_HEAD.pack(5, len(data) + 22, cid, 0, timestamp, timestamp))
+        bio.write(data)
+        if bio.tell() > _CHUNK_LIMIT:
+            self.close_chunk()
 
     def write_rows(self, stamps_ns: Sequence[int], columns: Sequence[tuple[int, Sequence[bytes | memoryview]]]) -> None:
         """Write row i's message of every (channel id, messages) column at ``stamps_ns[i]`` (ns), row by row and
         in column order: what ``write`` called in that order writes, closing a chunk after the same message (the
         first that takes it past 1 MiB)."""
         n, width = len(stamps_ns), len(columns)
-        raws = [raw for row in zip(*(col for _, col in columns), strict=True) for raw in row]
-        if len(raws) != n * width:
-            raise ValueError(f'{n} stamps for {len(raws) // max(width, 1)} messages per topic')
-        if not raws:
+        for _, col in columns:
+            if len(col) != n:
+                raise ValueError(f'{n} stamps for {len(col)} messages')
+        if n == 0 or width == 0:
             return
+        m = n * width
+        raws: list[bytes | memoryview] = [b''] * m
+        times: list[int] = [0] * m
+        for k, (_, col) in enumerate(columns):  # row-major: message j of row i at i * width + j
+            raws[k::width] = col
+            times[k::width] = stamps_ns
         cids = [cid for cid, _ in columns] * n
-        times = [t for t in stamps_ns for _ in range(width)]
-        sizes = [_HEAD.size + len(raw) for raw in raws]
-        ends = list(accumulate(sizes))  # end of each record, counted from the first one
-        pack = _HEAD.pack
+        lengths = np.fromiter(map(len, raws), dtype=np.int64, count=m)
+        ends = np.cumsum(lengths + _HEAD.size)  # end of each record, counted from the first one
+        heads = list(map(_HEAD.pack, repeat(5, m), (lengths + 22).tolist(), cids, repeat(0, m), times, times))
+        parts: list[bytes | memoryview] = [b''] * (2 * m)
+        parts[0::2], parts[1::2] = heads, raws
+        bounds = ends.tolist()
+        starts = (ends - lengths - _HEAD.size).tolist()
         i = 0
-        while i < len(raws):
+        while i < m:
             chunk = self.chunk
             at = chunk.bio.tell()
-            base = ends[i - 1] if i else 0
-            stop = min(bisect_right(ends, _CHUNK_LIMIT - at + base, i) + 1, len(raws))
-            chunk.bio.write(b''.join([part for c, t, raw in zip(cids[i:stop], times[i:stop], raws[i:stop], strict=True)
-                                      for part in (pack(5, len(raw) + 22, c, 0, t, t), raw)]))
-            starts = [at - base + e - s for e, s in zip(ends[i:stop], sizes[i:stop], strict=True)]
-            for k in range(min(width, stop - i)):  # first seen first, as the chunk's message index goes
-                chunk.msgs[cids[i + k]].extend(zip(times[i + k:stop:width], starts[k::width], strict=True))
+            base = bounds[i - 1] if i else 0
+            stop = min(bisect_right(bounds, _CHUNK_LIMIT - at + base, i) + 1, m)
+            chunk.bio.write(b''.join(parts[2 * i:2 * stop]))
+            shift = at - base
+            for k in range(min(width, stop - i)):  # first written first, as rosbags' index goes
+                j = i + k
+                pairs = [0] * (2 * len(range(j, stop, width)))
+                pairs[0::2] = times[j:stop:width]
+                pairs[1::2] = [shift + x for x in starts[j:stop:width]] if shift else starts[j:stop:width]
+                self.index.setdefault(cids[j], []).extend(pairs)
             low, high = min(times[i:stop]), max(times[i:stop])  # rows need not come in time order
             chunk.message_start_time = min(low, chunk.message_start_time)
             chunk.message_end_time = max(high, chunk.message_end_time)
-            if at - base + ends[stop - 1] > _CHUNK_LIMIT:
+            if shift + bounds[stop - 1] > _CHUNK_LIMIT:
                 self.close_chunk()
             i = stop
         low, high = min(stamps_ns), max(stamps_ns)
@@ -96,10 +136,10 @@ class McapChunkWriter(McapWriter):
         bio.write(record)
         chunk_end = bio.tell()
         offsets: list[tuple[int, int]] = []
-        for cid, msgs in chunk.msgs.items():
+        for cid, pairs in self.index.items():
             offsets.append((cid, bio.tell()))
-            bio.write(_RECORD.pack(0x07, 6 + 16 * len(msgs)) + _INDEX.pack(cid, 16 * len(msgs)))
-            bio.write(struct.pack(f'<{2 * len(msgs)}Q', *chain.from_iterable(msgs)))
+            bio.write(_RECORD.pack(0x07, 6 + 8 * len(pairs)) + _INDEX.pack(cid, 8 * len(pairs)))
+            bio.write(struct.pack(f'<{len(pairs)}Q', *pairs))
         entry = BytesIO()
         entry.write(_QQQQI.pack(chunk.message_start_time, chunk.message_end_time, chunk_start, chunk_end - chunk_start,
                                 10 * len(offsets)))
@@ -109,6 +149,7 @@ class McapChunkWriter(McapWriter):
                     + _QQ.pack(len(compressed), len(data)))
         self.chunks.append(entry)
         self.chunk = PendingChunk(2**63 - 1, 0, BytesIO(), defaultdict(list))
+        self.index = {}
 
 
 class McapStorage:
@@ -122,11 +163,12 @@ class McapStorage:
         """Close the open chunk (if it holds messages) and flush the file buffer.
 
         rosbags' Writer has no flush; this reaches into its mcap storage writer (the open chunk and
-        the file object), the one place in the package that does.
+        the file object), as ``McapChunkWriter`` does.
         """
         storage = writer.storage
         assert isinstance(storage, McapWriter)
-        if any(storage.chunk.msgs.values()):
+        held = storage.holds_messages() if isinstance(storage, McapChunkWriter) else any(storage.chunk.msgs.values())
+        if held:
             storage.close_chunk()
         storage.bio.flush()
 
