@@ -13,7 +13,9 @@
   read, the pairing, the fit, the plot and the atomic writes);
 - ratio calibrate/read from the medians over ``--rounds`` interleaved rounds, every round listed, of the wall
   time (target: <= 3) and of the CPU time (the process and its children).
-  Also in-process: the rosbags read alone (warm) and the command's ``main`` in this process.
+  Also in-process: the rosbags read alone (warm), the command's bag reading alone (``read_calibration_data``: the
+  read, the decoding and the pairing; ``reading_over_read``, the per-message work it adds to the read) and the
+  command's ``main`` in this process (the fits, the plot and the writes beyond the reading).
 
 Figures printed as JSON. No figure is asserted by a test.
 """
@@ -85,11 +87,17 @@ def _one(duration: float, rounds: int, load: dict[str, float] | None) -> dict[st
             calibrate_cpu.append(cpu)
         from rosbags.rosbag2 import Reader
 
+        from fourbar_ros.bags.calibration_data import read_calibration_data
         from fourbar_ros.commands import main
+        from fourbar_ros.config.antenna_config import load_config
         start = time.perf_counter()
         with Reader(bag) as reader:
             messages = sum(1 for _ in reader.messages())
         read_in = time.perf_counter() - start
+        driven_joint = load_config(CONFIG).driven_joint
+        start = time.perf_counter()
+        read_calibration_data(bag, driven_joint, '/antenna_inclinometer')
+        reading_in = time.perf_counter() - start
         shutil.rmtree(out, ignore_errors=True)
         out.mkdir()
         start = time.perf_counter()
@@ -103,8 +111,8 @@ def _one(duration: float, rounds: int, load: dict[str, float] | None) -> dict[st
                       'cpu_ratio': statistics.median(calibrate_cpu) / statistics.median(read_cpu),
                       'rounds': {'read_s': reads, 'calibrate_s': calibrations, 'read_cpu_s': read_cpu,
                                  'calibrate_cpu_s': calibrate_cpu}},
-        'in_process': {'read_s': read_in, 'calibrate_s': calibrate_in, 'ratio': calibrate_in / read_in,
-                       'status': status},
+        'in_process': {'read_s': read_in, 'reading_s': reading_in, 'reading_over_read': reading_in / read_in,
+                       'calibrate_s': calibrate_in, 'ratio': calibrate_in / read_in, 'status': status},
     }
 
 
