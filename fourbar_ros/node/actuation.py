@@ -54,6 +54,7 @@ from fourbar_ros.rules.serve import (
     serve_brake,
     serve_command,
 )
+from fourbar_ros.rules.takeover import rest_speed
 from fourbar_ros.runtime.problem_log import ProblemLog
 
 #: Setpoints kept in ``recent_setpoints`` (the last seconds of the stream at the default rate).
@@ -319,14 +320,17 @@ class Actuation:
         return True, f'resumed (halted {was}): the next command moves the drive'
 
     def _brake(self, now_ns: int) -> str:
-        """Stop a running motion (``on_halt``); what was done, for the log line and the answer."""
+        """Stop a running motion (``on_halt``), or in trajectory mode a drive measured moving after the node's motion
+        ended or was forgotten (another sender's, a controller's own); what was done, for the log line and the
+        answer."""
         forward = self.mode == Mode.FORWARD.value
-        motion = self.motion
-        if motion is None or (self._setpoints is None if forward else motion.done(now_ns)):
+        motion, cfg, drive = self.motion, self._config(), self._drive()
+        running = motion is not None and (self._setpoints is not None if forward else not motion.done(now_ns))
+        moving = not forward and drive.measured is not None and abs(drive.measured.velocity) > rest_speed(cfg)
+        if not running and not moving:
             return 'at rest, nothing sent'
-        cfg = self._config()
         from_measured = self.counters.brakes_from_measured
-        out = serve_brake(cfg, self.contract, self._drive(), now_ns, self.counters)
+        out = serve_brake(cfg, self.contract, drive, now_ns, self.counters)
         if isinstance(out, Refused):
             if forward:  # the stream stops: the controller holds its last setpoint
                 self.motion, self._setpoints = None, None

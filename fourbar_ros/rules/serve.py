@@ -17,8 +17,8 @@ from fourbar_ros.core.errors import FourBarError, one_line
 from fourbar_ros.interface.joint_trajectory import PointFields
 from fourbar_ros.interface.stamps import ns_to_seconds, seconds_to_ns, to_ns
 from fourbar_ros.interface.topics import MEASURED_JOINT_STATES
-from fourbar_ros.motion.limits import JointLimits
-from fourbar_ros.motion.planner import JointMotionState, Setpoints, plan_stop
+from fourbar_ros.motion.limits import JointLimits, range_slack
+from fourbar_ros.motion.planner import JointMotionState, Plan, Setpoints, plan_stop
 from fourbar_ros.rules.antenna_trajectory import (
     CannotReachError,
     Converted,
@@ -28,7 +28,14 @@ from fourbar_ros.rules.antenna_trajectory import (
     problem_of,
 )
 from fourbar_ros.rules.controller_contract import ContractRule, PointLike
-from fourbar_ros.rules.motion_plan import Motion, plan_command, planned_points, planned_setpoints, trajectory_setpoints
+from fourbar_ros.rules.motion_plan import (
+    Motion,
+    driven_range,
+    plan_command,
+    planned_points,
+    planned_setpoints,
+    trajectory_setpoints,
+)
 from fourbar_ros.rules.outgoing import held_to_arrival, outgoing_refusal, point_fields
 from fourbar_ros.rules.takeover import (
     ARRIVAL_MARGIN_S,
@@ -144,9 +151,10 @@ def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: in
 
     In trajectory mode, where the drive is measured moving off every motion the node knows (``Unsettled``), from
     the measured state instead (``_measured_brake_start``): the controller's lead-in starts from the drive's state,
-    and a brake not sent would leave the drive running on to the old target. Refused where no start can be vouched
-    for: no motion and no measurement, or in forward mode off the running stream (the caller stops the stream:
-    the controller holds its last setpoint)."""
+    and a brake not sent would leave the drive running on to the old target; refused where that stop would leave
+    the driven range (the running motion, which stays in it, goes on). Refused where no start can be vouched for:
+    no motion and no measurement, or in forward mode off the running stream (the caller stops the stream: the
+    controller holds its last setpoint)."""
     lead = ARRIVAL_MARGIN_S if isinstance(contract, TrajectoryControllerSettings) else 0.0
     start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns, drive.setpoint_ns)
     if start is None:
@@ -159,6 +167,9 @@ def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: in
         start = _measured_brake_start(drive.measured, drive.measured_ns, now_ns)
     try:
         plan = plan_stop(start.state, JointLimits.from_config(cfg))
+        if off_motion and (beyond := _beyond_range(cfg, plan)):
+            return Refused('brake beyond the range', f'no brake planned: from the measured state {start.state} the '
+                           f'stop within the limits {beyond}: the motion the controller runs goes on')
         if isinstance(contract, ForwardControllerSettings):
             out: Outgoing | Refused = Outgoing(Motion(start.origin_ns, plan=plan),
                                                setpoints=planned_setpoints(cfg, plan))
@@ -171,6 +182,15 @@ def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: in
     counters.brakes_planned += isinstance(out, Outgoing)
     counters.brakes_from_measured += off_motion and isinstance(out, Outgoing)
     return out
+
+
+def _beyond_range(cfg: AntennaConfig, plan: Plan) -> str:
+    """How a stop ``plan`` leaves the driven range ('' where it stays within it, to its rounding)."""
+    lower, upper = driven_range(cfg)
+    lo, hi = plan.position_range()
+    if lo < lower - range_slack(lower, upper) or hi > upper + range_slack(lower, upper):
+        return f'passes the driven joint through [{lo!r}, {hi!r}] rad, beyond [{lower!r}, {upper!r}] rad'
+    return ''
 
 
 def _measured_brake_start(measured: JointMotionState, measured_ns: int, now_ns: int) -> Start:

@@ -25,15 +25,19 @@ from support.ros_support import Collector, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
+from fourbar_ros.interface.joint_trajectory import joint_trajectory
 from fourbar_ros.interface.stamps import to_ns
 from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME
 from fourbar_ros.motion.limits import JointLimits
-from fourbar_ros.motion.planner import PLAN_SHRINK, driven_angles
+from fourbar_ros.motion.planner import PLAN_SHRINK, JointMotionState, driven_angles
+from fourbar_ros.node.actuation import MESSAGE_CLASSES
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
 from fourbar_ros.rules.command_fate import Fate, Readiness
 from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.rules.halt import HALTED_LINE
+from fourbar_ros.rules.outgoing import actuation_contract
+from fourbar_ros.rules.serve import ActuationCounters, Drive, Outgoing, serve_command
 
 pytestmark = pytest.mark.ros
 
@@ -386,6 +390,61 @@ def test_a_halt_with_the_drive_measured_moving_off_the_motion_brakes_from_the_me
               f'the brake\'s worst limit ratio {worst:.6f}')
     finally:
         rig.node.set_parameters([Parameter('replan_tolerance', value=tolerance)])
+        if act.halt.why:
+            rig.call(rig.resume_client)
+
+
+def test_a_halt_with_the_drive_moved_by_another_sender_brakes_it_from_the_measured_state(traj: Rig) -> None:
+    """The node's own motion has ended; another sender's trajectory moves the drive (published to the controller
+    as the node would): the halt brakes the drive from its measured state, and it comes to rest within the limits
+    (the controller's reference of the brake, lead-in from the drive included), short of the other motion's end."""
+    rig, act = traj, traj.actuation
+    if act.halt.why:  # left halted by a failed test before
+        rig.call(rig.resume_client)
+    other = rig.ros.publisher(JointTrajectory, f'{rig.ns}/{CFG.trajectory_controller}/joint_trajectory', 10)
+    try:
+        rig.ros.wait_subscribers(other, 2)  # the sim and the test's collector
+        with rig.ros.paused():
+            m = act.measured
+            now = rig.now_ns()
+        assert abs(m.velocity) <= SETTLED and (act.motion is None or act.motion.done(now)), (m, rig.sides())
+        lower, upper = q_of(CFG.theta_min), q_of(CFG.theta_max)
+        target = CFG.theta_max if m.position - lower < upper - m.position else CFG.theta_min
+        direction = float(np.sign(q_of(target) - m.position))
+        out = serve_command(CFG, actuation_contract(CFG, 'trajectory'), Drive(None, JointMotionState(m.position), now),
+                            target, now, ActuationCounters())
+        assert isinstance(out, Outgoing), out
+        sent, taken, brakes = rig.sent(), len(rig.taken_over), act.counters.brakes_from_measured
+        collected = len(rig.trajectories)
+        other.publish(joint_trajectory(MESSAGE_CLASSES, JOINT, out.points, out.stamp_ns))
+        rig.trajectories.wait_count(collected + 1)
+        cruise = PLAN_SHRINK * LIMITS.at_rocker(1)
+
+        def cruising(msg: JointState) -> bool:
+            """Half a second (ten lag time constants) into the other motion's cruise."""
+            t = to_ns(msg.header.stamp)
+            return all(abs(s.acceleration) <= 1e-9 and abs(abs(s.velocity) - cruise) <= 1e-9 * cruise
+                       for s in (out.motion.state_at(t - 500_000_000), out.motion.state_at(t)))
+        moving = rig.measured.wait_match(cruising, start=len(rig.measured))
+        first = len(rig.trajectories)
+        t0 = rig.now_ns()
+        answer = rig.call(rig.halt_client)
+        assert answer.success and answer.message.startswith('halted: braking to rest at ') and \
+            'from the measured state' in answer.message, (answer.message, rig.sides())
+        assert act.counters.brakes_from_measured == brakes + 1 and rig.sent() == sent + 1, rig.sides()
+        brake = rig.trajectories.wait_count(first + 1)[-1]
+        q_rest = brake.points[-1].positions[0]
+        assert direction * (q_rest - moving.position[0]) > 0.0 and direction * (q_of(target) - q_rest) > 0.0, (
+            moving.position[0], q_rest, q_of(target))
+        rest = rig.at_rest(q_rest, len(rig.measured))
+        wait_for(lambda: len(rig.taken_over) > taken + 1, what='the brake taken over')
+        worst = ratio(rig.taken_over[-1])
+        assert worst <= 1.0 + ROUNDING, (worst, rig.taken_over[-1], rig.sides())
+        print(f'\nanother sender\'s motion at {moving.velocity[0]:.4g} rad/s: the drive at rest at {q_rest:.6f} rad '
+              f'{(to_ns(rest.header.stamp) - t0) * 1e-9:.3f} s after the halt call; the brake\'s worst limit ratio '
+              f'{worst:.6f}')
+    finally:
+        rig.ros.destroy(other)
         if act.halt.why:
             rig.call(rig.resume_client)
 

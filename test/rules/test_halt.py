@@ -213,3 +213,46 @@ def test_plan_command_and_the_stop_agree_where_the_command_brakes_hardest() -> N
         stop = plan_stop(motion.state_at(t_ns), LIMITS)
         assert stop.duration <= plan.duration - frac * plan.duration + 1e-9, (frac, stop.duration)
         assert stop.state_at(stop.duration).position <= q_of(CFG.theta_max) + 1e-12
+
+
+def test_with_no_motion_a_drive_measured_moving_brakes_from_its_measured_state() -> None:
+    """Another sender's motion, or one the node forgot (the controller switched): the stop from the measured state,
+    ARRIVAL_MARGIN_S ahead."""
+    measured = JointMotionState(0.85, -0.05)
+    counters = ActuationCounters()
+    out = serve_brake(CFG, actuation_contract(CFG, 'trajectory'), Drive(None, measured, START_NS), START_NS, counters)
+    assert isinstance(out, Outgoing) and out.motion.trajectory is not None, out
+    assert out.stamp_ns == START_NS + seconds_to_ns(ARRIVAL_MARGIN_S) and counters.brakes_from_measured == 1
+    q0 = 0.85 - 0.05 * ARRIVAL_MARGIN_S
+    stop = plan_stop(JointMotionState(q0, -0.05), LIMITS)
+    assert float(out.motion.trajectory.positions[-1]) == pytest.approx(stop.state_at(stop.duration).position,
+                                                                       abs=1e-12)
+    assert worst_violation(out.motion.trajectory, LIMITS, CFG) is None
+
+
+def test_after_the_motions_end_a_drive_settling_on_it_is_held_there() -> None:
+    """The motion ended and the drive is measured still moving within replan_tolerance of its end (landing): the
+    brake starts on the motion, at rest at its end: a hold there (no stop of its own to plan)."""
+    first, _ = running('trajectory')
+    end_ns = first.motion.start_ns + seconds_to_ns(first.motion.duration) + NS
+    q_end = first.motion.state_at(end_ns).position
+    measured = JointMotionState(q_end - 0.5 * CFG.replan_tolerance, 0.01)
+    out = serve_brake(CFG, actuation_contract(CFG, 'trajectory'), Drive(first.motion, measured, end_ns), end_ns,
+                      ActuationCounters())
+    assert isinstance(out, Outgoing) and out.motion.trajectory is not None, out
+    traj = out.motion.trajectory
+    assert traj.velocities is not None
+    assert np.all(traj.positions == q_end) and np.all(traj.velocities == 0.0), traj
+
+
+def test_a_stop_from_the_measured_state_that_would_leave_the_range_is_refused_in_one_line() -> None:
+    """Measured moving at full speed toward the upper end, closer than its stopping distance: no brake (the
+    controller's running motion, which ends within the range, goes on), one line saying where the stop would go."""
+    first, now = running('trajectory')
+    upper = q_of(CFG.theta_max)
+    measured = JointMotionState(upper - 0.005, PLAN_SHRINKS[0] * LIMITS.at_rocker(1))
+    counters = ActuationCounters()
+    out = serve_brake(CFG, actuation_contract(CFG, 'trajectory'), Drive(first.motion, measured, now), now, counters)
+    assert isinstance(out, Refused) and out.key == 'brake beyond the range', out
+    assert 'beyond [' in out.line and '\n' not in out.line, out.line
+    assert (counters.brakes_planned, counters.brakes_from_measured) == (0, 0), counters
