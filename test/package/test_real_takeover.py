@@ -269,7 +269,8 @@ def test_a_measurement_from_before_the_controller_switched_off_and_on_starts_no_
 
 #: Case 3, the halt: from theta_min the far move to theta_max (5 s, cruising from 0.43 s to 4.56 s at the plan's top
 #: speed); the halt by ``ros2 service call`` once the drive moves at CRUISE of the speed limit or faster; while halted
-#: the command HALT_DROPPED; after the resume HALT_THEN (the drive left at rest there for what follows).
+#: the command HALT_DROPPED; after the resume HALT_THEN (the drive left at rest there for what follows). Where the
+#: command line reaches the node after the cruise, the probe resumes and moves again (takeover_probe.HALT_TRIES).
 HALT_FROM, HALT_FIRST, HALT_DROPPED, HALT_THEN = CFG.theta_min, CFG.theta_max, 0.05, 0.0
 
 
@@ -295,6 +296,7 @@ def test_a_halt_by_the_ros2_command_line_brakes_the_drive_to_rest_within_the_lim
     q_rest, q_target = brake['points'][-1][1], _gamma(HALT_FIRST)
     direction = float(np.sign(q_target - _gamma(HALT_FROM)))
     at_call = _received_before(rec['measured'], ev['halt_call'])
+    at_brake = _received_before(rec['measured'], brake['received'])  # the drive when the node had braked
     # The controller's reference from the halt call to the deactivation, update by update: the far move's last
     # updates, the brake's takeover (it continues the far move's trajectory, with its stamp and its points up to the
     # departure: no new start to find it by) and the brake.
@@ -307,7 +309,9 @@ def test_a_halt_by_the_ros2_command_line_brakes_the_drive_to_rest_within_the_lim
              f'{at_call["velocity"]!r} rad/s, {at_call["position"]!r} rad measured, exited '
              f'{(ev["halt_answered"] - ev["halt_call"]) / 1e9:.3f} s later: {halt["stdout"].strip().splitlines()[-1]}',
              f'the node sent: {_plan_line(brake, ev["halt_call"])} from the call (received '
-             f'{(brake["received"] - ev["halt_call"]) / 1e9:.3f} s after it)',
+             f'{(brake["received"] - ev["halt_call"]) / 1e9:.3f} s after it, the drive measured then at '
+             f'{at_brake["velocity"]!r} rad/s, {at_brake["position"]!r} rad); far moves before this one whose halt '
+             f'came after the cruise: {calls["missed"]}',
              f'{k_off - k0} updates judged from the call to the deactivation (times from the first)',
              *(f'worst {w.line()}' for w in worst)]
     if rest is not None:
@@ -318,7 +322,8 @@ def test_a_halt_by_the_ros2_command_line_brakes_the_drive_to_rest_within_the_lim
     report = '\n'.join(lines + [f'the controller logged: {line.strip()}' for line in logged.splitlines()
                                 if JTC in line and ('tolerance' in line or 'Holding' in line)][:5])
     print(report)
-    assert direction * at_call['velocity'] >= CRUISE * LIMIT[1], f'the drive was not cruising at the call:\n{report}'
+    assert min(direction * at_call['velocity'], direction * at_brake['velocity']) >= CRUISE * LIMIT[1], (
+        f'the drive was not cruising from the call to the brake:\n{report}')
     over = [w for w in worst if w.ratio > 1.0 + MARGIN]
     assert not over, f'the controller\'s reference went over the limits braking:\n{report}'
     assert rest is not None, f'the drive did not come to rest before the deactivation:\n{report}'
