@@ -268,7 +268,8 @@ def _at(x: FloatArray | None, i: int) -> float | None:
 
 def _least_gap(head: DrivenTrajectory, tail: DrivenTrajectory, gap: float, limits: JointLimits, lower: float,
                upper: float) -> float:
-    """The least connecting time (s, to 1e-6 relative, on the wire) at least ``gap`` within the limits."""
+    """The least connecting time (s, to 1e-6 relative or the wire's 1 ns, on the wire) at least ``gap`` within the
+    limits."""
     bad, good = max(gap, 0.0), max(2.0 * gap, 1e-3)
     while _connection_problem(head, tail, good, limits, lower, upper) is not None:
         bad, good = good, 2.0 * good
@@ -276,7 +277,9 @@ def _least_gap(head: DrivenTrajectory, tail: DrivenTrajectory, gap: float, limit
             raise CannotReachError(f'no connecting time up to 3600 s brings the motion from '
                                    f'{float(head.positions[0])!r} rad to {float(tail.positions[0])!r} rad within '
                                    'the limits and the range')
-    while good - bad > 1e-6 * good:
+    # The absolute floor ends the search where any time will do (a first point where the drive rests: the least
+    # time is 0+, which no relative tolerance reaches).
+    while good - bad > max(1e-6 * good, 1e-9):
         mid = 0.5 * (bad + good)
         if _connection_problem(head, tail, mid, limits, lower, upper) is None:
             good = mid

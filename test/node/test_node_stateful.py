@@ -26,18 +26,19 @@ from typing import Any
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Duration, Time
-from hypothesis import HealthCheck, settings
+from hypothesis import HealthCheck, Phase, settings
 from hypothesis import strategies as st
 from hypothesis.stateful import RuleBasedStateMachine, invariant, rule, run_state_machine_as_test
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
-from support.ros_support import RosSession, wait_for
+from std_srvs.srv import Trigger
+from support.ros_support import TIMEOUT, RosSession, wait_for
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.interface.stamps import to_ns
-from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES
+from fourbar_ros.interface.topics import ANTENNA_JOINT, BROADCASTER_JOINT_STATES, MEASURED_JOINT_STATES, NODE_NAME
 from fourbar_ros.motion.limits import JointLimits
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
@@ -177,6 +178,12 @@ class Rig:
         ros.wait_subscribers(self.antenna)
         ros.wait_subscribers(self.fake)  # the node's measured-joint subscription
         ros.wait_subscribers(self.node.actuation._trajectory_pub)
+        self.halt_client = ros.node.create_client(Trigger, f'{NS}/{NODE_NAME}/halt')
+        self.resume_client = ros.node.create_client(Trigger, f'{NS}/{NODE_NAME}/resume')
+        for client in (self.halt_client, self.resume_client):
+            assert client.wait_for_service(timeout_sec=TIMEOUT), f'no service {client.srv_name} in {TIMEOUT} s'
+        #: the node's trajectories sent once halted (its brake included); None while not halted
+        self.sent_at_halt: int | None = None
         wait_for(lambda: self.node.actuation.measured is not None, what='the measured driven joint at the node')
 
     def _taken_over(self, ref: Reference) -> None:
@@ -210,6 +217,12 @@ class Rig:
         if ratio > self.worst:
             self.worst, self.worst_reference = ratio, ref
 
+    def call(self, client: Any) -> Any:
+        """Call a Trigger service; its answer."""
+        future = client.call_async(Trigger.Request())
+        self.ros.wait_for(future.done, what=f'the answer of {client.srv_name}')
+        return future.result()
+
     def settled(self) -> None:
         """Wait until the simulated controller has received every trajectory the node sent and taken over the
         last one it accepted."""
@@ -223,7 +236,7 @@ class Rig:
 
     def close(self) -> None:
         self.sim.set_parameters([Parameter('controller_active', value=True)])
-        self.ros.destroy(self.cmd, self.antenna, self.fake)
+        self.ros.destroy(self.cmd, self.antenna, self.fake, self.halt_client, self.resume_client)
         self.ros.remove_node(self.node)
         self.ros.remove_node(self.sim)
 
@@ -346,6 +359,26 @@ class Sequences(RuleBasedStateMachine):
         self.rig.ros.wait_for(lambda: (fates.readiness is Readiness.ACTIVE) == active,
                               what=f'the node to see the controller {want} (it sees {fates.readiness.value})')
 
+    @rule(again=st.booleans())
+    def halt(self, again: bool) -> None:
+        """The operator's halt (the ~/halt service), once or twice: the running motion brakes to rest and nothing
+        is sent until a resume."""
+        rig = self.rig
+        rig.recent.append(f'halt{" twice" if again else ""}')
+        for _ in range(1 + again):
+            answer = rig.call(rig.halt_client)
+            assert answer.success, answer
+        if rig.sent_at_halt is None:
+            rig.sent_at_halt = rig.node.actuation.counters.trajectories_sent
+
+    @rule()
+    def resume(self) -> None:
+        rig = self.rig
+        rig.recent.append('resume')
+        answer = rig.call(rig.resume_client)
+        assert answer.success == (rig.sent_at_halt is not None), answer
+        rig.sent_at_halt = None
+
     @invariant()
     def nothing_broke(self) -> None:
         rig = self.rig
@@ -358,6 +391,12 @@ class Sequences(RuleBasedStateMachine):
         assert sum(follower.refused.values()) + follower.refused_not_finite == 0, rig.refusals
         assert rig.worst <= 1.0 + ROUNDING, (rig.worst, rig.worst_reference)
         assert rig.worst_step <= TAKEOVER_STEP, _step_report(rig)
+        # halted: nothing sent after the halt's brake (no command, no antenna trajectory, no controller coming back)
+        if rig.sent_at_halt is not None:
+            assert node.actuation.halt.why, 'the node is not halted'
+            assert node.actuation.counters.trajectories_sent == rig.sent_at_halt, (
+                f'sent while halted: {node.actuation.counters.trajectories_sent - rig.sent_at_halt} trajectories '
+                f'after the steps {list(rig.recent)}')
         # every served command has one fate: final, but for the latest; or it repeated the one in force and joined it
         fates = node.actuation.fates
         served = node.counters.commands_accepted + node.counters.commands_clamped
@@ -381,13 +420,16 @@ def _step_report(rig: Rig) -> str:
 
 def _run(rig: Rig, examples: int, steps: int) -> None:
     Sequences.rig = rig
+    # No shrinking: each step waits on the middleware, and shrinking a failing sequence takes many minutes; the
+    # failure message names the steps that led to it.
     run_state_machine_as_test(Sequences, settings=settings(
         max_examples=examples, stateful_step_count=steps, deadline=None, derandomize=True,
-        suppress_health_check=list(HealthCheck)))
+        phases=[Phase.explicit, Phase.reuse, Phase.generate], suppress_health_check=list(HealthCheck)))
     print(f'stateful: {len(rig.references)} trajectories taken over; the worst whole-motion limit ratio '
           f'{rig.worst:.9f}; continuity checked at {rig.continuous_checked} takeovers, the largest acceleration '
           f'step {rig.worst_step:.2%} of the limit; {rig.late} taken over after their departure (the latest by '
-          f'{rig.latest:.3g} s); node counters {rig.node.actuation.counters.as_dict()}')
+          f'{rig.latest:.3g} s); halts {rig.node.actuation.halt.halts}, commands dropped while halted '
+          f'{rig.node.actuation.halt.dropped}; node counters {rig.node.actuation.counters.as_dict()}')
 
 
 def test_random_sequences_never_stop_the_node_nor_break_the_contract_or_the_limits(rig: Rig) -> None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import threading
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -337,3 +338,33 @@ def test_each_input_has_one_entry_returning_what_goes_out_or_a_refusal() -> None
         f'antenna trajectory has the one joint {ANTENNA_JOINT!r}')
     assert (counters.commands_planned, counters.commands_not_planned, counters.trajectories_sent) == (3, 1, 3)
     assert counters.rejected[TrajectoryProblem.WRONG_JOINT] == 1
+
+
+def test_a_retimed_antenna_trajectory_starting_where_the_running_motion_rests_goes_out() -> None:
+    """A zero-stamped antenna trajectory (limit_policy retime) whose first point, at time 0, is where the running
+    one rests at its departure, to the bit (both converted alike): the connecting segment may take any time above
+    0, and its search ends (it once halved towards 0 for ever: the node's callback never returned). Run on a
+    thread, judged by a deadline."""
+    cfg = replace(CFG, limit_policy='retime')
+    jtc, now, counters = actuation_contract(cfg, 'trajectory'), 10**12, ActuationCounters()
+    q0 = float(driven_angles(cfg, np.array([0.0]))[0])
+    rest = Drive(measured=JointMotionState(q0), measured_ns=now)
+
+    def zero_stamped(*points: Point) -> SimpleNamespace:
+        return SimpleNamespace(header=SimpleNamespace(stamp=Duration()), joint_names=[ANTENNA_JOINT],
+                               points=list(points))
+    short = serve_antenna_trajectory(cfg, jtc, rest, zero_stamped(
+        Point([0.0], [0.0], [0.0]), Point([1e-5], [0.0], [0.0], time_from_start=Duration(0, 100_000_000))),
+        now, counters)  # ends before the next one departs, ARRIVAL_MARGIN_S after it
+    assert isinstance(short, Outgoing), short
+    then = zero_stamped(Point([1e-5], [0.0], [0.0]), Point([0.01], [0.0], [0.0], time_from_start=Duration(1)))
+    answer: list[Outgoing | Refused] = []
+    worker = threading.Thread(target=lambda: answer.append(serve_antenna_trajectory(
+        cfg, jtc, Drive(motion=short.motion, measured=JointMotionState(q0), measured_ns=now), then,
+        now + seconds_to_ns(0.2), counters)), daemon=True)
+    worker.start()
+    worker.join(60.0)
+    assert answer, 'serve_antenna_trajectory did not return within 60 s'
+    out = answer[0]
+    assert isinstance(out, Outgoing), out
+    assert out.points[-1].positions[0] == pytest.approx(float(driven_angles(cfg, np.array([0.01]))[0]), abs=1e-12)
