@@ -126,19 +126,23 @@ def serve_command(cfg: AntennaConfig, contract: Contract, drive: Drive, theta: f
         return Refused('command unsettled', f'command theta = {theta!r} rad not planned: {start.reason}',
                        start.reason)
     try:
-        plan = plan_command(cfg, start.state, theta)
-        if isinstance(contract, ForwardControllerSettings):
-            out: Outgoing | Refused = Outgoing(Motion(start.origin_ns, plan=plan),
-                                               setpoints=planned_setpoints(cfg, plan))
-        else:
-            points = continued(start, planned_points(cfg, plan))
-            out = _sent(cfg, contract, Motion(start.origin_ns, trajectory=points),
-                        outgoing_stamp(cfg, start, points, now_ns), now_ns, 'trajectory', counters)
+        out = _outgoing(cfg, contract, start, plan_command(cfg, start.state, theta), now_ns, 'trajectory', counters)
     except FourBarError as exc:
         out = Refused(f'command {type(exc).__name__}', f'command theta = {theta!r} rad not planned: {one_line(exc)}')
     counters.commands_planned += isinstance(out, Outgoing)
     counters.commands_not_planned += isinstance(out, Refused)
     return out
+
+
+def _outgoing(cfg: AntennaConfig, contract: Contract, start: Start, plan: Plan, now_ns: int, what: str,
+              counters: ActuationCounters) -> Outgoing | Refused:
+    """``plan`` from ``start`` as ``contract``'s controller takes it: setpoints, or trajectory points (``what``
+    names them in a refusal) continuing the running trajectory, stamped."""
+    if isinstance(contract, ForwardControllerSettings):
+        return Outgoing(Motion(start.origin_ns, plan=plan), setpoints=planned_setpoints(cfg, plan))
+    points = continued(start, planned_points(cfg, plan))
+    return _sent(cfg, contract, Motion(start.origin_ns, trajectory=points), outgoing_stamp(cfg, start, points, now_ns),
+                 now_ns, what, counters)
 
 
 def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: int,
@@ -170,13 +174,7 @@ def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: in
         if off_motion and (beyond := _beyond_range(cfg, plan)):
             return Refused('brake beyond the range', f'no brake planned: from the measured state {start.state} the '
                            f'stop within the limits {beyond}: the motion the controller runs goes on')
-        if isinstance(contract, ForwardControllerSettings):
-            out: Outgoing | Refused = Outgoing(Motion(start.origin_ns, plan=plan),
-                                               setpoints=planned_setpoints(cfg, plan))
-        else:
-            points = continued(start, planned_points(cfg, plan))
-            out = _sent(cfg, contract, Motion(start.origin_ns, trajectory=points),
-                        outgoing_stamp(cfg, start, points, now_ns), now_ns, 'brake', counters)
+        out = _outgoing(cfg, contract, start, plan, now_ns, 'brake', counters)
     except FourBarError as exc:
         out = Refused(f'brake {type(exc).__name__}', f'no brake planned: {one_line(exc)}')
     counters.brakes_planned += isinstance(out, Outgoing)
