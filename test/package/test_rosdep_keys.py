@@ -49,7 +49,7 @@ ROS_PACKAGES = {
     'rclpy', 'rcl_interfaces', 'ament_index_python', 'builtin_interfaces', 'std_msgs', 'sensor_msgs',
     'diagnostic_msgs', 'visualization_msgs', 'trajectory_msgs', 'geometry_msgs', 'rosgraph_msgs', 'launch',
     'launch_ros', 'launch_testing', 'launch_testing_ros', 'ros2cli', 'control_msgs', 'controller_manager_msgs',
-    'lifecycle_msgs',
+    'lifecycle_msgs', 'std_srvs',
 }
 #: The project's own packages and the tests' helper package (test/support); each test file's own name is local too.
 LOCAL = {'fourbar_ros', 'benchmarks', 'support', 'conftest', 'test'}
