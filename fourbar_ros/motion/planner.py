@@ -123,6 +123,26 @@ def _ruckig() -> Any:
     return ruckig
 
 
+def _solved(start: JointMotionState, limits: JointLimits, target: float | None) -> tuple[Any, str]:
+    """ruckig's trajectory from ``start`` within ``limits`` (PLAN_SHRINKS of each) to rest: at ``target`` (rad), or
+    wherever it comes to rest soonest (None: the velocity interface); and '', or what ruckig said where it found
+    no profile (the trajectory then None)."""
+    rk = _ruckig()
+    inp = rk.InputParameter(1)
+    if target is None:
+        inp.control_interface = rk.ControlInterface.Velocity
+    else:
+        inp.target_position = [target]
+    inp.current_position, inp.current_velocity, inp.current_acceleration = [start.position], [start.velocity], [
+        start.acceleration]
+    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
+    inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
+        [shrink * limits.at_rocker(k)] for k, shrink in zip((1, 2, 3), PLAN_SHRINKS, strict=True))
+    trajectory = rk.Trajectory(1)
+    result = rk.Ruckig(1).calculate(inp, trajectory)
+    return (trajectory, '') if result in (rk.Result.Working, rk.Result.Finished) else (None, str(result))
+
+
 def plan_motion(start: JointMotionState, target: float, limits: JointLimits) -> Plan:
     """The time-optimal jerk-limited motion from ``start`` to rest at ``target`` (rad), within ``limits``.
 
@@ -131,17 +151,9 @@ def plan_motion(start: JointMotionState, target: float, limits: JointLimits) -> 
     values = (start.position, start.velocity, start.acceleration, target)
     if not all(math.isfinite(v) for v in values):
         raise TrajectoryError(f'non-finite motion input: start {start}, target {target!r} rad')
-    rk = _ruckig()
-    inp = rk.InputParameter(1)
-    inp.current_position, inp.current_velocity, inp.current_acceleration = [start.position], [start.velocity], [
-        start.acceleration]
-    inp.target_position, inp.target_velocity, inp.target_acceleration = [target], [0.0], [0.0]
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
-        [shrink * limits.at_rocker(k)] for k, shrink in zip((1, 2, 3), PLAN_SHRINKS, strict=True))
-    trajectory = rk.Trajectory(1)
-    result = rk.Ruckig(1).calculate(inp, trajectory)
-    if result not in (rk.Result.Working, rk.Result.Finished):
-        raise TrajectoryError(f'no motion from {start} to {target!r} rad within the limits: ruckig says {result}')
+    trajectory, failed = _solved(start, limits, target)
+    if failed:
+        raise TrajectoryError(f'no motion from {start} to {target!r} rad within the limits: ruckig says {failed}')
     return Plan(trajectory)
 
 
@@ -155,18 +167,9 @@ def plan_stop(start: JointMotionState, limits: JointLimits) -> Plan:
     values = (start.position, start.velocity, start.acceleration)
     if not all(math.isfinite(v) for v in values):
         raise TrajectoryError(f'non-finite motion input: start {start}')
-    rk = _ruckig()
-    inp = rk.InputParameter(1)
-    inp.control_interface = rk.ControlInterface.Velocity
-    inp.current_position, inp.current_velocity, inp.current_acceleration = [start.position], [start.velocity], [
-        start.acceleration]
-    inp.target_velocity, inp.target_acceleration = [0.0], [0.0]
-    inp.max_velocity, inp.max_acceleration, inp.max_jerk = (
-        [shrink * limits.at_rocker(k)] for k, shrink in zip((1, 2, 3), PLAN_SHRINKS, strict=True))
-    trajectory = rk.Trajectory(1)
-    result = rk.Ruckig(1).calculate(inp, trajectory)
-    if result not in (rk.Result.Working, rk.Result.Finished):
-        raise TrajectoryError(f'no stop from {start} within the limits: ruckig says {result}')
+    trajectory, failed = _solved(start, limits, None)
+    if failed:
+        raise TrajectoryError(f'no stop from {start} within the limits: ruckig says {failed}')
     return Plan(trajectory, extrema=False)
 
 
