@@ -15,8 +15,9 @@ from fourbar_ros.motion.limits import JointLimits, range_slack
 from fourbar_ros.rules.motion_plan import driven_range
 
 #: How many command periods of motion at the speed limit a target may lead the latest reading by: one for the
-#: command's own period, one for the reading's age (readings and commands arrive at about the same rate).
-STEP_PERIODS = 2.0
+#: command's own period, one for the reading's age, one for the command's lateness (at 100 Hz on a loaded machine
+#: commands arrive 4 to 16 ms apart).
+STEP_PERIODS = 3.0
 #: Default seconds without a command (or without a good reading) before a moving drive is held.
 WATCHDOG_TIMEOUT_S = 0.5
 

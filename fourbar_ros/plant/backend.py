@@ -16,6 +16,7 @@ from fourbar_ros.config.robot_model import driven_angle
 from fourbar_ros.drive.backend import Reading
 from fourbar_ros.plant.mjcf import DriveModel
 from fourbar_ros.plant.plant import Plant
+from fourbar_ros.plant.step_generator import ACCELERATION_FACTOR, StepGenerator
 
 __all__ = ['MAX_CATCH_UP_S', 'MICROSTEPS', 'Gust', 'PlantBackend', 'stepper_drive']
 
@@ -49,8 +50,9 @@ class PlantBackend:
     """A ``DriveBackend`` over ``Plant``: each call steps the plant to ``clock()`` (s) in whole timesteps.
 
     ``write`` sets a goal at the motor (a stepper's: rounded to whole microsteps, 2 pi / teeth / 4 / ``microsteps``
-    rad at the motor) that the drive's step generator reaches in one command period (1 / ``cfg.control_rate`` s) at
-    most ``cfg.motor_speed_limit`` rad/s at the motor. ``read`` reports, at the driven joint:
+    rad at the motor) that the drive's step generator (``StepGenerator``: the command period 1 / ``cfg.control_rate``
+    s, ``cfg.motor_speed_limit`` and ``ACCELERATION_FACTOR`` x ``cfg.motor_acceleration_limit`` at the motor)
+    follows. ``read`` reports, at the driven joint:
 
     - ``encoder_counts`` (counts per rocker revolution): the rocker's true angle to a count, the velocity differenced
       between reads (rad/s, simulated time), effort None for a stepper;
@@ -80,15 +82,14 @@ class PlantBackend:
         self.stepper = self.drive.stepper_torque is not None
         #: rad at the motor per microstep (a stepper), None for the servo.
         self.microstep = (2.0 * math.pi / self.drive.stepper_teeth / 4.0 / microsteps) if self.stepper else None
-        self.speed_limit = abs(cfg.motor_speed_limit)  # rad/s at the motor
-        self.command_period = 1.0 / cfg.control_rate  # s
         start = driven_angle(cfg) if position is None else position
         if not math.isfinite(start):
             raise ValueError(f'position: must be finite, got {start!r}')
         motor = self._quantize(cfg.reducer_ratio * (start - cfg.driven_joint_offset))
         self.plant.set_drive_angle(motor / cfg.reducer_ratio + cfg.driven_joint_offset)
-        self._profile = self._goal = motor  # rad at the motor: the step generator's position and goal
-        self._rate = 0.0  # rad/s at the motor, >= 0
+        self.generator = StepGenerator(motor, abs(cfg.motor_speed_limit),
+                                       ACCELERATION_FACTOR * abs(cfg.motor_acceleration_limit), 1.0 / cfg.control_rate,
+                                       self.microstep or 0.0)
         self.plant.command_motor(motor)
         self._steady = -cfg.load_torque if wind_torque is None else wind_torque
         self._gusts: list[Gust] = []
@@ -114,7 +115,7 @@ class PlantBackend:
     @property
     def count(self) -> int:
         """A stepper's microsteps issued (the step generator's position; 0 for the servo)."""
-        return 0 if self.microstep is None else round(self._profile / self.microstep)
+        return 0 if self.microstep is None else round(self.generator.position / self.microstep)
 
     @property
     def commanded_position(self) -> float:
@@ -175,15 +176,12 @@ class PlantBackend:
             self._steps += n - self._max_steps
             n = self._max_steps
         self._steps += n
+        generator, dt = self.generator, self.plant.timestep
         while n > 0:
             self._apply_wind()
-            if self._profile != self._goal:  # the step generator moving: one timestep at a time
-                dt = self.plant.timestep
-                gap = self._goal - self._profile
-                move = self._rate * dt
-                before = self._profile
-                self._profile = self._goal if abs(gap) <= move else self._profile + math.copysign(move, gap)
-                self.plant.command_motor(self._quantize(self._profile), (self._profile - before) / dt)
+            if not generator.at_rest:  # the step generator moving: one timestep at a time
+                generator.step(self.plant.time, dt)
+                self.plant.command_motor(self._quantize(generator.position), generator.speed)
                 self.plant.step(1)
                 n -= 1
             else:
@@ -220,20 +218,20 @@ class PlantBackend:
                 ratio * plant.motor_torque)
 
     def write(self, position: float) -> None:
-        """A new goal (rad at the joint): reached in one command period, at most the motor's speed limit;
-        RuntimeError while disabled or for a non-finite position."""
+        """A new goal (rad at the joint) for the step generator; RuntimeError while disabled or for a non-finite
+        position."""
         if not self.enabled:
             raise RuntimeError('the plant drive is disabled')
         if not math.isfinite(position):
             raise RuntimeError(f'position {position!r} is not finite')
         self.advance()
-        self._goal = self._quantize(self.cfg.reducer_ratio * (position - self.cfg.driven_joint_offset))
-        self._rate = min(abs(self._goal - self._profile) / self.command_period, self.speed_limit)
+        self.generator.set_goal(self._quantize(self.cfg.reducer_ratio * (position - self.cfg.driven_joint_offset)),
+                                self.plant.time)
 
     def disable(self) -> None:
         """Stop the step generator where it is (the motor goes on holding: see the how-to)."""
         self.advance()
-        self._goal = self._profile
+        self.generator.stop()
         self.enabled = False
 
     # -- truth, for the world and tests (of the state the last step ended in; forces of the one it began in) ------

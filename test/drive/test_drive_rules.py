@@ -36,7 +36,7 @@ class Clock:
 def test_limits_are_the_configurations() -> None:
     slack = range_slack(LOW, HIGH)
     assert (LIMITS.lower, LIMITS.upper) == (LOW - slack, HIGH + slack)
-    assert LIMITS.max_step == SPEED * 2.0 / CFG.control_rate
+    assert LIMITS.max_step == SPEED * 3.0 / CFG.control_rate
 
 
 def test_the_simulated_backend_is_a_drive_backend() -> None:

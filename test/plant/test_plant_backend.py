@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import random
 
 import pytest
 
@@ -17,9 +18,12 @@ from fourbar_ros.config.antenna_config import default_config
 from fourbar_ros.config.robot_model import driven_angle
 from fourbar_ros.core.loads import pose
 from fourbar_ros.drive.backend import DriveBackend
+from fourbar_ros.drive.rules import DriveLimits, DriveRules
+from fourbar_ros.motion.planner import JointMotionState
 from fourbar_ros.plant.backend import MICROSTEPS, PlantBackend, stepper_drive
 from fourbar_ros.plant.mjcf import DriveModel
 from fourbar_ros.rules.model_check import imu_theta
+from fourbar_ros.rules.motion_plan import plan_command
 
 CFG = default_config()  # config/antenna.yaml's values: no antenna weight, load_torque 3.5 N m, ratio 500
 RATIO = CFG.reducer_ratio
@@ -128,6 +132,46 @@ def test_a_smooth_move_is_followed_and_the_count_reaches_the_goal() -> None:
     lag = -math.asin(load / CFG.motor_torque_limit) / TEETH / RATIO  # rad at the rocker
     assert math.isclose(backend.true_rocker_angle - position, lag, rel_tol=1e-3), (backend.true_rocker_angle,
                                                                                    position, lag)
+
+
+#: The node's moves for the uneven delivery below: from level to the range's top end, then over the whole range to
+#: its bottom end (rad of theta), each with its seed.
+MOVES = [(0.0, CFG.theta_max, 1), (CFG.theta_max, CFG.theta_min, 2)]
+
+
+@pytest.mark.parametrize(('start', 'end', 'seed'), MOVES)
+def test_the_node_s_move_delivered_unevenly_through_the_bridge_s_rules_does_not_slip(start: float, end: float,
+                                                                                     seed: int) -> None:
+    """The node's plan to ``end`` sampled every PERIOD, as the controller commands it, each command arriving 0 to
+    6 ms after its time (in order: 4 to 16 ms apart), through the bridge's rules (a reading every PERIOD, 3 ms
+    into it), under the design load: the rotor never slips, no command is clamped (the drive follows within the
+    bridge's bound) and the count rests on the plan's end to half a microstep."""
+    rnd = random.Random(seed)
+    backend, clock = make(position=driven_angle(CFG, start))
+    rules = DriveRules(DriveLimits.from_config(CFG))
+    rules.on_reading(clock.now, backend.read())
+    plan = plan_command(CFG, JointMotionState(backend.read()[0], 0.0), end)
+    events, arrive, t0 = [], 0.0, clock.now
+    for k in range(math.ceil(plan.duration / PERIOD) + 50):  # on past the end: the controller holds its last point
+        arrive = max(arrive, t0 + k * PERIOD + rnd.uniform(0.0, 0.006))
+        events += [(arrive, plan.state_at(k * PERIOD).position), (t0 + k * PERIOD + 0.003, None)]
+    slipped = 0
+    with mujoco_warnings() as warnings:
+        for at, command in sorted(events, key=lambda e: e[0]):
+            clock.now = at
+            if command is None:
+                rules.on_reading(at, backend.read())
+            elif (target := rules.on_command(at, command)) is not None:
+                backend.write(target)
+            slipped = max(slipped, abs(backend.slipped_cycles))
+        for _ in range(50):
+            clock.now += PERIOD
+            rules.on_reading(clock.now, backend.read())
+    assert not warnings, warnings
+    seen = f'{start!r} -> {end!r} rad: slipped up to {slipped} cycles, {rules.counters.clamped} commands clamped'
+    assert slipped == 0 and rules.counters.clamped == 0, seen
+    goal = plan.state_at(plan.duration).position
+    assert abs(backend.read()[0] - goal) <= 0.5 * MICROSTEP, (backend.read()[0], goal)
 
 
 def test_a_wind_beyond_pull_out_slips_the_truth_by_whole_cycles_and_the_count_stays() -> None:
