@@ -44,6 +44,7 @@ from fourbar_ros.rules.takeover import (
     connect,
     continued,
     motion_start,
+    next_setpoint,
     outgoing_stamp,
 )
 
@@ -153,14 +154,21 @@ def serve_brake(cfg: AntennaConfig, contract: Contract, drive: Drive, now_ns: in
     next setpoint, on its grid), as trajectory points or setpoints for ``contract``'s controller. Not a return to
     the measured angle: that would turn a moving drive back.
 
-    In trajectory mode, where the drive is measured moving off every motion the node knows (``Unsettled``), from
-    the measured state instead (``_measured_brake_start``): the controller's lead-in starts from the drive's state,
-    and a brake not sent would leave the drive running on to the old target; refused where that stop would leave
-    the driven range (the running motion, which stays in it, goes on). Refused where no start can be vouched for:
-    no motion and no measurement, or in forward mode off the running stream (the caller stops the stream: the
-    controller holds its last setpoint)."""
+    In forward mode a running stream is braked on its grid wherever the drive is measured: the controller passes
+    each setpoint on as it comes, so the brake continues what it commands, however far the drive lags (stopping
+    the stream would step the command from full speed to rest). In trajectory mode, where the drive is measured
+    moving off every motion the node knows (``Unsettled``), from the measured state instead
+    (``_measured_brake_start``): the controller's lead-in starts from the drive's state, and a brake not sent would
+    leave the drive running on to the old target; refused where that stop would leave the driven range (the running
+    motion, which stays in it, goes on). Refused where no start can be vouched for: no motion and no measurement, or
+    in forward mode a drive measured moving with no stream running (the controller holds its last setpoint)."""
     lead = ARRIVAL_MARGIN_S if isinstance(contract, TrajectoryControllerSettings) else 0.0
-    start = motion_start(cfg, drive.motion, drive.measured, now_ns, lead, drive.measured_ns, drive.setpoint_ns)
+    motion, setpoint_ns = drive.motion, drive.setpoint_ns
+    start: Start | Unsettled | None
+    if lead == 0.0 and motion is not None and setpoint_ns is not None and not motion.done(now_ns):
+        start = next_setpoint(cfg, motion, setpoint_ns)
+    else:
+        start = motion_start(cfg, motion, drive.measured, now_ns, lead, drive.measured_ns, setpoint_ns)
     if start is None:
         return Refused('brake no start', f'no brake planned: no measured {cfg.driven_joint} on '
                        f'{MEASURED_JOINT_STATES.name} yet')

@@ -79,7 +79,7 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     - On the motion, where the measurement is within ``replan_tolerance`` of it at its stamp, predates its start,
       or there is none: continuing a running quintic trajectory at its first point ``lead`` s or more after now
       (where it ends sooner, at its end held until then); in forward mode a running stream at its setpoint after
-      the latest published (``_next_setpoint``); else at its state then.
+      the latest published (``next_setpoint``); else at its state then.
     - Off it, or with no motion: from the measured position at rest, if the drive is measured at rest (within
       ``rest_speed``) or within ``measured_range_tolerance`` past an end of the range (then at that end);
       ``Unsettled`` if it is moving (no velocity is planned from that the node cannot vouch for).
@@ -95,7 +95,7 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
         if lead > 0.0 and traj is not None and traj.kind is SplineKind.QUINTIC and not motion.done(now_ns):
             return _continuing(motion, traj, now_ns, lead, motion.state_at(now_ns))
         if lead == 0.0 and setpoint_ns is not None and not motion.done(now_ns):
-            return _next_setpoint(cfg, motion, setpoint_ns)
+            return next_setpoint(cfg, motion, setpoint_ns)
         # Not continued point for point (setpoints, a cubic or linear antenna trajectory, or a motion that has
         # ended): from its state where the new one starts, ahead like a start from the measured state, so that it
         # goes out stamped and the node's model of it is the controller's.
@@ -105,7 +105,7 @@ def motion_start(cfg: AntennaConfig, motion: Motion | None, measured: JointMotio
     return _from_measured(cfg, measured, origin_ns, left=motion is not None)
 
 
-def _next_setpoint(cfg: AntennaConfig, motion: Motion, setpoint_ns: int) -> Start:
+def next_setpoint(cfg: AntennaConfig, motion: Motion, setpoint_ns: int) -> Start:
     """Forward mode, a stream running: from its setpoint after the latest one published (at ``setpoint_ns``; one of
     the stream before it: its first), on its sample grid. The control timer publishes the latest setpoint due at
     each tick, so the new stream's first setpoint goes out at the tick the running one's next would have: the

@@ -151,13 +151,28 @@ def test_no_brake_without_a_state_to_brake_from() -> None:
     traj = actuation_contract(CFG, 'trajectory')
     none = serve_brake(CFG, traj, Drive(), START_NS, ActuationCounters())
     assert isinstance(none, Refused) and none.key == 'brake no start', none
-    # forward mode, measured moving off the running stream: the node stops the stream (the controller holds its
-    # last setpoint); no stream is started from a state off the one the controller holds
-    first, now = running('forward')
-    off = JointMotionState(first.motion.state_at(now).position + 10 * CFG.replan_tolerance, 0.05)
-    out = serve_brake(CFG, actuation_contract(CFG, 'forward'), Drive(first.motion, off, now, now), now,
-                      ActuationCounters())
+    # forward mode, measured moving with no stream running: the node has no setpoint of its own to brake from, and
+    # none is started from a state the controller does not hold (it holds its last setpoint)
+    forward = actuation_contract(CFG, 'forward')
+    moving = JointMotionState(q_of(0.0), 0.05)
+    out = serve_brake(CFG, forward, Drive(None, moving, START_NS, None), START_NS, ActuationCounters())
     assert isinstance(out, Refused) and out.key == 'brake unsettled' and 'measured moving' in out.line, out
+
+
+def test_in_forward_mode_the_stream_is_braked_on_its_grid_however_far_the_drive_lags_it() -> None:
+    # The drive measured moving 10 replan tolerances behind the running stream (a loaded machine): the controller
+    # passes on each setpoint as it comes, so the brake continues the stream from its next setpoint, as on it.
+    first, now = running('forward')
+    period_ns = seconds_to_ns(1.0 / CFG.control_rate)
+    published_ns = first.motion.start_ns + (now - first.motion.start_ns) // period_ns * period_ns
+    on = first.motion.state_at(now)
+    braked = []
+    for measured in (on, JointMotionState(on.position - 10 * CFG.replan_tolerance, on.velocity)):
+        out = serve_brake(CFG, actuation_contract(CFG, 'forward'), Drive(first.motion, measured, now, published_ns),
+                          now, ActuationCounters())
+        assert isinstance(out, Outgoing) and out.setpoints is not None, out
+        braked.append((out.motion.start_ns, out.setpoints.positions.tolist()))
+    assert braked[0] == braked[1]
 
 
 def test_with_no_measurement_the_brake_starts_from_the_running_motion() -> None:
