@@ -49,7 +49,7 @@ def install(ros2_cli: CliEnv) -> CliEnv:
 
 def test_ros2_launch_in_a_namespace_serves_and_stops_on_sigint(install: CliEnv) -> None:
     launch = Background([ros2(), 'launch', 'fourbar_ros', 'fourbar.launch.py', 'namespace:=tilt_launch'],
-                        install.env, cwd=install.cwd)
+                        install.env, cwd=install.cwd, terminal=False)  # started by a script: non-interactive
     try:
         nodes = wait_node(install.env, '/tilt_launch/fourbar_node')
         if installed(install.env, 'robot_state_publisher'):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import pty
 import re
 import signal
 import subprocess
@@ -57,15 +58,29 @@ def _signal_masks(pid: int) -> dict[str, str]:
 
 class Background:
     """A long-lived command in a new session (so a signal can go to it alone, or to its group as Ctrl-C
-    does); output goes to files, so it can never block on a full pipe."""
+    does); output goes to files, so it can never block on a full pipe.
 
-    def __init__(self, cmd: Sequence[str], env: dict[str, str], cwd: Path | None = None) -> None:
+    ``terminal`` (default: for ``ros2 launch``) gives the command a terminal (a pseudo-terminal) as its standard
+    input, as typed in one. Without one launch is non-interactive: on SIGINT it sends SIGINT to every process itself,
+    as it must when signalled alone (by a script or a service manager); on top of the group's SIGINT that is a second
+    one, which can end a C++ node mid-shutdown by the signal (status -2)."""
+
+    def __init__(self, cmd: Sequence[str], env: dict[str, str], cwd: Path | None = None,
+                 terminal: bool | None = None) -> None:
         self.cmd = list(cmd)
         self._out = tempfile.TemporaryFile()  # noqa: SIM115 - closed in _collect
         self._err = tempfile.TemporaryFile()  # noqa: SIM115
+        self._terminal: int | None = None  # the pseudo-terminal's controller side, closed in _collect
+        stdin: int = subprocess.DEVNULL
+        if terminal or (terminal is None and self.cmd[1:2] == ['launch']):
+            self._terminal, stdin = pty.openpty()
         # faulthandler: a command that hangs is sent SIGABRT before it is killed, and prints every thread's stack
-        self.proc = subprocess.Popen(self.cmd, env={**env, 'PYTHONFAULTHANDLER': '1'}, cwd=cwd, stdout=self._out,
-                                     stderr=self._err, stdin=subprocess.DEVNULL, start_new_session=True)
+        try:
+            self.proc = subprocess.Popen(self.cmd, env={**env, 'PYTHONFAULTHANDLER': '1'}, cwd=cwd,
+                                         stdout=self._out, stderr=self._err, stdin=stdin, start_new_session=True)
+        finally:
+            if self._terminal is not None:
+                os.close(stdin)
         self.stdout = ''
         self.stderr = ''
         self._seen: dict[int, Any] = {}
@@ -153,6 +168,9 @@ class Background:
         self._collect()
 
     def _collect(self) -> None:
+        if self._terminal is not None:
+            os.close(self._terminal)
+            self._terminal = None
         for name in ('_out', '_err'):
             f = getattr(self, name)
             if f.closed:
