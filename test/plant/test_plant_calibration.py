@@ -1,6 +1,6 @@
 """`fourbar calibrate` on a recording of the MuJoCo plant (in process): the default stepper under the design load,
 its drive reporting the driven rocker with its zero ZERO_ERROR high (the open-loop count, or an encoder on the
-rocker), stepped through poses over the whole tilt range both ways and held at rest at each, the antenna's
+rocker; a rigid or a compliant reducer), stepped through poses over the whole tilt range both ways and held at rest at each, the antenna's
 accelerometer read with a MEMS instrument's seeded noise and quantization (the plant itself does not shake the
 antenna). The fitted driven_joint_offset is the correction that undoes the zero, within the noise's sd and the bias
 of what the calibration's model leaves out, measured on the noiseless plant."""
@@ -29,6 +29,7 @@ from fourbar_ros.core.calibration import GRAVITY, imu_tilt
 from fourbar_ros.interface.cdr import encode_joint_states
 from fourbar_ros.interface.topics import ANTENNA_SENSOR_IMU, BROADCASTER_JOINT_STATES
 from fourbar_ros.plant.backend import PlantBackend
+from fourbar_ros.plant.mjcf import DriveModel
 
 CONFIG = REPO / 'config' / 'antenna.yaml'  # driven_joint_offset 0: the drive's report is taken as the rocker angle
 CFG = load_config(CONFIG)
@@ -36,9 +37,15 @@ PERIOD = 1.0 / CFG.control_rate  # s between the drive's reads (and the accelero
 #: The drive's zero as mounted (rad at the rocker): it reports the true rocker angle plus this, so the calibration's
 #: correction (true = measured + correction) is -ZERO_ERROR.
 ZERO_ERROR = math.radians(0.7)
-#: What reports the driven joint: the stepper's open-loop count (None), or an encoder on the rocker (counts per
-#: revolution: 17 bits, 4.8e-5 rad a count).
-DRIVES = {'stepper count': None, 'rocker encoder': 2 ** 17}
+#: What reports the driven joint, and the drive: the stepper's open-loop count (None), or an encoder on the rocker
+#: (counts per revolution: 17 bits, 4.8e-5 rad a count); the plant's default rigid reducer, or a compliant one with
+#: play (1000 N m/rad, damping 1 N m s/rad, 1 mrad of play at the rocker: the design load keeps the rocker on one
+#: side of it, so the zero the calibration finds is that side's).
+SOFT_REDUCER = DriveModel(stepper_torque=CFG.motor_torque_limit, reducer_stiffness=1000.0, reducer_damping=1.0,
+                          backlash=1e-3)
+DRIVES: dict[str, tuple[int | None, DriveModel | None]] = {
+    'stepper count': (None, None), 'rocker encoder': (2 ** 17, None),
+    'stepper count, compliant reducer with play': (None, SOFT_REDUCER)}
 #: Poses: theta_min to theta_max in POSES equal steps (both ends exactly), up and back down.
 POSES = 11
 #: Readings at rest at each pose (s of simulated time at 100 Hz).
@@ -87,13 +94,13 @@ def _record(backend: PlantBackend, clock: _Clock, rows: list[tuple[float, ...]],
                  *backend.antenna_acceleration(), float(moving)))
 
 
-def _sweep(encoder_counts: int | None) -> np.ndarray:
+def _sweep(encoder_counts: int | None, drive: DriveModel | None) -> np.ndarray:
     """Step the plant through the poses, holding at rest at each; one row per reading (see ``_record``)."""
     clock = _Clock()
     thetas = np.linspace(CFG.theta_min, CFG.theta_max, POSES)
     thetas[0], thetas[-1] = CFG.theta_min, CFG.theta_max
     goals = [driven_angle(CFG, float(t)) for t in thetas]
-    backend = PlantBackend(CFG, position=goals[0], clock=clock, encoder_counts=encoder_counts)
+    backend = PlantBackend(CFG, drive, position=goals[0], clock=clock, encoder_counts=encoder_counts)
     backend.enable()
     rows: list[tuple[float, ...]] = []
     here = goals[0]
@@ -139,7 +146,7 @@ def _imus(stamps_ns: np.ndarray, accel: np.ndarray) -> list[bytes]:
 @pytest.fixture(scope='module', params=list(DRIVES))
 def recording(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> Recording:
     with mujoco_warnings() as warnings:
-        rows = _sweep(DRIVES[request.param])
+        rows = _sweep(*DRIVES[request.param])
     assert not warnings, warnings
     q_drive, velocity, clean, moving = rows[:, 0], rows[:, 1], rows[:, 2:5], rows[:, 5] > 0.0
     rng = np.random.default_rng(SEED)
@@ -218,6 +225,12 @@ def test_the_drive_s_zero_is_recovered_from_the_plant(recording: Recording, tmp_
             f'rad, bounded by {bias_bound:.3g} rad')
     print(seen)
     assert abs(error) <= bias_bound + 4.0 * sigma_c, seen
+    if DRIVES[recording.drive][1] is not None:
+        # The compliant reducer's twist under the load (up to 3.8e-3 rad at the rocker here) is not in the
+        # calibration's model: it goes into the zero, far beyond the reported sd, and the bias is too large for its
+        # linearization (h @ r) to predict the error to the noise's sd. The bound above holds.
+        assert abs(error) > 10.0 * fit['sd'], seen
+        return
     # Sharper: the error less the predicted bias is the noise alone (4 of its sds).
     assert abs(error - bias) <= 4.0 * sigma_c, seen
     # The fit's own sd is the noise's through it: its noise estimate from the residuals agrees with sigma_theta to
