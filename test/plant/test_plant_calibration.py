@@ -1,9 +1,9 @@
 """`fourbar calibrate` on a recording of the MuJoCo plant (in process): the default stepper under the design load,
 its drive reporting the driven rocker with its zero ZERO_ERROR high (the open-loop count, or an encoder on the
-rocker; a rigid or a compliant reducer), stepped through poses over the whole tilt range both ways and held at rest at each, the antenna's
-accelerometer read with a MEMS instrument's seeded noise and quantization (the plant itself does not shake the
-antenna). The fitted driven_joint_offset is the correction that undoes the zero, within the noise's sd and the bias
-of what the calibration's model leaves out, measured on the noiseless plant."""
+rocker; a rigid or a compliant reducer), stepped through poses over the whole tilt range both ways and held at rest
+at each, the antenna's accelerometer read with a MEMS instrument's seeded noise and quantization (the plant itself
+does not shake the antenna). The fitted driven_joint_offset is the correction that undoes the zero, within the
+noise's sd and the bias of what the calibration's model leaves out, measured on the noiseless plant."""
 
 from __future__ import annotations
 
