@@ -1,8 +1,8 @@
 """The MuJoCo plant as the drive behind the real controller manager, the topic-based hardware plugin and
 joint_trajectory_controller, with fourbar_node (trajectory mode, the plant's antenna Imu as its sensor) in front: the
 torque the node publishes is the plant's at rest over the range, the antenna's true angle rests within what the
-reducer's backlash, compliance and the stepper's deflection allow, the node's own moves neither slip the stepper nor
-trip the slip stop, and a gust that slips the stepper stops the motion.
+reducer's backlash, compliance and the stepper's deflection allow, the sweep keeps to the motor's speed limit, the
+node's own moves neither slip the stepper nor trip the slip stop, and a gust that slips the stepper stops the motion.
 
 One bringup for the module: the controller manager, ``fourbar_mujoco_drive`` (a compliant reducer with 1 mrad of play
 at the rocker, the design load as the steady wind) and the spawner as child processes; fourbar_node in-process.
@@ -18,6 +18,7 @@ from dataclasses import dataclass
 from typing import Any
 
 import pytest
+import yaml
 
 pytest.importorskip('rclpy')
 pytest.importorskip('mujoco', reason='the MuJoCo plant needs the mujoco package (pip install mujoco)')
@@ -72,6 +73,8 @@ AT_REST = 1e-7  # rad/s at the rocker (the motor's over the ratio): every joint 
 #: The sweep: both exact ends of the range and three angles inside, visited in this order from the start (level).
 SWEEP = (CFG.theta_min, -0.05, 0.03, CFG.theta_max, 0.0)
 TIMEOUT = 60.0
+#: s: the window of the rotor's mean speed; the longest move of the sweep (0.1222 -> 0) lasts about 1.5 s.
+WINDOW = 0.5
 
 
 def theta_of(truth: JointState) -> float:
@@ -191,6 +194,18 @@ def slipped(truth: JointState, count: float) -> int:
     return round((motor - RATIO * (count - CFG.driven_joint_offset)) / CYCLE)
 
 
+def window_speed(rotor: list[tuple[int, float]]) -> float:
+    """The largest mean |speed| (rad/s) over WINDOW s of (stamp ns, angle rad) samples; 0 for a shorter record."""
+    best, j = 0.0, 0
+    for t, p in rotor:
+        while j < len(rotor) and rotor[j][0] - t < WINDOW * 1e9:
+            j += 1
+        if j == len(rotor):
+            break
+        best = max(best, abs(rotor[j][1] - p) / ((rotor[j][0] - t) * 1e-9))
+    return best
+
+
 def driven(theta: float) -> float:
     """The driven joint's angle (rad) for theta (rad)."""
     return float(CFG.linkage.rocker_angles(theta, CFG.branch)[0 if CFG.driven_joint == CFG.gamma_joint else 1])
@@ -205,6 +220,10 @@ class Visit:
     truth: JointState  # the plant's first message at rest after the command was reached
     count: float  # rad: the drive's count (the broadcaster's driven joint) then
     tracking: float  # rad: the largest |true theta - planned theta| during the move, by the truth's stamps
+    planned_speed: float  # rad/s at the motor: the largest |planned velocity| x ratio, by the truth's stamps
+    rotor_speed: float  # rad/s: the largest |velocity| of the truth's rotor during the move
+    rotor_mean: float  # rad/s: the largest mean |speed| of the rotor over WINDOW s within the move
+    rotor_torque: float  # N m at the motor: the largest |stepper torque| of the truth during the move
 
     @property
     def true_theta(self) -> float:
@@ -258,14 +277,22 @@ def sweep(stack: Stack) -> Sweep:
             start = len(stack.truth)
             rest = stack.truth.wait_match(at_rest, TIMEOUT, start=start)
             count = stack.measured.messages[-1].position[0]
-            worst = 0.0
+            worst = planned = rotor_speed = rotor_torque = 0.0
+            rotor: list[tuple[int, float]] = []  # (stamp ns, rad) of the truth's rotor during the move
             if motion is not None:
                 end = motion.start_ns + round(motion.duration * 1e9)
                 for m in stack.truth.messages[truths:start]:
                     stamp = stamp_ns(m)
                     if motion.start_ns <= stamp <= end:
-                        worst = max(worst, abs(theta_of(m) - core_theta(motion.state_at(stamp).position)))
-            out.visits.append(Visit(theta, published, rest, count, worst))
+                        state = motion.state_at(stamp)
+                        worst = max(worst, abs(theta_of(m) - core_theta(state.position)))
+                        planned = max(planned, abs(state.velocity) * RATIO)
+                        i = m.name.index(MOTOR)
+                        rotor.append((stamp, m.position[i]))
+                        rotor_speed, rotor_torque = max(rotor_speed, abs(m.velocity[i])), max(rotor_torque,
+                                                                                               abs(m.effort[i]))
+            out.visits.append(Visit(theta, published, rest, count, worst, planned, rotor_speed, window_speed(rotor),
+                                    rotor_torque))
     finally:
         del check.slip.update
         out.slip_stops = check.slip.stops - stops
@@ -324,6 +351,29 @@ def test_the_true_angle_rests_within_the_backlash_of_the_command(sweep: Sweep) -
         assert cycles == 0, lines[-1]
         assert abs(error) <= bound, lines[-1]
     print('\n' + '\n'.join(lines))
+
+
+def test_the_sweep_stays_within_the_motor_s_limits(sweep: Sweep) -> None:
+    # What reaches the motor: the node plans within motor_speed_limit, and the controller manager holds its commands
+    # to the robot model's velocity limit (the same, at the joint) per update. The rotor, unslipped, stays within a
+    # quarter electrical cycle of its field, so over WINDOW s its mean speed exceeds the limit by at most one update's
+    # travel more and half a cycle of lag change: v (1 + T/W) + (pi / teeth) / W, T the manager's update period.
+    # The rotor's own peak speed (it rings about its field on the compliant reducer) and the stepper's torque (its
+    # field's pull plus its damping; the pull-out bounds the pull alone) are printed, not bounded: on the two moves
+    # with the most load (to theta_max and back to level) the stepper works at about its pull-out.
+    manager = yaml.safe_load((REPO / CONTROLLERS_FILE).read_text(encoding='utf-8'))['/**/controller_manager']
+    period = 1.0 / manager['ros__parameters']['update_rate']  # s
+    bound = CFG.motor_speed_limit * (1.0 + period / WINDOW) + (math.pi / TEETH) / WINDOW
+    lines = []
+    for v in sweep.visits:
+        lines.append(f'theta {v.theta:+.6f} rad: planned {v.planned_speed:.4f} rad/s, rotor mean over {WINDOW} s '
+                     f'{v.rotor_mean:.4f} rad/s (bound {bound:.4f}; motor_speed_limit {CFG.motor_speed_limit:.4f}), '
+                     f'peak {v.rotor_speed:.4f}; stepper {v.rotor_torque:.3e} N m of pull-out {PULL_OUT:g} '
+                     f'({v.rotor_torque / PULL_OUT:.1%}); tracking {v.tracking:.3e} rad of theta')
+    print('\n' + '\n'.join(lines))
+    for v, line in zip(sweep.visits, lines, strict=True):
+        assert v.planned_speed <= CFG.motor_speed_limit * (1 + 1e-12), line
+        assert 0.0 < v.rotor_mean <= bound, line
 
 
 #: The gust: a steady wind of three design loads (N m on the antenna, + theta), against the motion or, reversed, with
