@@ -28,6 +28,7 @@ from fourbar_ros.core.errors import one_line
 from fourbar_ros.drive.backend import DriveBackend, SimulatedBackend
 from fourbar_ros.drive.rules import ACTIVE, WATCHDOG_TIMEOUT_S, Activation, DriveLimits, DriveRules
 from fourbar_ros.motion.limits import JointLimits
+from fourbar_ros.rules.diagnostics import status_name
 from fourbar_ros.runtime.executor import MessageInfoCallback
 from fourbar_ros.runtime.problem_log import ProblemLog
 
@@ -210,7 +211,7 @@ class DriveBridge(Node):
     def diagnostic_status(self) -> DiagnosticStatus:
         """The bridge's status: WARN with no reading yet or held, values its counters."""
         status = DiagnosticStatus()
-        status.name = f'{NODE_NAME}: drive'
+        status.name = status_name(self.get_fully_qualified_name(), 'drive')
         status.hardware_id = self.joint
         status.message = self.rules.status
         status.level = DiagnosticStatus.WARN if self.rules.report is None or self.rules.held else DiagnosticStatus.OK

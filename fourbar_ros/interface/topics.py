@@ -215,8 +215,8 @@ _COMMAND_IN = Endpoint(COMMAND, Direction.IN, 'commanded antenna angle theta, ra
 _TORQUE_OUT = Endpoint(INPUT_TORQUE, Direction.OUT, 'the torque the driven rocker needs for the commanded angle, '
                        'N m, + in the sense of increasing rocker angle; once per served command, never republished')
 _STATUS_OUT = (
-    Endpoint(DIAGNOSTICS, Direction.OUT, 'one status `<node name>: antenna tilt linkage` every '
-             '`diagnostics_period` s, keys in the diagnostics reference'),
+    Endpoint(DIAGNOSTICS, Direction.OUT, 'one status `<node>: antenna tilt linkage` (`<node>` the node\'s full name, '
+             'no leading slash) every `diagnostics_period` s, keys in the diagnostics reference'),
     Endpoint(MARKERS, Direction.OUT, 'frame AD, rockers, coupler BC, joints and antenna arrow in `frame_id` (ns '
              '`fourbar`, ids 0-4), at most every `marker_period` s, when subscribed and changed'),
 )

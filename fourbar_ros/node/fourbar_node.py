@@ -54,7 +54,7 @@ from fourbar_ros.node.param_descriptors import declarations
 from fourbar_ros.node.qos import qos
 from fourbar_ros.node.timers import periodic_timer
 from fourbar_ros.node.trajectory_goals import follow_joint_trajectory
-from fourbar_ros.rules.diagnostics import DIAGNOSTIC_TASK, Counters, Level, SequenceGaps, command_rate, summarize
+from fourbar_ros.rules.diagnostics import Counters, Level, SequenceGaps, command_rate, status_name, summarize
 from fourbar_ros.rules.marker_geometry import linkage_points
 from fourbar_ros.rules.outgoing import actuation_contract, check_replan_tolerance
 from fourbar_ros.rules.outputs import JointStateRule
@@ -440,9 +440,8 @@ class FourBarNode(Node):
         values += self.guard.diagnostic_values()
         if self.guard.total and level < Level.WARN:
             level, message = Level.WARN, f'{self.guard.total} callback errors (see callback_errors_<callback>)'
-        # Named as diagnostic_updater names a task's status: '<node name>: <task>' (no namespace, no leading slash).
         return DiagnosticStatus(
-            level=bytes([int(level)]), name=f'{self.get_name()}: {DIAGNOSTIC_TASK}',
+            level=bytes([int(level)]), name=status_name(self.get_fully_qualified_name()),
             message=message, hardware_id=self._config.hardware_id,
             values=[KeyValue(key=k, value=v) for k, v in values])
 

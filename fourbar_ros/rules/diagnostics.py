@@ -165,8 +165,15 @@ def summarize(cfg: AntennaConfig, last: Decision | None, last_command: float | N
     return Summary(level, message, values)
 
 
-#: The task part of the status name, ``<node name>: <task>`` as diagnostic_updater names a task's status.
+#: The task part of fourbar_node's status name.
 DIAGNOSTIC_TASK = 'antenna tilt linkage'
+
+
+def status_name(node: str, task: str = DIAGNOSTIC_TASK) -> str:
+    """A status's name from the node's fully qualified name: diagnostic_updater's ``<node name>: <task>`` with the
+    namespace before it and no leading slash (``fourbar_node: <task>`` in /, ``tilt/fourbar_node: <task>`` in
+    /tilt), so that two axes' statuses stay apart on one /diagnostics."""
+    return f'{node.lstrip("/")}: {task}'
 
 
 def command_rate(commands: int, seconds: float) -> list[tuple[str, str]]:

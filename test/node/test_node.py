@@ -15,6 +15,7 @@ from typing import Any
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from sensor_msgs.msg import JointState
@@ -27,6 +28,7 @@ from fourbar_ros.config.antenna_config import AntennaConfig, load_config
 from fourbar_ros.core.antenna import LinkageState
 from fourbar_ros.core.transforms import antenna_joint_positions
 from fourbar_ros.node.fourbar_node import FourBarNode
+from fourbar_ros.rules.diagnostics import status_name
 
 pytestmark = pytest.mark.ros
 
@@ -316,11 +318,22 @@ def test_outputs_nobody_subscribes_to_are_not_computed(ros: RosSession, make_rig
     assert node.counters.diagnostics_published == 0
 
 
+@pytest.mark.parametrize(('namespace', 'expected'), [('/', 'fourbar_node: task'), ('/tilt', 'tilt/fourbar_node: task'),
+                                                     ('/robot/tilt', 'robot/tilt/fourbar_node: task')])
+def test_a_status_name_is_diagnostic_updaters_with_the_namespace_before_it(ros: RosSession, namespace: str,
+                                                                             expected: str) -> None:
+    node = Node('fourbar_node', namespace=namespace, context=ros.context)
+    try:
+        assert status_name(node.get_fully_qualified_name(), 'task') == expected
+    finally:
+        node.destroy_node()
+
+
 def test_diagnostics(ros: RosSession, make_rig: Any) -> None:
     rig = make_rig(outputs=('joint_states',))
     diag = ros.collect(DiagnosticArray, '/diagnostics', 10)
     try:
-        name = 'fourbar_node: antenna tilt linkage'  # diagnostic_updater's form: node name, no namespace
+        name = f'{rig.ns[1:]}/fourbar_node: antenna tilt linkage'  # the node's full name, no leading slash
         received = rig.received()
         rig.send([0.02, 0.5])
 

@@ -64,7 +64,7 @@ class Rig:
     def status(self, predicate: Any = lambda s, v: True) -> tuple[DiagnosticStatus, dict[str, str]]:
         """The next of this node's statuses stamped from now on (so it counts every command answered before now,
         not one built earlier that is still on its way) whose (status, values) satisfy predicate."""
-        name = 'fourbar_node: antenna tilt linkage'
+        name = f'{self.ns[1:]}/fourbar_node: antenna tilt linkage'
         start = len(self.diag)
         since = time.time_ns()  # the node's clock is the system clock of this host
 
@@ -226,9 +226,9 @@ def test_a_scripts_first_command_is_served(ros: RosSession, executor: str, repea
     # What a script does: a publisher, wait until it sees the node's subscription, publish one command. Discovery
     # may match the publisher to the node before the node's subscription has matched the publisher; the reliable
     # subscription then gets the sample resent. Each time a fresh node; the answer read from its diagnostics.
-    name = 'fourbar_node: antenna tilt linkage'
     for k in range(repeats):
         ns = f'/first_{executor}_{k}'
+        name = f'{ns[1:]}/fourbar_node: antenna tilt linkage'
         diag: Collector[Any] = ros.collect(DiagnosticArray, '/diagnostics', 10)
         proc = NodeProcess(['--ros-args', '--params-file', str(YAML), '-r', f'__ns:={ns}',
                             '-p', 'diagnostics_period:=0.1'], ros.env(**{EXECUTOR_ENV: executor}))
@@ -238,7 +238,7 @@ def test_a_scripts_first_command_is_served(ros: RosSession, executor: str, repea
             ros.wait_subscribers(pub)
             pub.publish(Float64(data=0.01))
 
-            def served(msg: DiagnosticArray) -> bool:  # the previous nodes are stopped: the statuses are this one's
+            def served(msg: DiagnosticArray, name: str = name) -> bool:  # only this node's status
                 return any(s.name == name and {kv.key: kv.value for kv in s.values}.get('commands_received') == '1'
                            for s in msg.status)
 

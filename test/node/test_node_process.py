@@ -155,7 +155,7 @@ def test_diagnostics_from_the_process_show_skipped_outputs(ros: RosSession) -> N
         for c in (0.01, 0.02, math.inf):
             pub.publish(Float64(data=c))
         js.wait_count(2)
-        name = 'fourbar_node: antenna tilt linkage'
+        name = 'proc_diag/fourbar_node: antenna tilt linkage'
 
         def has_inf(msg: DiagnosticArray) -> bool:
             return any(s.name == name and any(kv.key == 'commands_rejected_not_finite' and kv.value == '1'

@@ -28,6 +28,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
+from fourbar_ros.rules.diagnostics import status_name
 from launch import LaunchDescription
 
 NAMESPACE = 'lt'
@@ -66,7 +67,7 @@ class TestCommandIsAnswered(unittest.TestCase):
 
         def on_diagnostics(msg: Any) -> None:
             for entry in msg.status:
-                if entry.name.startswith('fourbar_node:'):
+                if entry.name == status_name(f'/{NAMESPACE}/fourbar_node'):
                     status.clear()
                     status.update((kv.key, kv.value) for kv in entry.values)
 

@@ -36,6 +36,7 @@ from support.ros_cli_support import (  # psutil: with ros2cli
 
 from fourbar_ros.config.antenna_config import load_config
 from fourbar_ros.config.robot_model import joint_limits
+from fourbar_ros.rules.diagnostics import status_name
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -211,7 +212,7 @@ def _not_following(text: str) -> list[dict[str, Any]]:
     # only the node's own messages: the controller manager's carry multi-line strings the echo parser skips
     ours = '\n---'.join(c for c in chunks if 'drive_follows' in c)
     return [s for m in echoed_messages(ours) for s in m.get('status', [])
-            if s.get('name', '').startswith('fourbar_node')
+            if s.get('name', '') == status_name(f'/{NAMESPACE}/fourbar_node')
             and any(kv['key'] == 'drive_follows' and kv['value'].startswith('no:') for kv in s.get('values', []))]
 
 

@@ -134,7 +134,7 @@ def test_a_wind_on_the_topic_slips_the_truth_and_the_count_stays(drive: Drive, r
     state = drive.states.wait_match(lambda m: True, TIMEOUT, start=start + 1)
     assert list(state.position) == [count]
     diagnostics = ros.collect(DiagnosticArray, '/diagnostics')
-    status = diagnostics.wait_match(lambda m: any(s.name == f'{NODE_NAME}: drive' and
+    status = diagnostics.wait_match(lambda m: any(s.name == f'{NS[1:]}/{NODE_NAME}: drive' and
                                                   any(kv.key == 'slipped_cycles' for kv in s.values)
                                                   for s in m.status), TIMEOUT)
     values = {kv.key: kv.value for s in status.status for kv in s.values}

@@ -26,6 +26,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
+from fourbar_ros.rules.diagnostics import status_name
+
 DISCOVERY_S = 60.0
 JOINT = 'rocker_ab_joint'
 
@@ -35,11 +37,12 @@ def _probe(node: Node, steps_path: str, out_path: str) -> int:
     status: dict[str, Any] = {}
     measured: list[float] = []
     lock = threading.Lock()
+    ours = status_name(f'{node.get_namespace().rstrip("/")}/fourbar_node')  # this namespace's node
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for s in msg.status:
             values = {kv.key: kv.value for kv in s.values}
-            if s.name.startswith('fourbar_node') and 'goals_sent' in values:
+            if s.name == ours and 'goals_sent' in values:
                 with lock:
                     status.clear()
                     status.update(values, level=int.from_bytes(bytes(s.level), 'little'), message=s.message)

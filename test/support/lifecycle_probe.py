@@ -47,6 +47,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
+from fourbar_ros.rules.diagnostics import status_name
+
 DISCOVERY_S = 60.0
 SERVICE_S = 30.0
 JOINT = 'rocker_ab_joint'
@@ -62,14 +64,12 @@ def _probe(node: Node, namespace: str, steps_path: str, out_path: str) -> int:
     references: list[list[float]] = []
     lock = threading.Lock()
 
-    # /diagnostics is global and the status name carries no namespace: this namespace's node is the one following
-    # this namespace's controller manager (other launches may run beside it).
-    activity = f'/{namespace.strip("/")}/controller_manager/activity'
+    ours = status_name(f'/{namespace.strip("/")}/fourbar_node')  # this namespace's node (others may run beside it)
 
     def on_diagnostics(msg: DiagnosticArray) -> None:
         for s in msg.status:
             values = {kv.key: kv.value for kv in s.values}
-            if s.name.startswith('fourbar_node') and values.get('controller_activity') == activity:
+            if s.name == ours:
                 with lock:
                     status.clear()
                     status.update(values, message=s.message)

@@ -61,6 +61,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from fourbar_ros.interface.topics import ANTENNA_ANGLE, COMMAND, MEASURED_JOINT_STATES
 from fourbar_ros.node.qos import qos
+from fourbar_ros.rules.diagnostics import status_name
 
 NS = 1_000_000_000
 DISCOVERY_S = 60.0
@@ -99,6 +100,7 @@ class _Recorder:
         self.pending: list[JointState] = []  # to the node before the next state relayed
         self.fed: list[dict[str, Any]] = []
         self.status: dict[str, str] = {}
+        self.status_name = status_name(f'{node.get_namespace().rstrip("/")}/{NODE}')
         self.angles = 0  # the node's antenna angles received
         #: relay the states stamped up to this (ns); None: all
         self.relay_until: int | None = None
@@ -184,7 +186,7 @@ class _Recorder:
 
     def _on_diagnostics(self, msg: DiagnosticArray) -> None:
         for s in msg.status:
-            if s.name.startswith(f'{NODE}:'):
+            if s.name == self.status_name:
                 with self.lock:
                     self.status = {kv.key: kv.value for kv in s.values}
 
