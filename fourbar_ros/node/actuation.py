@@ -82,6 +82,7 @@ class Actuation:
         self._clock: Any = node.get_clock()
         get_logger: Callable[[], Any] = node.get_logger  # rclpy's logger accessor is unannotated
         self._info: Callable[..., object] = get_logger().info
+        self._warn: Callable[..., object] = get_logger().warning
         self._told_not_followed = False
         self.mode = cfg.mode
         self.contract = contract
@@ -120,6 +121,12 @@ class Actuation:
         else:
             raise ValueError(f'mode {self.mode!r} is not an actuator mode')
         controller = cfg.forward_controller if self.mode == Mode.FORWARD.value else cfg.trajectory_controller
+        #: the controller's command topic (resolved), watched for other senders (the action interface's included: a
+        #: bag of a full recording played back publishes it straight to the controller)
+        self.command_topic = node.resolve_topic_name((forward_topic(controller) if self.mode == Mode.FORWARD.value
+                                                      else trajectory_topic(controller)).name)
+        self._node = node
+        self.other_senders: list[str] = []
         self.watch = ControllerWatch(node, cfg.controller_manager, controller, problems, self._on_readiness)
         periodic_timer(node, FATE_CHECK_S, problems.guard.wrap('command_fate_timer', self._on_fate_timer))
         wrap = problems.guard.wrap
@@ -471,19 +478,36 @@ class Actuation:
 
     # ------------------------------------------------------------------ diagnostics
 
+    def check_senders(self) -> list[str]:
+        """Other nodes publishing on ``command_topic`` (their full names), logged as a warning when they change."""
+        me = (self._node.get_name(), self._node.get_namespace())
+        senders = sorted(f'{i.node_namespace.rstrip("/")}/{i.node_name}'
+                         for i in self._node.get_publishers_info_by_topic(self.command_topic)
+                         if (i.node_name, i.node_namespace) != me)
+        if senders and senders != self.other_senders:
+            self._warn(f'{", ".join(senders)} publish on {self.command_topic}: what they send reaches the drive '
+                       f'without this node (a bag of a full recording played back? play only the command topic)')
+        self.other_senders = senders
+        return senders
+
     def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
         """(level, message, key/value pairs) for the node's status: the mode, the controller's readiness and the
-        current command's fate, the counters (and the goals', action interface), the halt. ERROR while the drive does
-        not follow; WARN while halted, while a command is held, or when the latest one was dropped or interrupted."""
+        current command's fate, the counters (and the goals', action interface), the halt, other senders to the
+        controller. ERROR while the drive does not follow; WARN while another node sends to the controller, while
+        halted, while a command is held, or when the latest one was dropped or interrupted."""
+        senders = self.check_senders()
         values = [('mode', self.mode), ('controller', self.watch.controller),
                   ('controller_activity', self.watch.topic or f'not followed: {self.watch.why_not_followed}'),
                   *self.fates.values(), *((k, str(v)) for k, v in self.counters.as_dict().items())]
         if self.goals is not None:
             values += self.goals.diagnostic_values()
         values.append(('drive_follows', 'no: ' + self.not_following if self.not_following else 'yes'))
+        values.append(('other_senders', ', '.join(senders) or 'none'))
         values += self.halt.values(self._now_ns())
         if self.not_following:
             return Level.ERROR, f'{self.not_following}; likely: {LIKELY_CAUSES}', values
+        if senders:
+            return Level.WARN, f'{", ".join(senders)} also send to the controller on {self.command_topic}', values
         if self.halt.why:
             return Level.WARN, f'halted {self.halt.since(self._now_ns())}: call ~/resume', values
         cmd = self.fates.current

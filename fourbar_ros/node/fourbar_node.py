@@ -448,6 +448,8 @@ class FourBarNode(Node):
     def _on_diagnostics_timer(self) -> None:
         if self._diag_pub.get_subscription_count() == 0:
             self.counters.diagnostics_skipped += 1
+            if self.actuation is not None:
+                self.actuation.check_senders()  # logged with nobody on /diagnostics too
             return
         self.counters.diagnostics_published += 1
         msg = DiagnosticArray(status=[self.diagnostic_status()])

@@ -35,6 +35,7 @@ from fourbar_ros.motion.trajectory import AntennaTrajectory, DrivenTrajectory
 from fourbar_ros.node.fourbar_node import FourBarNode
 from fourbar_ros.node.sim_actuator import SimActuator
 from fourbar_ros.rules.antenna_trajectory import TrajectoryProblem
+from fourbar_ros.rules.diagnostics import Level
 from fourbar_ros.rules.takeover import ARRIVAL_MARGIN_S, Start, motion_start
 
 pytestmark = pytest.mark.ros
@@ -484,3 +485,31 @@ def test_forward_mode_streams_an_antenna_trajectory(fwd: Pair) -> None:
     for lo, hi in ((q_of(0.0), q_of(0.01)), (q_of(0.01), q_of(0.015))):
         assert any(min(lo, hi) < q < max(lo, hi) for q in streamed), (lo, hi, streamed)
     assert fwd.actuation.counters.trajectories_received >= 1
+
+
+@pytest.mark.parametrize(('mode', 'msg_type', 'topic'), [
+    ('trajectory', JointTrajectory, 'joint_trajectory_controller/joint_trajectory'),
+    ('forward', Float64MultiArray, 'forward_position_controller/commands')])
+def test_another_sender_to_the_controller_is_a_warning_until_it_goes(request: pytest.FixtureRequest, ros: RosSession,
+                                                                      mode: str, msg_type: Any, topic: str) -> None:
+    # A bag of a full recording played back publishes the node's own output: nothing sent here, the publisher's
+    # presence is what the node reports (its graph, both sides of discovery waited for).
+    pair: Pair = request.getfixturevalue('traj' if mode == 'trajectory' else 'fwd')
+
+    def status() -> tuple[Level, str, dict[str, str]]:  # called with the executor paused (ros.wait_for, paused)
+        level, message, values = pair.actuation.diagnostics()
+        return level, message, dict(values)
+
+    with ros.paused():
+        first = status()
+    assert first[2]['other_senders'] == 'none', first
+    publisher = ros.publisher(msg_type, f'{pair.ns}/{topic}', 10)
+    try:
+        ros.wait_for(lambda: status()[2]['other_senders'] != 'none', what=f'the node seeing a second sender on {topic}')
+        with ros.paused():
+            level, message, values = status()
+        assert level is Level.WARN and values['other_senders'] == ros.node.get_fully_qualified_name(), (level, values)
+        assert message.endswith(f'also send to the controller on {pair.ns}/{topic}'), message
+    finally:
+        ros.destroy(publisher)
+    ros.wait_for(lambda: status()[2]['other_senders'] == 'none', what='the node seeing the second sender gone')
