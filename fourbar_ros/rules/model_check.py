@@ -220,7 +220,8 @@ class SlipStop:
     A reading at ``t`` looks at the readings stamped in [t - slip_stop_time, t]: with at least two there and one
     before (the sensor read across the whole time), their mean mismatch beyond ``slip_stop_mismatch`` (strictly) is
     a STOP; once stopped, a mean within it over such a window is CLEARED. So when every reading from t1 on is beyond
-    the threshold on one side, the stop comes at the first reading stamped at or after t1 + slip_stop_time; while
+    the threshold on one side, the stop comes at the first reading stamped at or after t1 + slip_stop_time with
+    another in the slip_stop_time before it (readings closer than slip_stop_time: the first at or after); while
     every reading is within it, never. A reading stamped at or before the latest taken, by at most slip_stop_time,
     is late and left out (``late``); one stamped further back is a clock that went back (a replayed or restarted
     clock): the window starts afresh from it (``restarts``), a stop in force stays. ``slip_stop_mismatch`` 0 turns
