@@ -168,6 +168,11 @@ ACTIVITY_TYPE = 'controller_manager_msgs/msg/ControllerManagerActivity'
 ACTIVITY_DEPTH = 20
 
 
+#: Every node's log (rcl_interfaces/msg/Log), where the controller manager says why it deactivated a controller.
+#: Volatile: rcl publishes it transient local, and a late joiner needs no old lines.
+ROSOUT = Topic('/rosout', 'rcl_interfaces/msg/Log', 100)
+
+
 def activity_topic(manager: str) -> Topic:
     """The controller manager's lifecycle states of its controllers and hardware (``<manager>/activity``, reliable,
     transient local), as the actuator modes read them."""
@@ -262,6 +267,13 @@ def activity_endpoint(manager: str) -> Endpoint:
                     optional='controller_manager_msgs installed and `controller_manager` not empty')
 
 
+def manager_log_endpoint() -> Endpoint:
+    """The actuator modes' read of the controller manager's error lines (rules.manager_errors)."""
+    return Endpoint(ROSOUT, Direction.IN, 'the log: the controller manager\'s ERROR lines naming the controller the '
+                    'node feeds, the reason it gives when the manager deactivated it (`controller_deactivated`)',
+                    optional='controller_manager_msgs installed and `controller_manager` not empty')
+
+
 def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTROLLER,
               forward_controller: str = DEFAULT_FORWARD_CONTROLLER,
               antenna_sensor_type: str = SENSOR_NONE, controller_manager: str = '') -> tuple[Endpoint, ...]:
@@ -283,7 +295,7 @@ def endpoints(mode: Mode, trajectory_controller: str = DEFAULT_TRAJECTORY_CONTRO
         out = Endpoint(forward_topic(forward_controller), Direction.OUT, 'driven-joint setpoints for '
                        'forward_command_controller: one position rad per message, at `control_rate` while moving')
     sensor = sensor_endpoint(antenna_sensor_type)
-    watch = (activity_endpoint(controller_manager),) if controller_manager else ()
+    watch = (activity_endpoint(controller_manager), manager_log_endpoint()) if controller_manager else ()
     return (_COMMAND_IN, *_MEASURED, *((sensor,) if sensor is not None else ()), *watch, out, _TORQUE_OUT,
             *_STATUS_OUT)
 

@@ -493,8 +493,9 @@ class Actuation:
     def diagnostics(self) -> tuple[Level, str, list[tuple[str, str]]]:
         """(level, message, key/value pairs) for the node's status: the mode, the controller's readiness and the
         current command's fate, the counters (and the goals', action interface), the halt, other senders to the
-        controller. ERROR while the drive does not follow; WARN while another node sends to the controller, while
-        halted, while a command is held, or when the latest one was dropped or interrupted."""
+        controller. ERROR while the controller manager has deactivated the controller (with its reason), while the
+        drive does not follow; WARN while another node sends to the controller, while halted, while a command is
+        held, or when the latest one was dropped or interrupted."""
         senders = self.check_senders()
         values = [('mode', self.mode), ('controller', self.watch.controller),
                   ('controller_activity', self.watch.topic or f'not followed: {self.watch.why_not_followed}'),
@@ -502,8 +503,13 @@ class Actuation:
         if self.goals is not None:
             values += self.goals.diagnostic_values()
         values.append(('drive_follows', 'no: ' + self.not_following if self.not_following else 'yes'))
+        deactivated = self.watch.deactivation()
+        values.append(('controller_deactivated', deactivated or 'no'))
         values.append(('other_senders', ', '.join(senders) or 'none'))
         values += self.halt.values(self._now_ns())
+        if deactivated:
+            return Level.ERROR, (f'controller {self.watch.controller} deactivated by the controller manager: '
+                                 f'{deactivated}'), values
         if self.not_following:
             return Level.ERROR, f'{self.not_following}; likely: {LIKELY_CAUSES}', values
         if senders:

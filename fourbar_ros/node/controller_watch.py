@@ -2,23 +2,26 @@
 
 The rclpy side of ``fourbar_ros.rules.command_fate.readiness``: the manager publishes its controllers' and hardware
 components' lifecycle states there (reliable, transient local: the latest on connecting); a manager whose
-publisher has gone, or has a successor, is gone. Needs controller_manager_msgs; without it the controller is not
-followed."""
+publisher has gone, or has a successor, is gone; its ERROR lines on /rosout say why it deactivated the controller
+(``rules.manager_errors``). Needs controller_manager_msgs; without it the controller is not followed."""
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from typing import Any
 
+from rcl_interfaces.msg import Log
 from rclpy.clock import Clock
 from rclpy.clock_type import ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from fourbar_ros.core.errors import one_line
-from fourbar_ros.interface.topics import activity_topic
+from fourbar_ros.interface.topics import ROSOUT, activity_topic
 from fourbar_ros.node.qos import qos
 from fourbar_ros.rules.command_fate import Readiness, readiness
+from fourbar_ros.rules.manager_errors import ManagerErrors, manager_logger
 from fourbar_ros.runtime.problem_log import ProblemLog
 
 #: Steady-clock period (s) of the check for a manager that has gone (its activity publisher unmatched).
@@ -55,6 +58,7 @@ class ControllerWatch:
         msg_type, why = activity_type() if manager else (None, 'the controller_manager parameter is empty')
         self.why_not_followed = why
         self.topic = ''
+        self.errors: ManagerErrors | None = None
         if self.why_not_followed:
             return
         self._node, self._gids = node, frozenset[bytes]()
@@ -67,13 +71,26 @@ class ControllerWatch:
         self._subscribe = subscribe
         self._sub = subscribe()
         self.topic = self._sub.topic_name
+        self.errors = ManagerErrors(manager_logger(self.topic.removesuffix('/activity')), controller)
+        node.create_subscription(Log, ROSOUT.name, problems.guard.wrap('sub_rosout', self._on_log), qos(ROSOUT))
         node.create_timer(GONE_CHECK_S, problems.guard.wrap('controller_manager_check', self._check_manager),
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _set(self, new: Readiness) -> None:
         if new is not self.readiness:
             self.readiness = new
+            if self.errors is not None:
+                self.errors.active(new in (Readiness.ACTIVE, Readiness.HARDWARE_INACTIVE), time.monotonic_ns())
             self._on_change(new)
+
+    def _on_log(self, msg: Log) -> None:
+        assert self.errors is not None
+        self.errors.line(msg.name, msg.level, msg.msg, time.monotonic_ns())
+
+    def deactivation(self) -> str:
+        """While the controller is not active: what its manager logged as the reason it deactivated it ('' for
+        nothing: switched off on request, or not followed)."""
+        return self.errors.reason() if self.errors is not None else ''
 
     def _on_activity(self, msg: Any) -> None:
         self._seen = True

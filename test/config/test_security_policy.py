@@ -32,6 +32,7 @@ from fourbar_ros.interface.topics import (
     DEFAULT_CONTROLLER_MANAGER,
     MEASURED_JOINT_STATES,
     NODE_NAME,
+    ROSOUT,
     Direction,
     Mode,
     activity_topic,
@@ -180,6 +181,8 @@ def test_the_nodes_use_exactly_what_their_enclave_allows(created: tuple[Mode | N
     if activity_type()[0] is None:  # without controller_manager_msgs neither watches nor says a manager's activity
         for k in ('publish', 'subscribe'):
             allowed[k].discard(activity_topic(DEFAULT_CONTROLLER_MANAGER).name)
+        if mode is not None:  # nor reads the manager's log
+            allowed['subscribe'].discard(ROSOUT.name)
     want = as_graph(allowed, ns, name)
     del want['request']
     assert _used(node) == want

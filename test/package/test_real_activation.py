@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -204,16 +204,21 @@ def test_activation_holds_the_measured_position_not_the_last_command(bringup: Br
         f', measured {MEASURED!r}, last command {last!r}')
 
 
-def _not_following(text: str) -> list[dict[str, Any]]:
-    """The node's statuses saying the drive does not follow, in the last few kB of a /diagnostics echo (parsed
-    from a message boundary on: the echo's YAML folds long strings over lines)."""
+def _statuses(text: str, key: str, value: Callable[[str], bool], node: str = 'fourbar_node') -> list[dict[str, Any]]:
+    """The statuses of ``node`` (in NAMESPACE) whose ``key`` has a value for which ``value`` holds, in the last few
+    kB of a /diagnostics echo (parsed from a message boundary on: the echo's YAML folds long strings over lines)."""
     tail = text[-30000:]
     chunks = tail.split('\n---')[1:]  # the first may have been cut
     # only the node's own messages: the controller manager's carry multi-line strings the echo parser skips
-    ours = '\n---'.join(c for c in chunks if 'drive_follows' in c)
+    ours = '\n---'.join(c for c in chunks if key in c)
     return [s for m in echoed_messages(ours) for s in m.get('status', [])
-            if s.get('name', '') == status_name(f'/{NAMESPACE}/fourbar_node')
-            and any(kv['key'] == 'drive_follows' and kv['value'].startswith('no:') for kv in s.get('values', []))]
+            if s.get('name', '') == status_name(f'/{NAMESPACE}/{node}')
+            and any(kv['key'] == key and value(kv['value']) for kv in s.get('values', []))]
+
+
+def _not_following(text: str) -> list[dict[str, Any]]:
+    """The node's statuses saying the drive does not follow."""
+    return _statuses(text, 'drive_follows', lambda v: v.startswith('no:'))
 
 
 def test_a_drive_that_does_not_follow_is_an_error_and_its_command_is_not_resumed(bringup: Bringup) -> None:
@@ -254,3 +259,58 @@ def test_the_stop_commands_deactivate_the_controller_and_the_hardware(bringup: B
     assert 'inactive' in line, controllers
     hardware = _control(bringup, 'list_hardware_components')
     assert 'state: id=2 label=inactive' in hardware.split('name: fourbar_antenna_tilt', 1)[1], hardware
+
+
+def test_a_drive_read_outside_the_range_deactivates_the_controller_and_the_node_says_why(bringup: Bringup) -> None:
+    # After the stop: the hardware and the shipped trajectory controller activated again, and a second fourbar_node
+    # in trajectory mode (its command topic remapped away: it sends nothing) following that controller. A second
+    # stand-in drive reads the joint 0.1 rad below its lower limit, interleaved with the first one's MEASURED: the
+    # controller manager (enforce_command_limits) fails the controller's update and deactivates it, saying why only
+    # in its log; that node's status turns ERROR with the manager's lines. (The manager leaves the controller
+    # unconfigured; here a configure and an activation after it failed too, so this test comes last.)
+    env, cwd = bringup.cli.env, bringup.cli.cwd
+    cfg = load_config(REPO / 'config' / 'antenna.yaml')
+    outside = joint_limits(cfg)[cfg.driven_joint].lower - 0.1
+    jtc, name = 'joint_trajectory_controller', 'fourbar_node_jtc'
+    params = next(a for a in bringup.launch.cmd if a.startswith('params_file:=')).split(':=', 1)[1]
+    _control(bringup, 'set_hardware_component_state', 'fourbar_antenna_tilt', 'active')
+    _control(bringup, 'switch_controllers', '--activate', jtc)
+    diagnostics = Background([ros2(), 'topic', 'echo', '--full-length', '/diagnostics',
+                              'diagnostic_msgs/msg/DiagnosticArray'], env, cwd=cwd)  # strings past 128 characters
+    node = Background([ros2(), 'run', 'fourbar_ros', 'fourbar_node', '--ros-args', '-r', f'__ns:=/{NAMESPACE}',
+                       '-r', f'__node:={name}', '--params-file', params, '-p', 'mode:=trajectory',
+                       '-r', 'antenna_angle_cmd:=unused_cmd',
+                       '-r', 'measured_joint_states:=joint_state_broadcaster/joint_states'], env, cwd=cwd)
+    fault = None
+    try:
+        diagnostics.wait_output(lambda t: node.proc.poll() is not None or bool(
+            _statuses(t, 'controller_state', lambda v: v == 'active', name)),
+            f'{name} following the active {jtc}', timeout=60.0)
+        assert node.proc.poll() is None, node.output()[-3000:]
+        fault = Background([ros2(), 'topic', 'pub', '-r', '50', STATES, 'sensor_msgs/msg/JointState',
+                            f'{{name: [rocker_ab_joint], position: [{outside!r}], velocity: [0.0], effort: [0.0]}}'],
+                           env, cwd=cwd)
+        try:
+            deactivated = diagnostics.wait_output(
+                lambda t: bool(_statuses(t, 'controller_deactivated', lambda v: v != 'no', name)),
+                'the node saying the controller manager deactivated the controller', timeout=60.0)
+        except AssertionError:
+            seen = [{kv['key']: kv['value'] for kv in s['values'] if kv['key'].startswith('controller')}
+                    for s in _statuses(diagnostics.output(), 'controller_state', lambda v: True, name)[-2:]]
+            manager = [x for x in bringup.launch.output().splitlines() if '.controller_manager]' in x]
+            raise AssertionError(f'the node said {seen}; the controller manager logged {manager[-8:]}') from None
+        status = _statuses(deactivated, 'controller_deactivated', lambda v: v != 'no', name)[-1]
+        listed = _control(bringup, 'list_controllers')
+        assert node.interrupt(group=True) == 0, node.output()[-3000:]
+    finally:
+        for process in (fault, node, diagnostics):
+            if process is not None:
+                process.kill()
+    values = {kv['key']: kv['value'] for kv in status['values']}
+    line = next(x for x in listed.splitlines() if x.startswith(jtc))
+    assert line.split()[-1] in ('inactive', 'unconfigured'), listed
+    assert values['controller_state'] == 'inactive', values
+    reason = values['controller_deactivated']
+    assert f"while updating controller '{jtc}'" in reason and 'out of bounds' in reason, reason
+    assert status['message'].startswith(f'controller {jtc} deactivated by the controller manager: '), status
+    assert status['level'] == '\x02', f'level {status["level"]!r} (ERROR is 2): {status}'
